@@ -1,0 +1,1 @@
+"""Sub-commands of ``hikbench``; see ``bench.cli``."""

@@ -1,0 +1,43 @@
+"""``hikbench list solvers|families|suites|robots``."""
+
+from __future__ import annotations
+
+import importlib
+
+from problems.errors import HikbenchError
+
+HELP = "list solvers, problem families, suites or robots"
+
+# what -> "module:function" returning rows of (name, description)
+PROVIDERS: dict[str, str] = {
+    "solvers": "bench.commands.list_:_solvers",
+}
+
+
+def add_arguments(p) -> None:
+    p.add_argument("what", help="one of: " + ", ".join(PROVIDERS))
+
+
+def _solvers():
+    from solvers import registry
+
+    rows = []
+    for name, info in registry.available().items():
+        caps = ", ".join(c for c, on in (("inequalities", info.supports_inequalities),
+                                          ("warm start", info.supports_warm_start),
+                                          ("non-strict", not info.strict)) if on)
+        rows.append((name, info.description + (f" [{caps}]" if caps else "")))
+    for name, hint in registry.missing().items():
+        rows.append((name, f"(not installed) {hint}"))
+    return rows
+
+
+def run(args) -> int:
+    if args.what not in PROVIDERS:
+        raise HikbenchError(f"cannot list {args.what!r}: expected one of {', '.join(PROVIDERS)}")
+    modname, func = PROVIDERS[args.what].split(":")
+    rows = getattr(importlib.import_module(modname), func)()
+    width = max((len(r[0]) for r in rows), default=0)
+    for row in rows:
+        print(f"{row[0]:<{width}}  " + "  ".join(str(c) for c in row[1:]))
+    return 0

@@ -1,0 +1,75 @@
+"""``hikbench solve FILE --solver NAME [--repeat R] [--warm] [--json]``."""
+
+from __future__ import annotations
+
+import json
+import math
+
+from problems.errors import HikbenchError
+from problems.files import load
+from problems.verify import level_norms
+from solvers import registry
+
+HELP = "solve one problem file with one solver and print the result"
+
+
+def add_arguments(p) -> None:
+    p.add_argument("file", help="problem file (.npz or SOTH text)")
+    p.add_argument("--solver", default="reference", help="solver name (see `hikbench list solvers`)")
+    p.add_argument("--repeat", type=int, default=1, help="timed repetitions (default 1)")
+    p.add_argument("--warm", action="store_true",
+                   help="time re-solves on one solver object that already solved the problem once")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                   help="solver option (repeatable); VALUE is parsed as JSON when it can be")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+
+
+def parse_options(items: list[str]) -> dict:
+    """``["a=1", "b=osqp"]`` -> ``{"a": 1, "b": "osqp"}``."""
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key:
+            raise HikbenchError(f"--option {item!r}: expected KEY=VALUE")
+        try:
+            out[key] = json.loads(value)
+        except json.JSONDecodeError:
+            out[key] = value
+    return out
+
+
+def _finite_or_none(v: float):
+    return v if math.isfinite(v) else None
+
+
+def run(args) -> int:
+    from bench.timing import time_solves
+
+    if args.repeat < 1:
+        raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
+    h = load(args.file)
+    options = parse_options(args.option)
+    registry.create(args.solver, **options)  # validate name and options before timing
+    timing = time_solves(lambda: registry.create(args.solver, **options), h, repeat=args.repeat,
+                         mode="warm" if args.warm else "cold")
+    res = timing.result
+    norms = level_norms(h, res.x).tolist() if res.x is not None else None
+    out = {
+        "solver": args.solver,
+        "status": res.status,
+        "reason": res.reason,
+        "x": None if res.x is None else [_finite_or_none(float(v)) for v in res.x],
+        "level_norms": None if norms is None else [_finite_or_none(v) for v in norms],
+        "iterations": int(res.iterations),
+        "time_s": {"median": timing.median_s, "min": timing.min_s},
+    }
+    if args.json:
+        print(json.dumps(out))
+    else:
+        print(f"solver      {out['solver']}")
+        print(f"status      {out['status']}" + (f" ({res.reason})" if res.reason else ""))
+        print(f"level norms {norms}")
+        print(f"iterations  {out['iterations']}")
+        print(f"time        median {timing.median_s * 1e6:.1f} us, min {timing.min_s * 1e6:.1f} us "
+              f"over {args.repeat} {'warm' if args.warm else 'cold'} solve(s)")
+    return 0

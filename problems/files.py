@@ -1,0 +1,69 @@
+"""Problem files in ``.npz`` (DESIGN.md): ``A`` (rows x n, float64), ``lower``,
+``upper`` (rows,), ``level`` (rows, int, nondecreasing), ``n`` (scalar int);
+optional ``names`` (one per level) and ``x0``. Load/save round-trips exactly
+(``names`` is always written so that empty trailing levels survive).
+"""
+
+from __future__ import annotations
+
+import os
+import zipfile
+
+import numpy as np
+
+from problems.errors import ProblemFileError
+from problems.hierarchy import Hierarchy
+
+__all__ = ["save_npz", "load_npz", "load", "save"]
+
+_REQUIRED = ("A", "lower", "upper", "level", "n")
+
+
+def save_npz(h: Hierarchy, path: str | os.PathLike) -> None:
+    """Write h to ``path`` (``.npz``, uncompressed)."""
+    arrays = dict(A=h.A, lower=h.lower, upper=h.upper, level=h.level, n=np.int64(h.n),
+                  names=np.array(h.names, dtype=str))
+    if h.x0 is not None:
+        arrays["x0"] = h.x0
+    with open(path, "wb") as f:  # np.savez would append .npz to a str path without it
+        np.savez(f, **arrays)
+
+
+def load_npz(path: str | os.PathLike) -> Hierarchy:
+    """Read a hierarchy from an ``.npz`` file; raises ProblemFileError when the
+    file cannot be read or a key is missing, InvalidHierarchyError when its
+    content is not a valid hierarchy."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            missing = [k for k in _REQUIRED if k not in z.files]
+            if missing:
+                raise ProblemFileError(f"{path}: missing array(s) {missing}; expected {list(_REQUIRED)}")
+            data = {k: z[k] for k in z.files}
+    except (OSError, ValueError, zipfile.BadZipFile) as err:
+        raise ProblemFileError(f"{path}: cannot read as .npz problem file ({err})") from err
+    names = [str(s) for s in data["names"]] if "names" in data else None
+    if np.ndim(data["n"]) != 0:
+        raise ProblemFileError(f"{path}: n must be a scalar; got shape {np.shape(data['n'])}")
+    return Hierarchy(data["A"], data["lower"], data["upper"], data["level"], n=int(data["n"]),
+                     names=names, x0=data.get("x0"))
+
+
+def load(path: str | os.PathLike) -> Hierarchy:
+    """Load a problem by extension: ``.npz`` or SOTH text (``.txt``/``.soth``)."""
+    p = os.fspath(path)
+    if not os.path.exists(p):
+        raise ProblemFileError(f"{p}: no such file")
+    if p.endswith(".npz"):
+        return load_npz(p)
+    from problems.soth import load_soth  # SOTH text format
+    return load_soth(p)
+
+
+def save(h: Hierarchy, path: str | os.PathLike) -> None:
+    """Save by extension: ``.npz`` or SOTH text (anything else)."""
+    p = os.fspath(path)
+    if p.endswith(".npz"):
+        save_npz(h, p)
+    else:
+        from problems.soth import save_soth
+        save_soth(h, p)

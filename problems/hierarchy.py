@@ -1,0 +1,311 @@
+"""The hierarchy model: levels of rows ``lower_k <= A_k x <= upper_k``.
+
+A hierarchy has levels ``0 .. depth-1``, level 0 the highest priority. Row i is
+
+* an **equality** row when ``lower[i] == upper[i]``,
+* **one-sided** when exactly one bound is infinite,
+* **two-sided** when both bounds are finite and ``lower[i] < upper[i]``,
+* **free** when ``lower[i] == -inf`` and ``upper[i] == +inf``.
+
+Levels may be empty. The solution is defined by the sequence of least-squares
+problems with inequalities of Escande, Mansard, Wieber (ICRA 2010), eqs.
+(33)-(36); see ``problems.verify`` for the solver-independent yardstick.
+
+A :class:`Hierarchy` is immutable: its arrays are private read-only copies,
+validated once at construction. Every validation error is an
+:class:`~problems.errors.InvalidHierarchyError` naming the level and the row.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from problems.errors import InvalidHierarchyError
+
+__all__ = ["Hierarchy", "Level"]
+
+
+def _frozen(a: np.ndarray) -> np.ndarray:
+    a = np.array(a, copy=True)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True)
+class Level:
+    """One level: rows ``lower <= A x <= upper``.
+
+    Attributes
+    ----------
+    A : ndarray, shape (m_k, n)
+    lower, upper : ndarray, shape (m_k,)
+        ``-inf`` / ``+inf`` for a missing bound.
+    name : str
+    """
+
+    A: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    name: str = ""
+
+    @classmethod
+    def equality(cls, A, b, name: str = "") -> "Level":
+        """Equality rows ``A x = b``."""
+        b = np.asarray(b, dtype=float)
+        return cls(np.asarray(A, dtype=float), b, b.copy(), name)
+
+    @property
+    def rows(self) -> int:
+        return int(np.shape(self.A)[0])
+
+
+class Hierarchy:
+    """A lexicographic stack of levels ``lower_k <= A_k x <= upper_k``.
+
+    Parameters
+    ----------
+    A : array_like, shape (m, n)
+        All rows, level by level.
+    lower, upper : array_like, shape (m,)
+        Bounds; ``-inf`` / ``+inf`` where a side is free.
+    level : array_like of int, shape (m,)
+        Level of each row; nondecreasing, 0 = highest priority.
+    n : int, optional
+        Number of variables; required when ``m == 0``.
+    depth : int, optional
+        Number of levels (allows empty trailing levels). Defaults to
+        ``len(names)`` if names are given, else ``max(level) + 1``.
+    names : sequence of str, optional
+        One name per level.
+    x0 : array_like, shape (n,), optional
+        A starting point (e.g. the configuration a robot problem came from).
+
+    Raises
+    ------
+    InvalidHierarchyError
+        Wrong shapes; NaN anywhere; inf in A; ``lower > upper``;
+        ``lower == +inf``; ``upper == -inf``; levels not nondecreasing or out
+        of ``[0, depth)``. The message names the level and the row.
+    """
+
+    __slots__ = ("A", "lower", "upper", "level", "n", "depth", "names", "x0", "__dict__")
+
+    def __init__(self, A, lower, upper, level, n: int | None = None, depth: int | None = None,
+                 names: Sequence[str] | None = None, x0=None):
+        A = np.asarray(A, dtype=np.float64)
+        lower = np.asarray(lower, dtype=np.float64)
+        upper = np.asarray(upper, dtype=np.float64)
+        level_arr = np.asarray(level)
+        if A.ndim != 2:
+            if A.size == 0 and n is not None:
+                A = A.reshape(0, int(n))
+            else:
+                raise InvalidHierarchyError(f"A must be a 2-D array (rows, n); got shape {A.shape}")
+        m, ncols = A.shape
+        if n is None:
+            n = ncols
+        n = _as_int(n, "n")
+        if n < 0:
+            raise InvalidHierarchyError(f"n must be >= 0; got {n}")
+        if ncols != n:
+            raise InvalidHierarchyError(f"A has {ncols} columns but n = {n}: expected A of shape (rows, {n})")
+        for label, arr in (("lower", lower), ("upper", upper), ("level", level_arr)):
+            if arr.shape != (m,):
+                raise InvalidHierarchyError(
+                    f"{label} has shape {arr.shape} but A has {m} rows: expected {label} of shape ({m},)")
+        if m and not np.issubdtype(level_arr.dtype, np.integer):
+            if not np.all(np.isfinite(level_arr)) or np.any(level_arr != np.round(level_arr)):
+                raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
+        level_arr = level_arr.astype(np.int64)
+        if names is not None:
+            names = tuple(str(s) for s in names)
+        if depth is None:
+            depth = len(names) if names is not None else (int(level_arr.max()) + 1 if m else 0)
+        depth = _as_int(depth, "depth")
+        if names is None:
+            names = tuple(f"level {k}" for k in range(depth))
+        if len(names) != depth:
+            raise InvalidHierarchyError(f"names has {len(names)} entries but the hierarchy has {depth} levels")
+        if m:
+            if level_arr.min() < 0 or level_arr.max() >= depth:
+                i = int(np.argmax((level_arr < 0) | (level_arr >= depth)))
+                raise InvalidHierarchyError(
+                    f"row {i}: level {level_arr[i]} is outside [0, {depth})", level=int(level_arr[i]))
+            drops = np.flatnonzero(np.diff(level_arr) < 0)
+            if drops.size:
+                i = int(drops[0]) + 1
+                raise InvalidHierarchyError(
+                    f"row {i}: level {level_arr[i]} follows level {level_arr[i - 1]}: "
+                    "levels must be nondecreasing (level 0 first)", level=int(level_arr[i]))
+        starts = np.searchsorted(level_arr, np.arange(depth + 1), side="left").astype(np.int64)
+        self._check_values(A, lower, upper, level_arr, starts)
+        if x0 is not None:
+            x0 = np.asarray(x0, dtype=np.float64)
+            if x0.shape != (n,):
+                raise InvalidHierarchyError(f"x0 has shape {x0.shape}: expected ({n},)")
+            if not np.all(np.isfinite(x0)):
+                raise InvalidHierarchyError("x0 holds NaN or inf: expected finite values")
+            x0 = _frozen(x0)
+        self.A = _frozen(A)
+        self.lower = _frozen(lower)
+        self.upper = _frozen(upper)
+        self.level = _frozen(level_arr)
+        self.n = n
+        self.depth = depth
+        self.names = names
+        self.x0 = x0
+        self.__dict__["starts"] = _frozen(starts)
+
+    # -- construction helpers -------------------------------------------------
+    @classmethod
+    def from_levels(cls, levels: Iterable[Level], n: int | None = None, x0=None) -> "Hierarchy":
+        """Stack :class:`Level` objects, the first one the highest priority."""
+        levels = list(levels)
+        if n is None:
+            if not levels:
+                raise InvalidHierarchyError("n is required for a hierarchy without levels")
+            n = np.shape(levels[0].A)[1] if np.ndim(levels[0].A) == 2 else 0
+        blocks, lo, up, lev = [], [], [], []
+        for k, L in enumerate(levels):
+            Ak = np.asarray(L.A, dtype=np.float64)
+            if Ak.size == 0:
+                Ak = Ak.reshape(0, n)
+            if Ak.ndim != 2 or Ak.shape[1] != n:
+                raise InvalidHierarchyError(
+                    f"level {k}: A has shape {Ak.shape}: expected (rows, {n})", level=k)
+            m_k = Ak.shape[0]
+            for label, b in (("lower", L.lower), ("upper", L.upper)):
+                if np.shape(b) != (m_k,):
+                    raise InvalidHierarchyError(
+                        f"level {k}: {label} has shape {np.shape(b)}: expected ({m_k},)", level=k)
+            blocks.append(Ak)
+            lo.append(np.asarray(L.lower, dtype=np.float64))
+            up.append(np.asarray(L.upper, dtype=np.float64))
+            lev.append(np.full(m_k, k, dtype=np.int64))
+        A = np.vstack(blocks) if blocks else np.zeros((0, n))
+        names = [L.name or f"level {k}" for k, L in enumerate(levels)]
+        return cls(A, _cat(lo), _cat(up), _cat(lev, np.int64), n=n, depth=len(levels), names=names, x0=x0)
+
+    @staticmethod
+    def _check_values(A, lower, upper, level, starts) -> None:
+        def where(i: int) -> tuple[str, int, int]:
+            k = int(level[i])
+            return f"level {k}, row {i - int(starts[k])}", k, i - int(starts[k])
+
+        checks = (
+            (np.isnan(A).any(axis=1) if A.size else np.zeros(A.shape[0], bool), "A holds NaN"),
+            (np.isinf(A).any(axis=1) if A.size else np.zeros(A.shape[0], bool),
+             "A holds inf: coefficients must be finite"),
+            (np.isnan(lower), "lower is NaN (use -inf for no lower bound)"),
+            (np.isnan(upper), "upper is NaN (use +inf for no upper bound)"),
+            (lower == np.inf, "lower is +inf: no x can satisfy it"),
+            (upper == -np.inf, "upper is -inf: no x can satisfy it"),
+        )
+        for bad, what in checks:
+            if bad.any():
+                i = int(np.argmax(bad))
+                loc, k, r = where(i)
+                raise InvalidHierarchyError(f"{loc}: {what}", level=k, row=r)
+        bad = lower > upper
+        if bad.any():
+            i = int(np.argmax(bad))
+            loc, k, r = where(i)
+            raise InvalidHierarchyError(
+                f"{loc}: lower ({lower[i]!r}) > upper ({upper[i]!r}): expected lower <= upper", level=k, row=r)
+
+    # -- views -----------------------------------------------------------------
+    @property
+    def rows(self) -> int:
+        """Total number of rows m."""
+        return int(self.A.shape[0])
+
+    @property
+    def starts(self) -> np.ndarray:
+        """Row offsets of the levels, shape (depth + 1,): level k is rows
+        ``starts[k]:starts[k+1]``."""
+        return self.__dict__["starts"]
+
+    def level_rows(self, k: int) -> slice:
+        """Slice of the rows of level k."""
+        if not 0 <= k < self.depth:
+            raise IndexError(f"level {k} is outside [0, {self.depth})")
+        return slice(int(self.starts[k]), int(self.starts[k + 1]))
+
+    def __getitem__(self, k: int) -> Level:
+        s = self.level_rows(k)
+        return Level(self.A[s], self.lower[s], self.upper[s], self.names[k])
+
+    def __iter__(self):
+        return (self[k] for k in range(self.depth))
+
+    def __len__(self) -> int:
+        return self.depth
+
+    @cached_property
+    def is_equality(self) -> np.ndarray:
+        """Mask of equality rows (lower == upper), shape (m,)."""
+        return _frozen(self.lower == self.upper)
+
+    @cached_property
+    def is_free(self) -> np.ndarray:
+        """Mask of free rows (both bounds infinite), shape (m,)."""
+        return _frozen(np.isneginf(self.lower) & np.isposinf(self.upper))
+
+    @property
+    def has_inequalities(self) -> bool:
+        """True when some row is not an equality (free rows count)."""
+        return not bool(self.is_equality.all())
+
+    @property
+    def rows_per_level(self) -> np.ndarray:
+        return np.diff(self.starts)
+
+    def with_bounds(self, lower, upper) -> "Hierarchy":
+        """The same rows with new bounds (a new time step of a trajectory)."""
+        return Hierarchy(self.A, lower, upper, self.level, n=self.n, depth=self.depth,
+                         names=self.names, x0=self.x0)
+
+    # -- verification shortcuts (see problems.verify) --------------------------
+    def violation(self, x) -> np.ndarray:
+        """Per-row violation v(x), shape (m,); see :func:`problems.verify.violation`."""
+        from problems.verify import violation
+        return violation(self, x)
+
+    def level_norms(self, x) -> np.ndarray:
+        """``(||v_0(x)||, ..., ||v_{N-1}(x)||)``, shape (depth,)."""
+        from problems.verify import level_norms
+        return level_norms(self, x)
+
+    def __repr__(self) -> str:
+        return (f"Hierarchy(n={self.n}, depth={self.depth}, rows={self.rows_per_level.tolist()}, "
+                f"inequality_rows={int((~self.is_equality).sum())})")
+
+    def __eq__(self, other) -> bool:
+        if not isinstance(other, Hierarchy):
+            return NotImplemented
+        same_x0 = (self.x0 is None and other.x0 is None) or (
+            self.x0 is not None and other.x0 is not None and np.array_equal(self.x0, other.x0))
+        return (self.n == other.n and self.depth == other.depth and self.names == other.names
+                and np.array_equal(self.A, other.A) and np.array_equal(self.lower, other.lower)
+                and np.array_equal(self.upper, other.upper) and np.array_equal(self.level, other.level)
+                and same_x0)
+
+    __hash__ = None  # arrays: equality by value, not hashable
+
+
+def _as_int(v, label: str) -> int:
+    try:
+        iv = int(v)
+    except (TypeError, ValueError) as err:
+        raise InvalidHierarchyError(f"{label} must be an integer; got {v!r}") from err
+    if iv != v:
+        raise InvalidHierarchyError(f"{label} must be an integer; got {v!r}")
+    return iv
+
+
+def _cat(parts, dtype=np.float64) -> np.ndarray:
+    return np.concatenate(parts) if parts else np.zeros(0, dtype=dtype)

@@ -1,0 +1,135 @@
+"""Solver-independent verification: per-level violations and their
+lexicographic comparison.
+
+The optimal slack of every level of the sequence of LSIs (ICRA 2010, eqs.
+(33)-(36)) is unique even when x is not, so a solution is judged from x alone:
+
+    v_k(x) = max(lower_k - A_k x, 0) + max(A_k x - upper_k, 0)      (per row)
+
+and the vector of norms ``(||v_0||, ..., ||v_{N-1}||)``. Two such vectors are
+compared lexicographically, level 0 first, each level with the tolerance
+``rtol * scale_k + atol`` where ``scale_k`` is the size of level k's terms
+(:func:`level_scales`). The first level whose norms differ by more than that
+is the verdict.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from problems.errors import HikbenchError
+from problems.hierarchy import Hierarchy
+
+__all__ = ["violation", "level_norms", "level_scales", "compare_lexicographic", "Verdict", "verify"]
+
+
+def _check_x(h: Hierarchy, x) -> np.ndarray:
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape != (h.n,):
+        raise HikbenchError(f"x has shape {x.shape}: expected ({h.n},)")
+    return x
+
+
+def violation(h: Hierarchy, x) -> np.ndarray:
+    """Per-row violation ``v(x) = max(lower - A x, 0) + max(A x - upper, 0)``.
+
+    Returns ndarray, shape (m,), nonnegative. NaN in x gives NaN rows (a wrong
+    result must look wrong), never a silent zero.
+    """
+    x = _check_x(h, x)
+    r = h.A @ x
+    with np.errstate(invalid="ignore"):  # inf - inf cannot occur: A x is finite or NaN
+        v = np.maximum(h.lower - r, 0.0) + np.maximum(r - h.upper, 0.0)
+    v[np.isnan(r)] = np.nan
+    return v
+
+
+def level_norms(h: Hierarchy, x) -> np.ndarray:
+    """``(||v_0(x)||_2, ..., ||v_{N-1}(x)||_2)``, shape (depth,); 0 for an
+    empty level."""
+    v = violation(h, x)
+    sq = np.add.reduceat(v * v, h.starts[:-1]) if h.rows else np.zeros(h.depth)
+    sq = np.where(np.diff(h.starts) > 0, sq, 0.0)  # reduceat repeats a row on empty segments
+    return np.sqrt(sq)
+
+
+def level_scales(h: Hierarchy, x=None) -> np.ndarray:
+    """Scale of each level's residual, shape (depth,).
+
+    ``scale_k = ||A_k||_F * (1 + ||x||) + ||finite bounds of level k||_2``,
+    floored at 1: the size of the terms whose difference is the residual, so
+    that ``rtol * scale_k`` is the round-off a backward-stable solver may make.
+    """
+    xn = 0.0 if x is None else float(np.linalg.norm(np.asarray(x, dtype=float)))
+    out = np.ones(h.depth)
+    for k in range(h.depth):
+        s = h.level_rows(k)
+        b = np.concatenate([h.lower[s], h.upper[s]])
+        b = b[np.isfinite(b)]
+        out[k] = max(1.0, np.linalg.norm(h.A[s]) * (1.0 + xn) + np.linalg.norm(b))
+    return out
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Result of a lexicographic comparison of two level-norm vectors.
+
+    Attributes
+    ----------
+    level : int or None
+        First level whose norms differ beyond tolerance; None when equal.
+    lower : {"a", "b"} or None
+        Which vector is lower there (lexicographically better).
+    difference : float
+        ``norms_a[level] - norms_b[level]`` (0.0 when equal).
+    tolerance : float
+        The tolerance used at that level.
+    """
+
+    level: int | None
+    lower: str | None
+    difference: float = 0.0
+    tolerance: float = 0.0
+
+    @property
+    def equal(self) -> bool:
+        return self.level is None
+
+
+def compare_lexicographic(norms_a, norms_b, scales=None, rtol: float = 1e-9, atol: float = 0.0) -> Verdict:
+    """Compare two level-norm vectors lexicographically, level 0 first.
+
+    Level k differs when ``|a_k - b_k| > rtol * scales[k] + atol``. NaN in
+    either vector counts as a difference with the NaN side worse.
+    """
+    a = np.asarray(norms_a, dtype=float)
+    b = np.asarray(norms_b, dtype=float)
+    if a.shape != b.shape or a.ndim != 1:
+        raise HikbenchError(f"norm vectors must have the same 1-D shape; got {a.shape} and {b.shape}")
+    s = np.ones_like(a) if scales is None else np.asarray(scales, dtype=float)
+    if s.shape != a.shape:
+        raise HikbenchError(f"scales has shape {s.shape}: expected {a.shape}")
+    for k in range(a.size):
+        tol = rtol * s[k] + atol
+        if np.isnan(a[k]) or np.isnan(b[k]):
+            if np.isnan(a[k]) and np.isnan(b[k]):
+                return Verdict(k, None, float("nan"), tol)
+            return Verdict(k, "b" if np.isnan(a[k]) else "a", float("nan"), tol)
+        d = a[k] - b[k]
+        if abs(d) > tol:
+            return Verdict(k, "a" if d < 0 else "b", float(d), tol)
+    return Verdict(None, None, 0.0, 0.0)
+
+
+def verify(h: Hierarchy, x, x_ref, rtol: float = 1e-9, atol: float = 0.0) -> Verdict:
+    """Compare a solution x with a reference x_ref on hierarchy h
+    (``"a"`` is x, ``"b"`` the reference). Scales use the larger of the two
+    norms of x."""
+    x = _check_x(h, x)
+    x_ref = _check_x(h, x_ref)
+    scale_x = x if np.linalg.norm(x) >= np.linalg.norm(x_ref) else x_ref
+    if not np.all(np.isfinite(scale_x)):
+        scale_x = x_ref
+    return compare_lexicographic(level_norms(h, x), level_norms(h, x_ref), level_scales(h, scale_x), rtol, atol)

@@ -1,0 +1,113 @@
+"""The one solver interface and the one result type.
+
+A solver is an object built with its options and called on a
+:class:`~problems.hierarchy.Hierarchy`; it may keep warm-start state between
+calls (the benchmark's ``warm`` mode re-solves on the same object). It never
+sees a robot, never raises for a valid problem, never returns NaN silently:
+failures come back as a status with a reason.
+"""
+
+from __future__ import annotations
+
+import abc
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+from problems.hierarchy import Hierarchy
+
+__all__ = ["Solver", "SolveResult", "STATUSES", "OPTIMAL", "MAX_ITERATIONS", "INFEASIBLE_LEVEL",
+           "NUMERICAL_FAILURE", "UNSUPPORTED", "TIMEOUT", "CRASHED", "ERROR"]
+
+OPTIMAL = "optimal"                      #: every level solved to the solver's accuracy
+MAX_ITERATIONS = "max_iterations"        #: an iteration cap was hit; x is the last iterate
+INFEASIBLE_LEVEL = "infeasible_level"    #: a level could not be solved after freezing the ones above
+NUMERICAL_FAILURE = "numerical_failure"  #: NaN / breakdown inside the solver
+UNSUPPORTED = "unsupported"              #: the solver cannot handle this problem (e.g. inequalities)
+TIMEOUT = "timeout"                      #: the harness killed the solve after its time limit
+CRASHED = "crashed"                      #: the worker process died (segfault, abort)
+ERROR = "error"                          #: an exception escaped from a backend
+
+STATUSES = (OPTIMAL, MAX_ITERATIONS, INFEASIBLE_LEVEL, NUMERICAL_FAILURE, UNSUPPORTED, TIMEOUT,
+            CRASHED, ERROR)
+
+
+@dataclass
+class SolveResult:
+    """What one solve returns.
+
+    Attributes
+    ----------
+    x : ndarray, shape (n,), or None
+        The solution (None when the solver produced none).
+    status : str
+        One of :data:`STATUSES`.
+    reason : str
+        Human-readable detail for any status other than ``optimal``
+        (which level failed and why).
+    iterations : int
+        Total iterations (active-set iterations for HCOD, QP iterations summed
+        over levels for cascades; 0 when not applicable).
+    iterations_per_level : tuple of int
+        Iterations of each level, shape (depth,), or () when not reported.
+    activations, deactivations : int
+        Active-set changes (active-set solvers only).
+    flops : int or None
+        Multiply-adds counted in the decomposition kernels, if the solver counts.
+    build_time_s : float
+        Time spent assembling matrices (cascades), NaN when not separated.
+    solve_time_s : float
+        Time measured by the solver itself, NaN when not measured.
+    info : dict
+        Solver-specific extras (kept out of the CSV unless the harness knows them).
+    """
+
+    x: np.ndarray | None
+    status: str
+    reason: str = ""
+    iterations: int = 0
+    iterations_per_level: tuple[int, ...] = ()
+    activations: int = 0
+    deactivations: int = 0
+    flops: int | None = None
+    build_time_s: float = float("nan")
+    solve_time_s: float = float("nan")
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.status not in STATUSES:
+            raise ValueError(f"status {self.status!r} is not one of {STATUSES}")
+        if self.x is not None and self.status == OPTIMAL and not np.all(np.isfinite(self.x)):
+            # never NaN silently: a non-finite x cannot be called optimal
+            self.status = NUMERICAL_FAILURE
+            self.reason = (self.reason + "; " if self.reason else "") + "x holds NaN or inf"
+
+    @property
+    def ok(self) -> bool:
+        return self.status == OPTIMAL
+
+
+class Solver(abc.ABC):
+    """Base of every solver.
+
+    Subclasses set the class attributes and implement :meth:`solve`. Options are
+    keyword arguments of ``__init__``; a wrong option raises
+    :class:`~problems.errors.SolverOptionError` at construction.
+    """
+
+    name: ClassVar[str] = ""
+    description: ClassVar[str] = ""
+    supports_inequalities: ClassVar[bool] = False
+    supports_warm_start: ClassVar[bool] = False
+
+    @abc.abstractmethod
+    def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        """Solve the hierarchy; never raises for a valid problem."""
+
+    def reset(self) -> None:
+        """Forget warm-start state (the next solve is cold)."""
+
+    def unsupported(self, hierarchy: Hierarchy, why: str) -> SolveResult:
+        return SolveResult(x=None, status=UNSUPPORTED, reason=f"{self.name}: {why}",
+                           iterations_per_level=(0,) * hierarchy.depth)

@@ -1,0 +1,242 @@
+"""Independent reference solutions, the yardstick of the tests.
+
+Two methods that share no code with the HCOD solver:
+
+* :func:`nullspace_reference` (equality-only hierarchies): the null-space
+  recursion with an orthonormal basis, ICRA 2010 eq. (2) with the SVD of each
+  projected level,
+
+      M_k = A_k Z_{k-1} = U S V^T,   x_k = x_{k-1} + Z_{k-1} V_r S_r^-1 U_r^T (b_k - A_k x_{k-1}),
+      Z_k = Z_{k-1} V_{r+1:},                                        shapes: Z_k (n, n - sum ranks)
+
+  which yields the minimum-norm lexicographic solution. Rank is decided by the
+  documented threshold ``s_i > RANK_RTOL * ||A_k||_2`` (relative to the
+  *unprojected* level, so that a level fully decided by the ones above has
+  rank 0, not full rank of round-off).
+
+* :func:`cascade_reference` (any hierarchy): the sequence of LSIs (ICRA 2010,
+  eqs. (33)-(36)) as a cascade of QPs in (x, w) solved by Clarabel at tight
+  tolerances, each level *polished*: its active set is read off the QP
+  solution and the equality-constrained least-squares problem on that set is
+  solved exactly (SVD null-space method); the polished point is kept only if it
+  is feasible and no worse. Higher levels are frozen by shifted bounds
+  ``lower_j + w_j* <= A_j x <= upper_j + w_j*`` (Kanoun et al.), exact because
+  the optimal slack is unique. A last stage picks the minimum-norm x in the
+  optimal set.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from problems.errors import HikbenchError
+from problems.hierarchy import Hierarchy
+from solvers.base import ERROR, OPTIMAL, SolveResult, Solver
+from solvers.registry import SolverInfo
+
+__all__ = ["nullspace_reference", "cascade_reference", "reference_solution", "ReferenceSolver",
+           "RANK_RTOL"]
+
+RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
+_ACTIVE_RTOL = 1e-7  #: a constraint within this (relative) distance of its bound is read as active
+_FEAS_RTOL = 1e-11  #: feasibility slack allowed to a polished point (relative)
+
+
+class ReferenceError(HikbenchError):
+    """The reference could not solve a problem to its accuracy."""
+
+
+def _null_update(x: np.ndarray, Z: np.ndarray, A: np.ndarray, b: np.ndarray):
+    """One step of the SVD null-space recursion (eq. 2); returns x, Z."""
+    if A.shape[0] == 0 or Z.shape[1] == 0:
+        return x, Z
+    thr = RANK_RTOL * np.linalg.norm(A, 2)
+    M = A @ Z
+    U, s, Vt = np.linalg.svd(M, full_matrices=True)
+    r = int(np.sum(s > thr)) if thr > 0 else 0
+    if r:
+        x = x + Z @ (Vt[:r].T @ ((U[:, :r].T @ (b - A @ x)) / s[:r]))
+    return x, Z @ Vt[r:].T
+
+
+def nullspace_reference(h: Hierarchy) -> np.ndarray:
+    """Minimum-norm lexicographic solution of an equality-only hierarchy.
+
+    Returns x, shape (n,). Raises ReferenceError if h has inequality rows."""
+    if h.has_inequalities:
+        raise ReferenceError("nullspace_reference solves equality-only hierarchies; use cascade_reference")
+    x = np.zeros(h.n)
+    Z = np.eye(h.n)
+    for k in range(h.depth):
+        s = h.level_rows(k)
+        x, Z = _null_update(x, Z, h.A[s], h.lower[s])
+    return x
+
+
+def _constrained_lstsq(C: np.ndarray, d: np.ndarray, G: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """min-norm argmin ||G x - t|| s.t. C x = d (least squares on C if
+    inconsistent), by the SVD null-space method."""
+    n = C.shape[1] if C.size else G.shape[1]
+    x = np.zeros(n)
+    Z = np.eye(n)
+    x, Z = _null_update(x, Z, C, d)
+    x, Z = _null_update(x, Z, G, t)
+    return x
+
+
+def _signed_slack(r: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
+    """w = r - clip(r, lo, up): positive above upper, negative below lower."""
+    return r - np.clip(r, lo, up)
+
+
+def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
+    """Build and solve, with Clarabel, the QP of one level in z = (x, w).
+
+    Level k (not final): min 1/2 ||w||^2  s.t. lo_hi <= A_hi x <= up_hi,
+    lo_k <= A_k x - w <= up_k. Final stage: min 1/2 ||x||^2 s.t. the first set."""
+    import qpsolvers
+
+    n, m = P_n, A_k.shape[0]
+    nz = n + m
+    P = np.zeros((nz, nz))
+    if final:
+        P[:n, :n] = np.eye(n)
+    else:
+        P[n:, n:] = np.eye(m)
+    rows_A = [np.hstack([A_hi, np.zeros((A_hi.shape[0], m))]), np.hstack([A_k, -np.eye(m)])]
+    Afull = np.vstack(rows_A)
+    lo = np.concatenate([lo_hi, lo_k])
+    up = np.concatenate([up_hi, up_k])
+    eq = lo == up
+    G_parts, h_parts = [], []
+    fin_u = np.isfinite(up) & ~eq
+    fin_l = np.isfinite(lo) & ~eq
+    G_parts += [Afull[fin_u], -Afull[fin_l]]
+    h_parts += [up[fin_u], -lo[fin_l]]
+    G = np.vstack(G_parts)
+    hv = np.concatenate(h_parts)
+    Aeq, beq = Afull[eq], lo[eq]
+    problem = qpsolvers.Problem(P, np.zeros(nz), G if G.size else None, hv if hv.size else None,
+                                Aeq if Aeq.size else None, beq if beq.size else None)
+    sol = qpsolvers.solve_problem(problem, solver="clarabel", tol_gap_abs=1e-11, tol_gap_rel=1e-11,
+                                  tol_feas=1e-11, tol_ktratio=1e-9, max_iter=500, verbose=False)
+    if sol.x is None or not np.all(np.isfinite(sol.x)):
+        raise ReferenceError("Clarabel found no solution")
+    return sol.x[:n]
+
+
+def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, scale, final: bool):
+    """Read the active set off x_qp and solve the equality problem on it exactly.
+
+    Returns the polished x if it is feasible and no worse than x_qp, else x_qp,
+    and whether polishing was kept."""
+    delta = _ACTIVE_RTOL * scale
+    r_hi = A_hi @ x_qp
+    eq_hi = lo_hi == up_hi
+    at_up = ~eq_hi & np.isfinite(up_hi) & (np.abs(r_hi - up_hi) <= delta)
+    at_lo = ~eq_hi & ~at_up & np.isfinite(lo_hi) & (np.abs(r_hi - lo_hi) <= delta)
+    C = np.vstack([A_hi[eq_hi], A_hi[at_up], A_hi[at_lo]])
+    d = np.concatenate([lo_hi[eq_hi], up_hi[at_up], lo_hi[at_lo]])
+    if final:
+        G, t = np.eye(A_hi.shape[1]), np.zeros(A_hi.shape[1])
+    else:
+        r_k = A_k @ x_qp
+        above = r_k > up_k + delta
+        below = r_k < lo_k - delta
+        eq_k = lo_k == up_k
+        tight_u = ~eq_k & ~above & np.isfinite(up_k) & (np.abs(r_k - up_k) <= delta)
+        tight_l = ~eq_k & ~below & ~tight_u & np.isfinite(lo_k) & (np.abs(r_k - lo_k) <= delta)
+        soft = (above | below | eq_k) & ~(tight_u | tight_l)
+        target = np.where(r_k > up_k, up_k, lo_k)
+        target = np.where(eq_k, lo_k, target)
+        # tight rows of level k: zero slack at the optimum -> constraints
+        C = np.vstack([C, A_k[tight_u], A_k[tight_l]])
+        d = np.concatenate([d, up_k[tight_u], lo_k[tight_l]])
+        G, t = A_k[soft], target[soft]
+    x = _constrained_lstsq(C, d, G, t)
+    feas = _FEAS_RTOL * scale
+    r = A_hi @ x
+    feasible = bool(np.all(r <= up_hi + feas) and np.all(r >= lo_hi - feas))
+
+    def cost(z):
+        if final:
+            return float(z @ z)
+        w = _signed_slack(A_k @ z, lo_k, up_k)
+        return float(w @ w)
+
+    if feasible and cost(x) <= cost(x_qp) * (1 + 1e-9) + (feas * feas):
+        return x, True
+    return x_qp, False
+
+
+def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
+    """Minimum-norm lexicographic solution of any hierarchy.
+
+    Returns x, shape (n,), and an info dict with ``polished`` (one bool per
+    stage: levels then the final minimum-norm stage) and ``slack`` (the signed
+    optimal slack w_k* of each level)."""
+    n = h.n
+    A_hi = np.zeros((0, n))
+    lo_hi = np.zeros(0)
+    up_hi = np.zeros(0)
+    x = np.zeros(n)
+    polished, slacks = [], []
+    for k in range(h.depth):
+        s = h.level_rows(k)
+        A_k, lo_k, up_k = h.A[s], h.lower[s], h.upper[s]
+        if A_k.shape[0] == 0:
+            slacks.append(np.zeros(0))
+            polished.append(True)
+            continue
+        scale = max(1.0, float(np.linalg.norm(A_k, 2)) * (1 + np.linalg.norm(x)),
+                    float(np.abs(np.concatenate([lo_k, up_k])[np.isfinite(np.concatenate([lo_k, up_k]))]).max(initial=0)))
+        x_qp = _qp_level(n, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final=False)
+        x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, scale, final=False)
+        polished.append(ok)
+        w = _signed_slack(A_k @ x, lo_k, up_k)
+        w[np.abs(w) <= 1e-13 * scale] = 0.0
+        slacks.append(w)
+        A_hi = np.vstack([A_hi, A_k])
+        lo_hi = np.concatenate([lo_hi, np.where(np.isfinite(lo_k), lo_k + w, lo_k)])
+        up_hi = np.concatenate([up_hi, np.where(np.isfinite(up_k), up_k + w, up_k)])
+        # an equality row stays an equality at its achieved value
+    if A_hi.shape[0]:
+        scale = max(1.0, float(np.linalg.norm(A_hi, 2)) * (1 + np.linalg.norm(x)))
+        empty = np.zeros((0, n))
+        x_qp = _qp_level(n, A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), final=True)
+        x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), scale, final=True)
+        polished.append(ok)
+    return x, {"polished": polished, "slack": slacks}
+
+
+def reference_solution(h: Hierarchy) -> np.ndarray:
+    """The reference x: null-space recursion for equality-only hierarchies,
+    polished QP cascade otherwise."""
+    if not h.has_inequalities:
+        return nullspace_reference(h)
+    return cascade_reference(h)[0]
+
+
+class ReferenceSolver(Solver):
+    """The reference behind the solver interface (slow; for tests and until
+    faster solvers exist)."""
+
+    name = "reference"
+    description = "independent reference: SVD null-space recursion / polished Clarabel QP cascade"
+    supports_inequalities = True
+
+    def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        try:
+            if hierarchy.has_inequalities:
+                x, info = cascade_reference(hierarchy)
+            else:
+                x, info = nullspace_reference(hierarchy), {}
+        except (ReferenceError, np.linalg.LinAlgError, ValueError) as err:
+            return SolveResult(x=None, status=ERROR, reason=f"reference: {err}")
+        return SolveResult(x=x, status=OPTIMAL, info=info)
+
+
+
+
+SOLVERS = [SolverInfo("reference", ReferenceSolver.description, ReferenceSolver,
+                      supports_inequalities=True)]

@@ -1,0 +1,132 @@
+"""The solver registry: names -> factories, filled from what imports cleanly.
+
+Built-in solver modules are listed in ``_BUILTIN_MODULES``; each defines
+``SOLVERS``, a list of :class:`SolverInfo`. Third-party packages add solvers
+through the entry-point group ``hikbench.solvers`` (an entry point resolving to
+such a list, or to a function returning one). A module whose optional backend
+is missing (``ModuleNotFoundError`` for a package outside hikbench) is simply
+not listed; asking for one of its solvers says how to install it. Any other
+import error is a bug and propagates.
+
+Importing this module imports no solver (nothing compiles at import time).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from importlib import metadata
+from typing import Callable
+
+from problems.errors import SolverNotFoundError, SolverOptionError
+from solvers.base import Solver
+
+__all__ = ["SolverInfo", "available", "get", "create", "missing"]
+
+_BUILTIN_MODULES: tuple[str, ...] = (
+    "solvers.reference",
+)
+_OWN_PACKAGES = ("solvers", "problems", "bench")
+
+
+@dataclass(frozen=True)
+class SolverInfo:
+    """A registered solver.
+
+    Attributes
+    ----------
+    name : str
+        Registry name, e.g. ``"hcod"`` or ``"cascade-osqp"``.
+    description : str
+        One line.
+    factory : callable
+        ``factory(**options) -> Solver``.
+    supports_inequalities, supports_warm_start : bool
+    strict : bool
+        True for solvers of the strict hierarchy (judged against the
+        lexicographic optimum); False for weighted / damped IK.
+    options : dict
+        Default options, shown by ``hikbench list solvers``.
+    """
+
+    name: str
+    description: str
+    factory: Callable[..., Solver]
+    supports_inequalities: bool = False
+    supports_warm_start: bool = False
+    strict: bool = True
+    options: dict = field(default_factory=dict)
+
+
+_registry: dict[str, SolverInfo] | None = None
+_missing: dict[str, str] = {}  # module or backend -> install hint
+
+
+def _is_missing_dependency(err: ModuleNotFoundError) -> bool:
+    root = (err.name or "").split(".")[0]
+    return bool(root) and root not in _OWN_PACKAGES
+
+
+def _load() -> dict[str, SolverInfo]:
+    global _registry
+    if _registry is not None:
+        return _registry
+    reg: dict[str, SolverInfo] = {}
+    for modname in _BUILTIN_MODULES:
+        try:
+            mod = importlib.import_module(modname)
+        except ModuleNotFoundError as err:
+            if not _is_missing_dependency(err):
+                raise
+            _missing[modname] = f"{modname} needs '{err.name}'; install it with: pip install {err.name}"
+            continue
+        for info in getattr(mod, "SOLVERS", ()):
+            _add(reg, info)
+        _missing.update(getattr(mod, "MISSING", {}))
+    for ep in metadata.entry_points(group="hikbench.solvers"):
+        obj = ep.load()
+        infos = obj() if callable(obj) and not isinstance(obj, SolverInfo) else obj
+        for info in ([infos] if isinstance(infos, SolverInfo) else infos):
+            _add(reg, info)
+    _registry = reg
+    return reg
+
+
+def _add(reg: dict[str, SolverInfo], info: SolverInfo) -> None:
+    if info.name in reg:
+        raise SolverOptionError(f"solver name {info.name!r} is registered twice")
+    reg[info.name] = info
+
+
+def available() -> dict[str, SolverInfo]:
+    """Every solver that can run here, by name (sorted)."""
+    return dict(sorted(_load().items()))
+
+
+def missing() -> dict[str, str]:
+    """Solvers or backends that are known but not installed -> install hint."""
+    _load()
+    return dict(_missing)
+
+
+def get(name: str) -> SolverInfo:
+    """The :class:`SolverInfo` of ``name``; raises SolverNotFoundError with the
+    list of available solvers and, for a known backend, how to install it."""
+    reg = _load()
+    if name in reg:
+        return reg[name]
+    hint = _missing.get(name)
+    found = ", ".join(reg)
+    if hint:
+        raise SolverNotFoundError(f"solver {name!r} is not available: {hint} (found solvers: {found})")
+    raise SolverNotFoundError(f"unknown solver {name!r} (found solvers: {found})")
+
+
+def create(name: str, **options) -> Solver:
+    """Build a fresh solver object; unknown options raise SolverOptionError."""
+    info = get(name)
+    opts = {**info.options, **options}
+    try:
+        return info.factory(**opts)
+    except TypeError as err:
+        raise SolverOptionError(f"solver {name!r}: bad options {options} ({err})") from err
