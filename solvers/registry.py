@@ -25,6 +25,7 @@ __all__ = ["SolverInfo", "available", "get", "create", "missing"]
 
 _BUILTIN_MODULES: tuple[str, ...] = (
     "solvers.reference",
+    "solvers.hcod",
 )
 _OWN_PACKAGES = ("solvers", "problems", "bench")
 

@@ -1,0 +1,208 @@
+"""The reference HCOD solver (Escande, Mansard, Wieber, ICRA 2010), registered
+as ``hcod``.
+
+* Equality levels (sec. V-VI): per level, the rank-revealing COD (19) of the
+  projected level ``J_k Z_{k-1}`` -- a Householder QR with column pivoting of
+  its transpose, then a QR of the trapezoidal factor -- and the update
+  ``u_k = u_{k-1} + Z_{k-1} Y_k L_k^-1 V_k^T (e_k - J_k u_{k-1})`` (eqs.
+  30-31). ``Z`` is kept as the trailing columns of one orthonormal matrix
+  ``W`` and shrinks level after level (eq. 23): a level after saturation
+  costs its projection onto an empty ``Z``, i.e. nothing.
+* Rank detection: a pivot of the COD of level k counts when its remaining
+  norm exceeds ``rank_rtol * ||A_k||_F`` (default 1e-10), relative to the
+  *unprojected* level like the reference's ``s_i > 1e-10 ||A_k||_2``
+  (``||A_k||_2 <= ||A_k||_F <= sqrt(rank) ||A_k||_2``: a compatible, slightly
+  more conservative rule). A row inserted in the working set obeys the same
+  test on its component outside the span of the working rows.
+* Inequalities at any level (sec. VII-X): the LSIs (33)-(35) level by level by
+  a primal active set; see :mod:`solvers.hcod._kernel`. Rows enter the
+  decomposition by a Householder update of ``W`` and leave it by Givens
+  rotations (sec. IX); the level's own COD (19) is recomputed at each
+  iteration (it is the small part: rows of one level times the remaining
+  freedom).
+* Minimum norm: equality-only problems get the minimum-norm x by
+  construction (u_0 = 0 and minimum-norm steps, eq. 28). With inequalities
+  the active-set path can leave components in the null space of the final
+  working set; with ``min_norm=True`` (default) one implicit last level
+  ``x = 0`` removes them (its iterations are counted in ``iterations`` and
+  reported in ``info["min_norm_iterations"]``).
+* Warm start (sec. XI), option ``warm_start``: ``"none"`` (each call cold; each
+  level starts from the previous optimum but only its frozen equality rows,
+  not the previous active inequality set), ``"stage"`` (sec. X: level to
+  level within a call), ``"time"`` (default: also across calls on the same
+  object -- each level's active set and ``Delta u`` (eq. 46) recorded at the
+  last call are re-applied; if the shifted point is infeasible the call is
+  redone cold, ``info["warm_fallback"]``). The previous call's record is
+  used whenever the new hierarchy has the same shape.
+
+Compiled with numba (nopython, ``cache=True``); nothing compiles at import:
+the first solve (or :func:`warmup`) compiles or loads the cache. One compiled
+call per solve, on workspaces kept in the solver object.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from problems.errors import SolverOptionError
+from problems.hierarchy import Hierarchy
+from solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, SolveResult, Solver
+from solvers.registry import SolverInfo
+
+__all__ = ["HcodSolver", "SOLVERS", "warmup", "WARM_STARTS"]
+
+WARM_STARTS = ("none", "stage", "time")
+_STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
+
+
+class _Prepared:
+    """Arrays of one hierarchy as the kernel reads them (min-norm level appended)."""
+
+    __slots__ = ("h", "A", "lo", "up", "starts", "depth", "D", "mt", "mmax", "has_ineq", "key")
+
+    def __init__(self, h: Hierarchy, min_norm: bool):
+        self.h = h
+        n = h.n
+        self.depth = h.depth
+        self.has_ineq = bool(h.has_inequalities)
+        if self.has_ineq and min_norm and n > 0:
+            self.A = np.ascontiguousarray(np.vstack([h.A, np.eye(n)]))
+            self.lo = np.concatenate([h.lower, np.zeros(n)])
+            self.up = np.concatenate([h.upper, np.zeros(n)])
+            self.starts = np.concatenate([h.starts, [h.rows + n]]).astype(np.int64)
+        else:
+            self.A = np.ascontiguousarray(h.A, dtype=np.float64)
+            self.lo = np.ascontiguousarray(h.lower, dtype=np.float64)
+            self.up = np.ascontiguousarray(h.upper, dtype=np.float64)
+            self.starts = np.ascontiguousarray(h.starts, dtype=np.int64)
+        self.D = self.starts.shape[0] - 1
+        self.mt = self.A.shape[0]
+        self.mmax = int(np.diff(self.starts).max()) if self.D else 0
+        self.key = (n, self.mt, self.D, self.mmax, tuple(self.starts.tolist()))
+
+
+class HcodSolver(Solver):
+    """HCOD hierarchical active-set solver.
+
+    Parameters
+    ----------
+    warm_start : {"none", "stage", "time"}
+        See the module docstring; default "time".
+    max_iterations : int or None
+        Cap on the total active-set iterations (LSE solves) of one call;
+        None -> ``100 + 10 * (rows + n)``. Hitting it returns status
+        ``max_iterations`` with the last iterate.
+    rank_rtol : float
+        Relative rank threshold (see the module docstring), default 1e-10.
+    min_norm : bool
+        Append the implicit level ``x = 0`` when the problem has inequalities.
+    """
+
+    name = "hcod"
+    description = "HCOD hierarchical active set (Escande-Mansard-Wieber 2010), numba"
+    supports_inequalities = True
+    supports_warm_start = True
+
+    def __init__(self, warm_start: str = "time", max_iterations: int | None = None,
+                 rank_rtol: float = 1e-10, min_norm: bool = True):
+        if warm_start not in WARM_STARTS:
+            raise SolverOptionError(f"hcod: option warm_start={warm_start!r} is not allowed; "
+                                    f"expected one of {', '.join(WARM_STARTS)}")
+        if max_iterations is not None and (isinstance(max_iterations, bool)
+                                           or not isinstance(max_iterations, (int, np.integer))
+                                           or max_iterations < 1):
+            raise SolverOptionError(f"hcod: option max_iterations={max_iterations!r} is not allowed; "
+                                    "expected a positive integer or None")
+        if isinstance(rank_rtol, bool) or not isinstance(rank_rtol, (int, float)) or not 0 < rank_rtol < 1:
+            raise SolverOptionError(f"hcod: option rank_rtol={rank_rtol!r} is not allowed; "
+                                    "expected a float in (0, 1)")
+        if not isinstance(min_norm, bool):
+            raise SolverOptionError(f"hcod: option min_norm={min_norm!r} is not allowed; expected True or False")
+        self.warm_start = warm_start
+        self.max_iterations = max_iterations
+        self.rank_rtol = float(rank_rtol)
+        self.min_norm = min_norm
+        self._prm = np.array([self.rank_rtol, 1e-9, 1e-11])
+        self._prep: _Prepared | None = None
+        self._ws = None
+
+    def reset(self) -> None:
+        """Forget the warm-start record (the next solve is cold)."""
+        if self._ws is not None:
+            self._ws[1][self._ws[3][11]:self._ws[3][12]] = 0
+
+    def _bind(self, h: Hierarchy):
+        from solvers.hcod._kernel import layout, O_PREPARED
+
+        prep = _Prepared(h, self.min_norm)
+        old = self._prep
+        if old is None or old.key != prep.key or self._ws is None:
+            n = h.n
+            foff, ioff = layout(n, prep.mt, prep.D, prep.mmax)
+            fw = np.zeros(int(foff[-1]))
+            iw = np.zeros(int(ioff[-1]), dtype=np.int64)
+            cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (prep.mt + n)
+            wm = WARM_STARTS.index(self.warm_start)
+            ip = np.array([n, prep.mt, prep.D, prep.mmax, cap, wm, int(prep.has_ineq)], dtype=np.int64)
+            self._ws = (fw, iw, foff, ioff, ip)
+        else:
+            fw, iw, foff, ioff, ip = self._ws
+        iw[ioff[12] + O_PREPARED] = 0
+        self._prep = prep
+        return prep
+
+    def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        from solvers.hcod._kernel import hcod_solve
+
+        prep = self._prep
+        if prep is None or prep.h is not hierarchy:
+            prep = self._bind(hierarchy)
+        fw, iw, foff, ioff, ip = self._ws
+        n = hierarchy.n
+        if n == 0 or prep.D == 0:
+            return SolveResult(x=np.zeros(n), status=OPTIMAL, iterations_per_level=(0,) * hierarchy.depth,
+                               flops=0)
+        try:
+            hcod_solve(prep.A, prep.lo, prep.up, prep.starts, fw, iw, foff, ioff, self._prm, ip)
+        except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
+            return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
+                               iterations_per_level=(0,) * hierarchy.depth)
+        out = iw[ioff[12]:ioff[13]]
+        status = _STATUS[int(out[0])]
+        x = fw[foff[2]:foff[3]].copy()
+        itl = iw[ioff[8]:ioff[8] + prep.depth]
+        total = int(out[1])
+        info = {}
+        if prep.D > prep.depth:
+            info["min_norm_iterations"] = int(iw[ioff[8] + prep.depth])
+        if out[6]:
+            info["warm_fallback"] = True
+        reason = ""
+        if status == MAX_ITERATIONS:
+            lvl = int(out[5])
+            where = "the min-norm stage" if lvl >= prep.depth else f"level {lvl}"
+            reason = f"hcod: iteration cap {int(ip[4])} reached at {where}"
+        elif status == NUMERICAL_FAILURE:
+            reason = f"hcod: numerical breakdown at level {int(out[5])} (x not finite or a blocking row " \
+                     "could not enter the decomposition)"
+        return SolveResult(x=x, status=status, reason=reason, iterations=total,
+                           iterations_per_level=tuple(itl.tolist()), activations=int(out[2]),
+                           deactivations=int(out[3]), flops=int(out[4]), info=info)
+
+
+def warmup() -> None:
+    """Compile (or load from the numba cache) the kernels by solving two tiny
+    problems, one equality-only and one with inequalities."""
+    from problems.hierarchy import Level
+
+    h_eq = Hierarchy.from_levels([Level.equality(np.eye(2), np.ones(2))], n=2)
+    h_in = Hierarchy.from_levels([Level(np.eye(2), -np.ones(2), np.ones(2)),
+                                  Level.equality(np.ones((1, 2)), [3.0])], n=2)
+    s = HcodSolver()
+    s.solve(h_eq)
+    s.solve(h_in)
+
+
+SOLVERS = [SolverInfo("hcod", HcodSolver.description, HcodSolver, supports_inequalities=True,
+                      supports_warm_start=True,
+                      options=dict(warm_start="time", max_iterations=None, rank_rtol=1e-10, min_norm=True))]

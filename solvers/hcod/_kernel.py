@@ -1,0 +1,526 @@
+"""The compiled solve: the sequence of LSIs (33)-(35), level by level, by a
+primal active set on the HCOD (ICRA 2010, sec. VII-XI). One call per solve.
+
+Row states (``state``): INACTIVE (a constraint with zero slack, inside its
+bounds), WORK (in the working set of constraints ``J_bar`` of the levels above,
+its row in the decomposition ``W``/``R``), IMPLIED (a frozen row that is a
+combination of working rows: not in ``W``, kept implicitly), OBJECTIVE (a row
+of the current level in the least-squares objective ``J_hat_k``, eq. 43).
+``side``: +1 upper bound, -1 lower bound, 0 equality / frozen (never leaves).
+
+Level k (``starts[k] <= i < starts[k+1]``):
+
+1. start from the optimum ``u_{k-1}`` of the previous level with its working
+   set (sec. X); rows of level k violated at ``u_{k-1}`` and the equality rows
+   enter the objective (eq. 45). With warm start "time" (sec. XI) the working
+   set recorded at the previous call is applied and ``u`` moves by
+   ``tau * Delta u_k`` (eq. 46).
+2. iterate: LSE step by the COD of ``J_hat_k Z`` (eqs. 19, 30-31); step length
+   tau to the first blocking constraint (an inactive row of levels <= k);
+   activation (a level-k row joins the objective, a higher row is inserted in
+   ``W``); at a full step, deactivation by the sign of the multipliers:
+   ``mu_k = w_k`` (eq. 38) for objective rows, ``lambda`` (eq. 39) from
+   ``R`` for working rows.
+3. freeze: objective rows with nonzero slack become equality constraints at
+   their achieved value (bounds propagated by eq. 36), zero-slack inequality
+   rows become working inequality constraints.
+
+Flops are multiply-adds counted in the kernels of :mod:`._linalg`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from solvers.hcod._linalg import (apply_reflectors, apply_reflectors_to_basis, cod, delete_row, insert_row,
+                                  multipliers, project_rows, row_dot, solve_lower, step_from_z)
+
+INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
+ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
+# out[] slots
+O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P, O_PREPARED = range(9)
+N_OUT = 9
+# float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n)
+F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
+            "Lb", "target", "rnorm", "bval", "lnorm", "hist_du")
+I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "itl", "hist_state",
+            "hist_side", "hist_valid", "out")
+
+
+def layout(n: int, mt: int, D: int, mmax: int):
+    """Offsets of the float and int workspaces, shape (len(blocks) + 1,) each."""
+    mm = max(mmax, 1)
+    fsz = dict(W=n * n, R=n * n, u=n, ps=n, z=n, g=n, hv=n, nu=n, q=n, uprev=n, y=n, Mr=mm * n, bvec=mm,
+               diag=mm, beta=mm, Lb=mm * max(min(n, mm), 1), target=mt, rnorm=mt, bval=mt, lnorm=D,
+               hist_du=D * n)
+    isz = dict(state=mt, side=mt, kind=mt, bcol=mt, rowlev=mt, widx=n, wside=n, Olist=mm, itl=D,
+               hist_state=D * mt, hist_side=D * mt, hist_valid=D, out=N_OUT)
+    foff = np.cumsum([0] + [fsz[b] for b in F_BLOCKS]).astype(np.int64)
+    ioff = np.cumsum([0] + [isz[b] for b in I_BLOCKS]).astype(np.int64)
+    return foff, ioff
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm):
+    """Row kinds (0 equality, 1 inequality, 2 free), bound rows (one nonzero),
+    row norms and the Frobenius norm of each level ``||A_k||_F`` (the scale of
+    the rank threshold)."""
+    m, n = A.shape
+    D = starts.shape[0] - 1
+    for k in range(D):
+        s = 0.0
+        for i in range(starts[k], starts[k + 1]):
+            rowlev[i] = k
+            nz = 0
+            col = -1
+            ss = 0.0
+            for c in range(n):
+                a = A[i, c]
+                if a != 0.0:
+                    nz += 1
+                    col = c
+                    ss += a * a
+            rnorm[i] = math.sqrt(ss)
+            s += ss
+            if nz == 1:
+                bcol[i] = col
+                bval[i] = A[i, col]
+            else:
+                bcol[i] = -1
+                bval[i] = 0.0
+            if lo[i] == up[i]:
+                kind[i] = 0
+            elif lo[i] == -np.inf and up[i] == np.inf:
+                kind[i] = 2
+            else:
+                kind[i] = 1
+        lnorm[k] = math.sqrt(s)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _norm(x):
+    s = 0.0
+    for v in x:
+        s += v * v
+    return math.sqrt(s)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
+    """Solve the hierarchy (A, lo, up, starts) in the workspaces fw/iw.
+
+    ip = (n, mt, D, mmax, max_iter, warm_mode 0 none | 1 stage | 2 time, has_ineq);
+    prm = (rank_rtol, feas_rtol, dual_rtol). The solution is ``u`` in fw,
+    counters in ``out`` (see O_* slots), iterations per level in ``itl``."""
+    n = ip[0]
+    mt = ip[1]
+    D = ip[2]
+    mmax = max(ip[3], 1)
+    max_iter = ip[4]
+    warm = ip[5]
+    has_ineq = ip[6] != 0
+    rank_rtol = prm[0]
+    feas_rtol = prm[1]
+    dual_rtol = prm[2]
+    W = fw[foff[0]:foff[1]].reshape((n, n))
+    R = fw[foff[1]:foff[2]].reshape((n, n))
+    u = fw[foff[2]:foff[3]]
+    ps = fw[foff[3]:foff[4]]
+    z = fw[foff[4]:foff[5]]
+    g = fw[foff[5]:foff[6]]
+    hv = fw[foff[6]:foff[7]]
+    nu = fw[foff[7]:foff[8]]
+    q = fw[foff[8]:foff[9]]
+    uprev = fw[foff[9]:foff[10]]
+    y = fw[foff[10]:foff[11]]
+    Mr = fw[foff[11]:foff[12]].reshape((mmax, n))
+    bvec = fw[foff[12]:foff[13]]
+    diag = fw[foff[13]:foff[14]]
+    beta = fw[foff[14]:foff[15]]
+    Lb = fw[foff[15]:foff[16]].reshape((max(min(n, mmax), 1), mmax))
+    target = fw[foff[16]:foff[17]]
+    rnorm = fw[foff[17]:foff[18]]
+    bval = fw[foff[18]:foff[19]]
+    lnorm = fw[foff[19]:foff[20]]
+    hist_du = fw[foff[20]:foff[21]].reshape((D, n))
+    state = iw[ioff[0]:ioff[1]]
+    side = iw[ioff[1]:ioff[2]]
+    kind = iw[ioff[2]:ioff[3]]
+    bcol = iw[ioff[3]:ioff[4]]
+    rowlev = iw[ioff[4]:ioff[5]]
+    widx = iw[ioff[5]:ioff[6]]
+    wside = iw[ioff[6]:ioff[7]]
+    Olist = iw[ioff[7]:ioff[8]]
+    itl = iw[ioff[8]:ioff[9]]
+    hist_state = iw[ioff[9]:ioff[10]].reshape((D, mt))
+    hist_side = iw[ioff[10]:ioff[11]].reshape((D, mt))
+    hist_valid = iw[ioff[11]:ioff[12]]
+    out = iw[ioff[12]:ioff[13]]
+
+    if out[O_PREPARED] == 0:
+        _prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm)
+        out[O_PREPARED] = 1
+    fl = 0
+    acts = 0
+    deacts = 0
+    total = 0
+    status = ST_OPTIMAL
+    fail_level = -1
+    warm_failed = 0
+    for attempt in range(2):
+        use_hist = warm == 2 and attempt == 0
+        # cold initial state: u_0 = 0, W = I, nothing active
+        for i in range(n):
+            u[i] = 0.0
+            for c in range(n):
+                W[i, c] = 0.0
+            W[i, i] = 1.0
+        for i in range(mt):
+            state[i] = INACTIVE
+            side[i] = 0
+        p = 0
+        fl = 0
+        acts = 0
+        deacts = 0
+        total = 0
+        status = ST_OPTIMAL
+        fail_level = -1
+        restart = False
+        for k in range(D):
+            s0 = starts[k]
+            s1 = starts[k + 1]
+            itl[k] = 0
+            for c in range(n):
+                uprev[c] = u[c]
+            if s1 == s0:
+                if warm == 2:
+                    for c in range(n):
+                        hist_du[k, c] = 0.0
+                    hist_valid[k] = 1
+                continue
+            thr_k = rank_rtol * lnorm[k]
+            nO = 0
+            warm_level = use_hist and hist_valid[k] != 0
+            if (warm == 0 and k > 0) or warm_level:
+                # drop working inequality rows: all of them ("none"), or those the
+                # level deactivated at the previous call (Delta^- A, sec. XI)
+                dropped = False
+                for j in range(p - 1, -1, -1):
+                    i = widx[j]
+                    if wside[j] != 0 and (warm == 0 or hist_state[k, i] != WORK):
+                        fl += delete_row(j, W, R, p, widx, wside)
+                        p -= 1
+                        state[i] = INACTIVE
+                        dropped = True
+                if dropped:
+                    for i in range(s0):
+                        if state[i] == IMPLIED:
+                            ok, f = insert_row(A, i, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[i]], q)
+                            fl += f
+                            if ok:
+                                widx[p] = i
+                                wside[p] = 0
+                                p += 1
+                                state[i] = WORK
+            if warm_level:
+                # eq. (46): u_hat = u_{k-1} + tau Delta u_k, tau keeping inactive rows feasible
+                tau = 1.0
+                for i in range(s0):
+                    if state[i] != INACTIVE or kind[i] != 1 or hist_state[k, i] == WORK:
+                        continue
+                    ap = row_dot(A, i, bcol, bval, hist_du[k])
+                    if ap == 0.0:
+                        continue
+                    av = row_dot(A, i, bcol, bval, u)
+                    if ap > 0.0 and up[i] < np.inf:
+                        rt = (up[i] - av) / ap
+                    elif ap < 0.0 and lo[i] > -np.inf:
+                        rt = (lo[i] - av) / ap
+                    else:
+                        continue
+                    if rt < tau:
+                        tau = max(rt, 0.0)
+                for c in range(n):
+                    u[c] += tau * hist_du[k, c]
+                # Delta^+ A: rows the level activated at the previous call
+                for i in range(s0):
+                    sd = hist_side[k, i]
+                    if hist_state[k, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0:
+                        ok, f = insert_row(A, i, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[i]], q)
+                        fl += f
+                        if ok:
+                            widx[p] = i
+                            wside[p] = sd
+                            p += 1
+                            state[i] = WORK
+                            side[i] = sd
+                            target[i] = up[i] if sd > 0 else lo[i]
+                # LSE correction onto the working rows: R^T c = res, u += W[:, :p] c
+                big = 0.0
+                for j in range(p):
+                    i = widx[j]
+                    hv[j] = 0.0 if wside[j] == 0 else target[i] - row_dot(A, i, bcol, bval, u)
+                    big = max(big, abs(hv[j]))
+                if big > 0.0:
+                    for j in range(p):
+                        s = hv[j]
+                        for l in range(j):
+                            s -= R[l, j] * nu[l]
+                        nu[j] = s / R[j, j]
+                    for rr in range(n):
+                        s = 0.0
+                        for j in range(p):
+                            s += W[rr, j] * nu[j]
+                        u[rr] += s
+                    fl += n * p + p * p // 2
+                unorm = _norm(u)
+                for i in range(s0):
+                    if state[i] == INACTIVE and kind[i] == 1:
+                        av = row_dot(A, i, bcol, bval, u)
+                        tol = feas_rtol * (rnorm[i] * (1.0 + unorm) + 1.0)
+                        if av > up[i] + tol or av < lo[i] - tol or not math.isfinite(av):
+                            restart = True
+                            break
+                if restart:
+                    break
+                for i in range(s0, s1):
+                    if hist_state[k, i] == OBJECTIVE:
+                        sd = hist_side[k, i]
+                        if kind[i] == 0:
+                            sd = 0
+                        elif kind[i] == 2 or (sd > 0 and up[i] == np.inf) or (sd < 0 and lo[i] == -np.inf):
+                            continue
+                        state[i] = OBJECTIVE
+                        side[i] = sd
+                        target[i] = up[i] if sd > 0 else lo[i]
+                        Olist[nO] = i
+                        nO += 1
+            # eq. (45): equality rows and rows violated at u_hat enter the objective
+            for i in range(s0, s1):
+                if state[i] == OBJECTIVE:
+                    continue
+                state[i] = INACTIVE
+                if kind[i] == 0:
+                    state[i] = OBJECTIVE
+                    side[i] = 0
+                    target[i] = lo[i]
+                    Olist[nO] = i
+                    nO += 1
+                elif kind[i] == 1:
+                    av = row_dot(A, i, bcol, bval, u)
+                    if av > up[i]:
+                        state[i] = OBJECTIVE
+                        side[i] = 1
+                        target[i] = up[i]
+                        Olist[nO] = i
+                        nO += 1
+                    elif av < lo[i]:
+                        state[i] = OBJECTIVE
+                        side[i] = -1
+                        target[i] = lo[i]
+                        Olist[nO] = i
+                        nO += 1
+            # ---- active-set iterations of level k ----
+            r = 0
+            while True:
+                if total >= max_iter:
+                    status = ST_MAXIT
+                    fail_level = k
+                    break
+                total += 1
+                itl[k] += 1
+                nf = n - p
+                r = 0
+                for c in range(n):
+                    ps[c] = 0.0
+                if nf > 0 and nO > 0:
+                    fl += project_rows(A, Olist, nO, bcol, bval, W, p, Mr)
+                    for j in range(nO):
+                        i = Olist[j]
+                        bvec[j] = target[i] - row_dot(A, i, bcol, bval, u)
+                    r, f = cod(Mr, nO, nf, thr_k, Olist, bvec, diag, beta)
+                    fl += f
+                    if r > 0:
+                        fl += solve_lower(Mr, diag, nO, r, bvec, Lb, y)
+                        for c in range(nf):
+                            z[c] = y[c] if c < r else 0.0
+                        fl += apply_reflectors(Mr, beta, r, nf, z)
+                        fl += step_from_z(W, p, z, ps)
+                tau = 1.0
+                blk = -1
+                bsd = 0
+                if has_ineq:
+                    pn = _norm(ps)
+                    if pn > 0.0:
+                        for i in range(s1):
+                            if state[i] != INACTIVE or kind[i] != 1:
+                                continue
+                            ap = row_dot(A, i, bcol, bval, ps)
+                            if abs(ap) <= 1e-13 * rnorm[i] * pn:
+                                continue
+                            av = row_dot(A, i, bcol, bval, u)
+                            if ap > 0.0 and up[i] < np.inf:
+                                rt = (up[i] - av) / ap
+                                sd = 1
+                            elif ap < 0.0 and lo[i] > -np.inf:
+                                rt = (lo[i] - av) / ap
+                                sd = -1
+                            else:
+                                continue
+                            if rt < tau:
+                                tau = max(rt, 0.0)
+                                blk = i
+                                bsd = sd
+                        fl += 2 * n * (s1 - s0)
+                for c in range(n):
+                    u[c] += tau * ps[c]
+                if blk >= 0:
+                    acts += 1
+                    side[blk] = bsd
+                    target[blk] = up[blk] if bsd > 0 else lo[blk]
+                    if blk >= s0:
+                        state[blk] = OBJECTIVE
+                        Olist[nO] = blk
+                        nO += 1
+                    else:
+                        ok, f = insert_row(A, blk, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[blk]], q)
+                        fl += f
+                        if not ok:
+                            status = ST_NUMERICAL
+                            fail_level = k
+                            break
+                        widx[p] = blk
+                        wside[p] = bsd
+                        p += 1
+                        state[blk] = WORK
+                    continue
+                if not has_ineq:
+                    break
+                # full step: deactivation by the sign of the multipliers
+                unorm = _norm(u)
+                worst = 0.0
+                jw = -1
+                for j in range(nO):
+                    i = Olist[j]
+                    if kind[i] != 1:
+                        continue
+                    w = row_dot(A, i, bcol, bval, u) - target[i]  # eq. (38): mu = w
+                    val = side[i] * w
+                    tol = dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
+                    if val < -tol and val / rnorm[i] < worst:
+                        worst = val / rnorm[i]
+                        jw = j
+                if jw >= 0:
+                    i = Olist[jw]
+                    Olist[jw] = Olist[nO - 1]
+                    nO -= 1
+                    state[i] = INACTIVE
+                    deacts += 1
+                    continue
+                anydel = False
+                for j in range(p):
+                    if wside[j] != 0:
+                        anydel = True
+                        break
+                if anydel and nO > 0:
+                    for c in range(n):
+                        g[c] = 0.0
+                    for j in range(nO):
+                        i = Olist[j]
+                        w = row_dot(A, i, bcol, bval, u) - target[i]
+                        if bcol[i] >= 0:
+                            g[bcol[i]] += bval[i] * w
+                        else:
+                            for c in range(n):
+                                g[c] += A[i, c] * w
+                    gn = _norm(g)
+                    # noise floor of g: its terms are rows of A_k times residuals of size
+                    # ||A_k|| (1 + ||u||) + ||e_k||
+                    tn = 0.0
+                    for j in range(nO):
+                        tn += target[Olist[j]] ** 2
+                    gtol = dual_rtol * lnorm[k] * (lnorm[k] * (1.0 + unorm) + math.sqrt(tn))
+                    if gn > gtol:
+                        fl += multipliers(W, R, p, g, hv, nu)  # eq. (39)
+                        worst = 0.0
+                        for j in range(p):
+                            if wside[j] != 0:
+                                val = wside[j] * nu[j] * rnorm[widx[j]]
+                                if val < -gtol and val < worst:
+                                    worst = val
+                                    jw = j
+                        if jw >= 0:
+                            i = widx[jw]
+                            fl += delete_row(jw, W, R, p, widx, wside)
+                            p -= 1
+                            state[i] = INACTIVE
+                            deacts += 1
+                            for i2 in range(s0):
+                                if state[i2] == IMPLIED:
+                                    ok, f = insert_row(A, i2, bcol, bval, W, R, p,
+                                                       rank_rtol * lnorm[rowlev[i2]], q)
+                                    fl += f
+                                    if ok:
+                                        widx[p] = i2
+                                        wside[p] = 0
+                                        p += 1
+                                        state[i2] = WORK
+                            continue
+                break
+            if status != ST_OPTIMAL:
+                break
+            if warm == 2:
+                for i in range(s1):
+                    hist_state[k, i] = state[i]
+                    hist_side[k, i] = side[i]
+                for c in range(n):
+                    hist_du[k, c] = u[c] - uprev[c]
+                hist_valid[k] = 1
+            # ---- freeze level k (eq. 36) ----
+            if not has_ineq:
+                if r > 0:
+                    fl += apply_reflectors_to_basis(W, p, Mr, beta, r)
+                for j in range(nO):
+                    state[Olist[j]] = WORK if j < r else IMPLIED
+                p += r
+            else:
+                unorm = _norm(u)
+                for j in range(nO):
+                    i = Olist[j]
+                    av = row_dot(A, i, bcol, bval, u)
+                    w = av - target[i]
+                    sd = side[i]
+                    if kind[i] == 0 or abs(w) > dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i])):
+                        target[i] = av
+                        sd = 0
+                    ok, f = insert_row(A, i, bcol, bval, W, R, p, thr_k, q)
+                    fl += f
+                    side[i] = sd
+                    if ok:
+                        widx[p] = i
+                        wside[p] = sd
+                        p += 1
+                        state[i] = WORK
+                    else:
+                        state[i] = IMPLIED if sd == 0 else INACTIVE
+        if restart:
+            warm_failed = 1
+            for k in range(D):
+                hist_valid[k] = 0
+            continue
+        break
+    for c in range(n):
+        if not math.isfinite(u[c]):
+            status = ST_NUMERICAL
+            break
+    out[O_STATUS] = status
+    out[O_ITERS] = total
+    out[O_ACT] = acts
+    out[O_DEACT] = deacts
+    out[O_FLOPS] = fl
+    out[O_LEVEL] = fail_level
+    out[O_WARMFAIL] = warm_failed
+    out[O_P] = p

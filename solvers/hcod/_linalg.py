@@ -1,0 +1,337 @@
+"""Numba kernels of the HCOD: projections, the rank-revealing COD of a
+projected level, and the updates of the constraint decomposition.
+
+Notation (ICRA 2010, sec. V-VI). ``W`` (n, n) is orthonormal; its first ``p``
+columns span the rows of the working (active) constraints of the levels above,
+its last ``nf = n - p`` columns are ``Z`` (the null-space basis, eq. 16).
+``R`` (n, n) holds, column j, the coordinates of working row j in ``W``:
+``C^T = W[:, :p] R[:p, :p]`` with ``R[:p, :p]`` upper triangular (rows enter in
+order). Every routine returns the number of multiply-adds it did (the flop
+counter of :class:`~solvers.base.SolveResult`).
+
+Rows are read from ``A`` (m, n); a *bound row* (one nonzero, e.g. a box row
+``e_i``) has ``bcol[i] >= 0`` and coefficient ``bval[i]``: its products cost
+O(1) instead of O(n).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["row_dot", "project_rows", "cod", "solve_lower", "apply_reflectors", "step_from_z",
+           "apply_reflectors_to_basis", "insert_row", "delete_row", "multipliers"]
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def row_dot(A, i, bcol, bval, x):
+    """``A[i] @ x`` (O(1) for a bound row)."""
+    b = bcol[i]
+    if b >= 0:
+        return bval[i] * x[b]
+    s = 0.0
+    for c in range(A.shape[1]):
+        s += A[i, c] * x[c]
+    return s
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def project_rows(A, rows, nO, bcol, bval, W, p, Mr):
+    """Rows of the projected level ``M = J_k Z_{k-1}`` (eq. 19): for the j-th
+    objective row ``a = A[rows[j]]``, ``Mr[j, :nf] = Z^T a`` with ``Z = W[:, p:]``.
+
+    Shapes: rows (>= nO,), W (n, n), Mr (>= nO, >= nf). Returns flops."""
+    n = W.shape[0]
+    nf = n - p
+    fl = 0
+    for j in range(nO):
+        i = rows[j]
+        b = bcol[i]
+        if b >= 0:
+            v = bval[i]
+            for c in range(nf):
+                Mr[j, c] = v * W[b, p + c]
+            fl += nf
+        else:
+            for c in range(nf):
+                Mr[j, c] = 0.0
+            for r in range(n):
+                a = A[i, r]
+                if a != 0.0:
+                    for c in range(nf):
+                        Mr[j, c] += a * W[r, p + c]
+                    fl += nf
+    return fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def cod(Mr, nO, nf, thr, rows, bvec, diag, beta):
+    """Rank-revealing Householder QR with column pivoting of ``M^T`` (nf, nO),
+    whose columns are the rows of ``Mr``: ``M^T Pi = H [R1 R2; 0 0]``, the
+    first half of the COD (19) (``L_k = [R1 R2]^T``, ``Y_k = H[:, :r]``,
+    ``Z_k = H[:, r:]``).
+
+    Pivoting permutes ``Mr``, ``rows`` and ``bvec`` together. The rank r is
+    the number of pivots whose remaining norm exceeds ``thr`` (the relative
+    threshold times ``||A_k||``, see the package docstring). On return,
+    reflector i is ``I - beta[i] v v^T`` with ``v = Mr[i, i:nf]``, ``diag[i]``
+    is ``R1[i, i]`` and ``Mr[j, i]`` (j > i) is ``R[i, j]``.
+
+    Returns (r, flops)."""
+    fl = 0
+    kmax = min(nO, nf)
+    r = 0
+    for i in range(kmax):
+        best = -1.0
+        jb = i
+        for j in range(i, nO):
+            s = 0.0
+            for c in range(i, nf):
+                s += Mr[j, c] * Mr[j, c]
+            if s > best:
+                best = s
+                jb = j
+        fl += (nO - i) * (nf - i)
+        nrm = math.sqrt(best)
+        if not nrm > thr:
+            break
+        if jb != i:
+            for c in range(nf):
+                t = Mr[i, c]
+                Mr[i, c] = Mr[jb, c]
+                Mr[jb, c] = t
+            ti = rows[i]
+            rows[i] = rows[jb]
+            rows[jb] = ti
+            tb = bvec[i]
+            bvec[i] = bvec[jb]
+            bvec[jb] = tb
+        x0 = Mr[i, i]
+        alpha = -nrm if x0 >= 0.0 else nrm
+        Mr[i, i] = x0 - alpha
+        bt = 1.0 / (nrm * (nrm + abs(x0)))
+        beta[i] = bt
+        diag[i] = alpha
+        for j in range(i + 1, nO):
+            s = 0.0
+            for c in range(i, nf):
+                s += Mr[i, c] * Mr[j, c]
+            s *= bt
+            for c in range(i, nf):
+                Mr[j, c] -= s * Mr[i, c]
+        fl += 2 * (nO - i - 1) * (nf - i)
+        r = i + 1
+    return r, fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def solve_lower(Mr, diag, nO, r, bvec, Lb, y):
+    """Least-squares solve of the second half of the COD (19):
+    ``y = argmin ||L y - c||`` with ``L`` (nO, r) of full column rank,
+    ``L[j, l] = R[l, j]`` (from :func:`cod`) and ``c = bvec[:nO]`` (the
+    permuted residual ``e_k - J_k u``). When r == nO, L is lower triangular
+    and this is a forward substitution; otherwise L is reduced by Householder
+    (``L = V_k [L_k; 0]``, eq. 19) in the scratch ``Lb`` (r, nO), and bvec is
+    overwritten. Returns flops."""
+    fl = 0
+    if r == nO:
+        for i in range(r):
+            s = bvec[i]
+            for l in range(i):
+                s -= Mr[i, l] * y[l]
+            y[i] = s / diag[i]
+        return r * r // 2 + r
+    for l in range(r):
+        for j in range(nO):
+            if j > l:
+                Lb[l, j] = Mr[j, l]
+            elif j == l:
+                Lb[l, j] = diag[l]
+            else:
+                Lb[l, j] = 0.0
+    for l in range(r):
+        s = 0.0
+        for j in range(l, nO):
+            s += Lb[l, j] * Lb[l, j]
+        nrm = math.sqrt(s)
+        x0 = Lb[l, l]
+        alpha = -nrm if x0 >= 0.0 else nrm
+        Lb[l, l] = x0 - alpha
+        bt = 1.0 / (nrm * (nrm + abs(x0)))
+        for l2 in range(l + 1, r):
+            s = 0.0
+            for j in range(l, nO):
+                s += Lb[l, j] * Lb[l2, j]
+            s *= bt
+            for j in range(l, nO):
+                Lb[l2, j] -= s * Lb[l, j]
+        s = 0.0
+        for j in range(l, nO):
+            s += Lb[l, j] * bvec[j]
+        s *= bt
+        for j in range(l, nO):
+            bvec[j] -= s * Lb[l, j]
+        Lb[l, l] = alpha
+        fl += 2 * (r - l) * (nO - l) + 2 * (nO - l)
+    for l in range(r - 1, -1, -1):
+        s = bvec[l]
+        for l2 in range(l + 1, r):
+            s -= Lb[l2, l] * y[l2]
+        y[l] = s / Lb[l, l]
+    return fl + r * r // 2
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def apply_reflectors(Mr, beta, r, nf, z):
+    """``z <- H z`` with ``H = H_0 ... H_{r-1}`` from :func:`cod`; z (nf,).
+    Used for ``Z_{k-1} Y_k y`` in eq. (31). Returns flops."""
+    fl = 0
+    for i in range(r - 1, -1, -1):
+        s = 0.0
+        for c in range(i, nf):
+            s += Mr[i, c] * z[c]
+        s *= beta[i]
+        for c in range(i, nf):
+            z[c] -= s * Mr[i, c]
+        fl += 2 * (nf - i)
+    return fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def step_from_z(W, p, z, out):
+    """``out = Z z`` with ``Z = W[:, p:]`` (n, nf). Returns flops."""
+    n = W.shape[0]
+    for rr in range(n):
+        s = 0.0
+        for c in range(n - p):
+            s += W[rr, p + c] * z[c]
+        out[rr] = s
+    return n * (n - p)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def apply_reflectors_to_basis(W, p, Mr, beta, r):
+    """``W[:, p:] <- W[:, p:] H`` (eq. 23: ``[Y_bar_k, Z_k] = Z_{k-1} H``): after
+    it, ``W[:, p:p+r]`` spans the projected level and ``W[:, p+r:]`` is
+    ``Z_k``. Returns flops."""
+    n = W.shape[0]
+    nf = n - p
+    for i in range(r):
+        bt = beta[i]
+        for rr in range(n):
+            s = 0.0
+            for c in range(i, nf):
+                s += W[rr, p + c] * Mr[i, c]
+            s *= bt
+            for c in range(i, nf):
+                W[rr, p + c] -= s * Mr[i, c]
+    return 2 * n * nf * r
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def insert_row(A, i, bcol, bval, W, R, p, thr, q):
+    """Add row ``a = A[i]`` to the working constraints by one Householder
+    update of ``W`` (sec. IX: the decomposition is updated, not recomputed):
+    ``q = W^T a``; the reflector that maps ``q[p:]`` to ``alpha e_1`` is
+    applied to ``W[:, p:]`` from the right; ``R[:, p] = (q[:p], alpha)``.
+
+    The row is refused (returns False) when ``||q[p:]|| <= thr``: it is a
+    combination of the working rows (rank detection). Returns (ok, flops)."""
+    n = W.shape[0]
+    b = bcol[i]
+    if b >= 0:
+        v = bval[i]
+        for c in range(n):
+            q[c] = v * W[b, c]
+        fl = n
+    else:
+        for c in range(n):
+            q[c] = 0.0
+        fl = 0
+        for rr in range(n):
+            a = A[i, rr]
+            if a != 0.0:
+                for c in range(n):
+                    q[c] += a * W[rr, c]
+                fl += n
+    s = 0.0
+    for c in range(p, n):
+        s += q[c] * q[c]
+    nrm = math.sqrt(s)
+    if not nrm > thr:
+        return False, fl
+    x0 = q[p]
+    alpha = -nrm if x0 >= 0.0 else nrm
+    q[p] = x0 - alpha
+    bt = 1.0 / (nrm * (nrm + abs(x0)))
+    for rr in range(n):
+        s = 0.0
+        for c in range(p, n):
+            s += W[rr, c] * q[c]
+        s *= bt
+        for c in range(p, n):
+            W[rr, c] -= s * q[c]
+    fl += 2 * n * (n - p)
+    for c in range(p):
+        R[c, p] = q[c]
+    R[p, p] = alpha
+    return True, fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def delete_row(j, W, R, p, widx, wside):
+    """Remove working row j (0 <= j < p): drop column j of R (it becomes upper
+    Hessenberg) and restore the triangle by Givens rotations applied to R's
+    rows and W's columns (``W R`` is unchanged). ``widx``/``wside`` shift.
+    Returns flops; the caller decrements p."""
+    n = W.shape[0]
+    fl = 0
+    for col in range(j, p - 1):
+        for rr in range(col + 2):
+            R[rr, col] = R[rr, col + 1]
+        widx[col] = widx[col + 1]
+        wside[col] = wside[col + 1]
+    for i in range(j, p - 1):
+        a = R[i, i]
+        b = R[i + 1, i]
+        h = math.hypot(a, b)
+        if h == 0.0:
+            continue
+        c = a / h
+        s = b / h
+        for col in range(i, p - 1):
+            r1 = R[i, col]
+            r2 = R[i + 1, col]
+            R[i, col] = c * r1 + s * r2
+            R[i + 1, col] = -s * r1 + c * r2
+        R[i + 1, i] = 0.0
+        for rr in range(n):
+            w1 = W[rr, i]
+            w2 = W[rr, i + 1]
+            W[rr, i] = c * w1 + s * w2
+            W[rr, i + 1] = -s * w1 + c * w2
+        fl += 4 * (p - 1 - i) + 4 * n
+    return fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def multipliers(W, R, p, g, h, nu):
+    """Multipliers of the working constraints (eq. 39):
+    ``C^T nu = -g`` solved as ``R nu = -W[:, :p]^T g``; g (n,) is the gradient
+    ``J_k^T w_k`` of the level's objective. Returns flops."""
+    n = W.shape[0]
+    for c in range(p):
+        h[c] = 0.0
+    for rr in range(n):
+        gr = g[rr]
+        if gr != 0.0:
+            for c in range(p):
+                h[c] += W[rr, c] * gr
+    for c in range(p - 1, -1, -1):
+        s = -h[c]
+        for l in range(c + 1, p):
+            s -= R[c, l] * nu[l]
+        nu[c] = s / R[c, c]
+    return n * p + p * p // 2
