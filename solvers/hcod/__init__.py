@@ -60,21 +60,21 @@ class _Prepared:
 
     __slots__ = ("h", "A", "lo", "up", "starts", "depth", "D", "mt", "mmax", "has_ineq", "key")
 
-    def __init__(self, h: Hierarchy, min_norm: bool):
+    def __init__(self, h: Hierarchy, min_norm: bool, has_ineq: bool):
         self.h = h
         n = h.n
         self.depth = h.depth
-        self.has_ineq = bool(h.has_inequalities)
-        if self.has_ineq and min_norm and n > 0:
+        self.has_ineq = has_ineq
+        if min_norm and n > 0:
             self.A = np.ascontiguousarray(np.vstack([h.A, np.eye(n)]))
             self.lo = np.concatenate([h.lower, np.zeros(n)])
             self.up = np.concatenate([h.upper, np.zeros(n)])
             self.starts = np.concatenate([h.starts, [h.rows + n]]).astype(np.int64)
         else:
-            self.A = np.ascontiguousarray(h.A, dtype=np.float64)
-            self.lo = np.ascontiguousarray(h.lower, dtype=np.float64)
-            self.up = np.ascontiguousarray(h.upper, dtype=np.float64)
-            self.starts = np.ascontiguousarray(h.starts, dtype=np.int64)
+            self.A = h.A
+            self.lo = h.lower
+            self.up = h.upper
+            self.starts = h.starts
         self.D = self.starts.shape[0] - 1
         self.mt = self.A.shape[0]
         self.mmax = int(np.diff(self.starts).max()) if self.D else 0
@@ -125,16 +125,49 @@ class HcodSolver(Solver):
         self._prm = np.array([self.rank_rtol, 1e-9, 1e-11])
         self._prep: _Prepared | None = None
         self._ws = None
+        self._fast = None  # (hierarchy, closure) of the equality path
 
     def reset(self) -> None:
         """Forget the warm-start record (the next solve is cold)."""
         if self._ws is not None:
-            self._ws[1][self._ws[3][11]:self._ws[3][12]] = 0
+            iw, ioff = self._ws[1], self._ws[3]
+            iw[ioff[11]:ioff[12]] = 0
 
+    # -- equality-only hierarchies: the implicit-basis recursion (_equality.py) -------------------
+    def _bind_equality(self, h: Hierarchy):
+        """Workspaces for h and a closure running one solve (kept for re-solves)."""
+        from solvers.hcod._equality import eq_solve
+
+        m, n = h.A.shape
+        D = h.depth
+        fw = np.empty(m * n + 2 * m + 2 * n)
+        iw = np.empty(3 * D, dtype=np.int64)
+        x = fw[m * n + 2 * m + n:]
+        itl = iw[2 * D:]
+        args = (h.A, h.lower, h.starts, self.rank_rtol, fw[:m * n].reshape(m, n), fw[m * n:m * n + m],
+                fw[m * n + m:m * n + 2 * m], fw[m * n + 2 * m:m * n + 2 * m + n], x, iw[:D], iw[D:2 * D], itl)
+
+        def run() -> SolveResult:
+            try:
+                fl = eq_solve(*args)
+            except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
+                return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
+                                   iterations_per_level=(0,) * D)
+            it = itl.tolist()
+            if fl < 0:
+                return SolveResult(x=None, status=NUMERICAL_FAILURE, reason="hcod: x is not finite",
+                                   iterations=sum(it), iterations_per_level=tuple(it))
+            return SolveResult(x=x.copy(), status=OPTIMAL, iterations=sum(it), iterations_per_level=tuple(it),
+                               flops=fl)
+
+        self._fast = (h, run)
+        return run
+
+    # -- hierarchies with inequalities: the active set (_kernel.py) -------------------------------
     def _bind(self, h: Hierarchy):
-        from solvers.hcod._kernel import layout, O_PREPARED
+        from solvers.hcod._kernel import O_PREPARED, layout
 
-        prep = _Prepared(h, self.min_norm)
+        prep = _Prepared(h, self.min_norm, True)
         old = self._prep
         if old is None or old.key != prep.key or self._ws is None:
             n = h.n
@@ -143,7 +176,7 @@ class HcodSolver(Solver):
             iw = np.zeros(int(ioff[-1]), dtype=np.int64)
             cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (prep.mt + n)
             wm = WARM_STARTS.index(self.warm_start)
-            ip = np.array([n, prep.mt, prep.D, prep.mmax, cap, wm, int(prep.has_ineq)], dtype=np.int64)
+            ip = np.array([n, prep.mt, prep.D, prep.mmax, cap, wm, 1], dtype=np.int64)
             self._ws = (fw, iw, foff, ioff, ip)
         else:
             fw, iw, foff, ioff, ip = self._ws
@@ -152,16 +185,21 @@ class HcodSolver(Solver):
         return prep
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
-        from solvers.hcod._kernel import hcod_solve
-
+        fast = self._fast
+        if fast is not None and fast[0] is hierarchy:
+            return fast[1]()
         prep = self._prep
         if prep is None or prep.h is not hierarchy:
+            if hierarchy.n == 0 or hierarchy.rows == 0:
+                return SolveResult(x=np.zeros(hierarchy.n), status=OPTIMAL, flops=0,
+                                   iterations_per_level=(0,) * hierarchy.depth)
+            if not hierarchy.has_inequalities:
+                return self._bind_equality(hierarchy)()
+            self._fast = None
             prep = self._bind(hierarchy)
+        from solvers.hcod._kernel import hcod_solve
+
         fw, iw, foff, ioff, ip = self._ws
-        n = hierarchy.n
-        if n == 0 or prep.D == 0:
-            return SolveResult(x=np.zeros(n), status=OPTIMAL, iterations_per_level=(0,) * hierarchy.depth,
-                               flops=0)
         try:
             hcod_solve(prep.A, prep.lo, prep.up, prep.starts, fw, iw, foff, ioff, self._prm, ip)
         except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
@@ -171,7 +209,6 @@ class HcodSolver(Solver):
         status = _STATUS[int(out[0])]
         x = fw[foff[2]:foff[3]].copy()
         itl = iw[ioff[8]:ioff[8] + prep.depth]
-        total = int(out[1])
         info = {}
         if prep.D > prep.depth:
             info["min_norm_iterations"] = int(iw[ioff[8] + prep.depth])
@@ -182,10 +219,12 @@ class HcodSolver(Solver):
             lvl = int(out[5])
             where = "the min-norm stage" if lvl >= prep.depth else f"level {lvl}"
             reason = f"hcod: iteration cap {int(ip[4])} reached at {where}"
-        elif status == NUMERICAL_FAILURE:
-            reason = f"hcod: numerical breakdown at level {int(out[5])} (x not finite or a blocking row " \
-                     "could not enter the decomposition)"
-        return SolveResult(x=x, status=status, reason=reason, iterations=total,
+        elif status == NUMERICAL_FAILURE or not np.isfinite(x).all():
+            status = NUMERICAL_FAILURE
+            reason = (f"hcod: numerical breakdown at level {int(out[5])} (x not finite, or a blocking row "
+                      "could not enter the decomposition)")
+            x = None
+        return SolveResult(x=x, status=status, reason=reason, iterations=int(out[1]),
                            iterations_per_level=tuple(itl.tolist()), activations=int(out[2]),
                            deactivations=int(out[3]), flops=int(out[4]), info=info)
 

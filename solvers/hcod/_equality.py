@@ -1,0 +1,267 @@
+"""Equality-only hierarchies: the HCOD recursion (ICRA 2010, sec. V-VI) with
+an implicit basis.
+
+The basis ``[Y_bar_{k-1}, Z_{k-1}] = H^(0) ... H^(k-1)`` (eq. 23) is never
+formed: the rows of the levels below are carried in the rotated coordinates
+``xi = [Y_bar, Z]^T x`` instead. Level k's block ``At[rows_k]`` holds, when k
+is reached, ``[J_k Y_bar_{k-1}, J_k Z_{k-1}]`` (the ``M_k, N_k`` of eq. 22 and
+the projected level of eq. 19), shape (m_k, n). Then
+
+1. ``b = e_k - J_k Y_bar_{k-1} xi[:p]``  (``e_k - J_k u_{k-1}``, eq. 31);
+2. pivoted Householder QR of ``(J_k Z_{k-1})^T`` with rank r (COD (19), first
+   half; rank threshold ``rank_rtol * ||A_k||_F``), reflectors stored in the
+   level's own rows;
+3. ``xi[p:p+r] = L_k^-1 V_k^T b`` (eq. 31; second half of the COD when
+   r < m_k, least squares);
+4. ``p += r``; the level's reflectors stay in its rows. They are applied to
+   the rows of a level below only when that level is reached with ``nf > 0``
+   (lazily), so levels after saturation cost nothing.
+
+At the end ``x = H^(0) ... H^(N-1) xi``. Cost per level: the reflectors of
+the levels above applied once to the level's rows, i.e. ``2 m_k sum_j r_j
+nf_j``, the COD ``~3 m_k^2 nf``: the shape of the paper's count (sec. VI),
+and nothing once ``Z`` is empty (saturation).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+__all__ = ["eq_solve"]
+
+
+_FM = {"reassoc", "contract", "nsz", "arcp"}
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def _dot(a, ia, b, ib, j0, j1):
+    """``a[ia, j0:j1] @ b[ib, j0:j1]`` with eight accumulators (short rows: latency-bound)."""
+    ra = a[ia]
+    rb = b[ib]
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    s4 = 0.0
+    s5 = 0.0
+    s6 = 0.0
+    s7 = 0.0
+    c = j0
+    while c + 8 <= j1:
+        s0 += ra[c] * rb[c]
+        s1 += ra[c + 1] * rb[c + 1]
+        s2 += ra[c + 2] * rb[c + 2]
+        s3 += ra[c + 3] * rb[c + 3]
+        s4 += ra[c + 4] * rb[c + 4]
+        s5 += ra[c + 5] * rb[c + 5]
+        s6 += ra[c + 6] * rb[c + 6]
+        s7 += ra[c + 7] * rb[c + 7]
+        c += 8
+    while c < j1:
+        s0 += ra[c] * rb[c]
+        c += 1
+    s0 += s4
+    s1 += s5
+    s2 += s6
+    s3 += s7
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def _axpy(sv, a, ia, b, ib, j0, j1):
+    """``b[ib, j0:j1] -= sv * a[ia, j0:j1]``."""
+    ra = a[ia]
+    rb = b[ib]
+    for c in range(j0, j1):
+        rb[c] -= sv * ra[c]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc", "contract", "nsz", "arcp"})
+def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
+    """Minimum-norm lexicographic solution of ``A_k x = e_k``, k = 0..N-1.
+
+    Parameters
+    ----------
+    A : (m, n) rows, level k = ``starts[k]:starts[k+1]``; e : (m,) targets.
+    At : (m, n) scratch (the rotated rows, then the reflectors).
+    beta, cn : (m,) scratch (reflector scalars, pivot norms).
+    xi, x : (n,) scratch / output (x is the solution).
+    lev_p, lev_r, itl : (N,) int scratch / output (p and rank of each level,
+    iterations = 1 per nonempty level).
+
+    Returns the multiply-add count, or -1 when x is not finite (breakdown).
+    """
+    m, n = A.shape
+    D = starts.shape[0] - 1
+    fl = 0
+    for c in range(n):
+        xi[c] = 0.0
+    p = 0
+    for k in range(D):
+        s0 = starts[k]
+        s1 = starts[k + 1]
+        mk = s1 - s0
+        lev_p[k] = p
+        lev_r[k] = 0
+        itl[k] = 0
+        if mk == 0:
+            continue
+        itl[k] = 1
+        nf = n - p
+        if nf == 0:
+            continue
+        # threshold relative to the unprojected level: ||A_k||_F; copy the rows and project
+        # them on Z_{k-1}: apply the reflectors of the levels above (lazily, only now: a
+        # level reached with nf = 0 costs nothing)
+        s = 0.0
+        for i in range(s0, s1):
+            for c in range(n):
+                a = A[i, c]
+                At[i, c] = a
+                s += a * a
+        thr = rank_rtol * math.sqrt(s)
+        for j in range(k):
+            pj = lev_p[j]
+            for t in range(lev_r[j]):
+                it = starts[j] + t
+                c0 = pj + t
+                for i in range(s0, s1):
+                    _axpy(beta[it] * _dot(At, it, At, i, c0, n), At, it, At, i, c0, n)
+                fl += 2 * mk * (n - c0)
+        # b = e_k - J_k Y_bar xi[:p]; column norms of the projected rows
+        for i in range(s0, s1):
+            t = e[i]
+            for c in range(p):
+                t -= At[i, c] * xi[c]
+            cn[i] = t  # b, permuted with the rows below
+            beta[i] = 0.0
+        fl += mk * (n + p)
+        b = cn  # alias: b lives in cn[s0:s1]; the norms in beta[] until used
+        for i in range(s0, s1):
+            beta[i] = _dot(At, i, At, i, p, n)
+        fl += mk * nf
+        r = 0
+        kmax = min(mk, nf)
+        for t in range(kmax):
+            it = s0 + t
+            # pivot: largest remaining norm (downdated), recomputed when it looks unreliable
+            jb = it
+            best = -1.0
+            for j in range(it, s1):
+                if beta[j] > best:
+                    best = beta[j]
+                    jb = j
+            best = _dot(At, jb, At, jb, p + t, n)
+            fl += nf - t
+            nrm = math.sqrt(best)
+            if not nrm > thr:
+                break
+            if jb != it:
+                for c in range(n):
+                    tmp = At[it, c]
+                    At[it, c] = At[jb, c]
+                    At[jb, c] = tmp
+                tmp = b[it]
+                b[it] = b[jb]
+                b[jb] = tmp
+                beta[jb] = beta[it]
+            c0 = p + t
+            x0 = At[it, c0]
+            alpha = -nrm if x0 >= 0.0 else nrm
+            At[it, c0] = x0 - alpha
+            bt = 1.0 / (nrm * (nrm + abs(x0)))
+            for j in range(it + 1, s1):
+                _axpy(bt * _dot(At, it, At, j, c0, n), At, it, At, j, c0, n)
+                # downdate the remaining norm of row j
+                v = beta[j] - At[j, c0] * At[j, c0]
+                beta[j] = v if v > 1e-3 * beta[j] else _dot(At, j, At, j, c0 + 1, n)
+            fl += 2 * (s1 - it - 1) * (n - c0)
+            beta[it] = bt
+            xi[c0] = alpha  # R1[t, t], kept in xi until the solve
+            r = t + 1
+        # forward / least-squares solve of L y = b (L[j, l] = At[s0 + j, p + l], l < j; diag in xi)
+        if r == mk:
+            for t in range(r):
+                sv = b[s0 + t]
+                for l in range(t):
+                    sv -= At[s0 + t, p + l] * x[l]
+                x[t] = sv / xi[p + t]
+            fl += r * r // 2
+        elif r > 0:
+            # L (mk, r) of full column rank: least squares by Givens rotations (_lsq_lower)
+            fl += _lsq_lower(At, s0, s1, p, r, xi, b, x)
+        for t in range(r):
+            xi[p + t] = x[t]
+        for c in range(p + r, n):
+            xi[c] = 0.0
+        lev_r[k] = r
+        p += r
+    # x = H^(0) ... H^(N-1) xi
+    for c in range(n):
+        x[c] = xi[c]
+    for k in range(D - 1, -1, -1):
+        pk = lev_p[k]
+        for t in range(lev_r[k] - 1, -1, -1):
+            it = starts[k] + t
+            c0 = pk + t
+            sv = 0.0
+            for c in range(c0, n):
+                sv += At[it, c] * x[c]
+            sv *= beta[it]
+            for c in range(c0, n):
+                x[c] -= sv * At[it, c]
+            fl += 2 * (n - c0)
+    for c in range(n):
+        if not math.isfinite(x[c]):
+            return -1
+    return fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _lsq_lower(At, s0, s1, p, r, xi, b, y):
+    """``y = argmin ||L y - b[s0:s1]||`` for the lower-trapezoidal ``L``
+    (mk, r) of the COD (``L[j, l] = At[s0+j, p+l]`` for l < j, ``L[l, l] =
+    xi[p+l]``, zero above): the second half of the COD (19), ``L = V_k [L_k;
+    0]``, by Givens rotations that zero the rows r..mk-1 of L (kept in a
+    small scratch). Returns flops."""
+    mk = s1 - s0
+    Lr = np.zeros((mk, r))
+    for j in range(mk):
+        for l in range(min(j, r)):
+            Lr[j, l] = At[s0 + j, p + l]
+        if j < r:
+            Lr[j, j] = xi[p + j]
+    c_ = np.empty(mk)
+    for j in range(mk):
+        c_[j] = b[s0 + j]
+    fl = 0
+    # rotate row j (>= r) into the triangle, column by column from the right? L[:r] is lower
+    # triangular; zero L[j, l] for l = r-1 .. 0 against row l of the triangle, keeping it lower.
+    for j in range(r, mk):
+        for l in range(r - 1, -1, -1):
+            a = Lr[l, l]
+            bb = Lr[j, l]
+            if bb == 0.0:
+                continue
+            h = math.hypot(a, bb)
+            cs = a / h
+            sn = bb / h
+            for c in range(l + 1):
+                v1 = Lr[l, c]
+                v2 = Lr[j, c]
+                Lr[l, c] = cs * v1 + sn * v2
+                Lr[j, c] = -sn * v1 + cs * v2
+            v1 = c_[l]
+            v2 = c_[j]
+            c_[l] = cs * v1 + sn * v2
+            c_[j] = -sn * v1 + cs * v2
+            fl += 4 * (l + 2)
+    for t in range(r):
+        sv = c_[t]
+        for l in range(t):
+            sv -= Lr[t, l] * y[l]
+        y[t] = sv / Lr[t, t]
+    return fl + r * r // 2
