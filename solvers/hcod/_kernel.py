@@ -45,9 +45,9 @@ O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P, O_PREPARED
 N_OUT = 9
 # float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n)
 F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
-            "Lb", "target", "rnorm", "bval", "lnorm", "hist_du")
+            "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf")
 I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "itl", "hist_state",
-            "hist_side", "hist_valid", "out")
+            "hist_side", "hist_valid", "out", "levid", "piv")
 
 
 def layout(n: int, mt: int, D: int, mmax: int):
@@ -55,19 +55,21 @@ def layout(n: int, mt: int, D: int, mmax: int):
     mm = max(mmax, 1)
     fsz = dict(W=n * n, R=n * n, u=n, ps=n, z=n, g=n, hv=n, nu=n, q=n, uprev=n, y=n, Mr=mm * n, bvec=mm,
                diag=mm, beta=mm, Lb=mm * max(min(n, mm), 1), target=mt, rnorm=mt, bval=mt, lnorm=D,
-               hist_du=D * n)
+               hist_du=D * n, Mf=mm * n)
     isz = dict(state=mt, side=mt, kind=mt, bcol=mt, rowlev=mt, widx=n, wside=n, Olist=mm, itl=D,
-               hist_state=D * mt, hist_side=D * mt, hist_valid=D, out=N_OUT)
+               hist_state=D * mt, hist_side=D * mt, hist_valid=D, out=N_OUT, levid=D, piv=mm)
     foff = np.cumsum([0] + [fsz[b] for b in F_BLOCKS]).astype(np.int64)
     ioff = np.cumsum([0] + [isz[b] for b in I_BLOCKS]).astype(np.int64)
     return foff, ioff
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
-def _prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm):
+def _prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, seen):
     """Row kinds (0 equality, 1 inequality, 2 free), bound rows (one nonzero),
-    row norms and the Frobenius norm of each level ``||A_k||_F`` (the scale of
-    the rank threshold)."""
+    row norms, the Frobenius norm of each level ``||A_k||_F`` (the scale of
+    the rank threshold) and identity-like levels (``levid``: n bound rows on
+    distinct variables with equal |coefficient|, e.g. a posture task or the
+    min-norm stage, whose projection ``J_k Z`` has orthogonal columns)."""
     m, n = A.shape
     D = starts.shape[0] - 1
     for k in range(D):
@@ -98,6 +100,19 @@ def _prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm):
             else:
                 kind[i] = 1
         lnorm[k] = math.sqrt(s)
+        levid[k] = 0
+        if starts[k + 1] - starts[k] == n and n > 0:
+            for c in range(n):
+                seen[c] = 0
+            ok = True
+            d0 = abs(bval[starts[k]])
+            for i in range(starts[k], starts[k + 1]):
+                if bcol[i] < 0 or seen[bcol[i]] != 0 or abs(bval[i]) != d0:
+                    ok = False
+                    break
+                seen[bcol[i]] = 1
+            if ok:
+                levid[k] = 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -106,6 +121,47 @@ def _norm(x):
     for v in x:
         s += v * v
     return math.sqrt(s)
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _project_into(A, Olist, j0, j1, bcol, bval, W, p, Mf):
+    """``Mf[j, p:] = A[Olist[j]] @ W[:, p:]`` for j0 <= j < j1: the objective rows
+    projected on Z (eq. 19), kept up to date across iterations. Returns flops."""
+    n = W.shape[0]
+    fl = 0
+    for j in range(j0, j1):
+        i = Olist[j]
+        b = bcol[i]
+        if b >= 0:
+            v = bval[i]
+            for c in range(p, n):
+                Mf[j, c] = v * W[b, c]
+            fl += n - p
+        else:
+            for c in range(p, n):
+                Mf[j, c] = 0.0
+            for rr in range(n):
+                a = A[i, rr]
+                if a != 0.0:
+                    for c in range(p, n):
+                        Mf[j, c] += a * W[rr, c]
+                    fl += n - p
+    return fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _mf_reflect(Mf, nO, p, q, bt):
+    """After a row entered ``W`` (reflector ``I - bt q[p:] q[p:]^T`` applied to
+    ``W[:, p:]``), update the projected objective rows the same way. Returns flops."""
+    n = Mf.shape[1]
+    for j in range(nO):
+        s = 0.0
+        for c in range(p, n):
+            s += Mf[j, c] * q[c]
+        s *= bt
+        for c in range(p, n):
+            Mf[j, c] -= s * q[c]
+    return 2 * nO * (n - p)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -146,6 +202,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     bval = fw[foff[18]:foff[19]]
     lnorm = fw[foff[19]:foff[20]]
     hist_du = fw[foff[20]:foff[21]].reshape((D, n))
+    Mf = fw[foff[21]:foff[22]].reshape((mmax, n))
     state = iw[ioff[0]:ioff[1]]
     side = iw[ioff[1]:ioff[2]]
     kind = iw[ioff[2]:ioff[3]]
@@ -159,9 +216,11 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     hist_side = iw[ioff[10]:ioff[11]].reshape((D, mt))
     hist_valid = iw[ioff[11]:ioff[12]]
     out = iw[ioff[12]:ioff[13]]
+    levid = iw[ioff[13]:ioff[14]]
+    piv = iw[ioff[14]:ioff[15]]
 
     if out[O_PREPARED] == 0:
-        _prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm)
+        _prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, widx)
         out[O_PREPARED] = 1
     fl = 0
     acts = 0
@@ -218,7 +277,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 if dropped:
                     for i in range(s0):
                         if state[i] == IMPLIED:
-                            ok, f = insert_row(A, i, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[i]], q)
+                            ok, f, bt = insert_row(A, i, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[i]], q)
                             fl += f
                             if ok:
                                 widx[p] = i
@@ -249,7 +308,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 for i in range(s0):
                     sd = hist_side[k, i]
                     if hist_state[k, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0:
-                        ok, f = insert_row(A, i, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[i]], q)
+                        ok, f, bt = insert_row(A, i, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[i]], q)
                         fl += f
                         if ok:
                             widx[p] = i
@@ -325,6 +384,9 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         nO += 1
             # ---- active-set iterations of level k ----
             r = 0
+            mf_valid = False
+            for j in range(nO):
+                piv[j] = j
             while True:
                 if total >= max_iter:
                     status = ST_MAXIT
@@ -336,12 +398,35 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 r = 0
                 for c in range(n):
                     ps[c] = 0.0
-                if nf > 0 and nO > 0:
-                    fl += project_rows(A, Olist, nO, bcol, bval, W, p, Mr)
+                for j in range(nO):
+                    piv[j] = j
+                if has_ineq and nf > 0 and nO == n and levid[k] != 0:
+                    # identity-like level: J_k Z = D S Z has orthogonal columns (S a permutation,
+                    # D = d I), so the LSE solution of eq. (28) is z = (J_k Z)^T b / d^2
+                    for c in range(nf):
+                        z[c] = 0.0
+                    for j in range(nO):
+                        i = Olist[j]
+                        bj = (target[i] - bval[i] * u[bcol[i]]) * bval[i]
+                        b = bcol[i]
+                        for c in range(nf):
+                            z[c] += bj * W[b, p + c]
+                    d2 = bval[Olist[0]] * bval[Olist[0]]
+                    for c in range(nf):
+                        z[c] /= d2
+                    fl += n * nf + step_from_z(W, p, z, ps)
+                    r = nf
+                elif nf > 0 and nO > 0:
+                    if not mf_valid:
+                        fl += _project_into(A, Olist, 0, nO, bcol, bval, W, p, Mf)
+                        mf_valid = True
                     for j in range(nO):
                         i = Olist[j]
                         bvec[j] = target[i] - row_dot(A, i, bcol, bval, u)
-                    r, f = cod(Mr, nO, nf, thr_k, Olist, bvec, diag, beta)
+                        piv[j] = j
+                        for c in range(nf):
+                            Mr[j, c] = Mf[j, p + c]
+                    r, f = cod(Mr, nO, nf, thr_k, piv, bvec, diag, beta)
                     fl += f
                     if r > 0:
                         fl += solve_lower(Mr, diag, nO, r, bvec, Lb, y)
@@ -384,14 +469,18 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     if blk >= s0:
                         state[blk] = OBJECTIVE
                         Olist[nO] = blk
+                        if mf_valid:
+                            fl += _project_into(A, Olist, nO, nO + 1, bcol, bval, W, p, Mf)
                         nO += 1
                     else:
-                        ok, f = insert_row(A, blk, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[blk]], q)
+                        ok, f, bt = insert_row(A, blk, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[blk]], q)
                         fl += f
                         if not ok:
                             status = ST_NUMERICAL
                             fail_level = k
                             break
+                        if mf_valid:
+                            fl += _mf_reflect(Mf, nO, p, q, bt)
                         widx[p] = blk
                         wside[p] = bsd
                         p += 1
@@ -416,6 +505,9 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 if jw >= 0:
                     i = Olist[jw]
                     Olist[jw] = Olist[nO - 1]
+                    if mf_valid:
+                        for c in range(p, n):
+                            Mf[jw, c] = Mf[nO - 1, c]
                     nO -= 1
                     state[i] = INACTIVE
                     deacts += 1
@@ -458,11 +550,18 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                             p -= 1
                             state[i] = INACTIVE
                             deacts += 1
+                            if mf_valid:
+                                # Z gained the column p: project the objective rows on it
+                                for j in range(nO):
+                                    Mf[j, p] = row_dot(A, Olist[j], bcol, bval, W[:, p])
+                                fl += nO * n
                             for i2 in range(s0):
                                 if state[i2] == IMPLIED:
-                                    ok, f = insert_row(A, i2, bcol, bval, W, R, p,
-                                                       rank_rtol * lnorm[rowlev[i2]], q)
+                                    ok, f, bt = insert_row(A, i2, bcol, bval, W, R, p,
+                                                           rank_rtol * lnorm[rowlev[i2]], q)
                                     fl += f
+                                    if ok and mf_valid:
+                                        fl += _mf_reflect(Mf, nO, p, q, bt)
                                     if ok:
                                         widx[p] = i2
                                         wside[p] = 0
@@ -479,24 +578,26 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 for c in range(n):
                     hist_du[k, c] = u[c] - uprev[c]
                 hist_valid[k] = 1
-            # ---- freeze level k (eq. 36) ----
-            if not has_ineq:
+            # ---- freeze level k (eq. 36); nothing to freeze below the last level ----
+            if k == D - 1:
+                pass
+            elif not has_ineq:
                 if r > 0:
                     fl += apply_reflectors_to_basis(W, p, Mr, beta, r)
                 for j in range(nO):
-                    state[Olist[j]] = WORK if j < r else IMPLIED
+                    state[Olist[piv[j]]] = WORK if j < r else IMPLIED
                 p += r
             else:
                 unorm = _norm(u)
                 for j in range(nO):
-                    i = Olist[j]
+                    i = Olist[piv[j]]
                     av = row_dot(A, i, bcol, bval, u)
                     w = av - target[i]
                     sd = side[i]
                     if kind[i] == 0 or abs(w) > dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i])):
                         target[i] = av
                         sd = 0
-                    ok, f = insert_row(A, i, bcol, bval, W, R, p, thr_k, q)
+                    ok, f, bt = insert_row(A, i, bcol, bval, W, R, p, thr_k, q)
                     fl += f
                     side[i] = sd
                     if ok:

@@ -75,26 +75,33 @@ def cod(Mr, nO, nf, thr, rows, bvec, diag, beta):
 
     Pivoting permutes ``Mr``, ``rows`` and ``bvec`` together. The rank r is
     the number of pivots whose remaining norm exceeds ``thr`` (the relative
-    threshold times ``||A_k||``, see the package docstring). On return,
-    reflector i is ``I - beta[i] v v^T`` with ``v = Mr[i, i:nf]``, ``diag[i]``
-    is ``R1[i, i]`` and ``Mr[j, i]`` (j > i) is ``R[i, j]``.
+    threshold times ``||A_k||``, see the package docstring). Remaining norms
+    are downdated, and recomputed when cancellation makes the downdate
+    unreliable. On return, reflector i is ``I - beta[i] v v^T`` with
+    ``v = Mr[i, i:nf]``, ``diag[i]`` is ``R1[i, i]`` and ``Mr[j, i]`` (j > i)
+    is ``R[i, j]``. ``beta[i:]`` holds the squared norms while running.
 
     Returns (r, flops)."""
-    fl = 0
+    fl = nO * nf
+    for j in range(nO):
+        s = 0.0
+        for c in range(nf):
+            s += Mr[j, c] * Mr[j, c]
+        beta[j] = s
     kmax = min(nO, nf)
     r = 0
     for i in range(kmax):
         best = -1.0
         jb = i
         for j in range(i, nO):
-            s = 0.0
-            for c in range(i, nf):
-                s += Mr[j, c] * Mr[j, c]
-            if s > best:
-                best = s
+            if beta[j] > best:
+                best = beta[j]
                 jb = j
-        fl += (nO - i) * (nf - i)
-        nrm = math.sqrt(best)
+        s = 0.0
+        for c in range(i, nf):
+            s += Mr[jb, c] * Mr[jb, c]
+        fl += nf - i
+        nrm = math.sqrt(s)
         if not nrm > thr:
             break
         if jb != i:
@@ -108,6 +115,7 @@ def cod(Mr, nO, nf, thr, rows, bvec, diag, beta):
             tb = bvec[i]
             bvec[i] = bvec[jb]
             bvec[jb] = tb
+            beta[jb] = beta[i]
         x0 = Mr[i, i]
         alpha = -nrm if x0 >= 0.0 else nrm
         Mr[i, i] = x0 - alpha
@@ -121,6 +129,14 @@ def cod(Mr, nO, nf, thr, rows, bvec, diag, beta):
             s *= bt
             for c in range(i, nf):
                 Mr[j, c] -= s * Mr[i, c]
+            v = beta[j] - Mr[j, i] * Mr[j, i]
+            if v > 1e-3 * beta[j]:
+                beta[j] = v
+            else:
+                s = 0.0
+                for c in range(i + 1, nf):
+                    s += Mr[j, c] * Mr[j, c]
+                beta[j] = s
         fl += 2 * (nO - i - 1) * (nf - i)
         r = i + 1
     return r, fl
@@ -238,7 +254,8 @@ def insert_row(A, i, bcol, bval, W, R, p, thr, q):
     applied to ``W[:, p:]`` from the right; ``R[:, p] = (q[:p], alpha)``.
 
     The row is refused (returns False) when ``||q[p:]|| <= thr``: it is a
-    combination of the working rows (rank detection). Returns (ok, flops)."""
+    combination of the working rows (rank detection). On success the reflector
+    vector stays in ``q[p:]``. Returns (ok, flops, beta)."""
     n = W.shape[0]
     b = bcol[i]
     if b >= 0:
@@ -261,7 +278,7 @@ def insert_row(A, i, bcol, bval, W, R, p, thr, q):
         s += q[c] * q[c]
     nrm = math.sqrt(s)
     if not nrm > thr:
-        return False, fl
+        return False, fl, 0.0
     x0 = q[p]
     alpha = -nrm if x0 >= 0.0 else nrm
     q[p] = x0 - alpha
@@ -277,7 +294,7 @@ def insert_row(A, i, bcol, bval, W, R, p, thr, q):
     for c in range(p):
         R[c, p] = q[c]
     R[p, p] = alpha
-    return True, fl
+    return True, fl, bt
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
