@@ -75,11 +75,50 @@ def _axpy(sv, a, ia, b, ib, j0, j1):
     """``b[ib, j0:j1] -= sv * a[ia, j0:j1]``."""
     ra = a[ia]
     rb = b[ib]
-    for c in range(j0, j1):
+    c = j0
+    while c + 4 <= j1:
         rb[c] -= sv * ra[c]
+        rb[c + 1] -= sv * ra[c + 1]
+        rb[c + 2] -= sv * ra[c + 2]
+        rb[c + 3] -= sv * ra[c + 3]
+        c += 4
+    while c < j1:
+        rb[c] -= sv * ra[c]
+        c += 1
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc", "contract", "nsz", "arcp"})
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def _reflect2(bt, At, it, i, j0, j1):
+    """Apply the reflector stored in row ``it`` (``I - bt v v^T``, ``v =
+    At[it, j0:j1]``) to rows i and i+1 together (shared loads, two chains)."""
+    rv = At[it]
+    ra = At[i]
+    rb = At[i + 1]
+    sa0 = 0.0
+    sa1 = 0.0
+    sb0 = 0.0
+    sb1 = 0.0
+    c = j0
+    while c + 2 <= j1:
+        v0 = rv[c]
+        v1 = rv[c + 1]
+        sa0 += v0 * ra[c]
+        sa1 += v1 * ra[c + 1]
+        sb0 += v0 * rb[c]
+        sb1 += v1 * rb[c + 1]
+        c += 2
+    if c < j1:
+        sa0 += rv[c] * ra[c]
+        sb0 += rv[c] * rb[c]
+    sa = bt * (sa0 + sa1)
+    sb = bt * (sb0 + sb1)
+    for c in range(j0, j1):
+        v = rv[c]
+        ra[c] -= sa * v
+        rb[c] -= sb * v
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
     """Minimum-norm lexicographic solution of ``A_k x = e_k``, k = 0..N-1.
 
@@ -128,7 +167,11 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
             for t in range(lev_r[j]):
                 it = starts[j] + t
                 c0 = pj + t
-                for i in range(s0, s1):
+                i = s0
+                while i + 2 <= s1:
+                    _reflect2(beta[it], At, it, i, c0, n)
+                    i += 2
+                if i < s1:
                     _axpy(beta[it] * _dot(At, it, At, i, c0, n), At, it, At, i, c0, n)
                 fl += 2 * mk * (n - c0)
         # b = e_k - J_k Y_bar xi[:p]; column norms of the projected rows
