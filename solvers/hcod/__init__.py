@@ -53,6 +53,7 @@ __all__ = ["HcodSolver", "SOLVERS", "warmup", "WARM_STARTS"]
 
 WARM_STARTS = ("none", "stage", "time")
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
+_eq_run = None  # solvers.hcod._equality.eq_run, imported on the first solve (numba compiles then)
 
 
 class _Prepared:
@@ -125,7 +126,7 @@ class HcodSolver(Solver):
         self._prm = np.array([self.rank_rtol, 1e-9, 1e-11])
         self._prep: _Prepared | None = None
         self._ws = None
-        self._fast = None  # (hierarchy, closure) of the equality path
+        self._eq_h = None  # last equality-only hierarchy (skips the checks on a re-solve)
 
     def reset(self) -> None:
         """Forget the warm-start record (the next solve is cold)."""
@@ -134,34 +135,18 @@ class HcodSolver(Solver):
             iw[ioff[11]:ioff[12]] = 0
 
     # -- equality-only hierarchies: the implicit-basis recursion (_equality.py) -------------------
-    def _bind_equality(self, h: Hierarchy):
-        """Workspaces for h and a closure running one solve (kept for re-solves)."""
-        from solvers.hcod._equality import eq_solve
-
-        m, n = h.A.shape
-        D = h.depth
-        fw = np.empty(m * n + 2 * m + 2 * n)
-        iw = np.empty(3 * D, dtype=np.int64)
-        x = fw[m * n + 2 * m + n:]
-        itl = iw[2 * D:]
-        args = (h.A, h.lower, h.starts, self.rank_rtol, fw[:m * n].reshape(m, n), fw[m * n:m * n + m],
-                fw[m * n + m:m * n + 2 * m], fw[m * n + 2 * m:m * n + 2 * m + n], x, iw[:D], iw[D:2 * D], itl)
-
-        def run() -> SolveResult:
-            try:
-                fl = eq_solve(*args)
-            except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
-                return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
-                                   iterations_per_level=(0,) * D)
-            it = itl.tolist()
-            if fl < 0:
-                return SolveResult(x=None, status=NUMERICAL_FAILURE, reason="hcod: x is not finite",
-                                   iterations=sum(it), iterations_per_level=tuple(it))
-            return SolveResult(x=x.copy(), status=OPTIMAL, iterations=sum(it), iterations_per_level=tuple(it),
-                               flops=fl)
-
-        self._fast = (h, run)
-        return run
+    def _solve_equality(self, h: Hierarchy) -> SolveResult:
+        """One compiled call (workspaces allocated inside it)."""
+        try:
+            x, _, itl, fl = _eq_run(h.A, h.lower, h.starts, self.rank_rtol)
+        except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
+            return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
+                               iterations_per_level=(0,) * h.depth)
+        it = itl.tolist()
+        if fl < 0:
+            return SolveResult(x=None, status=NUMERICAL_FAILURE, reason="hcod: x is not finite",
+                               iterations=sum(it), iterations_per_level=tuple(it))
+        return SolveResult(x=x, status=OPTIMAL, iterations=sum(it), iterations_per_level=tuple(it), flops=fl)
 
     # -- hierarchies with inequalities: the active set (_kernel.py) -------------------------------
     def _bind(self, h: Hierarchy):
@@ -185,17 +170,20 @@ class HcodSolver(Solver):
         return prep
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
-        fast = self._fast
-        if fast is not None and fast[0] is hierarchy:
-            return fast[1]()
+        if hierarchy is self._eq_h:
+            return self._solve_equality(hierarchy)
         prep = self._prep
         if prep is None or prep.h is not hierarchy:
             if hierarchy.n == 0 or hierarchy.rows == 0:
                 return SolveResult(x=np.zeros(hierarchy.n), status=OPTIMAL, flops=0,
                                    iterations_per_level=(0,) * hierarchy.depth)
             if not hierarchy.has_inequalities:
-                return self._bind_equality(hierarchy)()
-            self._fast = None
+                global _eq_run
+                if _eq_run is None:
+                    from solvers.hcod._equality import eq_run as _eq_run
+                self._eq_h = hierarchy
+                return self._solve_equality(hierarchy)
+            self._eq_h = None
             prep = self._bind(hierarchy)
         from solvers.hcod._kernel import hcod_solve
 
