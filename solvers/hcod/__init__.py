@@ -123,7 +123,8 @@ class HcodSolver(Solver):
         self.max_iterations = max_iterations
         self.rank_rtol = float(rank_rtol)
         self.min_norm = min_norm
-        self._prm = np.array([self.rank_rtol, 1e-9, 1e-11])
+        # rank, feasibility (warm start), multiplier noise floor, zero slack at freeze
+        self._prm = np.array([self.rank_rtol, 1e-9, 1e-13, 1e-11])
         self._prep: _Prepared | None = None
         self._ws = None
         self._eq_h = None  # last equality-only hierarchy (skips the checks on a re-solve)

@@ -169,7 +169,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     """Solve the hierarchy (A, lo, up, starts) in the workspaces fw/iw.
 
     ip = (n, mt, D, mmax, max_iter, warm_mode 0 none | 1 stage | 2 time, has_ineq);
-    prm = (rank_rtol, feas_rtol, dual_rtol). The solution is ``u`` in fw,
+    prm = (rank_rtol, feas_rtol, dual_rtol, freeze_rtol). The solution is ``u`` in fw,
     counters in ``out`` (see O_* slots), iterations per level in ``itl``."""
     n = ip[0]
     mt = ip[1]
@@ -181,6 +181,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     rank_rtol = prm[0]
     feas_rtol = prm[1]
     dual_rtol = prm[2]
+    freeze_rtol = prm[3]
     W = fw[foff[0]:foff[1]].reshape((n, n))
     R = fw[foff[1]:foff[2]].reshape((n, n))
     u = fw[foff[2]:foff[3]]
@@ -531,10 +532,13 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     gn = _norm(g)
                     # noise floor of g: its terms are rows of A_k times residuals of size
                     # ||A_k|| (1 + ||u||) + ||e_k||
-                    tn = 0.0
+                    # (per objective row: ||a_j|| (||a_j|| (1 + ||u||) + |e_j|), the size of the
+                    # terms whose rounding errors make up g)
+                    gtol = 0.0
                     for j in range(nO):
-                        tn += target[Olist[j]] ** 2
-                    gtol = dual_rtol * lnorm[k] * (lnorm[k] * (1.0 + unorm) + math.sqrt(tn))
+                        i = Olist[j]
+                        gtol += rnorm[i] * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
+                    gtol *= dual_rtol
                     if gn > gtol:
                         fl += multipliers(W, R, p, g, hv, nu)  # eq. (39)
                         worst = 0.0
@@ -594,7 +598,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     av = row_dot(A, i, bcol, bval, u)
                     w = av - target[i]
                     sd = side[i]
-                    if kind[i] == 0 or abs(w) > dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i])):
+                    if kind[i] == 0 or abs(w) > freeze_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i])):
                         target[i] = av
                         sd = 0
                     ok, f, bt = insert_row(A, i, bcol, bval, W, R, p, thr_k, q)
