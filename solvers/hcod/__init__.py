@@ -31,8 +31,10 @@ as ``hcod``.
   not the previous active inequality set), ``"stage"`` (sec. X: level to
   level within a call), ``"time"`` (default: also across calls on the same
   object -- each level's active set and ``Delta u`` (eq. 46) recorded at the
-  last call are re-applied; if the shifted point is infeasible the call is
-  redone cold, ``info["warm_fallback"]``). The previous call's record is
+  last call are re-applied, ``Delta u`` projected on the current ``Z``; a
+  level whose shifted point violates a row above starts cold from the
+  previous level's optimum instead, counted in
+  ``info["warm_fallback_levels"]``). The previous call's record is
   used whenever the new hierarchy has the same shape.
 
 Compiled with numba (nopython, ``cache=True``); nothing compiles at import:
@@ -202,7 +204,7 @@ class HcodSolver(Solver):
         if prep.D > prep.depth:
             info["min_norm_iterations"] = int(iw[ioff[8] + prep.depth])
         if out[6]:
-            info["warm_fallback"] = True
+            info["warm_fallback_levels"] = int(out[6])
         reason = ""
         if status == MAX_ITERATIONS:
             lvl = int(out[5])

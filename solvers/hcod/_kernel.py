@@ -230,8 +230,8 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     status = ST_OPTIMAL
     fail_level = -1
     warm_failed = 0
-    for attempt in range(2):
-        use_hist = warm == 2 and attempt == 0
+    for _once in range(1):  # (a block, left by break on failure)
+        use_hist = warm == 2
         # cold initial state: u_0 = 0, W = I, nothing active
         for i in range(n):
             u[i] = 0.0
@@ -248,7 +248,6 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
         total = 0
         status = ST_OPTIMAL
         fail_level = -1
-        restart = False
         for k in range(D):
             s0 = starts[k]
             s1 = starts[k + 1]
@@ -286,12 +285,21 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                                 p += 1
                                 state[i] = WORK
             if warm_level:
-                # eq. (46): u_hat = u_{k-1} + tau Delta u_k, tau keeping inactive rows feasible
+                # eq. (46): u_hat = u_{k-1} + tau Delta u_k, tau keeping inactive rows feasible.
+                # Delta u_k is first projected on Z (the problem may have changed since it was
+                # recorded: the step must keep the rows frozen above).
+                nf = n - p
+                for c in range(nf):
+                    s = 0.0
+                    for rr in range(n):
+                        s += W[rr, p + c] * hist_du[k, rr]
+                    z[c] = s
+                fl += 2 * n * nf + step_from_z(W, p, z, ps)
                 tau = 1.0
                 for i in range(s0):
                     if state[i] != INACTIVE or kind[i] != 1 or hist_state[k, i] == WORK:
                         continue
-                    ap = row_dot(A, i, bcol, bval, hist_du[k])
+                    ap = row_dot(A, i, bcol, bval, ps)
                     if ap == 0.0:
                         continue
                     av = row_dot(A, i, bcol, bval, u)
@@ -304,8 +312,9 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     if rt < tau:
                         tau = max(rt, 0.0)
                 for c in range(n):
-                    u[c] += tau * hist_du[k, c]
+                    u[c] += tau * ps[c]
                 # Delta^+ A: rows the level activated at the previous call
+                p_in = p
                 for i in range(s0):
                     sd = hist_side[k, i]
                     if hist_state[k, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0:
@@ -337,15 +346,24 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         u[rr] += s
                     fl += n * p + p * p // 2
                 unorm = _norm(u)
+                feasible = True
                 for i in range(s0):
                     if state[i] == INACTIVE and kind[i] == 1:
                         av = row_dot(A, i, bcol, bval, u)
                         tol = feas_rtol * (rnorm[i] * (1.0 + unorm) + 1.0)
                         if av > up[i] + tol or av < lo[i] - tol or not math.isfinite(av):
-                            restart = True
+                            feasible = False
                             break
-                if restart:
-                    break
+                if not feasible:
+                    # the shifted point violates a row above: this level starts cold from
+                    # u_{k-1} (feasible) without the rows just inserted (they were appended
+                    # last: dropping the trailing columns of R leaves W R unchanged)
+                    warm_failed += 1
+                    for j in range(p - 1, p_in - 1, -1):
+                        state[widx[j]] = INACTIVE
+                    p = p_in
+                    for c in range(n):
+                        u[c] = uprev[c]
                 for i in range(s0, s1):
                     if hist_state[k, i] == OBJECTIVE:
                         sd = hist_side[k, i]
@@ -611,11 +629,6 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         state[i] = WORK
                     else:
                         state[i] = IMPLIED if sd == 0 else INACTIVE
-        if restart:
-            warm_failed = 1
-            for k in range(D):
-                hist_valid[k] = 0
-            continue
         break
     for c in range(n):
         if not math.isfinite(u[c]):
