@@ -155,20 +155,32 @@ def test_warm_start_modes_agree(mode):
         assert res.activations == res.deactivations == 0
 
 
-def test_warm_start_along_a_trajectory():
-    h = G.random_hierarchy(10, 4, 4, inequality="mixed", box=True, seed=11)
+@pytest.mark.parametrize("make", [lambda: G.random_hierarchy(10, 4, 4, inequality="mixed", box=True, seed=11),
+                                  lambda: G.ik_like(15, 4)], ids=["random", "ik-like"])
+def test_warm_start_along_a_trajectory(make):
+    """sec. XI: one solver object along a trajectory (A and bounds drift); every
+    step must match a cold solve lexicographically."""
+    h = make()
     s = HcodSolver(warm_start="time")
     rng = np.random.default_rng(0)
-    lo, up = h.lower.copy(), h.upper.copy()
-    for t in range(6):
-        d = 0.02 * rng.standard_normal(h.rows)
-        lo = np.where(np.isfinite(lo), lo + d, lo)
-        up = np.where(np.isfinite(up), np.maximum(up + d, lo), up)
-        ht = h.with_bounds(lo, up)
+    A, lo, up = h.A.copy(), h.lower.copy(), h.upper.copy()
+    warm_iters = cold_iters = 0
+    for t in range(8):
+        A = A + 0.01 * rng.standard_normal(A.shape) * (A != 0)
+        d = 0.01 * rng.standard_normal(h.rows)
+        lo2 = np.where(np.isfinite(lo), lo + d, lo)
+        up2 = np.where(np.isfinite(up), up + d, up)
+        up = np.where(lo == up, lo2, np.maximum(up2, lo2))
+        lo = lo2
+        ht = Hierarchy(A, lo, up, h.level, n=h.n, depth=h.depth)
         res = s.solve(ht)
-        cold = HcodSolver().solve(ht)
+        cold = HcodSolver(warm_start="stage").solve(ht)
         assert res.status == OPTIMAL
         assert verify(ht, res.x, cold.x, rtol=RTOL).equal
+        if t:
+            warm_iters += res.iterations
+            cold_iters += cold.iterations
+    assert warm_iters < cold_iters
 
 
 def test_iteration_cap():
