@@ -130,6 +130,7 @@ class HcodSolver(Solver):
         self._prep: _Prepared | None = None
         self._ws = None
         self._eq_h = None  # last equality-only hierarchy (skips the checks on a re-solve)
+        self._run = None  # closure solving the bound hierarchy (see _bind)
 
     def reset(self) -> None:
         """Forget the warm-start record (the next solve is cold)."""
@@ -153,7 +154,9 @@ class HcodSolver(Solver):
 
     # -- hierarchies with inequalities: the active set (_kernel.py) -------------------------------
     def _bind(self, h: Hierarchy):
-        from solvers.hcod._kernel import O_PREPARED, layout
+        """Workspaces for h (kept when the shape is unchanged: the warm-start
+        record survives) and a closure running one solve on them."""
+        from solvers.hcod._kernel import O_PREPARED, hcod_solve, layout
 
         prep = _Prepared(h, self.min_norm, True)
         old = self._prep
@@ -170,54 +173,59 @@ class HcodSolver(Solver):
             fw, iw, foff, ioff, ip = self._ws
         iw[ioff[12] + O_PREPARED] = 0
         self._prep = prep
-        return prep
+        args = (prep.A, prep.lo, prep.up, prep.starts, fw, iw, foff, ioff, self._prm, ip)
+        xv = fw[foff[2]:foff[3]]
+        outv = iw[ioff[12]:ioff[13]]
+        itlv = iw[ioff[8]:ioff[8] + prep.D]
+        depth = prep.depth
+        extra = prep.D > depth
+        cap = int(ip[4])
+
+        def run() -> SolveResult:
+            try:
+                hcod_solve(*args)
+            except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
+                return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
+                                   iterations_per_level=(0,) * depth)
+            o = outv.tolist()
+            it = itlv.tolist()
+            info = {"min_norm_iterations": it[depth]} if extra else {}
+            if o[6]:
+                info["warm_fallback_levels"] = o[6]
+            x = xv.copy()
+            status = _STATUS[o[0]]
+            reason = ""
+            if status == MAX_ITERATIONS:
+                where = "the min-norm stage" if o[5] >= depth else f"level {o[5]}"
+                reason = f"hcod: iteration cap {cap} reached at {where}"
+            elif status == NUMERICAL_FAILURE:
+                reason = (f"hcod: numerical breakdown at level {o[5]} (x not finite, or a blocking row "
+                          "could not enter the decomposition)")
+                x = None
+            return SolveResult(x=x, status=status, reason=reason, iterations=o[1],
+                               iterations_per_level=tuple(it[:depth]), activations=o[2], deactivations=o[3],
+                               flops=o[4], info=info)
+
+        self._run = run
+        return run
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        prep = self._prep
+        if prep is not None and prep.h is hierarchy:
+            return self._run()
         if hierarchy is self._eq_h:
             return self._solve_equality(hierarchy)
-        prep = self._prep
-        if prep is None or prep.h is not hierarchy:
-            if hierarchy.n == 0 or hierarchy.rows == 0:
-                return SolveResult(x=np.zeros(hierarchy.n), status=OPTIMAL, flops=0,
-                                   iterations_per_level=(0,) * hierarchy.depth)
-            if not hierarchy.has_inequalities:
-                global _eq_run
-                if _eq_run is None:
-                    from solvers.hcod._equality import eq_run as _eq_run
-                self._eq_h = hierarchy
-                return self._solve_equality(hierarchy)
-            self._eq_h = None
-            prep = self._bind(hierarchy)
-        from solvers.hcod._kernel import hcod_solve
-
-        fw, iw, foff, ioff, ip = self._ws
-        try:
-            hcod_solve(prep.A, prep.lo, prep.up, prep.starts, fw, iw, foff, ioff, self._prm, ip)
-        except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
-            return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
+        if hierarchy.n == 0 or hierarchy.rows == 0:
+            return SolveResult(x=np.zeros(hierarchy.n), status=OPTIMAL, flops=0,
                                iterations_per_level=(0,) * hierarchy.depth)
-        out = iw[ioff[12]:ioff[13]]
-        status = _STATUS[int(out[0])]
-        x = fw[foff[2]:foff[3]].copy()
-        itl = iw[ioff[8]:ioff[8] + prep.depth]
-        info = {}
-        if prep.D > prep.depth:
-            info["min_norm_iterations"] = int(iw[ioff[8] + prep.depth])
-        if out[6]:
-            info["warm_fallback_levels"] = int(out[6])
-        reason = ""
-        if status == MAX_ITERATIONS:
-            lvl = int(out[5])
-            where = "the min-norm stage" if lvl >= prep.depth else f"level {lvl}"
-            reason = f"hcod: iteration cap {int(ip[4])} reached at {where}"
-        elif status == NUMERICAL_FAILURE or not np.isfinite(x).all():
-            status = NUMERICAL_FAILURE
-            reason = (f"hcod: numerical breakdown at level {int(out[5])} (x not finite, or a blocking row "
-                      "could not enter the decomposition)")
-            x = None
-        return SolveResult(x=x, status=status, reason=reason, iterations=int(out[1]),
-                           iterations_per_level=tuple(itl.tolist()), activations=int(out[2]),
-                           deactivations=int(out[3]), flops=int(out[4]), info=info)
+        if not hierarchy.has_inequalities:
+            global _eq_run
+            if _eq_run is None:
+                from solvers.hcod._equality import eq_run as _eq_run
+            self._eq_h = hierarchy
+            return self._solve_equality(hierarchy)
+        self._eq_h = None
+        return self._bind(hierarchy)()
 
 
 def warmup() -> None:
