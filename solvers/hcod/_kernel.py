@@ -403,6 +403,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         nO += 1
             # ---- active-set iterations of level k ----
             r = 0
+            cod_done = False
             mf_valid = False
             for j in range(nO):
                 piv[j] = j
@@ -419,6 +420,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     ps[c] = 0.0
                 for j in range(nO):
                     piv[j] = j
+                cod_done = False
                 if has_ineq and nf > 0 and nO == n and levid[k] != 0:
                     # identity-like level: J_k Z = D S Z has orthogonal columns (S a permutation,
                     # D = d I), so the LSE solution of eq. (28) is z = (J_k Z)^T b / d^2
@@ -446,6 +448,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         for c in range(nf):
                             Mr[j, c] = Mf[j, p + c]
                     r, f = cod(Mr, nO, nf, thr_k, piv, bvec, diag, beta)
+                    cod_done = True
                     fl += f
                     if r > 0:
                         fl += solve_lower(Mr, diag, nO, r, bvec, Lb, y)
@@ -611,6 +614,26 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 p += r
             else:
                 unorm = _norm(u)
+                if cod_done:
+                    # the COD (19) of the last iteration is the update: its r pivot rows enter
+                    # W by its reflectors (W[:, p:] <- W[:, p:] H, eq. 23), their R columns are
+                    # (W[:, :p]^T a, R_cod[:, t]); the other rows are combinations of them
+                    for t in range(r):
+                        i = Olist[piv[t]]
+                        b = bcol[i]
+                        for l in range(p):
+                            R[l, p + t] = bval[i] * W[b, l] if b >= 0 else 0.0
+                        if b < 0:
+                            for rr in range(n):
+                                a = A[i, rr]
+                                if a != 0.0:
+                                    for l in range(p):
+                                        R[l, p + t] += a * W[rr, l]
+                            fl += n * p
+                        for l in range(t):
+                            R[p + l, p + t] = Mr[t, l]
+                        R[p + t, p + t] = diag[t]
+                    fl += apply_reflectors_to_basis(W, p, Mr, beta, r)
                 for j in range(nO):
                     i = Olist[piv[j]]
                     av = row_dot(A, i, bcol, bval, u)
@@ -619,8 +642,11 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     if kind[i] == 0 or abs(w) > freeze_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i])):
                         target[i] = av
                         sd = 0
-                    ok, f, bt = insert_row(A, i, bcol, bval, W, R, p, thr_k, q)
-                    fl += f
+                    if cod_done:
+                        ok = j < r
+                    else:
+                        ok, f, bt = insert_row(A, i, bcol, bval, W, R, p, thr_k, q)
+                        fl += f
                     side[i] = sd
                     if ok:
                         widx[p] = i
