@@ -8,9 +8,11 @@ options onto each backend's own parameter names through these tables only:
   wherever the backend has them; ``default`` passes nothing (the backend's
   own defaults, the out-of-the-box experience); ``low`` is 1e-5 absolute and
   relative. quadprog (Goldfarb-Idnani dual active set, exact up to round-off)
-  has no tolerance parameter: its three profiles are the same.
+  has no tolerance parameter: its three profiles are the same. OSQP's
+  ``polish`` stays off: its C code prints "Polishing not needed" on stdout
+  even when not verbose, which would corrupt ``hikbench solve --json``.
 * :data:`NOMINAL_TOL` — the absolute accuracy each profile aims at, used
-  for the ``relaxed`` freeze delta and for deciding which slacks are nonzero.
+  for the ``relaxed`` freeze delta (1x) and for deciding which slacks are nonzero.
 * :data:`MAX_ITER_NAME` — the name of the iteration cap, None when the
   backend has none.
 * :data:`WARM_START` — whether the backend uses ``initvals`` (OSQP:
@@ -33,7 +35,7 @@ PROFILES: tuple[str, ...] = ("high", "default", "low")
 
 ACCURACY: dict[str, dict[str, dict[str, float | bool]]] = {
     "osqp": {
-        "high": {"eps_abs": 1e-9, "eps_rel": 0.0, "polish": True, "max_iter": 100_000},
+        "high": {"eps_abs": 1e-9, "eps_rel": 0.0, "max_iter": 100_000},
         "default": {},
         "low": {"eps_abs": 1e-5, "eps_rel": 1e-5},
     },

@@ -21,7 +21,7 @@ by one of three modes (option ``freeze``):
 * ``"equality"``: rows with ``|w_k*| > slack_tol`` become equalities at their
   achieved value ``A_k x = A_k x*``; the other rows keep their own bounds;
 * ``"relaxed"``: the shifted bounds widened by ``delta`` (option
-  ``relax_delta``; default ``10 * NOMINAL_TOL[accuracy]``):
+  ``relax_delta``; default ``NOMINAL_TOL[accuracy]``):
   ``lower_k + w_k* - delta <= A_k x <= upper_k + w_k* + delta``.
 
 ``slack_tol`` defaults to ``NOMINAL_TOL[accuracy]``. Free rows are dropped.
@@ -123,7 +123,7 @@ class CascadeBase(Solver):
             regularization)
         self.max_iter = max_iter
         tol = tables.NOMINAL_TOL[accuracy]
-        self.delta = 10 * tol if relax_delta is None else float(relax_delta)
+        self.delta = tol if relax_delta is None else float(relax_delta)
         self.slack_tol = tol if slack_tol is None else float(slack_tol)
         self._last_z: dict[int, np.ndarray] = {}
 
