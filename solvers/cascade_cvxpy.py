@@ -19,6 +19,7 @@ re-canonicalises a new Problem at every level).
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 
@@ -84,7 +85,9 @@ class CvxpyCascade(CascadeBase):
         if self.max_iter is not None:
             opts[self._iter_name] = int(self.max_iter)
         t1 = time.perf_counter()
-        prob.solve(solver=self.solver, **opts)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the status is read from the Problem, not from warnings
+            prob.solve(solver=self.solver, **opts)
         t2 = time.perf_counter()
         stats = prob.solver_stats
         it = int(stats.num_iters) if stats is not None and stats.num_iters is not None else 0
