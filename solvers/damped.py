@@ -30,7 +30,11 @@ harness reports how far the result lands from the lexicographic optimum.
       grad(phi)_i = (qmax_i - qmin_i)^2 (qmax_i + qmin_i - 2 q_i) / ((qmax_i - q_i)^2 (qmin_i - q_i)^2),
 
   which points towards the middle of [qmin_i, qmax_i] (so alpha > 0 moves
-  away from the limits). q is the current iterate x: the limits are taken
+  away from the limits). Near the middle c_i of a box of half-width a_i,
+  grad(phi)_i ~ -8 (q_i - c_i) / a_i^2; option ``alpha`` (Boutin's scalar)
+  defaults to ``min_i a_i^2 / 8``, the step that takes the narrowest joint to
+  its middle in that quadratic approximation (a fixed alpha would be stable
+  for some box widths and crawl for others). q is the current iterate x: the limits are taken
   from the first **box level** of the hierarchy — a level whose rows are
   +-unit vectors on distinct variables — and that level is not part of the
   task. Variables without two finite, distinct limits get a zero gradient. A
@@ -228,9 +232,10 @@ class DLSLiegeois(Solver):
     supports_inequalities = True
     supports_warm_start = False
 
-    def __init__(self, damping: float = 1e-3, alpha: float = 0.01, max_iter: int = 1000, tol: float = 1e-10):
+    def __init__(self, damping: float = 1e-3, alpha: float | None = None, max_iter: int = 1000,
+                 tol: float = 1e-10):
         self.damping = _check_pos(self.name, "damping", damping)
-        self.alpha = _check_pos(self.name, "alpha", alpha)
+        self.alpha = None if alpha is None else _check_pos(self.name, "alpha", alpha)
         self.max_iter = _check_int(self.name, "max_iter", max_iter)
         self.tol = _check_pos(self.name, "tol", tol, strict=True)
 
@@ -241,6 +246,10 @@ class DLSLiegeois(Solver):
             return self.unsupported(h, "needs per-variable limits: no level is a box level (rows that are "
                                        "+-unit vectors on distinct variables)")
         kbox, qmin, qmax = box
+        alpha = self.alpha
+        if alpha is None:
+            half = (qmax - qmin)[np.isfinite(qmax - qmin) & (qmax > qmin)] / 2
+            alpha = float(half.min() ** 2 / 8) if half.size else 0.0
         rows = ~h.is_free & (h.level != kbox)
         n = h.n
         x = np.zeros(n)
@@ -269,14 +278,14 @@ class DLSLiegeois(Solver):
                         Jd, N = np.zeros((n, 0)), np.eye(n)
                     cache[key] = (J, Jd, N)
                 J, Jd, N = cache[key]
-                dx = Jd @ (e - J @ x) + self.alpha * (N @ liegeois_gradient(x, qmin, qmax))
+                dx = Jd @ (e - J @ x) + alpha * (N @ liegeois_gradient(x, qmin, qmax))
                 if not np.all(np.isfinite(dx)):
                     return SolveResult(x=x, status=NUMERICAL_FAILURE, iterations=it,
                                        reason=f"{self.name}: NaN/inf step at iteration {it} (an iterate on a limit?)")
                 x = x + dx
                 if np.linalg.norm(dx) <= self.tol * (1 + np.linalg.norm(x)):
-                    return SolveResult(x=x, status=OPTIMAL, iterations=it, info={"box_level": kbox})
-        return SolveResult(x=x, status=MAX_ITERATIONS, iterations=it, info={"box_level": kbox},
+                    return SolveResult(x=x, status=OPTIMAL, iterations=it, info={"box_level": kbox, "alpha": alpha})
+        return SolveResult(x=x, status=MAX_ITERATIONS, iterations=it, info={"box_level": kbox, "alpha": alpha},
                            reason=f"{self.name}: no convergence in {self.max_iter} iterations "
                                   f"(last ||dx|| = {np.linalg.norm(dx):.3g})")
 
@@ -287,5 +296,5 @@ SOLVERS = [
     SolverInfo(DLS.name, DLS.description, DLS, supports_inequalities=True, strict=False,
                options={"damping": 1e-3, "passes": 3}),
     SolverInfo(DLSLiegeois.name, DLSLiegeois.description, DLSLiegeois, supports_inequalities=True, strict=False,
-               options={"damping": 1e-3, "alpha": 0.01, "max_iter": 1000, "tol": 1e-10}),
+               options={"damping": 1e-3, "alpha": None, "max_iter": 1000, "tol": 1e-10}),
 ]
