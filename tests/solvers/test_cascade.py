@@ -18,6 +18,8 @@ import importlib
 import numpy as np
 import pytest
 from baseline_cases import CASES, case, reference
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
 
 from problems import generators as g
 from problems.errors import SolverNotFoundError, SolverOptionError
@@ -26,6 +28,7 @@ from problems.verify import verify
 from solvers import _qp_backends as tables
 from solvers import cascade, registry
 from solvers.base import ERROR, INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL
+from solvers.reference import reference_solution
 
 QP_SOLVERS = tuple(info.name for info in cascade.SOLVERS)
 ALL_CASCADES = QP_SOLVERS + ("cascade-cvxpy",)
@@ -334,3 +337,27 @@ def test_freeze_modes_keep_x_feasible():
         r = lv.A @ x
         assert np.all(r >= lo - 1e-12) and np.all(r <= up + 1e-12), mode
     np.testing.assert_allclose(w, lv.A @ x - np.clip(lv.A @ x, lv.lower, lv.upper), rtol=0, atol=0)
+
+
+# ------------------------------------------------------- random hierarchies
+
+#: backends (freeze "shift", accuracy "high") that solved all of 200 random
+#: unsaturated hierarchies (depth * rows < n, n <= 9) in a survey; on the same
+#: survey osqp hit max_iterations twice, quadprog and proxqp reported
+#: infeasible levels, piqp max_iterations, highs no solution: those backends
+#: are covered by the explicit KNOWN table above instead
+ROBUST = ("cascade-clarabel", "cascade-daqp")
+
+
+@settings(max_examples=10)
+@given(n=st.integers(4, 9), depth=st.integers(1, 3), rows=st.integers(1, 3),
+       inequality=st.sampled_from(g.INEQUALITY_MIXES), box=st.booleans(), seed=st.integers(0, 10_000))
+def test_robust_cascades_match_reference_on_random_hierarchies(n, depth, rows, inequality, box, seed):
+    assume(depth * rows < n)
+    h = g.random_hierarchy(n, depth, rows, inequality=inequality, box=box, seed=seed)
+    x_ref = reference_solution(h)
+    for name in ROBUST:
+        res = registry.create(name).solve(h)
+        assert res.status == OPTIMAL, res.reason
+        v = verify(h, res.x, x_ref, rtol=RTOL["high"][name])
+        assert v.equal, (name, v)
