@@ -116,7 +116,8 @@ class CascadeBase(Solver):
             raise SolverOptionError(f"{self.name}: option max_iter={max_iter!r}: expected an int >= 1")
         if max_iter is not None and self.backend in tables.MAX_ITER_NAME and \
                 tables.MAX_ITER_NAME[self.backend] is None:
-            raise SolverOptionError(f"{self.name}: option max_iter: backend {self.backend} has no iteration limit")
+            raise SolverOptionError(f"{self.name}: option max_iter: backend {self.backend} has no "
+                                    "iteration limit")
         self.freeze = freeze
         self.accuracy = accuracy
         self.eps = tables.REGULARIZATION.get(self.backend, 1e-12) if regularization is None else float(
@@ -151,7 +152,8 @@ class CascadeBase(Solver):
         def fail(status: str, k: int, why: str, x_out) -> SolveResult:
             info["failed_level"] = k
             return SolveResult(x=x_out, status=status, reason=f"{self.name}: level {k}: {why}",
-                               iterations=sum(iters), iterations_per_level=tuple(iters + [0] * (h.depth - len(iters))),
+                               iterations=sum(iters),
+                               iterations_per_level=tuple(iters + [0] * (h.depth - len(iters))),
                                build_time_s=build_s, solve_time_s=solve_s, info=info)
 
         for k in range(h.depth):
@@ -220,7 +222,8 @@ class QPSolversCascade(CascadeBase):
         t1 = time.perf_counter()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # statuses are read from the Solution, not from warnings
-            sol = qpsolvers.solve_problem(problem, solver=self.backend, initvals=initvals, verbose=False, **opts)
+            sol = qpsolvers.solve_problem(problem, solver=self.backend, initvals=initvals, verbose=False,
+                                          **opts)
         t2 = time.perf_counter()
         it = tables.iterations(self.backend, sol)
         z = None if sol.x is None else np.asarray(sol.x, dtype=float)
@@ -255,7 +258,8 @@ CLASSES = {b: _make(b) for b in tables.BACKENDS}
 _DEFAULTS = {"freeze": "shift", "accuracy": "high", "regularization": None, "max_iter": None,
              "relax_delta": None, "slack_tol": None}
 SOLVERS = [SolverInfo(CLASSES[b].name, CLASSES[b].description, CLASSES[b], supports_inequalities=True,
-                      supports_warm_start=CLASSES[b].supports_warm_start, strict=True, options=dict(_DEFAULTS))
+                      supports_warm_start=CLASSES[b].supports_warm_start, strict=True,
+                      options=dict(_DEFAULTS))
            for b in _installed()]
 MISSING = {f"cascade-{b}": f"qpsolvers backend {b!r} is not installed; install it with: {tables.INSTALL[b]}"
            for b in tables.BACKENDS if b not in _installed()}

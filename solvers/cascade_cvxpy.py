@@ -44,7 +44,8 @@ class CvxpyCascade(CascadeBase):
 
         if solver not in tables.CVXPY_ACCURACY:
             raise SolverOptionError(f"{self.name}: option solver={solver!r}: expected one of "
-                                    f"{sorted(tables.CVXPY_ACCURACY)} (the cvxpy solvers with an accuracy table)")
+                                    f"{sorted(tables.CVXPY_ACCURACY)} "
+                                    "(the cvxpy solvers with an accuracy table)")
         if solver not in cp.installed_solvers():
             raise SolverOptionError(f"{self.name}: option solver={solver!r}: not installed in cvxpy "
                                     f"(installed: {cp.installed_solvers()})")
@@ -94,7 +95,8 @@ class CvxpyCascade(CascadeBase):
         status = str(prob.status)
         z = None
         if x.value is not None and w.value is not None:
-            z = np.concatenate([np.asarray(x.value, dtype=float).ravel(), np.asarray(w.value, dtype=float).ravel()])
+            z = np.concatenate([np.asarray(x.value, dtype=float).ravel(),
+                                np.asarray(w.value, dtype=float).ravel()])
         if status == cp.OPTIMAL:
             return "ok", z, it, t1 - t0, t2 - t1, status
         if status == cp.OPTIMAL_INACCURATE:
@@ -119,4 +121,5 @@ _DEFAULTS = {"solver": "CLARABEL", "freeze": "shift", "accuracy": "high", "regul
 SOLVERS = ([SolverInfo(CvxpyCascade.name, CvxpyCascade.description, CvxpyCascade, supports_inequalities=True,
                        supports_warm_start=False, strict=True, options=dict(_DEFAULTS))]
            if _cvxpy_installed() else [])
-MISSING = {} if _cvxpy_installed() else {"cascade-cvxpy": "cvxpy is not installed; install it with: pip install cvxpy"}
+MISSING = ({} if _cvxpy_installed()
+           else {"cascade-cvxpy": "cvxpy is not installed; install it with: pip install cvxpy"})

@@ -173,7 +173,7 @@ class Weighted(_Stacked):
     """x = (J^T C J + W)^-1 J^T C e with per-level weights (lecture 003)."""
 
     name = "weighted"
-    description = "one weighted, regularised least-squares step J# = (J^T C J + W)^-1 J^T C (per-level weights)"
+    description = "one weighted regularised least-squares step J# = (J^T C J + W)^-1 J^T C, per-level weights"
 
     def __init__(self, weights=None, ratio: float = 1e-2, regularization: float = 1e-9, passes: int = 3):
         self.ratio = _check_pos(self.name, "ratio", ratio, strict=True)
@@ -228,7 +228,7 @@ class DLSLiegeois(Solver):
     """Boutin et al. eqs. (1)-(2): DLS plus the Liegeois joint-limit gradient in the null space."""
 
     name = "dls-liegeois"
-    description = "iterated DLS + Liegeois joint-limit gradient projected in the task null space (Boutin eqs. 1-2)"
+    description = "iterated DLS + Liegeois joint-limit gradient projected in the null space (Boutin eqs. 1-2)"
     supports_inequalities = True
     supports_warm_start = False
 
@@ -281,11 +281,14 @@ class DLSLiegeois(Solver):
                 dx = Jd @ (e - J @ x) + alpha * (N @ liegeois_gradient(x, qmin, qmax))
                 if not np.all(np.isfinite(dx)):
                     return SolveResult(x=x, status=NUMERICAL_FAILURE, iterations=it,
-                                       reason=f"{self.name}: NaN/inf step at iteration {it} (an iterate on a limit?)")
+                                       reason=f"{self.name}: NaN/inf step at iteration {it} "
+                                              "(an iterate on a limit?)")
                 x = x + dx
                 if np.linalg.norm(dx) <= self.tol * (1 + np.linalg.norm(x)):
-                    return SolveResult(x=x, status=OPTIMAL, iterations=it, info={"box_level": kbox, "alpha": alpha})
-        return SolveResult(x=x, status=MAX_ITERATIONS, iterations=it, info={"box_level": kbox, "alpha": alpha},
+                    return SolveResult(x=x, status=OPTIMAL, iterations=it,
+                                       info={"box_level": kbox, "alpha": alpha})
+        return SolveResult(x=x, status=MAX_ITERATIONS, iterations=it,
+                           info={"box_level": kbox, "alpha": alpha},
                            reason=f"{self.name}: no convergence in {self.max_iter} iterations "
                                   f"(last ||dx|| = {np.linalg.norm(dx):.3g})")
 
@@ -295,6 +298,7 @@ SOLVERS = [
                options={"weights": None, "ratio": 1e-2, "regularization": 1e-9, "passes": 3}),
     SolverInfo(DLS.name, DLS.description, DLS, supports_inequalities=True, strict=False,
                options={"damping": 1e-3, "passes": 3}),
-    SolverInfo(DLSLiegeois.name, DLSLiegeois.description, DLSLiegeois, supports_inequalities=True, strict=False,
+    SolverInfo(DLSLiegeois.name, DLSLiegeois.description, DLSLiegeois, supports_inequalities=True,
+               strict=False,
                options={"damping": 1e-3, "alpha": None, "max_iter": 1000, "tol": 1e-10}),
 ]

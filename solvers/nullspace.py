@@ -134,15 +134,16 @@ class _EqualityOnly(Solver):
 
     def __init__(self, rank_rtol: float = RANK_RTOL):
         if not (np.isfinite(rank_rtol) and 0 <= rank_rtol < 1):
-            raise SolverOptionError(f"{self.name}: option rank_rtol={rank_rtol!r}: expected a number in [0, 1)")
+            raise SolverOptionError(f"{self.name}: option rank_rtol={rank_rtol!r}: "
+                                    "expected a number in [0, 1)")
         self.rank_rtol = float(rank_rtol)
 
     def _check(self, h: Hierarchy) -> SolveResult | None:
         if h.has_inequalities:
             ineq = np.flatnonzero(~h.is_equality)
             k = int(h.level[ineq[0]])
-            return self.unsupported(h, f"equality hierarchies only; level {k} has {int((h.level[ineq] == k).sum())} "
-                                       "inequality row(s)")
+            count = int((h.level[ineq] == k).sum())
+            return self.unsupported(h, f"equality hierarchies only; level {k} has {count} inequality row(s)")
         return None
 
     def _result(self, h: Hierarchy, x, ranks, flops) -> SolveResult:

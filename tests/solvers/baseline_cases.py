@@ -16,7 +16,8 @@ CASE_BUILDERS = {
     "rand-eq": lambda: g.random_hierarchy(8, 3, 3, seed=1),
     "rand-mixed": lambda: g.random_hierarchy(8, 3, 3, inequality="mixed", box=True, seed=2),
     "rand-two-sided": lambda: g.random_hierarchy(8, 3, 3, inequality="two-sided", seed=3),
-    "rand-one-sided-conflict": lambda: g.random_hierarchy(8, 3, 3, inequality="one-sided", shared_rank=1, seed=4),
+    "rand-one-sided-conflict": lambda: g.random_hierarchy(8, 3, 3, inequality="one-sided", shared_rank=1,
+                                                          seed=4),
     "ik-like-8": lambda: g.ik_like(8, seed=0),
     **{f"deg-{c}": (lambda c=c: g.degenerate(c, n=8)) for c in g.DEGENERATE_CASES},
 }
@@ -34,7 +35,8 @@ def reference(name: str) -> np.ndarray:
     return reference_solution(case(name))
 
 
-def conditioned_stack(n: int, depth: int, rows: int, conds, target_scale: float = 1.0, seed: int = 0) -> Hierarchy:
+def conditioned_stack(n: int, depth: int, rows: int, conds, target_scale: float = 1.0,
+                      seed: int = 0) -> Hierarchy:
     """Equality levels ``A_k = U diag(logspace(0, -log10 cond_k)) V^T sqrt(n)``
     (U, V random orthonormal), targets N(0, target_scale^2); cond_k = 1 for
     the levels past ``len(conds)``."""

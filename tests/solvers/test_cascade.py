@@ -314,7 +314,8 @@ def test_accuracy_tables_cover_every_backend_and_profile():
 def test_missing_backend_is_absent_and_says_how_to_install(monkeypatch):
     import qpsolvers
 
-    monkeypatch.setattr(qpsolvers, "available_solvers", [s for s in qpsolvers.available_solvers if s != "highs"])
+    others = [s for s in qpsolvers.available_solvers if s != "highs"]
+    monkeypatch.setattr(qpsolvers, "available_solvers", others)
     try:
         mod = importlib.reload(cascade)
         assert "cascade-highs" not in [i.name for i in mod.SOLVERS]

@@ -38,8 +38,8 @@ def test_consistent_single_level_is_solved(name):
         h = _with_box(h)  # wide box: the limits do not bind
     res = registry.create(name).solve(h)
     assert res.status == OPTIMAL
-    assert verify(h, res.x, np.linalg.pinv(h[h.depth - 1].A) @ h[h.depth - 1].lower, rtol=RTOL_CONSISTENT[name]).equal
     task = h[h.depth - 1]
+    assert verify(h, res.x, np.linalg.pinv(task.A) @ task.lower, rtol=RTOL_CONSISTENT[name]).equal
     np.testing.assert_allclose(task.A @ res.x, task.lower, rtol=0, atol=RTOL_CONSISTENT[name] * 10)
 
 

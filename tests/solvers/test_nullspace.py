@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from baseline_cases import case, conditioned_stack, reference
+from baseline_cases import case, conditioned_stack
 from hypothesis import given
 from hypothesis import strategies as st
 
@@ -131,7 +131,8 @@ def test_flop_counts_match_paper_section_vi():
 def test_flop_formula_terms():
     # one level of r rows on n variables, terms as documented in solvers.nullspace
     n, r = 10, 3
-    assert flops_svd_recursion(n, [r]) == n * n * r + (6 * n * r * r + 20 * r ** 3) + n * n * r + 2 * n * r + r * r + r
+    assert flops_svd_recursion(n, [r]) == (n * n * r + (6 * n * r * r + 20 * r ** 3) + n * n * r
+                                           + 2 * n * r + r * r + r)
     assert flops_cod_recursion(n, [r]) == round(n * n * r + 4 * r * r * (n - r / 3) + n * n * r + 2 * n * r
                                                 + r * r + r * r / 2)
     assert flops_svd_recursion(n, [0, r]) == flops_svd_recursion(n, [r])
