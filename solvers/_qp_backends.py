@@ -108,8 +108,10 @@ def status_kind(backend: str, sol) -> tuple[str, str]:
 
     Returns ``(kind, text)`` with kind one of ``"inaccurate"`` (the backend
     stopped close to a solution, e.g. OSQP "solved inaccurate", Clarabel
-    "AlmostSolved"), ``"max_iterations"``, ``"infeasible"``, ``"unknown"``,
-    and text the backend's own status.
+    "AlmostSolved"), ``"max_iterations"``, ``"infeasible"``, ``"numerical"``
+    (Clarabel NumericalError / InsufficientProgress, PIQP_NUMERICS),
+    ``"unknown"`` (e.g. DAQP, quadprog, HiGHS, whose status qpsolvers does
+    not pass on), and text the backend's own status.
     """
     text = _status_text(backend, sol)
     low = text.lower()
@@ -119,6 +121,8 @@ def status_kind(backend: str, sol) -> tuple[str, str]:
         return "max_iterations", text
     if "infeas" in low or "no solution" in low:
         return "infeasible", text
+    if "numer" in low or "insufficientprogress" in low:
+        return "numerical", text
     return "unknown", text
 
 

@@ -28,10 +28,17 @@ by one of three modes (option ``freeze``):
 No final minimum-norm stage is run (the regularisation plays that role).
 
 Failures come back as statuses naming the level: ``infeasible_level`` (the
-QP of level k has no solution once levels 0..k-1 are frozen), ``error`` (the
-backend raised; the reason carries the exception), ``numerical_failure``
-(NaN in the backend's x, or no solution for an unknown reason),
-``max_iterations`` (the backend's iteration cap). On failure x is the point
+QP of level k has no solution once levels 0..k-1 are frozen — as reported by
+the backend, or presumed when k > 0 and the backend's status is not passed
+on by qpsolvers), ``error`` (the backend raised; the reason carries the
+exception), ``numerical_failure`` (NaN in the backend's x, a numerical-error
+status, or no solution at level 0 without a status), ``max_iterations`` (the
+backend's iteration cap). A backend that stops "inaccurate" (OSQP solved
+inaccurate, Clarabel AlmostSolved) is accepted; those levels are listed in
+``info["inaccurate_levels"]`` — the verification judges the result.
+``build_time_s`` is the assembly of the level QPs (dense blocks, CSC
+conversion); ``solve_time_s`` the ``qpsolvers.solve_problem`` calls (the
+backend's own set-up and factorisation included). On failure x is the point
 reached after the last successful level (None if level 0 failed).
 """
 
@@ -183,11 +190,12 @@ class CascadeBase(Solver):
                 x_out = z[:n] if z is not None else x_prev
                 return fail(MAX_ITERATIONS, k, f"backend {self.backend} hit its iteration limit "
                                                f"({it} iterations, status {text})", x_out)
-            if kind == "infeasible" or (kind == "unknown" and k > 0 and z is None):
+            if kind == "infeasible" or (kind == "unknown" and k > 0):
+                presumed = "" if kind == "infeasible" else "; status not reported, infeasibility presumed"
                 return fail(INFEASIBLE_LEVEL, k, f"infeasible after freezing levels 0..{k - 1} "
-                                                 f"(backend {self.backend} found no solution, status {text})",
-                            x_prev)
-            if kind == "unknown" or z is None:
+                                                 f"(backend {self.backend} found no solution, status {text}"
+                                                 f"{presumed})", x_prev)
+            if kind in ("unknown", "numerical") or z is None:
                 return fail(NUMERICAL_FAILURE, k, f"backend {self.backend} found no solution (status {text})",
                             x_prev)
             if kind == "inaccurate":

@@ -22,6 +22,15 @@ CASE_BUILDERS = {
     **{f"deg-{c}": (lambda c=c: g.degenerate(c, n=8)) for c in g.DEGENERATE_CASES},
 }
 CASES = tuple(CASE_BUILDERS)
+#: family-sized problems for the slow tests
+BIG_CASE_BUILDERS = {
+    "ik-like-20": lambda: g.ik_like(20, seed=0),
+    "ik-like-40": lambda: g.ik_like(40, seed=0),
+    "random-20": lambda: g.generate("random", seed=0),
+    "equality-36x8x6": lambda: g.equality_stack(36, 8, 6, seed=0),
+}
+CASE_BUILDERS.update(BIG_CASE_BUILDERS)
+BIG_CASES = tuple(BIG_CASE_BUILDERS)
 EQUALITY_CASES = ("rand-eq", "deg-saturated")
 
 
