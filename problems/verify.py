@@ -50,10 +50,7 @@ def level_norms(h: Hierarchy, x) -> np.ndarray:
     """``(||v_0(x)||_2, ..., ||v_{N-1}(x)||_2)``, shape (depth,); 0 for an
     empty level."""
     v = violation(h, x)
-    # bincount, not add.reduceat: reduceat fails on an empty trailing level
-    # (its start index equals m) and repeats a row on empty inner levels.
-    sq = np.bincount(h.level, weights=v * v, minlength=h.depth) if h.rows else np.zeros(h.depth)
-    return np.sqrt(sq)
+    return np.sqrt(np.bincount(h.level, weights=v * v, minlength=h.depth))
 
 
 def level_scales(h: Hierarchy, x=None) -> np.ndarray:
