@@ -42,7 +42,7 @@ def load_npz(path: str | os.PathLike) -> Hierarchy:
             if missing:
                 raise ProblemFileError(f"{path}: missing array(s) {missing}; expected {list(_REQUIRED)}")
             data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
+    except (OSError, EOFError, ValueError, zipfile.BadZipFile) as err:  # EOFError: an empty file
         raise ProblemFileError(f"{path}: cannot read as .npz problem file ({err})") from err
     names = [str(s) for s in data["names"]] if "names" in data else None
     if np.ndim(data["n"]) != 0 or data["n"].dtype.kind not in "iu":
