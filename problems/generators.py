@@ -8,7 +8,8 @@ the levels above (these conflict with the higher levels) and the rest in its
 orthogonal complement. When the DOF are used up (the levels above span all of
 R^n) the remaining directions are drawn from the higher row space too, so the
 rank of a level is ``min(r_k, n)`` and its rank in the null space of the levels
-above is ``min(r_k - shared_k, n - rank of the levels above)``. Then
+above is ``min(r_k - min(shared_k, R_k), n - R_k)`` with ``R_k`` the rank of the
+levels above (a request ``shared_k > R_k`` gets ``R_k`` shared dimensions). Then
 
     A_k = diag(d) U diag(s) B^T,     U (m_k, r_k), B (n, r_k) orthonormal columns,
     s = logspace(0, -log10(cond), r_k),   d = row scales, log-uniform in
@@ -110,7 +111,8 @@ def random_hierarchy(n: int, depth: int, rows: int | Sequence[int], *, rank=None
         Rank of each level (default: min(rows, n)).
     shared_rank : int or sequence of int
         Dimensions of each level's row space taken inside the row space of the
-        levels above (conflicts). Level 0 (no level above) ignores it.
+        levels above (conflicts), at most the rank of the levels above (level 0,
+        with no level above, gets 0).
     inequality : {"none", "one-sided", "two-sided", "mixed"}
         Row kinds of the task levels: equalities only, ``A x <= u`` or
         ``A x >= l``, ``l <= A x <= u``, or a random mix of all.
