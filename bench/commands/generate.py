@@ -71,11 +71,18 @@ def _check_type(key: str, value, default, item: str):
     return value
 
 
+def _tag(v) -> str:
+    if isinstance(v, (list, tuple)):
+        return ",".join(_tag(e) for e in v)
+    return v if isinstance(v, str) else json.dumps(v)
+
+
 def file_name(family: str, params: dict, seed: int, fmt: str) -> str:
-    """``<family>[-<key>=<value>...]-seed<seed>.<ext>``, parameters sorted,
-    characters other than letters, digits and ``._=+-`` replaced by ``_``."""
-    tag = "".join(f"-{k}={json.dumps(v) if not isinstance(v, str) else v}" for k, v in sorted(params.items()))
-    return re.sub(r"[^A-Za-z0-9._=+-]", "_", f"{family}{tag}-seed{seed}") + _EXT[fmt]
+    """``<family>[-<key>=<value>...]-seed<seed>.<ext>``, parameters sorted, a
+    list written ``a,b,c``, characters other than letters, digits and
+    ``._=+,-`` replaced by ``_``."""
+    tag = "".join(f"-{k}={_tag(v)}" for k, v in sorted(params.items()))
+    return re.sub(r"[^A-Za-z0-9._=+,-]", "_", f"{family}{tag}-seed{seed}") + _EXT[fmt]
 
 
 def run(args) -> int:
