@@ -220,3 +220,14 @@ def test_usage_errors_exit_2_with_one_line(capsys, argv, fragment):
 def test_help_exits_0(capsys, argv):
     code, out, _ = run(capsys, *argv)
     assert code == 0 and "usage: hikbench" in out
+
+
+def test_export_notes_what_soth_loses(capsys, tmp_path):
+    h = Hierarchy.from_levels([Level([[1.0, 0.0], [0.0, 1.0]], [-INF, 1.0], [INF, 1.0], "named"),
+                               Level(np.zeros((0, 2)), [], [])], x0=[0.0, 1.0])
+    save_npz(h, tmp_path / "h.npz")
+    code, _, err = run(capsys, "export", str(tmp_path / "h.npz"), "--format", "soth")
+    assert code == 0
+    assert err == ("hikbench export: note: level names are dropped; x0 is dropped; rows are reordered "
+                   "(equality rows first in each level); 1 free row(s), which SOTH's own reader refuses; "
+                   "empty level(s), which SOTH's own reader refuses\n")
