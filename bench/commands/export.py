@@ -5,7 +5,6 @@ from __future__ import annotations
 import os
 import sys
 
-
 from problems.errors import HikbenchError
 from problems.files import load, save_npz
 from problems.soth import save_soth, soth_order, to_soth_text
