@@ -55,7 +55,8 @@ What this module does (the hikbench side):
   round-trip, but SOTH's own reader asserts on them (see above).
 * **Numbers** are written with Python's ``repr`` of a float, the shortest
   decimal string that reads back to the same double, so ``A`` and the bounds
-  round-trip exactly (``-0.0`` included).
+  round-trip exactly (``-0.0`` included). Subnormal numbers (``|v| < 2.2e-308``)
+  round-trip here but some C++ standard libraries refuse to read them.
 * **Lost on the way:** level names and ``x0`` (the format has no place for
   them); a loaded hierarchy has the default names ``"level k"``.
 
