@@ -9,7 +9,7 @@ from hypothesis import given
 
 from problems import Hierarchy, InvalidHierarchyError, Level, ProblemFileError
 from problems.files import load, load_npz, save, save_npz
-from problems.soth import from_soth_text, load_soth, save_soth, soth_order, to_soth_text
+from problems.soth import from_soth_text, load_soth, soth_order, to_soth_text
 
 INF = np.inf
 

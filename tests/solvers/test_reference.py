@@ -73,7 +73,7 @@ def enumerate_qp(P, G_eq, h_eq, G_in, h_in):
     return best_value, best_z
 
 
-def _rows(A, lo, up, ncols_extra=None):
+def _rows(A, lo, up):
     """Inequality rows G z <= h and equality rows of lo <= A z <= up."""
     eq = lo == up
     fu, fl = np.isfinite(up) & ~eq, np.isfinite(lo) & ~eq
