@@ -110,10 +110,12 @@ def to_soth_text(h: Hierarchy) -> str:
         A, lo, up = h.A[s], h.lower[s], h.upper[s]
         eq = lo == up
         for i in np.flatnonzero(~eq):
-            for side, value, bad in (("lower", lo[i], lo[i] <= -NO_BOUND), ("upper", up[i], up[i] >= NO_BOUND)):
+            for side, value, bad in (("lower", lo[i], lo[i] <= -NO_BOUND),
+                                     ("upper", up[i], up[i] >= NO_BOUND)):
                 if bad and math.isfinite(value):
                     raise ProblemFileError(
-                        f"level {k}, row {i}: finite {side} bound {float(value)!r} has magnitude >= {NO_BOUND:g}, "
+                        f"level {k}, row {i}: finite {side} bound {float(value)!r} "
+                        f"has magnitude >= {NO_BOUND:g}, "
                         f"which the SOTH format reads as no bound; rescale the row")
         lines += ["level", "", f"equalities {int(eq.sum())}"]
         lines += [_row(A[i], lo[i]) for i in np.flatnonzero(eq)]

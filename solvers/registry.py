@@ -151,5 +151,6 @@ def create(name: str, **options) -> Solver:
         if unknown:
             listed = ", ".join(allowed) if allowed else "none"
             raise SolverOptionError(
-                f"solver {name!r}: unknown option(s) {', '.join(map(repr, unknown))}; allowed options: {listed}")
+                f"solver {name!r}: unknown option(s) {', '.join(map(repr, unknown))}; "
+                f"allowed options: {listed}")
     return info.factory(**opts)

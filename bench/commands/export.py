@@ -57,11 +57,13 @@ def run(args) -> int:
         raise HikbenchError(f"--out {out} is the input file; choose another path")
     if args.format == "npz":
         if not out.endswith(".npz"):
-            raise HikbenchError(f"--out {out}: an .npz problem file must end in .npz (files are read by extension)")
+            raise HikbenchError(f"--out {out}: an .npz problem file must end in .npz "
+                                "(files are read by extension)")
         save_npz(h, out)
     else:
         if out.endswith(".npz"):
-            raise HikbenchError(f"--out {out}: a SOTH text file must not end in .npz (files are read by extension)")
+            raise HikbenchError(f"--out {out}: a SOTH text file must not end in .npz "
+                                "(files are read by extension)")
         save_soth(h, out)
         _note(h)
     print(out)

@@ -94,7 +94,8 @@ def run(args) -> int:
     try:
         os.makedirs(args.out, exist_ok=True)
     except OSError as err:
-        raise ProblemFileError(f"--out {args.out}: cannot create the directory ({err.strerror or err})") from err
+        why = err.strerror or err
+        raise ProblemFileError(f"--out {args.out}: cannot create the directory ({why})") from err
     save = save_npz if args.format == "npz" else save_soth
     for seed in range(args.seed, args.seed + args.seeds):
         h = generate(args.family, seed=seed, **params)

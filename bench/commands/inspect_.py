@@ -48,6 +48,7 @@ def run(args) -> int:
     widths = [max(len(row[j]) for row in table) for j in range(len(_COLUMNS))]
     for row in table:
         print("  ".join(c.ljust(w) if j == 1 else c.rjust(w) for j, (c, w) in enumerate(zip(row, widths))))
-    print("cond: largest / smallest nonzero singular value of the level's constraint rows; proj: of the level "
+    print("cond: largest / smallest nonzero singular value of the level's constraint rows; "
+          "proj: of the level "
           "projected in the null space of all rows above; conflicts = rank - proj rank")
     return 0

@@ -97,7 +97,8 @@ def test_solve_user_errors(capsys, problem, tmp_path, argv, fragments):
 def test_generate_writes_loadable_deterministic_files(capsys, tmp_path, fmt, ext):
     out_dir = tmp_path / "gen"
     code, out, err = run(capsys, "generate", "random", "--seed", "4", "--seeds", "2", "--param", "n=6",
-                         "--param", "inequality=one-sided", "--param", "rank=[2,3,1,2]", "--out", str(out_dir),
+                         "--param", "inequality=one-sided", "--param", "rank=[2,3,1,2]",
+                         "--out", str(out_dir),
                          "--format", fmt)
     assert code == 0, err
     paths = out.split()

@@ -32,7 +32,8 @@ def assert_same(g: Hierarchy, h: Hierarchy, names=True, x0=True):
 
 CASES = {
     "names and x0": Hierarchy.from_levels([Level.equality([[1.0, 2.0]], [3.0], "reach"),
-                                           Level([[0.1, -0.0]], [-INF], [1e-300], "limit")], x0=[0.25, -1e300]),
+                                           Level([[0.1, -0.0]], [-INF], [1e-300], "limit")],
+                                          x0=[0.25, -1e300]),
     "empty levels": Hierarchy.from_levels([Level(np.zeros((0, 2)), [], []), Level.equality(np.eye(2), [1, 2]),
                                            Level(np.zeros((0, 2)), [], []), Level(np.zeros((0, 2)), [], [])]),
     "free and one-sided rows": Hierarchy(np.arange(8.0).reshape(4, 2) / 3, [-INF, -INF, 0.5, -1.0],
@@ -200,10 +201,12 @@ def test_soth_no_bound_threshold(bound, read_as):
     ("variable size 2\nlevel\nequalities 1\n1 x 3\n", r"line 4: expected level 0, equality row 0: "
                                                       r"coefficient a_2 of 2 \(a number\), got 'x'"),
     ("variable size 2\nlevel\nequalities 0\ninequalities 1\n1 2 nan 3\nend",
-     r"line 5: expected level 0, inequality row 0: the lower bound after 2 coefficients \(a number, not NaN\)"),
+     r"line 5: expected level 0, inequality row 0: the lower bound after 2 coefficients "
+     r"\(a number, not NaN\)"),
     ("variable size 1\nlevel\nequalities 0\nineq 0\nend", r"line 4: expected 'inequalities', got 'ineq'"),
     ("variable size 1\nlevel\nequalities 1.5", r"line 3: expected level 0: the number of equality rows"),
-    ("variable size 1\nlevel\nequalities 0\ninequalities 0\n", r"line 4: expected 'level' or 'end', got end of file"),
+    ("variable size 1\nlevel\nequalities 0\ninequalities 0\n",
+     r"line 4: expected 'level' or 'end', got end of file"),
     ("variable size 1\nlevels\n", r"line 2: expected 'level' or 'end', got 'levels'"),
     ("variable size 1\nend\nlevel", r"line 3: expected end of file after 'end', got 'level'"),
 ], ids=["empty", "size", "n word", "n negative", "short row", "bad number", "NaN bound", "keyword",
@@ -216,7 +219,8 @@ def test_soth_parse_errors(text, message):
 def test_soth_invalid_numbers_name_the_file(tmp_path):
     path = tmp_path / "bad.soth"
     path.write_text("variable size 1 level equalities 0 inequalities 1 1 3 2 end")
-    with pytest.raises(InvalidHierarchyError, match=r"bad\.soth: level 0, row 0: lower \(3.0\) > upper \(2.0\)"):
+    message = r"bad\.soth: level 0, row 0: lower \(3.0\) > upper \(2.0\)"
+    with pytest.raises(InvalidHierarchyError, match=message):
         load_soth(path)
 
 

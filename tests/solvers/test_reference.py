@@ -106,7 +106,8 @@ def brute_force_lexicographic(h: Hierarchy):
 
 def test_enumerate_qp_by_hand():
     # min 1/2 ||z||^2 s.t. z0 + z1 >= 2 (i.e. -z0 - z1 <= -2): z* = (1, 1), value 1
-    value, z = enumerate_qp(np.eye(2), np.zeros((0, 2)), np.zeros(0), np.array([[-1.0, -1.0]]), np.array([-2.0]))
+    value, z = enumerate_qp(np.eye(2), np.zeros((0, 2)), np.zeros(0), np.array([[-1.0, -1.0]]),
+                            np.array([-2.0]))
     np.testing.assert_allclose([value, *z], [1.0, 1.0, 1.0], rtol=1e-14)
 
 
