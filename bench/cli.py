@@ -2,8 +2,9 @@
 
 One module per sub-command in ``bench/commands/``; each defines ``HELP``,
 ``add_arguments(parser)`` and ``run(args) -> int``. User mistakes
-(:class:`~problems.errors.HikbenchError`) print one line on stderr and exit 2;
-anything else is a bug and keeps its traceback.
+(:class:`~problems.errors.HikbenchError`, and command lines argparse rejects)
+print one line on stderr and exit 2; ``--help`` exits 0; anything else is a
+bug and keeps its traceback.
 """
 
 from __future__ import annotations
