@@ -39,7 +39,9 @@ class CvxpyCascade(CascadeBase):
     backend = "cvxpy"
     supports_warm_start = False
 
-    def __init__(self, solver: str = "CLARABEL", **options):
+    def __init__(self, solver: str = "CLARABEL", freeze: str = "shift", accuracy: str = "high",
+                 regularization: float | None = None, max_iter: int | None = None,
+                 relax_delta: float | None = None, slack_tol: float | None = None):
         import cvxpy as cp
 
         if solver not in tables.CVXPY_ACCURACY:
@@ -49,7 +51,8 @@ class CvxpyCascade(CascadeBase):
         if solver not in cp.installed_solvers():
             raise SolverOptionError(f"{self.name}: option solver={solver!r}: not installed in cvxpy "
                                     f"(installed: {cp.installed_solvers()})")
-        super().__init__(**options)
+        super().__init__(freeze=freeze, accuracy=accuracy, regularization=regularization, max_iter=max_iter,
+                         relax_delta=relax_delta, slack_tol=slack_tol)
         self.solver = solver
         if self.max_iter is not None and solver == "SCS":
             self._iter_name = "max_iters"

@@ -334,6 +334,8 @@ def test_quadprog_has_no_iteration_limit_option():
 
 
 def test_cvxpy_solver_option():
+    with pytest.raises(SolverOptionError, match="'bogus'"):
+        registry.create("cascade-cvxpy", bogus=1)
     with pytest.raises(SolverOptionError, match="solver='GUROBI'"):
         registry.create("cascade-cvxpy", solver="GUROBI")
     res = registry.create("cascade-cvxpy", solver="OSQP").solve(case("rand-eq"))
