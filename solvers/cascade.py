@@ -70,13 +70,12 @@ def freeze_level(mode: str, A_k, lower_k, upper_k, x, slack_tol: float, delta: f
     ``A_k x - clip(A_k x, lower_k, upper_k)``."""
     r = A_k @ x
     w = r - np.clip(r, lower_k, upper_k)
-    if mode == "shift":
+    if mode == "shift":  # -inf + w stays -inf: a one-sided row stays one-sided
         return lower_k + w, upper_k + w, w
     if mode == "relaxed":
         return lower_k + w - delta, upper_k + w + delta, w
-    nonzero = np.abs(w) > slack_tol
+    nonzero = np.abs(w) > slack_tol  # "equality": pin the violated rows, keep the others' bounds
     return np.where(nonzero, r, lower_k), np.where(nonzero, r, upper_k), w
-    # (-inf + w stays -inf: a one-sided row stays one-sided)
 
 
 def level_qp(A_f, lower_f, upper_f, A_k, lower_k, upper_k, eps: float):

@@ -407,3 +407,34 @@ def test_robust_cascades_match_reference_on_random_hierarchies(n, depth, rows, i
         assert res.status == OPTIMAL, res.reason
         v = verify(h, res.x, x_ref, rtol=RTOL["high"][name])
         assert v.equal, (name, v)
+
+
+def test_equality_freeze_pins_only_rows_with_nonzero_slack():
+    A = np.eye(3)
+    lower, upper = np.array([0.0, -np.inf, -1.0]), np.array([0.0, 1.0, 1.0])
+    x = np.array([0.5, 2.0, 0.0])  # row 0 off its equality, row 1 above its bound, row 2 inside
+    lo, up, w = cascade.freeze_level("equality", A, lower, upper, x, slack_tol=1e-9, delta=0.0)
+    np.testing.assert_array_equal(w, [0.5, 1.0, 0.0])
+    np.testing.assert_array_equal(lo, [0.5, 2.0, -1.0])
+    np.testing.assert_array_equal(up, [0.5, 2.0, 1.0])
+    lo, up, _ = cascade.freeze_level("shift", A, lower, upper, x, 1e-9, 0.0)
+    np.testing.assert_array_equal(lo, [0.5, -np.inf, -1.0])
+    np.testing.assert_array_equal(up, [0.5, 2.0, 1.0])
+    lo, up, _ = cascade.freeze_level("relaxed", A, lower, upper, x, 1e-9, 0.25)
+    np.testing.assert_array_equal(lo, [0.25, -np.inf, -1.25])
+    np.testing.assert_array_equal(up, [0.75, 2.25, 1.25])
+
+
+def test_level_qp_is_the_documented_qp():
+    """z = (x, w): cost 1/2 ||w||^2 + eps/2 ||x||^2; (x, w(x)) is feasible
+    with w(x) = A_k x - clip(A_k x, lower_k, upper_k)."""
+    h = g.random_hierarchy(5, 2, 3, inequality="mixed", seed=9)
+    hi, lv = h[0], h[1]
+    x = np.random.default_rng(1).standard_normal(5)
+    lo_f, up_f, _ = cascade.freeze_level("shift", hi.A, hi.lower, hi.upper, x, 1e-9, 0.0)
+    P, G, hv, Aeq, beq = cascade.level_qp(hi.A, lo_f, up_f, lv.A, lv.lower, lv.upper, eps=1e-12)
+    r = lv.A @ x
+    z = np.concatenate([x, r - np.clip(r, lv.lower, lv.upper)])
+    np.testing.assert_array_equal(np.diag(P), np.concatenate([np.full(5, 1e-12), np.ones(3)]))
+    assert G is None or np.all(G @ z <= hv + 1e-12)
+    assert Aeq is None or np.allclose(Aeq @ z, beq, atol=1e-12)

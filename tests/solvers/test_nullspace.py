@@ -150,3 +150,23 @@ def test_bad_option():
         registry.create("nullspace-svd", rank_rtol=-1)
     with pytest.raises(SolverOptionError, match="colour"):
         registry.create("nullspace-cod", colour="red")
+
+
+@pytest.mark.parametrize("cls_name", ["NullspaceSVD", "NullspaceCOD"])
+@pytest.mark.parametrize("rank", [3, 2, 0], ids=["full-row-rank", "rank-deficient", "zero"])
+def test_pseudo_inverse_and_projector_update_formulas(cls_name, rank):
+    """apply_pinv = (J P)^+ (eqs. (11) / (13)); the update term is
+    (J P)^+ (J P) (eq. (14)) for SVD and Y Y^T (eq. (15)) for COD, both the
+    orthogonal projector on the row space of J P."""
+    import solvers.nullspace as ns
+
+    rng = np.random.default_rng(rank)
+    M = rng.standard_normal((3, rank)) @ rng.standard_normal((rank, 7)) if rank else np.zeros((3, 7))
+    solver = getattr(ns, cls_name)()
+    apply_pinv, update, r = solver._step(M, thr=1e-10 * max(np.linalg.norm(M, 2), 1.0))
+    assert r == rank
+    pinv = np.linalg.pinv(M)
+    v = rng.standard_normal(3)
+    np.testing.assert_allclose(apply_pinv(v), pinv @ v, rtol=1e-10, atol=1e-12)
+    if rank:
+        np.testing.assert_allclose(update, pinv @ M, rtol=1e-10, atol=1e-12)
