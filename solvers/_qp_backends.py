@@ -9,6 +9,9 @@ options onto each backend's own parameter names through these tables only:
   own defaults, the out-of-the-box experience); ``low`` is 1e-5 absolute and
   relative. quadprog (Goldfarb-Idnani dual active set, exact up to round-off)
   has no tolerance parameter: its three profiles are the same. OSQP's
+  ``high`` also raises ``max_iter`` to 100000 (ADMM needs many iterations to
+  reach 1e-9; the default 4000 would make ``high`` mostly ``max_iterations``).
+  OSQP's
   ``polish`` stays off: its C code prints "Polishing not needed" on stdout
   even when not verbose, which would corrupt ``hikbench solve --json``.
 * :data:`NOMINAL_TOL` — the absolute accuracy each profile aims at, used
