@@ -152,16 +152,29 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
         nf = n - p
         if nf == 0:
             continue
-        # threshold relative to the unprojected level: ||A_k||_F; copy the rows and project
-        # them on Z_{k-1}: apply the reflectors of the levels above (lazily, only now: a
-        # level reached with nf = 0 costs nothing)
-        s = 0.0
+        # the level is scaled by 1 / ||A_k||_F (computed without overflow): the same
+        # minimisers, O(1) numbers in the reflectors, and the rank threshold relative to
+        # the unprojected level becomes rank_rtol. Copy the scaled rows, then project them
+        # on Z_{k-1}: apply the reflectors of the levels above (lazily, only now: a level
+        # reached with nf = 0 costs nothing)
+        amax = 0.0
         for i in range(s0, s1):
             for c in range(n):
-                a = A[i, c]
-                At[i, c] = a
-                s += a * a
-        thr = rank_rtol * math.sqrt(s)
+                amax = max(amax, abs(A[i, c]))
+        sc = 1.0
+        if amax > 0.0:
+            s = 0.0
+            for i in range(s0, s1):
+                for c in range(n):
+                    a = A[i, c] / amax
+                    s += a * a
+            sc = 1.0 / (amax * math.sqrt(s))
+            if not (sc > 0.0 and sc < np.inf):
+                sc = 1.0 / amax
+        for i in range(s0, s1):
+            for c in range(n):
+                At[i, c] = A[i, c] * sc
+        thr = rank_rtol
         for j in range(k):
             pj = lev_p[j]
             for t in range(lev_r[j]):
@@ -176,7 +189,7 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
                 fl += 2 * mk * (n - c0)
         # b = e_k - J_k Y_bar xi[:p]; column norms of the projected rows
         for i in range(s0, s1):
-            t = e[i]
+            t = e[i] * sc
             for c in range(p):
                 t -= At[i, c] * xi[c]
             cn[i] = t  # b, permuted with the rows below
