@@ -68,33 +68,9 @@ class _Prepared:
         n = h.n
         self.depth = h.depth
         self.has_ineq = has_ineq
-        # each level scaled by 1 / ||A_k||_F (same minimisers, O(1) numbers, no overflow in
-        # the reflectors of rows of norm 1e-160 or 1e160)
-        A, lo, up, starts = h.A, h.lower, h.upper, h.starts
-        if A.shape[0]:
-            amax = np.abs(A).max(axis=1)
-            lev_max = np.maximum.reduceat(amax, starts[:-1].clip(max=A.shape[0] - 1))
-            row_max = np.repeat(np.where(np.diff(starts) > 0, lev_max, 1.0), np.diff(starts))
-            row_max[row_max == 0] = 1.0
-            As = A / row_max[:, None]
-            sq = np.add.reduceat(np.einsum("ij,ij->i", As, As), starts[:-1].clip(max=A.shape[0] - 1))
-            lev_norm = np.repeat(np.where(np.diff(starts) > 0, np.sqrt(sq), 1.0), np.diff(starts))
-            lev_norm[lev_norm == 0] = 1.0
-            scale = 1.0 / (row_max * lev_norm)
-            ok = np.isfinite(scale) & (scale > 0)
-            scale[~ok] = 1.0 / row_max[~ok]
-            A = A * scale[:, None]
-            lo = lo * scale
-            up = up * scale
-        if min_norm and n > 0:
-            A = np.vstack([A, np.eye(n)])
-            lo = np.concatenate([lo, np.zeros(n)])
-            up = np.concatenate([up, np.zeros(n)])
-            starts = np.concatenate([starts, [h.rows + n]]).astype(np.int64)
-        self.A = np.ascontiguousarray(A)
-        self.lo = lo
-        self.up = up
-        self.starts = np.ascontiguousarray(starts, dtype=np.int64)
+        from solvers.hcod._kernel import scaled_problem
+
+        self.A, self.lo, self.up, self.starts = scaled_problem(h.A, h.lower, h.upper, h.starts, min_norm and n > 0)
         self.D = self.starts.shape[0] - 1
         self.mt = self.A.shape[0]
         self.mmax = int(np.diff(self.starts).max()) if self.D else 0

@@ -668,3 +668,45 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     out[O_LEVEL] = fail_level
     out[O_WARMFAIL] = warm_failed
     out[O_P] = p
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def scaled_problem(A, lo, up, starts, min_norm):
+    """The arrays the kernel solves: each level scaled by ``1 / ||A_k||_F``
+    (computed without overflow; same minimisers, O(1) numbers in the
+    reflectors) and, when ``min_norm``, the level ``I x = 0`` appended.
+    Returns (A (m', n), lo, up, starts (D'+1,))."""
+    m, n = A.shape
+    D = starts.shape[0] - 1
+    extra = n if min_norm else 0
+    A2 = np.zeros((m + extra, n))
+    lo2 = np.zeros(m + extra)
+    up2 = np.zeros(m + extra)
+    st2 = np.empty(D + 1 + (1 if min_norm else 0), np.int64)
+    for k in range(D + 1):
+        st2[k] = starts[k]
+    if min_norm:
+        st2[D + 1] = m + n
+        for c in range(n):
+            A2[m + c, c] = 1.0
+    for k in range(D):
+        amax = 0.0
+        for i in range(starts[k], starts[k + 1]):
+            for c in range(n):
+                amax = max(amax, abs(A[i, c]))
+        sc = 1.0
+        if amax > 0.0:
+            s = 0.0
+            for i in range(starts[k], starts[k + 1]):
+                for c in range(n):
+                    a = A[i, c] / amax
+                    s += a * a
+            sc = 1.0 / (amax * math.sqrt(s))
+            if not (sc > 0.0 and sc < np.inf):
+                sc = 1.0 / amax
+        for i in range(starts[k], starts[k + 1]):
+            for c in range(n):
+                A2[i, c] = A[i, c] * sc
+            lo2[i] = lo[i] * sc
+            up2[i] = up[i] * sc
+    return A2, lo2, up2, st2
