@@ -113,6 +113,11 @@ def _prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, s
                 seen[bcol[i]] = 1
             if ok:
                 levid[k] = 1
+                for i in range(starts[k], starts[k + 1]):
+                    if kind[i] != 0:
+                        ok = False
+                if ok:
+                    levid[k] = 2  # identity-like equality level: strictly convex, x unique after it
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -603,9 +608,15 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 for c in range(n):
                     hist_du[k, c] = u[c] - uprev[c]
                 hist_valid[k] = 1
-            # ---- freeze level k (eq. 36); nothing to freeze below the last level ----
-            if k == D - 1:
-                pass
+            # ---- freeze level k (eq. 36); nothing to freeze below the last level, nor below
+            # an identity-like equality level: its objective ||D x - e||^2 is strictly convex,
+            # so x is unique after it and the levels below (the min-norm stage) change nothing
+            if k == D - 1 or levid[k] == 2:
+                for kk in range(k + 1, D):
+                    itl[kk] = 0
+                    if warm == 2:
+                        hist_valid[kk] = 0
+                break
             elif not has_ineq:
                 if r > 0:
                     fl += apply_reflectors_to_basis(W, p, Mr, beta, r)
