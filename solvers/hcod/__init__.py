@@ -48,10 +48,10 @@ import numpy as np
 
 from problems.errors import SolverOptionError
 from problems.hierarchy import Hierarchy
-from solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, SolveResult, Solver
+from solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
 from solvers.registry import SolverInfo
 
-__all__ = ["HcodSolver", "SOLVERS", "warmup", "WARM_STARTS"]
+__all__ = ["SOLVERS", "WARM_STARTS", "HcodSolver", "warmup"]
 
 WARM_STARTS = ("none", "stage", "time")
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
@@ -61,14 +61,14 @@ _eq_run = None  # solvers.hcod._equality.eq_run, imported on the first solve (nu
 class _Prepared:
     """Arrays of one hierarchy as the kernel reads them (min-norm level appended)."""
 
-    __slots__ = ("h", "A", "lo", "up", "starts", "depth", "D", "mt", "mmax", "has_ineq", "key")
+    __slots__ = ("A", "D", "depth", "h", "has_ineq", "key", "lo", "mmax", "mt", "starts", "up")
 
     def __init__(self, h: Hierarchy, min_norm: bool, has_ineq: bool):
         self.h = h
         n = h.n
         self.depth = h.depth
         self.has_ineq = has_ineq
-        from solvers.hcod._kernel import scaled_problem
+        from solvers.hcod._setup import scaled_problem
 
         self.A, self.lo, self.up, self.starts = scaled_problem(h.A, h.lower, h.upper, h.starts, min_norm and n > 0)
         self.D = self.starts.shape[0] - 1
@@ -149,7 +149,8 @@ class HcodSolver(Solver):
     def _bind(self, h: Hierarchy):
         """Workspaces for h (kept when the shape is unchanged: the warm-start
         record survives) and a closure running one solve on them."""
-        from solvers.hcod._kernel import O_PREPARED, hcod_solve, layout
+        from solvers.hcod._kernel import O_PREPARED, hcod_solve
+        from solvers.hcod._setup import layout
 
         prep = _Prepared(h, self.min_norm, True)
         old = self._prep
@@ -236,4 +237,4 @@ def warmup() -> None:
 
 SOLVERS = [SolverInfo("hcod", HcodSolver.description, HcodSolver, supports_inequalities=True,
                       supports_warm_start=True,
-                      options=dict(warm_start="time", max_iterations=None, rank_rtol=1e-10, min_norm=True))]
+                      options={"warm_start": "time", "max_iterations": None, "rank_rtol": 1e-10, "min_norm": True})]

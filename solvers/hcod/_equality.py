@@ -133,7 +133,7 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
 
     Returns the multiply-add count, or -1 when x is not finite (breakdown).
     """
-    m, n = A.shape
+    _m, n = A.shape
     D = starts.shape[0] - 1
     fl = 0
     for c in range(n):

@@ -35,89 +35,25 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod._linalg import (apply_reflectors, apply_reflectors_to_basis, cod, delete_row, insert_row,
-                                  multipliers, project_rows, row_dot, solve_lower, step_from_z)
+from solvers.hcod._linalg import (
+    apply_reflectors,
+    apply_reflectors_to_basis,
+    cod,
+    delete_row,
+    insert_row,
+    mf_reflect,
+    multipliers,
+    project_into,
+    row_dot,
+    solve_lower,
+    step_from_z,
+)
+from solvers.hcod._setup import prepare
 
 INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
 O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P, O_PREPARED = range(9)
-N_OUT = 9
-# float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n)
-F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
-            "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf")
-I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "itl", "hist_state",
-            "hist_side", "hist_valid", "out", "levid", "piv")
-
-
-def layout(n: int, mt: int, D: int, mmax: int):
-    """Offsets of the float and int workspaces, shape (len(blocks) + 1,) each."""
-    mm = max(mmax, 1)
-    fsz = dict(W=n * n, R=n * n, u=n, ps=n, z=n, g=n, hv=n, nu=n, q=n, uprev=n, y=n, Mr=mm * n, bvec=mm,
-               diag=mm, beta=mm, Lb=mm * max(min(n, mm), 1), target=mt, rnorm=mt, bval=mt, lnorm=D,
-               hist_du=D * n, Mf=mm * n)
-    isz = dict(state=mt, side=mt, kind=mt, bcol=mt, rowlev=mt, widx=n, wside=n, Olist=mm, itl=D,
-               hist_state=D * mt, hist_side=D * mt, hist_valid=D, out=N_OUT, levid=D, piv=mm)
-    foff = np.cumsum([0] + [fsz[b] for b in F_BLOCKS]).astype(np.int64)
-    ioff = np.cumsum([0] + [isz[b] for b in I_BLOCKS]).astype(np.int64)
-    return foff, ioff
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, seen):
-    """Row kinds (0 equality, 1 inequality, 2 free), bound rows (one nonzero),
-    row norms, the Frobenius norm of each level ``||A_k||_F`` (the scale of
-    the rank threshold) and identity-like levels (``levid``: n bound rows on
-    distinct variables with equal |coefficient|, e.g. a posture task or the
-    min-norm stage, whose projection ``J_k Z`` has orthogonal columns)."""
-    m, n = A.shape
-    D = starts.shape[0] - 1
-    for k in range(D):
-        s = 0.0
-        for i in range(starts[k], starts[k + 1]):
-            rowlev[i] = k
-            nz = 0
-            col = -1
-            ss = 0.0
-            for c in range(n):
-                a = A[i, c]
-                if a != 0.0:
-                    nz += 1
-                    col = c
-                    ss += a * a
-            rnorm[i] = math.sqrt(ss)
-            s += ss
-            if nz == 1:
-                bcol[i] = col
-                bval[i] = A[i, col]
-            else:
-                bcol[i] = -1
-                bval[i] = 0.0
-            if lo[i] == up[i]:
-                kind[i] = 0
-            elif lo[i] == -np.inf and up[i] == np.inf:
-                kind[i] = 2
-            else:
-                kind[i] = 1
-        lnorm[k] = math.sqrt(s)
-        levid[k] = 0
-        if starts[k + 1] - starts[k] == n and n > 0:
-            for c in range(n):
-                seen[c] = 0
-            ok = True
-            d0 = abs(bval[starts[k]])
-            for i in range(starts[k], starts[k + 1]):
-                if bcol[i] < 0 or seen[bcol[i]] != 0 or abs(bval[i]) != d0:
-                    ok = False
-                    break
-                seen[bcol[i]] = 1
-            if ok:
-                levid[k] = 1
-                for i in range(starts[k], starts[k + 1]):
-                    if kind[i] != 0:
-                        ok = False
-                if ok:
-                    levid[k] = 2  # identity-like equality level: strictly convex, x unique after it
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -126,47 +62,6 @@ def _norm(x):
     for v in x:
         s += v * v
     return math.sqrt(s)
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _project_into(A, Olist, j0, j1, bcol, bval, W, p, Mf):
-    """``Mf[j, p:] = A[Olist[j]] @ W[:, p:]`` for j0 <= j < j1: the objective rows
-    projected on Z (eq. 19), kept up to date across iterations. Returns flops."""
-    n = W.shape[0]
-    fl = 0
-    for j in range(j0, j1):
-        i = Olist[j]
-        b = bcol[i]
-        if b >= 0:
-            v = bval[i]
-            for c in range(p, n):
-                Mf[j, c] = v * W[b, c]
-            fl += n - p
-        else:
-            for c in range(p, n):
-                Mf[j, c] = 0.0
-            for rr in range(n):
-                a = A[i, rr]
-                if a != 0.0:
-                    for c in range(p, n):
-                        Mf[j, c] += a * W[rr, c]
-                    fl += n - p
-    return fl
-
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def _mf_reflect(Mf, nO, p, q, bt):
-    """After a row entered ``W`` (reflector ``I - bt q[p:] q[p:]^T`` applied to
-    ``W[:, p:]``), update the projected objective rows the same way. Returns flops."""
-    n = Mf.shape[1]
-    for j in range(nO):
-        s = 0.0
-        for c in range(p, n):
-            s += Mf[j, c] * q[c]
-        s *= bt
-        for c in range(p, n):
-            Mf[j, c] -= s * q[c]
-    return 2 * nO * (n - p)
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -226,7 +121,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     piv = iw[ioff[14]:ioff[15]]
 
     if out[O_PREPARED] == 0:
-        _prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, widx)
+        prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, widx)
         out[O_PREPARED] = 1
     fl = 0
     acts = 0
@@ -444,7 +339,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     r = nf
                 elif nf > 0 and nO > 0:
                     if not mf_valid:
-                        fl += _project_into(A, Olist, 0, nO, bcol, bval, W, p, Mf)
+                        fl += project_into(A, Olist, 0, nO, bcol, bval, W, p, Mf)
                         mf_valid = True
                     for j in range(nO):
                         i = Olist[j]
@@ -497,7 +392,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         state[blk] = OBJECTIVE
                         Olist[nO] = blk
                         if mf_valid:
-                            fl += _project_into(A, Olist, nO, nO + 1, bcol, bval, W, p, Mf)
+                            fl += project_into(A, Olist, nO, nO + 1, bcol, bval, W, p, Mf)
                         nO += 1
                     else:
                         ok, f, bt = insert_row(A, blk, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[blk]], q)
@@ -507,7 +402,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                             fail_level = k
                             break
                         if mf_valid:
-                            fl += _mf_reflect(Mf, nO, p, q, bt)
+                            fl += mf_reflect(Mf, nO, p, q, bt)
                         widx[p] = blk
                         wside[p] = bsd
                         p += 1
@@ -591,7 +486,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                                                            rank_rtol * lnorm[rowlev[i2]], q)
                                     fl += f
                                     if ok and mf_valid:
-                                        fl += _mf_reflect(Mf, nO, p, q, bt)
+                                        fl += mf_reflect(Mf, nO, p, q, bt)
                                     if ok:
                                         widx[p] = i2
                                         wside[p] = 0
@@ -680,44 +575,3 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     out[O_WARMFAIL] = warm_failed
     out[O_P] = p
 
-
-@njit(cache=True, nogil=True, error_model="numpy")
-def scaled_problem(A, lo, up, starts, min_norm):
-    """The arrays the kernel solves: each level scaled by ``1 / ||A_k||_F``
-    (computed without overflow; same minimisers, O(1) numbers in the
-    reflectors) and, when ``min_norm``, the level ``I x = 0`` appended.
-    Returns (A (m', n), lo, up, starts (D'+1,))."""
-    m, n = A.shape
-    D = starts.shape[0] - 1
-    extra = n if min_norm else 0
-    A2 = np.zeros((m + extra, n))
-    lo2 = np.zeros(m + extra)
-    up2 = np.zeros(m + extra)
-    st2 = np.empty(D + 1 + (1 if min_norm else 0), np.int64)
-    for k in range(D + 1):
-        st2[k] = starts[k]
-    if min_norm:
-        st2[D + 1] = m + n
-        for c in range(n):
-            A2[m + c, c] = 1.0
-    for k in range(D):
-        amax = 0.0
-        for i in range(starts[k], starts[k + 1]):
-            for c in range(n):
-                amax = max(amax, abs(A[i, c]))
-        sc = 1.0
-        if amax > 0.0:
-            s = 0.0
-            for i in range(starts[k], starts[k + 1]):
-                for c in range(n):
-                    a = A[i, c] / amax
-                    s += a * a
-            sc = 1.0 / (amax * math.sqrt(s))
-            if not (sc > 0.0 and sc < np.inf):
-                sc = 1.0 / amax
-        for i in range(starts[k], starts[k + 1]):
-            for c in range(n):
-                A2[i, c] = A[i, c] * sc
-            lo2[i] = lo[i] * sc
-            up2[i] = up[i] * sc
-    return A2, lo2, up2, st2

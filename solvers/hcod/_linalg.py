@@ -18,11 +18,22 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 from numba import njit
 
-__all__ = ["row_dot", "project_rows", "cod", "solve_lower", "apply_reflectors", "step_from_z",
-           "apply_reflectors_to_basis", "insert_row", "delete_row", "multipliers"]
+__all__ = [
+    "apply_reflectors",
+    "apply_reflectors_to_basis",
+    "cod",
+    "delete_row",
+    "insert_row",
+    "mf_reflect",
+    "multipliers",
+    "project_into",
+    "project_rows",
+    "row_dot",
+    "solve_lower",
+    "step_from_z",
+]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -352,3 +363,44 @@ def multipliers(W, R, p, g, h, nu):
             s -= R[c, l] * nu[l]
         nu[c] = s / R[c, c]
     return n * p + p * p // 2
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def project_into(A, Olist, j0, j1, bcol, bval, W, p, Mf):
+    """``Mf[j, p:] = A[Olist[j]] @ W[:, p:]`` for j0 <= j < j1: the objective rows
+    projected on Z (eq. 19), kept up to date across iterations. Returns flops."""
+    n = W.shape[0]
+    fl = 0
+    for j in range(j0, j1):
+        i = Olist[j]
+        b = bcol[i]
+        if b >= 0:
+            v = bval[i]
+            for c in range(p, n):
+                Mf[j, c] = v * W[b, c]
+            fl += n - p
+        else:
+            for c in range(p, n):
+                Mf[j, c] = 0.0
+            for rr in range(n):
+                a = A[i, rr]
+                if a != 0.0:
+                    for c in range(p, n):
+                        Mf[j, c] += a * W[rr, c]
+                    fl += n - p
+    return fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def mf_reflect(Mf, nO, p, q, bt):
+    """After a row entered ``W`` (reflector ``I - bt q[p:] q[p:]^T`` applied to
+    ``W[:, p:]``), update the projected objective rows the same way. Returns flops."""
+    n = Mf.shape[1]
+    for j in range(nO):
+        s = 0.0
+        for c in range(p, n):
+            s += Mf[j, c] * q[c]
+        s *= bt
+        for c in range(p, n):
+            Mf[j, c] -= s * q[c]
+    return 2 * nO * (n - p)

@@ -14,9 +14,11 @@ disagree, and the hypothesis tests draw from a grid that avoids them.
 
 from __future__ import annotations
 
+import hik_strategies
 import numpy as np
 import pytest
-from hypothesis import given, settings, strategies as st
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from problems import generators as G
 from problems.errors import SolverOptionError
@@ -26,8 +28,6 @@ from solvers import registry
 from solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL
 from solvers.hcod import HcodSolver
 from solvers.reference import nullspace_reference, reference_solution
-
-import hik_strategies
 
 RTOL = 1e-9
 RTOL_ILL = 1e-7
@@ -53,10 +53,10 @@ def test_registered():
 
 
 @pytest.mark.parametrize("opts, match", [
-    (dict(warm_start="always"), "warm_start.*none, stage, time"),
-    (dict(max_iterations=0), "max_iterations"),
-    (dict(rank_rtol=2.0), "rank_rtol"),
-    (dict(min_norm="yes"), "min_norm"),
+    ({"warm_start": "always"}, "warm_start.*none, stage, time"),
+    ({"max_iterations": 0}, "max_iterations"),
+    ({"rank_rtol": 2.0}, "rank_rtol"),
+    ({"min_norm": "yes"}, "min_norm"),
 ], ids=["warm_start", "max_iterations", "rank_rtol", "min_norm"])
 def test_bad_options(opts, match):
     with pytest.raises(SolverOptionError, match=match):

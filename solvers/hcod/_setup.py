@@ -1,0 +1,128 @@
+"""Set-up of the inequality kernel: the scaled problem, the workspace layout
+and the per-row / per-level data computed once per hierarchy."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+N_OUT = 9
+# float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n)
+F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
+            "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf")
+I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "itl", "hist_state",
+            "hist_side", "hist_valid", "out", "levid", "piv")
+
+
+def layout(n: int, mt: int, D: int, mmax: int):
+    """Offsets of the float and int workspaces, shape (len(blocks) + 1,) each."""
+    mm = max(mmax, 1)
+    fsz = {"W": n * n, "R": n * n, "u": n, "ps": n, "z": n, "g": n, "hv": n, "nu": n, "q": n, "uprev": n, "y": n, "Mr": mm * n, "bvec": mm,
+               "diag": mm, "beta": mm, "Lb": mm * max(min(n, mm), 1), "target": mt, "rnorm": mt, "bval": mt, "lnorm": D,
+               "hist_du": D * n, "Mf": mm * n}
+    isz = {"state": mt, "side": mt, "kind": mt, "bcol": mt, "rowlev": mt, "widx": n, "wside": n, "Olist": mm, "itl": D,
+               "hist_state": D * mt, "hist_side": D * mt, "hist_valid": D, "out": N_OUT, "levid": D, "piv": mm}
+    foff = np.cumsum([0] + [fsz[b] for b in F_BLOCKS]).astype(np.int64)
+    ioff = np.cumsum([0] + [isz[b] for b in I_BLOCKS]).astype(np.int64)
+    return foff, ioff
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, seen):
+    """Row kinds (0 equality, 1 inequality, 2 free), bound rows (one nonzero),
+    row norms, the Frobenius norm of each level ``||A_k||_F`` (the scale of
+    the rank threshold) and identity-like levels (``levid``: n bound rows on
+    distinct variables with equal |coefficient|, e.g. a posture task or the
+    min-norm stage, whose projection ``J_k Z`` has orthogonal columns)."""
+    _m, n = A.shape
+    D = starts.shape[0] - 1
+    for k in range(D):
+        s = 0.0
+        for i in range(starts[k], starts[k + 1]):
+            rowlev[i] = k
+            nz = 0
+            col = -1
+            ss = 0.0
+            for c in range(n):
+                a = A[i, c]
+                if a != 0.0:
+                    nz += 1
+                    col = c
+                    ss += a * a
+            rnorm[i] = math.sqrt(ss)
+            s += ss
+            if nz == 1:
+                bcol[i] = col
+                bval[i] = A[i, col]
+            else:
+                bcol[i] = -1
+                bval[i] = 0.0
+            if lo[i] == up[i]:
+                kind[i] = 0
+            elif lo[i] == -np.inf and up[i] == np.inf:
+                kind[i] = 2
+            else:
+                kind[i] = 1
+        lnorm[k] = math.sqrt(s)
+        levid[k] = 0
+        if starts[k + 1] - starts[k] == n and n > 0:
+            for c in range(n):
+                seen[c] = 0
+            ok = True
+            d0 = abs(bval[starts[k]])
+            for i in range(starts[k], starts[k + 1]):
+                if bcol[i] < 0 or seen[bcol[i]] != 0 or abs(bval[i]) != d0:
+                    ok = False
+                    break
+                seen[bcol[i]] = 1
+            if ok:
+                levid[k] = 1
+                for i in range(starts[k], starts[k + 1]):
+                    if kind[i] != 0:
+                        ok = False
+                if ok:
+                    levid[k] = 2  # identity-like equality level: strictly convex, x unique after it
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def scaled_problem(A, lo, up, starts, min_norm):
+    """The arrays the kernel solves: each level scaled by ``1 / ||A_k||_F``
+    (computed without overflow; same minimisers, O(1) numbers in the
+    reflectors) and, when ``min_norm``, the level ``I x = 0`` appended.
+    Returns (A (m', n), lo, up, starts (D'+1,))."""
+    m, n = A.shape
+    D = starts.shape[0] - 1
+    extra = n if min_norm else 0
+    A2 = np.zeros((m + extra, n))
+    lo2 = np.zeros(m + extra)
+    up2 = np.zeros(m + extra)
+    st2 = np.empty(D + 1 + (1 if min_norm else 0), np.int64)
+    for k in range(D + 1):
+        st2[k] = starts[k]
+    if min_norm:
+        st2[D + 1] = m + n
+        for c in range(n):
+            A2[m + c, c] = 1.0
+    for k in range(D):
+        amax = 0.0
+        for i in range(starts[k], starts[k + 1]):
+            for c in range(n):
+                amax = max(amax, abs(A[i, c]))
+        sc = 1.0
+        if amax > 0.0:
+            s = 0.0
+            for i in range(starts[k], starts[k + 1]):
+                for c in range(n):
+                    a = A[i, c] / amax
+                    s += a * a
+            sc = 1.0 / (amax * math.sqrt(s))
+            if not (sc > 0.0 and sc < np.inf):
+                sc = 1.0 / amax
+        for i in range(starts[k], starts[k + 1]):
+            for c in range(n):
+                A2[i, c] = A[i, c] * sc
+            lo2[i] = lo[i] * sc
+            up2[i] = up[i] * sc
+    return A2, lo2, up2, st2
