@@ -1,45 +1,94 @@
 """The reference HCOD solver (Escande, Mansard, Wieber, ICRA 2010), registered
 as ``hcod``.
 
-* Equality levels (sec. V-VI): per level, the rank-revealing COD (19) of the
-  projected level ``J_k Z_{k-1}`` -- a Householder QR with column pivoting of
-  its transpose, then a QR of the trapezoidal factor -- and the update
-  ``u_k = u_{k-1} + Z_{k-1} Y_k L_k^-1 V_k^T (e_k - J_k u_{k-1})`` (eqs.
-  30-31). ``Z`` is kept as the trailing columns of one orthonormal matrix
-  ``W`` and shrinks level after level (eq. 23): a level after saturation
-  costs its projection onto an empty ``Z``, i.e. nothing.
-* Rank detection: a pivot of the COD of level k counts when its remaining
-  norm exceeds ``rank_rtol * ||A_k||_F`` (default 1e-10), relative to the
-  *unprojected* level like the reference's ``s_i > 1e-10 ||A_k||_2``
-  (``||A_k||_2 <= ||A_k||_F <= sqrt(rank) ||A_k||_2``: a compatible, slightly
-  more conservative rule). A row inserted in the working set obeys the same
-  test on its component outside the span of the working rows.
-* Inequalities at any level (sec. VII-X): the LSIs (33)-(35) level by level by
-  a primal active set; see :mod:`solvers.hcod._kernel`. Rows enter the
-  decomposition by a Householder update of ``W`` and leave it by Givens
-  rotations (sec. IX); the level's own COD (19) is recomputed at each
-  iteration (it is the small part: rows of one level times the remaining
-  freedom).
-* Minimum norm: equality-only problems get the minimum-norm x by
-  construction (u_0 = 0 and minimum-norm steps, eq. 28). With inequalities
-  the active-set path can leave components in the null space of the final
-  working set; with ``min_norm=True`` (default) one implicit last level
-  ``x = 0`` removes them (its iterations are counted in ``iterations`` and
-  reported in ``info["min_norm_iterations"]``).
-* Warm start (sec. XI), option ``warm_start``: ``"none"`` (each call cold; each
-  level starts from the previous optimum but only its frozen equality rows,
-  not the previous active inequality set), ``"stage"`` (sec. X: level to
-  level within a call), ``"time"`` (default: also across calls on the same
-  object -- each level's active set and ``Delta u`` (eq. 46) recorded at the
-  last call are re-applied, ``Delta u`` projected on the current ``Z``; a
-  level whose shifted point violates a row above starts cold from the
-  previous level's optimum instead, counted in
-  ``info["warm_fallback_levels"]``). The previous call's record is
-  used whenever the new hierarchy has the same shape.
+Equality-only hierarchies (sec. V-VI, :mod:`._equality`)
+    Per level, the rank-revealing COD (19) of the projected level
+    ``J_k Z_{k-1}`` -- Householder QR with column pivoting of its transpose,
+    then (rank-deficient levels only) a QR of the trapezoidal factor -- and
+    the update ``u_k = u_{k-1} + Z_{k-1} Y_k L_k^-1 V_k^T (e_k - J_k u_{k-1})``
+    (eqs. 30-31). The basis ``[Y_bar, Z]`` (eq. 23) is kept implicit: the
+    level's reflectors are stored in its own rows and applied to a lower
+    level's rows only when that level is reached with ``nf > 0``, so levels
+    after saturation cost nothing (36 DOF, 24 levels x 6 rows: the same flops
+    as 6 levels). ``x`` is the minimum-norm lexicographic solution (u_0 = 0
+    and minimum-norm steps, eq. 28).
+
+Inequalities at any level (sec. VII-X, :mod:`._kernel`)
+    The LSIs (33)-(35) level by level by a primal active set on the HCOD: the
+    LSE step (43)-(44) by the COD of the level's objective rows projected on
+    ``Z``; step length to the first blocking row (higher levels' inactive rows
+    and the level's own inactive rows); activation; deactivation by the sign
+    of ``mu = w`` (38) and of ``lambda`` (39) from the triangular factor.
+    Working rows enter the explicit orthonormal basis ``W = [Y_bar, Z]`` by a
+    Householder update and leave it by Givens rotations (sec. IX); the
+    projected objective rows ``J_hat_k Z`` are carried along the same updates
+    across iterations (a new column or a reflector, not a new projection); the
+    level's COD (19) itself is recomputed each iteration. At the end of a
+    level its rows are frozen (eq. 36) through that COD: rows with a nonzero
+    slack become equalities at their achieved value, zero-slack inequality
+    rows stay (removable) inequality constraints. Each level starts from the
+    previous optimum and working set, completed by (45). Handles equality rows
+    inside inequality levels, two-sided rows (one side active at a time),
+    free rows (never active), empty levels, infeasible levels (nonzero slack;
+    status stays optimal), bound rows (one nonzero: O(1) products) and
+    identity-like levels (posture ``x = x*`` and the min-norm stage: the LSE
+    is a product with ``Z^T``; after such an equality level ``x`` is unique and
+    the levels below are skipped).
+
+Rank detection
+    Each level is scaled by ``1 / ||A_k||_F`` (same minimisers, overflow-free
+    reflectors for row norms from 1e-300 to 1e300). A pivot counts when its
+    remaining norm exceeds ``rank_rtol`` (default 1e-10) times the norm of
+    the *unprojected* level, like the reference's ``s_i > 1e-10 ||A_k||_2``
+    (``||A_k||_2 <= ||A_k||_F <= sqrt(rank) ||A_k||_2``: a compatible,
+    slightly more conservative rule). A row inserted in the working set obeys
+    the same test on its component outside the span of the working rows.
+
+Tolerances (data, not options)
+    multipliers: a working row is removed when ``lambda_j ||a_j|| < -1e-13 *
+    sum_j ||a_j|| (||a_j|| (1 + ||u||) + |e_j|)`` over the objective rows (the
+    rounding floor of the gradient); an objective inequality row when its
+    ``mu = w`` has the wrong sign beyond ``1e-13 (||a|| (1 + ||u||) + |e|)``;
+    a slack below ``1e-11 (...)`` counts as zero at a freeze; warm-start
+    feasibility ``1e-9 (||a|| (1 + ||u||) + 1)``.
+
+Minimum norm with inequalities
+    The active-set path can leave components in the null space of the final
+    working set; with ``min_norm=True`` (default) one implicit last level
+    ``x = 0`` removes them (its iterations are counted in ``iterations`` and
+    reported in ``info["min_norm_iterations"]``). It is skipped after an
+    identity-like equality level (x already unique).
+
+Warm start (sec. XI), option ``warm_start``
+    ``"none"``: each call cold, and each level starts from the previous
+    optimum with only its frozen equality rows (not the previous active
+    inequality set); ``"stage"``: sec. X, level to level within a call;
+    ``"time"`` (default): also across calls on the same object -- each
+    level's working set and ``Delta u`` (eq. 46) recorded at the last call are
+    re-applied (``Delta^- A`` removed, ``Delta u`` projected on the current
+    ``Z`` and shortened by tau to keep inactive rows feasible, ``Delta^+ A``
+    inserted, then an LSE correction onto the inserted rows). A level whose
+    corrected point violates a row above starts cold from the previous
+    level's optimum instead (``info["warm_fallback_levels"]``). The record is
+    used whenever the new hierarchy has the same shape (a trajectory, or the
+    benchmark's warm mode that re-solves the same problem); ``reset()``
+    forgets it. Equality-only problems have no active set: warm == cold.
+
+Result
+    ``iterations`` counts LSE solves (active-set iterations; 1 per nonempty
+    level for equality problems), ``iterations_per_level`` the same per level,
+    ``activations`` / ``deactivations`` the active-set changes, ``flops`` the
+    multiply-adds counted inside the kernels (see the test relating it to the
+    26.9 Kflops of sec. VI). Statuses: ``optimal``; ``max_iterations`` when the
+    cap (option ``max_iterations``, default ``100 + 10 (rows + n)``) is hit
+    (x = last iterate, reason names the level); ``numerical_failure`` when x
+    is not finite or a blocking row cannot enter the decomposition (x = None).
+    No exception escapes for a valid problem.
 
 Compiled with numba (nopython, ``cache=True``); nothing compiles at import:
-the first solve (or :func:`warmup`) compiles or loads the cache. One compiled
-call per solve, on workspaces kept in the solver object.
+the first solve (or :func:`warmup`) compiles or loads the cache. One
+compiled call per solve (plus one to scale a new hierarchy), on workspaces
+kept in the solver object.
 """
 
 from __future__ import annotations

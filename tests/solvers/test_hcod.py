@@ -265,3 +265,18 @@ def test_grid_random_hierarchies_match_reference(h):
     assert res.status == OPTIMAL, res.reason
     v = verify(h, res.x, reference_solution(h), rtol=1e-8)
     assert v.equal, v
+
+
+def test_reset_and_warmup():
+    from solvers.hcod import warmup
+
+    warmup()
+    h = G.ik_like(12, 1)
+    s = HcodSolver()
+    cold = s.solve(h)
+    warm = s.solve(h)
+    assert warm.iterations < cold.iterations
+    s.reset()
+    again = s.solve(h)
+    assert again.iterations == cold.iterations
+    np.testing.assert_allclose(again.x, cold.x, atol=1e-12)
