@@ -54,6 +54,7 @@ INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
 O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P, O_PREPARED = range(9)
+BLAND_AFTER = 8  #: consecutive degenerate steps before the anti-cycling rule takes over
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -305,6 +306,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
             r = 0
             cod_done = False
             mf_valid = False
+            degen = 0
             for j in range(nO):
                 piv[j] = j
             while True:
@@ -384,6 +386,13 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         fl += 2 * n * (s1 - s0)
                 for c in range(n):
                     u[c] += tau * ps[c]
+                # anti-cycling: after a run of degenerate steps (tau = 0), Bland's rule --
+                # the blocking row of smallest index (the scan keeps the first of equal
+                # ratios) and the deactivation of the smallest row index
+                if blk >= 0 and tau == 0.0:
+                    degen += 1
+                else:
+                    degen = 0
                 if blk >= 0:
                     acts += 1
                     side[blk] = bsd
@@ -421,7 +430,8 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     w = row_dot(A, i, bcol, bval, u) - target[i]  # eq. (38): mu = w
                     val = side[i] * w
                     tol = dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
-                    if val < -tol and val / rnorm[i] < worst:
+                    if val < -tol and (val / rnorm[i] < worst if degen < BLAND_AFTER
+                                       else (jw < 0 or i < Olist[jw])):
                         worst = val / rnorm[i]
                         jw = j
                 if jw >= 0:
@@ -466,7 +476,8 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         for j in range(p):
                             if wside[j] != 0:
                                 val = wside[j] * nu[j] * rnorm[widx[j]]
-                                if val < -gtol and val < worst:
+                                if val < -gtol and (val < worst if degen < BLAND_AFTER
+                                                    else (jw < 0 or widx[j] < widx[jw])):
                                     worst = val
                                     jw = j
                         if jw >= 0:

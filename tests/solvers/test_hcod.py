@@ -280,3 +280,17 @@ def test_reset_and_warmup():
     again = s.solve(h)
     assert again.iterations == cold.iterations
     np.testing.assert_allclose(again.x, cold.x, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_degenerate_vertex(seed):
+    """Many inequality rows through the start point u = 0 (a degenerate vertex:
+    steps of length 0, ties): no cycling, the reference optimum."""
+    rng = np.random.default_rng(seed)
+    n = 4
+    C = rng.standard_normal((16, n))
+    C = np.vstack([C, C[:4], -C[4:6] * 0.0 + C[4:6]])  # duplicates
+    h = Hierarchy.from_levels([Level(C, np.full(len(C), -np.inf), np.zeros(len(C))),
+                               Level.equality(np.eye(n), 3 * rng.standard_normal(n))], n=n)
+    res, _ = check(h)
+    assert res.iterations < 200
