@@ -18,7 +18,12 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 from numba import njit
+
+#: below these sizes the scalar loops beat a BLAS call (its overhead ~1 us)
+BLAS_MIN_REFLECTORS = 8
+BLAS_MIN_WORK = 20_000
 
 __all__ = [
     "apply_reflectors",
@@ -245,6 +250,8 @@ def apply_reflectors_to_basis(W, p, Mr, beta, r):
     ``Z_k``. Returns flops."""
     n = W.shape[0]
     nf = n - p
+    if r >= BLAS_MIN_REFLECTORS and n * nf * r >= BLAS_MIN_WORK:
+        return _apply_reflectors_wy(W, p, Mr, beta, r)
     for i in range(r):
         bt = beta[i]
         for rr in range(n):
@@ -255,6 +262,38 @@ def apply_reflectors_to_basis(W, p, Mr, beta, r):
             for c in range(i, nf):
                 W[rr, p + c] -= s * Mr[i, c]
     return 2 * n * nf * r
+
+
+@njit(cache=True, nogil=True, error_model="numpy")
+def _apply_reflectors_wy(W, p, Mr, beta, r):
+    """:func:`apply_reflectors_to_basis` in compact WY form, with BLAS:
+    ``H_0 ... H_{r-1} = I - V T V^T`` (V (nf, r) the reflector vectors, T (r, r)
+    upper triangular: ``T[t, t] = beta_t``, ``T[:t, t] = -beta_t T[:t, :t]
+    V[:, :t]^T v_t``), then ``Z <- Z - ((Z V) T) V^T``. Returns flops."""
+    n = W.shape[0]
+    nf = n - p
+    Vr = np.zeros((r, nf))
+    for t in range(r):
+        for c in range(t, nf):
+            Vr[t, c] = Mr[t, c]
+    S = Vr @ Vr.T  # S[a, b] = v_a . v_b
+    T = np.zeros((r, r))
+    for t in range(r):
+        bt = beta[t]
+        T[t, t] = bt
+        for a in range(t):
+            s = 0.0
+            for b in range(a, t):
+                s += T[a, b] * S[b, t]
+            T[a, t] = -bt * s
+    Z = np.ascontiguousarray(W[:, p:])
+    X = Z @ Vr.T
+    Y = X @ T
+    Z -= Y @ Vr
+    for rr in range(n):
+        for c in range(nf):
+            W[rr, p + c] = Z[rr, c]
+    return 2 * n * nf * r + r * r * nf + r * r * r // 6 + n * r * r
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
@@ -371,6 +410,29 @@ def project_into(A, Olist, j0, j1, bcol, bval, W, p, Mf):
     projected on Z (eq. 19), kept up to date across iterations. Returns flops."""
     n = W.shape[0]
     fl = 0
+    ng = 0
+    for j in range(j0, j1):
+        if bcol[Olist[j]] < 0:
+            ng += 1
+    if ng >= BLAS_MIN_REFLECTORS and ng * n * (n - p) >= BLAS_MIN_WORK:
+        # the general rows by one BLAS product (A_O gathered) @ Z
+        G = np.empty((ng, n))
+        gi = 0
+        for j in range(j0, j1):
+            i = Olist[j]
+            if bcol[i] < 0:
+                for c in range(n):
+                    G[gi, c] = A[i, c]
+                gi += 1
+        P = G @ np.ascontiguousarray(W[:, p:])
+        gi = 0
+        for j in range(j0, j1):
+            i = Olist[j]
+            if bcol[i] < 0:
+                for c in range(p, n):
+                    Mf[j, c] = P[gi, c - p]
+                gi += 1
+        fl += ng * n * (n - p)
     for j in range(j0, j1):
         i = Olist[j]
         b = bcol[i]
@@ -379,6 +441,8 @@ def project_into(A, Olist, j0, j1, bcol, bval, W, p, Mf):
             for c in range(p, n):
                 Mf[j, c] = v * W[b, c]
             fl += n - p
+        elif ng >= BLAS_MIN_REFLECTORS and ng * n * (n - p) >= BLAS_MIN_WORK:
+            continue
         else:
             for c in range(p, n):
                 Mf[j, c] = 0.0
