@@ -157,23 +157,31 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
         # the unprojected level becomes rank_rtol. Copy the scaled rows, then project them
         # on Z_{k-1}: apply the reflectors of the levels above (lazily, only now: a level
         # reached with nf = 0 costs nothing)
-        amax = 0.0
+        s = 0.0
         for i in range(s0, s1):
-            for c in range(n):
-                amax = max(amax, abs(A[i, c]))
-        sc = 1.0
-        if amax > 0.0:
-            s = 0.0
+            s += _dot(A, i, A, i, 0, n)
+        if s > 1e-280 and s < 1e280:
+            sc = 1.0 / math.sqrt(s)
+        else:  # rescale first (no underflow / overflow of the squares)
+            amax = 0.0
             for i in range(s0, s1):
                 for c in range(n):
-                    a = A[i, c] / amax
-                    s += a * a
-            sc = 1.0 / (amax * math.sqrt(s))
-            if not (sc > 0.0 and sc < np.inf):
-                sc = 1.0 / amax
+                    amax = max(amax, abs(A[i, c]))
+            sc = 1.0
+            if amax > 0.0:
+                s = 0.0
+                for i in range(s0, s1):
+                    for c in range(n):
+                        a = A[i, c] / amax
+                        s += a * a
+                sc = 1.0 / (amax * math.sqrt(s))
+                if not (sc > 0.0 and sc < np.inf):
+                    sc = 1.0 / amax
         for i in range(s0, s1):
+            ra = A[i]
+            rt = At[i]
             for c in range(n):
-                At[i, c] = A[i, c] * sc
+                rt[c] = ra[c] * sc
         thr = rank_rtol
         for j in range(k):
             pj = lev_p[j]
@@ -215,8 +223,8 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
             nrm = math.sqrt(best)
             if not nrm > thr:
                 break
-            if jb != it:
-                for c in range(n):
+            if jb != it:  # (columns < p are no longer needed: b is computed)
+                for c in range(p, n):
                     tmp = At[it, c]
                     At[it, c] = At[jb, c]
                     At[jb, c] = tmp
@@ -229,8 +237,13 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
             alpha = -nrm if x0 >= 0.0 else nrm
             At[it, c0] = x0 - alpha
             bt = 1.0 / (nrm * (nrm + abs(x0)))
-            for j in range(it + 1, s1):
+            j = it + 1
+            while j + 2 <= s1:
+                _reflect2(bt, At, it, j, c0, n)
+                j += 2
+            if j < s1:
                 _axpy(bt * _dot(At, it, At, j, c0, n), At, it, At, j, c0, n)
+            for j in range(it + 1, s1):
                 # downdate the remaining norm of row j
                 v = beta[j] - At[j, c0] * At[j, c0]
                 beta[j] = v if v > 1e-3 * beta[j] else _dot(At, j, At, j, c0 + 1, n)
