@@ -294,3 +294,12 @@ def test_degenerate_vertex(seed):
                                Level.equality(np.eye(n), 3 * rng.standard_normal(n))], n=n)
     res, _ = check(h)
     assert res.iterations < 200
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_min_norm_x_matches_reference_with_inequalities(seed):
+    """Levels that leave freedom (12 DOF, 2 levels of 3 rows, under a box): x is
+    the minimum-norm lexicographic optimum, like the reference's final stage."""
+    h = G.random_hierarchy(12, 2, 3, inequality="mixed", box=True, seed=seed)
+    res, x_ref = check(h)
+    np.testing.assert_allclose(res.x, x_ref, rtol=0, atol=1e-8 * (1 + np.linalg.norm(x_ref)))
