@@ -303,3 +303,16 @@ def test_min_norm_x_matches_reference_with_inequalities(seed):
     h = G.random_hierarchy(12, 2, 3, inequality="mixed", box=True, seed=seed)
     res, x_ref = check(h)
     np.testing.assert_allclose(res.x, x_ref, rtol=0, atol=1e-8 * (1 + np.linalg.norm(x_ref)))
+
+
+def test_large_problems_blas_paths():
+    """n = 80: the projections and basis updates switch to BLAS (compact WY)."""
+    from solvers.hcod import _linalg
+
+    h = G.ik_like(80, 0)
+    assert 42 * 80 * 74 >= _linalg.BLAS_MIN_WORK  # level 2: ~42 violated rows, nf = 74
+    s = HcodSolver()
+    _, x_ref = check(h, solver=s)
+    warm = s.solve(h)
+    assert verify(h, warm.x, x_ref, rtol=RTOL).equal
+    check(G.random_hierarchy(60, 4, 15, inequality="mixed", box=True, seed=1))
