@@ -218,7 +218,8 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 p_in = p
                 for i in range(s0):
                     sd = hist_side[k, i]
-                    if hist_state[k, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0:
+                    if (hist_state[k, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0
+                            and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf)):
                         ok, f, bt = insert_row(A, i, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[i]], q)
                         fl += f
                         if ok:
@@ -270,8 +271,9 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         sd = hist_side[k, i]
                         if kind[i] == 0:
                             sd = 0
-                        elif kind[i] == 2 or (sd > 0 and up[i] == np.inf) or (sd < 0 and lo[i] == -np.inf):
-                            continue
+                        elif (kind[i] == 2 or sd == 0 or (sd > 0 and up[i] == np.inf)
+                              or (sd < 0 and lo[i] == -np.inf)):
+                            continue  # (the row changed kind since the record: eq. 45 decides)
                         state[i] = OBJECTIVE
                         side[i] = sd
                         target[i] = up[i] if sd > 0 else lo[i]
@@ -436,13 +438,26 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         jw = j
                 if jw >= 0:
                     i = Olist[jw]
+                    av = row_dot(A, i, bcol, bval, u)
+                    deacts += 1
+                    if side[i] > 0 and av < lo[i]:
+                        # a two-sided row that crossed its interval: the other side is violated,
+                        # it stays in the objective with that target (w = a u - lo, feasible)
+                        side[i] = -1
+                        target[i] = lo[i]
+                        acts += 1
+                        continue
+                    if side[i] < 0 and av > up[i]:
+                        side[i] = 1
+                        target[i] = up[i]
+                        acts += 1
+                        continue
                     Olist[jw] = Olist[nO - 1]
                     if mf_valid:
                         for c in range(p, n):
                             Mf[jw, c] = Mf[nO - 1, c]
                     nO -= 1
                     state[i] = INACTIVE
-                    deacts += 1
                     continue
                 anydel = False
                 for j in range(p):

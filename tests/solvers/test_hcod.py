@@ -316,3 +316,47 @@ def test_large_problems_blas_paths():
     warm = s.solve(h)
     assert verify(h, warm.x, x_ref, rtol=RTOL).equal
     check(G.random_hierarchy(60, 4, 15, inequality="mixed", box=True, seed=1))
+
+
+def test_warm_start_when_row_kinds_change():
+    """Same shape, different row kinds between calls (a bound disappears, an
+    inequality becomes an equality): the record of the last call must not
+    mislead the next one."""
+    h = G.random_hierarchy(8, 3, 4, inequality="mixed", box=True, seed=3)
+    s = HcodSolver()
+    s.solve(h)
+    rng = np.random.default_rng(1)
+    for _ in range(4):
+        lo, up = h.lower.copy(), h.upper.copy()
+        drop = rng.random(h.rows) < 0.3
+        up[drop] = np.inf
+        eq = rng.random(h.rows) < 0.2
+        up[eq] = lo[eq] = np.where(np.isfinite(lo[eq]), lo[eq], 0.0)
+        ht = h.with_bounds(lo, up)
+        res = s.solve(ht)
+        cold = HcodSolver().solve(ht)
+        assert res.status == OPTIMAL
+        assert verify(ht, res.x, cold.x, rtol=RTOL).equal
+
+
+def test_warm_start_on_unrelated_problems_of_one_shape():
+    """The record of the last call is used for any hierarchy of the same shape,
+    even an unrelated one (new A, kinds, free rows): never a wrong answer.
+    (Regression: a two-sided objective row that crossed its interval in one
+    step must switch sides, not leave the objective violated.)"""
+    rng = np.random.default_rng(1)
+    for _ in range(12):
+        n, depth, rows = int(rng.integers(2, 10)), int(rng.integers(1, 4)), int(rng.integers(1, 6))
+        s = HcodSolver()
+        for _ in range(4):
+            h = G.random_hierarchy(n, depth, rows, inequality="mixed", box=True, equality_fraction=0.3,
+                                   seed=int(rng.integers(100_000)))
+            lo, up = h.lower.copy(), h.upper.copy()
+            up[rng.random(h.rows) < 0.2] = np.inf
+            free = rng.random(h.rows) < 0.1
+            lo[free], up[free] = -np.inf, np.inf
+            ht = h.with_bounds(lo, up)
+            res = s.solve(ht)
+            cold = HcodSolver(warm_start="stage").solve(ht)
+            assert res.status == OPTIMAL
+            assert verify(ht, res.x, cold.x, rtol=RTOL).equal
