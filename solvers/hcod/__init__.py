@@ -105,6 +105,7 @@ __all__ = ["SOLVERS", "WARM_STARTS", "HcodSolver", "warmup"]
 WARM_STARTS = ("none", "stage", "time")
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
 _eq_run = None  # solvers.hcod._equality.eq_run, imported on the first solve (numba compiles then)
+_last_kind = (None, False)  # (last hierarchy seen, its has_inequalities)
 
 
 class _Prepared:
@@ -184,7 +185,7 @@ class HcodSolver(Solver):
     def _solve_equality(self, h: Hierarchy) -> SolveResult:
         """One compiled call (workspaces allocated inside it)."""
         try:
-            x, _, itl, fl = _eq_run(h.A, h.lower, h.starts, self.rank_rtol)
+            x, itl, fl = _eq_run(h.A, h.lower, h.starts, self.rank_rtol)
         except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
             return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
                                iterations_per_level=(0,) * h.depth)
@@ -261,8 +262,13 @@ class HcodSolver(Solver):
         if hierarchy.n == 0 or hierarchy.rows == 0:
             return SolveResult(x=np.zeros(hierarchy.n), status=OPTIMAL, flops=0,
                                iterations_per_level=(0,) * hierarchy.depth)
-        if not hierarchy.has_inequalities:
-            global _eq_run
+        global _eq_run, _last_kind
+        if _last_kind[0] is hierarchy:  # (one-entry cache: a fresh solver per cold solve)
+            has_ineq = _last_kind[1]
+        else:
+            has_ineq = hierarchy.has_inequalities
+            _last_kind = (hierarchy, has_ineq)
+        if not has_ineq:
             if _eq_run is None:
                 from solvers.hcod._equality import eq_run as _eq_run
             self._eq_h = hierarchy

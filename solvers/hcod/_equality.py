@@ -339,8 +339,8 @@ def _lsq_lower(At, s0, s1, p, r, xi, b, y):
 @njit(cache=True, nogil=True, error_model="numpy")
 def eq_run(A, e, starts, rank_rtol):
     """:func:`eq_solve` with its workspaces allocated here (one compiled call
-    per solve, no Python-side set-up). Returns (x (n,), ranks (N,),
-    iterations per level (N,), flops)."""
+    per solve, no Python-side set-up). Returns (x (n,), iterations per level
+    (N,), flops)."""
     m, n = A.shape
     D = starts.shape[0] - 1
     At = np.empty((m, n))
@@ -352,4 +352,4 @@ def eq_run(A, e, starts, rank_rtol):
     lev_r = np.empty(D, np.int64)
     itl = np.empty(D, np.int64)
     fl = eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl)
-    return x, lev_r, itl, fl
+    return x, itl, fl
