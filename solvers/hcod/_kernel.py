@@ -190,12 +190,19 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 # Delta u_k is first projected on Z (the problem may have changed since it was
                 # recorded: the step must keep the rows frozen above).
                 nf = n - p
-                for c in range(nf):
-                    s = 0.0
+                dun = 0.0
+                for c in range(n):
+                    ps[c] = hist_du[k, c]
+                    dun += abs(ps[c])
+                if p > 0 and dun > 0.0:  # (p = 0: Z spans everything)
+                    for c in range(nf):
+                        z[c] = 0.0
                     for rr in range(n):
-                        s += W[rr, p + c] * hist_du[k, rr]
-                    z[c] = s
-                fl += 2 * n * nf + step_from_z(W, p, z, ps)
+                        d = hist_du[k, rr]
+                        if d != 0.0:
+                            for c in range(nf):
+                                z[c] += W[rr, p + c] * d
+                    fl += n * nf + step_from_z(W, p, z, ps)
                 tau = 1.0
                 for i in range(s0):
                     if state[i] != INACTIVE or kind[i] != 1 or hist_state[k, i] == WORK:
