@@ -118,6 +118,50 @@ def _reflect2(bt, At, it, i, j0, j1):
         ra[c] -= sa * v
         rb[c] -= sb * v
 
+#: levels of at least this many rows are projected in a transposed copy (the updates then
+#: vectorise across the level's rows); below it, pairs of rows in place are faster
+TRANSPOSED_MIN_ROWS = 10
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _project_transposed(At, s0, s1, k, lev_p, lev_r, starts, beta):
+    """Apply the reflectors of levels 0..k-1 to the rows s0:s1 of ``At`` (the
+    lazy projection of level k on ``Z_{k-1}``), working on a transposed copy
+    ``Bt`` (n, m_k): ``s = beta Bt[c0:]^T v``, ``Bt[c0:] -= v s^T``. Returns flops."""
+    n = At.shape[1]
+    mk = s1 - s0
+    Bt = np.empty((n, mk))
+    for i in range(mk):
+        for c in range(n):
+            Bt[c, i] = At[s0 + i, c]
+    sv = np.empty(mk)
+    fl = 0
+    for j in range(k):
+        pj = lev_p[j]
+        for t in range(lev_r[j]):
+            it = starts[j] + t
+            c0 = pj + t
+            rv = At[it]
+            for i in range(mk):
+                sv[i] = 0.0
+            for c in range(c0, n):
+                v = rv[c]
+                for i in range(mk):
+                    sv[i] += v * Bt[c, i]
+            bt = beta[it]
+            for i in range(mk):
+                sv[i] *= bt
+            for c in range(c0, n):
+                v = rv[c]
+                for i in range(mk):
+                    Bt[c, i] -= v * sv[i]
+            fl += 2 * mk * (n - c0)
+    for i in range(mk):
+        for c in range(n):
+            At[s0 + i, c] = Bt[c, i]
+    return fl
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
     """Minimum-norm lexicographic solution of ``A_k x = e_k``, k = 0..N-1.
@@ -183,18 +227,21 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
             for c in range(n):
                 rt[c] = ra[c] * sc
         thr = rank_rtol
-        for j in range(k):
-            pj = lev_p[j]
-            for t in range(lev_r[j]):
-                it = starts[j] + t
-                c0 = pj + t
-                i = s0
-                while i + 2 <= s1:
-                    _reflect2(beta[it], At, it, i, c0, n)
-                    i += 2
-                if i < s1:
-                    _axpy(beta[it] * _dot(At, it, At, i, c0, n), At, it, At, i, c0, n)
-                fl += 2 * mk * (n - c0)
+        if mk >= TRANSPOSED_MIN_ROWS and k > 0:
+            fl += _project_transposed(At, s0, s1, k, lev_p, lev_r, starts, beta)
+        else:
+            for j in range(k):
+                pj = lev_p[j]
+                for t in range(lev_r[j]):
+                    it = starts[j] + t
+                    c0 = pj + t
+                    i = s0
+                    while i + 2 <= s1:
+                        _reflect2(beta[it], At, it, i, c0, n)
+                        i += 2
+                    if i < s1:
+                        _axpy(beta[it] * _dot(At, it, At, i, c0, n), At, it, At, i, c0, n)
+                    fl += 2 * mk * (n - c0)
         # b = e_k - J_k Y_bar xi[:p]; column norms of the projected rows
         for i in range(s0, s1):
             t = e[i] * sc
