@@ -78,7 +78,7 @@ class SolveResult:
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
             raise ValueError(f"status {self.status!r} is not one of {STATUSES}")
-        if self.x is not None and self.status == OPTIMAL and not np.all(np.isfinite(self.x)):
+        if self.x is not None and self.status == OPTIMAL and not np.isfinite(self.x).all():
             # never NaN silently: a non-finite x cannot be called optimal
             self.status = NUMERICAL_FAILURE
             self.reason = (self.reason + "; " if self.reason else "") + "x holds NaN or inf"
