@@ -372,7 +372,9 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 bsd = 0
                 if has_ineq:
                     pn = _norm(ps)
-                    if pn > 0.0:
+                    # a step at rounding level (a warm re-solve: the recorded optimum) moves
+                    # no row by more than the feasibility tolerance: no scan
+                    if pn > 1e-15 * (1.0 + _norm(u)):
                         for i in range(s1):
                             if state[i] != INACTIVE or kind[i] != 1:
                                 continue
