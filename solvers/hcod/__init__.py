@@ -93,6 +93,8 @@ kept in the solver object.
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import numpy as np
 
 from problems.errors import SolverOptionError
@@ -121,10 +123,11 @@ class _Prepared:
         from solvers.hcod._setup import scaled_problem
 
         self.A, self.lo, self.up, self.starts = scaled_problem(h.A, h.lower, h.upper, h.starts, min_norm and n > 0)
-        self.D = self.starts.shape[0] - 1
+        st = self.starts.tolist()
+        self.D = len(st) - 1
         self.mt = self.A.shape[0]
-        self.mmax = int(np.diff(self.starts).max()) if self.D else 0
-        self.key = (n, self.mt, self.D, self.mmax, tuple(self.starts.tolist()))
+        self.mmax = max((b - a for a, b in pairwise(st)), default=0)
+        self.key = (n, self.mt, self.D, self.mmax, tuple(st))
 
 
 class HcodSolver(Solver):

@@ -4,6 +4,7 @@ and the per-row / per-level data computed once per hierarchy."""
 from __future__ import annotations
 
 import math
+from itertools import accumulate
 
 import numpy as np
 from numba import njit
@@ -17,16 +18,13 @@ I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist",
 
 
 def layout(n: int, mt: int, D: int, mmax: int):
-    """Offsets of the float and int workspaces, shape (len(blocks) + 1,) each."""
+    """Offsets of the float and int workspaces (blocks in the order of
+    F_BLOCKS / I_BLOCKS), int64 arrays of shape (len(blocks) + 1,)."""
     mm = max(mmax, 1)
-    fsz = {"W": n * n, "R": n * n, "u": n, "ps": n, "z": n, "g": n, "hv": n, "nu": n, "q": n, "uprev": n, "y": n, "Mr": mm * n, "bvec": mm,
-               "diag": mm, "beta": mm, "Lb": mm * max(min(n, mm), 1), "target": mt, "rnorm": mt, "bval": mt, "lnorm": D,
-               "hist_du": D * n, "Mf": mm * n}
-    isz = {"state": mt, "side": mt, "kind": mt, "bcol": mt, "rowlev": mt, "widx": n, "wside": n, "Olist": mm, "itl": D,
-               "hist_state": D * mt, "hist_side": D * mt, "hist_valid": D, "out": N_OUT, "levid": D, "piv": mm}
-    foff = np.cumsum([0] + [fsz[b] for b in F_BLOCKS]).astype(np.int64)
-    ioff = np.cumsum([0] + [isz[b] for b in I_BLOCKS]).astype(np.int64)
-    return foff, ioff
+    fsz = (n * n, n * n, n, n, n, n, n, n, n, n, n, mm * n, mm, mm, mm, mm * max(min(n, mm), 1), mt, mt, mt, D,
+           D * n, mm * n)
+    isz = (mt, mt, mt, mt, mt, n, n, mm, D, D * mt, D * mt, D, N_OUT, D, mm)
+    return (np.array((0, *accumulate(fsz)), dtype=np.int64), np.array((0, *accumulate(isz)), dtype=np.int64))
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
