@@ -360,3 +360,17 @@ def test_warm_start_on_unrelated_problems_of_one_shape():
             cold = HcodSolver(warm_start="stage").solve(ht)
             assert res.status == OPTIMAL
             assert verify(ht, res.x, cold.x, rtol=RTOL).equal
+
+
+@pytest.mark.slow
+@settings(max_examples=400, deadline=None)
+@given(h=hik_strategies.hierarchies(max_n=7, max_depth=6, max_rows=5, coefficients=_grid, bounds=_grid,
+                                    x0=False, min_n=1))
+def test_many_grid_hierarchies_cold_and_warm(h):
+    """The long run of the grid test (``-m slow``), cold then warm on one object."""
+    s = HcodSolver()
+    x_ref = reference_solution(h)
+    for _ in range(2):
+        res = s.solve(h)
+        assert res.status == OPTIMAL, res.reason
+        assert verify(h, res.x, x_ref, rtol=1e-8).equal
