@@ -18,6 +18,11 @@ from problems.errors import HikbenchError
 COMMANDS: dict[str, str] = {
     "solve": "solve",
     "list": "list_",
+    "run": "run",
+    "report": "report",
+    "compare": "compare",
+    "claims": "claims",
+    "columns": "columns",
 }
 
 
