@@ -11,6 +11,7 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
@@ -84,6 +85,9 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
                 label=f"{label} (slope {slope:.2f})" if np.isfinite(slope) else label)
     ax.set_xscale("log")
     ax.set_yscale("log")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+        axis.set_minor_formatter(matplotlib.ticker.NullFormatter())
     ax.set_xlabel({"n": "DOF n (number of variables)", "depth": "number of levels (depth)"}.get(var, var))
     ax.set_ylabel(f"median solve time ({mode}) [us]")
     ax.legend(fontsize=8, loc="best")
@@ -121,7 +125,9 @@ def plot_profiles(times: pd.DataFrame, path: Path, title: str) -> Path | None:
     finite = finite[np.isfinite(finite)]
     if finite.size == 0:
         return None
-    taus = np.logspace(0, 4, 200)
+    best = np.nanmin(np.where(np.isfinite(times.to_numpy(float)), times.to_numpy(float), np.nan), axis=1)
+    worst = np.nanmax(times.to_numpy(float) / best[:, None]) if np.isfinite(best).any() else 10.0
+    taus = np.logspace(0, np.log10(max(10.0, 2.0 * worst)), 300)
     prof = performance_profile(times, taus)
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
     for s, y in prof.items():

@@ -1,0 +1,115 @@
+"""``hikbench compare BASE RUN``: timing regressions and newly failing cases.
+
+For every key (problem, solver, settings, mode) present in both runs, the
+timing samples are divided by the calibration kernel time of the host that
+measured them (bench/calibration.py; per host, the median ``calib_ns`` of its
+rows), so runs of different machines or of a loaded CI runner compare as
+ratios. A case is a **slowdown** when
+
+* ratio = median(new normalised samples) / median(base normalised samples)
+  exceeds ``threshold`` (default 1.15), and
+* the one-sided Mann-Whitney U test (scipy.stats.mannwhitneyu, new > base) on
+  the normalised samples gives p < ``alpha`` (default 0.01),
+
+and **newly failing** when it was verified in BASE and is not in RUN. Either
+makes ``compare`` exit 1. Keys in only one run are listed, not judged.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.stats import mannwhitneyu
+
+from bench.columns import KEY
+from bench.environment import read_run_json
+from bench.results import read_results
+
+__all__ = ["compare_runs", "Comparison", "normalised_samples"]
+
+
+@dataclass
+class Comparison:
+    table: pd.DataFrame          # one row per common key
+    only_base: list
+    only_new: list
+
+    @property
+    def slowdowns(self) -> pd.DataFrame:
+        return self.table[self.table["verdict"] == "SLOWER"]
+
+    @property
+    def new_failures(self) -> pd.DataFrame:
+        return self.table[self.table["verdict"] == "NEWLY FAILING"]
+
+    @property
+    def failed(self) -> bool:
+        return bool(len(self.slowdowns) or len(self.new_failures))
+
+
+def _host_calibration(df: pd.DataFrame, meta: dict) -> dict:
+    fallback = float(meta.get("calibration_ns") or 1.0)
+    cal = df.dropna(subset=["calib_ns"]).groupby("host")["calib_ns"].median().to_dict()
+    return {h: float(cal.get(h, fallback)) for h in df["host"].fillna("").unique()} | {"": fallback}
+
+
+def normalised_samples(df: pd.DataFrame, meta: dict) -> pd.Series:
+    """Samples (ns) divided by their host's calibration time: dimensionless."""
+    cal = _host_calibration(df, meta)
+    out = []
+    for s, h in zip(df["samples_ns"], df["host"].fillna("")):
+        v = np.asarray(json.loads(s), dtype=float) if s else np.zeros(0)
+        out.append(v / cal.get(h, cal[""]))
+    return pd.Series(out, index=df.index)
+
+
+def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_meta: dict,
+                   threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
+    base = base.assign(_norm=normalised_samples(base, base_meta)).set_index(list(KEY))
+    new = new.assign(_norm=normalised_samples(new, new_meta)).set_index(list(KEY))
+    base = base[~base.index.duplicated(keep="last")]
+    new = new[~new.index.duplicated(keep="last")]
+    common = base.index.intersection(new.index)
+    rows = []
+    for key in common:
+        b, n = base.loc[key], new.loc[key]
+        bs, ns = b["_norm"], n["_norm"]
+        ratio, p = float("nan"), float("nan")
+        if len(bs) and len(ns):
+            ratio = float(np.median(ns) / np.median(bs))
+            p = float(mannwhitneyu(ns, bs, alternative="greater").pvalue)
+        if b["verified"] is True and n["verified"] is not True:
+            verdict = "NEWLY FAILING"
+        elif np.isfinite(ratio) and ratio > threshold and p < alpha:
+            verdict = "SLOWER"
+        elif np.isfinite(ratio) and ratio < 1 / threshold and len(bs) and len(ns) and \
+                float(mannwhitneyu(ns, bs, alternative="less").pvalue) < alpha:
+            verdict = "faster"
+        else:
+            verdict = "ok"
+        rows.append(dict(zip(KEY, key), base_status=b["status"], new_status=n["status"],
+                         base_verified=b["verified"], new_verified=n["verified"],
+                         base_median_s=b["time_median_s"], new_median_s=n["time_median_s"],
+                         ratio=ratio, p_value=p, verdict=verdict))
+    table = pd.DataFrame(rows, columns=[*KEY, "base_status", "new_status", "base_verified", "new_verified",
+                                        "base_median_s", "new_median_s", "ratio", "p_value", "verdict"])
+    return Comparison(table, [k for k in base.index if k not in common], [k for k in new.index if k not in common])
+
+
+def compare_runs(base_dir, new_dir, threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
+    return compare_frames(read_results(base_dir), read_results(new_dir), read_run_json(base_dir),
+                          read_run_json(new_dir), threshold, alpha)
+
+
+def format_table(c: Comparison, show_all: bool = False) -> str:
+    t = c.table.sort_values("ratio", ascending=False, na_position="last")
+    if not show_all:
+        t = pd.concat([t[t["verdict"] != "ok"], t[t["verdict"] == "ok"].head(10)])
+    lines = [f"{'verdict':<13} {'ratio':>6} {'p':>7} {'base us':>9} {'new us':>9}  solver / settings / mode / problem"]
+    for r in t.itertuples():
+        lines.append(f"{r.verdict:<13} {r.ratio:>6.2f} {r.p_value:>7.4f} {r.base_median_s * 1e6:>9.1f} "
+                     f"{r.new_median_s * 1e6:>9.1f}  {r.solver} / {r.settings} / {r.mode} / {r.problem}")
+    return "\n".join(lines)
