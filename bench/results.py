@@ -116,9 +116,9 @@ def read_results(run_dir) -> pd.DataFrame:
     path = Path(run_dir) / RESULTS
     if not path.exists():
         raise HikbenchError(f"{run_dir}: no {RESULTS} (run `hikbench run --out {run_dir}` first)")
-    df = pd.read_csv(path, dtype={"problem": str, "solver": str, "settings": str, "mode": str,
-                                  "reason": str, "verdict_side": str},
-                     keep_default_na=True)
+    dtype = {"problem": str, "solver": str, "settings": str, "mode": str, "reason": str, "verdict_side": str,
+             "family": str, "host": str, "worker": str, **{c: str for c in JSON_COLUMNS}}
+    df = pd.read_csv(path, dtype=dtype, keep_default_na=True)
     for c in JSON_COLUMNS:
         if c in df:
             df[c] = df[c].fillna("")

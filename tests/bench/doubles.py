@@ -78,3 +78,16 @@ class RaisingSolver(Solver):
 
     def solve(self, hierarchy):
         raise RuntimeError("backend exploded")
+
+
+def write_suite(path, solvers, grid=None, seeds=(0,), repeat=3, timeout=5.0, modes=("cold", "warm"),
+                family="tiny") -> Path:
+    """Write a suite TOML over the ``tiny`` generator; returns its path."""
+    import tomli_w
+
+    data = {"repeat": repeat, "warmup": 1, "timeout": timeout, "modes": list(modes), "solvers": list(solvers),
+            "problems": [{"family": spec(family), "grid": grid or {"n": [4, 6], "depth": [1, 2]},
+                          "seeds": list(seeds)}]}
+    path = Path(path)
+    path.write_bytes(tomli_w.dumps(data).encode())
+    return path
