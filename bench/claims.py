@@ -7,12 +7,12 @@ figure, the paper's figure and the criterion. Criteria (README, "Claims"):
     log-log slope of cold time vs depth, with a 95 % interval (t
     distribution); PASS when hcod's upper bound < 0.5 (time stops growing)
     and nullspace-svd's lower bound > 0.5 (time grows ~ linearly).
-(b) m = 36 DOF, N = 6 tasks of n = 6 (equality_stack n=36 depth=6 rows=6):
+(b) m = 36 DOF, N = 6 tasks of n = 6 (equality n=36 depth=6 rows=6):
     counted flops (SolveResult.flops, median over seeds); PASS when hcod
     counts fewer than both nullspace-cod and nullspace-svd. The paper's
     figures (26.9K / 124K / 168K; all at once 69.5K COD / 1213K SVD) and its
     cost formula sum_k (2n+3) k n (m - kn) are printed next to them.
-(c) 50 DOF (equality_stack with n = 50): median cold time of nullspace-svd over
+(c) 50 DOF (equality with n = 50): median cold time of nullspace-svd over
     hcod; PASS when >= 2 (paper: 0.1 ms vs 5 ms, 50x).
 (d) reach scenario CSV (robots issue; columns solver, solve_time_s, optionally
     warm_start): median time of the cascade of QPs over hcod with time warm
@@ -38,6 +38,8 @@ from bench.results import read_results
 __all__ = ["Claim", "check_claims", "find_scenario_csv", "paper_flops_formula"]
 
 PASS, FAIL, MISSING = "PASS", "FAIL", "MISSING"
+#: problem families of equality-only stacks (problems.generators)
+EQUALITY_FAMILIES = ("equality", "depth-sweep", "dof-sweep")
 
 
 @dataclass
@@ -76,9 +78,9 @@ def slope_interval(x, y, level: float = 0.95) -> tuple[float, float, float]:
 def claim_a(df: pd.DataFrame) -> Claim:
     crit = "past saturation: slope(hcod) upper 95% bound < 0.5 and slope(nullspace-svd) lower bound > 0.5"
     paper = "HCOD cost constant once DOF saturated; SVD recursion ~2nm^2 per task (linear in depth)"
-    d = _ok(df[df["family"] == "equality_stack"])
+    d = _ok(df[df["family"].isin(EQUALITY_FAMILIES)])
     if d.empty:
-        return Claim("(a) depth past saturation", MISSING, "no verified equality_stack rows", paper, crit)
+        return Claim("(a) depth past saturation", MISSING, "no verified equality rows", paper, crit)
     d = _select(d, lambda q: "depth" in q and "n" in q and "rows" in q)
     d = _select(d, lambda q: q["depth"] >= math.ceil(q["n"] / q["rows"]))
     out = {}
@@ -103,12 +105,12 @@ def claim_b(df: pd.DataFrame) -> Claim:
     paper = ("HCOD 26.9K, COD recursion 124K, SVD recursion 168K; all at once 69.5K (COD) / 1213K (SVD); "
              f"formula sum_k (2n+3)kn(m-kn) = {paper_flops_formula() / 1e3:.1f}K")
     crit = "flops(hcod) < flops(nullspace-cod) and < flops(nullspace-svd)"
-    d = df[(df["family"] == "equality_stack") & (df["mode"] == "cold") & (df["settings"] == "default")]
+    d = df[df["family"].isin(EQUALITY_FAMILIES) & (df["mode"] == "cold") & (df["settings"] == "default")]
     d = _select(d, lambda q: q.get("n") == 36 and q.get("depth") == 6 and q.get("rows") == 6)
     fl = {s: d[d["solver"] == s]["flops"].dropna() for s in ("hcod", "nullspace-cod", "nullspace-svd", "pinv-all")}
     if fl["hcod"].empty or (fl["nullspace-cod"].empty and fl["nullspace-svd"].empty):
         return Claim("(b) flops, 36 DOF, 6 tasks of 6", MISSING,
-                     "no flop counts of hcod and a null-space recursion on equality_stack n=36 depth=6 rows=6",
+                     "no flop counts of hcod and a null-space recursion on equality n=36 depth=6 rows=6",
                      paper, crit)
     med = {s: float(v.median()) for s, v in fl.items() if not v.empty}
     ok = all(med["hcod"] < med[s] for s in ("nullspace-cod", "nullspace-svd") if s in med)
@@ -118,8 +120,8 @@ def claim_b(df: pd.DataFrame) -> Claim:
 
 def claim_c(df: pd.DataFrame) -> Claim:
     paper = "0.1 ms (HCOD) vs 5 ms (SVD recursion): 50x"
-    crit = "median time nullspace-svd / hcod >= 2 on equality_stack n = 50"
-    d = _ok(df[(df["family"] == "equality_stack") & (df["n"] == 50)])
+    crit = "median time nullspace-svd / hcod >= 2 on equality n = 50"
+    d = _ok(df[df["family"].isin(EQUALITY_FAMILIES) & (df["n"] == 50)])
     t = {s: d[d["solver"] == s]["time_median_s"] for s in ("hcod", "nullspace-svd")}
     if any(v.empty for v in t.values()):
         return Claim("(c) 50 DOF speed-up", MISSING, "no verified hcod and nullspace-svd rows at n = 50", paper, crit)

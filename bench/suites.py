@@ -19,7 +19,7 @@ path. Schema (every key optional except ``problems``)::
     options = { eps_abs = 1e-9 }
 
     [[problems]]
-    family = "equality_stack"          # FAMILIES name or module:function
+    family = "equality"          # FAMILIES name or module:function
     params = { rows = 6 }              # fixed parameters
     grid = { n = [6, 12], depth = [2, 4] }   # Cartesian product
     seeds = [0, 1]
