@@ -66,6 +66,10 @@ def normalised_samples(df: pd.DataFrame, meta: dict) -> pd.Series:
     return pd.Series(out, index=df.index)
 
 
+def _true(v) -> bool:
+    return isinstance(v, (bool, np.bool_)) and bool(v)
+
+
 def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_meta: dict,
                    threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
     base = base.assign(_norm=normalised_samples(base, base_meta)).set_index(list(KEY))
@@ -81,7 +85,7 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
         if len(bs) and len(ns):
             ratio = float(np.median(ns) / np.median(bs))
             p = float(mannwhitneyu(ns, bs, alternative="greater").pvalue)
-        if b["verified"] is True and n["verified"] is not True:
+        if _true(b["verified"]) and not _true(n["verified"]):
             verdict = "NEWLY FAILING"
         elif np.isfinite(ratio) and ratio > threshold and p < alpha:
             verdict = "SLOWER"

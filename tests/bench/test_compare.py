@@ -1,0 +1,86 @@
+"""hikbench compare: an injected slowdown is caught, noise alone is not, a
+newly failing case is; calibration normalisation makes machines comparable."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.cli import main
+from bench.compare import compare_frames
+from doubles import spec, write_suite
+
+
+def _frame(samples: dict, calib=1_000_000, verified=True, host="h"):
+    rows = []
+    for (problem, solver), s in samples.items():
+        s = np.asarray(s, dtype=np.int64)
+        rows.append(dict(problem=problem, solver=solver, settings="default", mode="cold", status="optimal",
+                         verified=verified, time_median_s=float(np.median(s)) * 1e-9,
+                         samples_ns=json.dumps(s.tolist()), calib_ns=calib, host=host))
+    return pd.DataFrame(rows)
+
+
+def _samples(rng, scale=1.0, n_cases=20, repeat=9, noise=0.05):
+    """Lognormal timing noise around 50 us per case."""
+    return {(f"p{i}", "s"): (50_000 * scale * np.exp(noise * rng.standard_normal(repeat))).astype(int)
+            for i in range(n_cases)}
+
+
+def test_noise_alone_is_not_flagged():
+    rng = np.random.default_rng(0)
+    flagged = 0
+    for trial in range(10):
+        c = compare_frames(_frame(_samples(rng)), _frame(_samples(rng)), {}, {})
+        flagged += len(c.slowdowns)
+    assert flagged == 0
+
+
+@pytest.mark.parametrize("scale", [1.3, 2.0], ids=["30pct", "2x"])
+def test_scaled_copy_is_caught(scale):
+    rng = np.random.default_rng(1)
+    base = _samples(rng)
+    new = {k: (v * scale).astype(int) for k, v in _samples(rng).items()}
+    c = compare_frames(_frame(base), _frame(new), {}, {})
+    assert len(c.slowdowns) == len(base) and c.failed
+
+
+def test_slower_machine_is_normalised_by_calibration():
+    rng = np.random.default_rng(2)
+    base = _samples(rng)
+    new = {k: (v * 2).astype(int) for k, v in _samples(rng).items()}  # everything 2x slower ...
+    c = compare_frames(_frame(base, calib=1_000_000), _frame(new, calib=2_000_000), {}, {})  # ... and so is the kernel
+    assert not c.failed
+
+
+def test_below_threshold_is_not_flagged():
+    rng = np.random.default_rng(3)
+    base = _samples(rng, noise=0.01)
+    new = {k: (v * 1.05).astype(int) for k, v in _samples(rng, noise=0.01).items()}
+    c = compare_frames(_frame(base), _frame(new), {}, {})
+    assert not c.failed
+
+
+def test_newly_failing_case():
+    rng = np.random.default_rng(4)
+    c = compare_frames(_frame(_samples(rng)), _frame(_samples(rng), verified=False), {}, {})
+    assert len(c.new_failures) == 20 and c.failed
+
+
+def test_injected_slowdown_end_to_end(tmp_path, capsys):
+    """A sleeping test double: 2 ms in the baseline, 2 ms again (noise only),
+    then 4 ms (an injected slowdown)."""
+    def run(out, delay):
+        suite = write_suite(tmp_path / f"{out}.toml", [spec("SleepSolver")], grid={"n": [4], "depth": [1, 2]},
+                            modes=("cold",), repeat=7)
+        suite.write_text(suite.read_text().replace('"SleepSolver"', '"SleepSolver"') +
+                         f'\n[[settings]]\nsolver = "sleep"\nname = "d"\noptions = {{ delay = {delay} }}\n')
+        assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / out),
+                     "--solvers", spec("SleepSolver")]) == 0
+    run("base", 0.002)
+    run("same", 0.002)
+    run("slow", 0.004)
+    assert main(["compare", str(tmp_path / "base"), str(tmp_path / "same")]) == 0
+    assert main(["compare", str(tmp_path / "base"), str(tmp_path / "slow")]) == 1
+    assert "SLOWER" in capsys.readouterr().out
