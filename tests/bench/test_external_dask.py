@@ -1,4 +1,4 @@
-"""External solvers through the documented protocol, and Dask scale-out."""
+"""External solvers through the documented protocol, and Dask scale-out (about 10 s)."""
 
 from pathlib import Path
 
@@ -36,7 +36,6 @@ def test_external_spec_needs_out_placeholder(tmp_path, capsys):
     assert "{out}" in capsys.readouterr().err
 
 
-@pytest.mark.slow
 def test_dask_workers_give_the_same_rows_as_serial(tmp_path):
     suite = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), spec("WrongSolver"),
                                               spec("SegfaultSolver")], grid={"n": [4, 6], "depth": [1, 2]})
