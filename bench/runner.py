@@ -152,6 +152,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     rtol, atol = ACCURACY[suite.accuracy]
     tasks, skipped = expand(suite, solvers)
     summary = RunSummary(total=len(tasks), skipped_solvers=skipped)
+    export, export_skipped = _export_formats(suite.export)
     for name, why in skipped.items():
         print(f"hikbench run: skipping solver {name}: {why}", file=sys.stderr)
 
@@ -162,10 +163,10 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
             h = generate(task.problem)
             problems[pid] = h
             pcols[pid] = problem_columns(task.problem, h)
-            save_problem(h, out / "problems", pid, suite.export)
+            save_problem(h, out / "problems", pid, export)
     if not tasks:  # still export the problems (e.g. a peers suite with no solver installed)
         for spec, _ in suite.problems():
-            save_problem(generate(spec), out / "problems", spec.id, suite.export)
+            save_problem(generate(spec), out / "problems", spec.id, export)
 
     if rerun:
         drop_keys(out, {t.key for t in tasks})
@@ -180,7 +181,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                "repeat": repeat, "timeout": timeout}
     meta.update({"suite": suite.to_dict(), "calibration_kernel": KERNEL, "key": list(KEY),
                  "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
-                 "skipped_solvers": skipped, "environment": environment()})
+                 "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
     meta.setdefault("created", session["started"])
     meta.setdefault("sessions", []).append(session)
     write_run_json(out, meta)
@@ -216,6 +217,22 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         meta["calibration_ns"] = int(np.median(cal))
         write_run_json(out, meta)
     return summary
+
+
+def _export_formats(formats) -> tuple[tuple, dict]:
+    """The suite's export formats that this tree can write, and the others
+    with the reason (reported on stderr and in run.json, not silently)."""
+    keep, skipped = [], {}
+    for fmt in formats:
+        if fmt == "soth":
+            try:
+                import problems.soth  # noqa: F401
+            except ModuleNotFoundError:
+                skipped[fmt] = "problems.soth is not available in this tree; only npz was written"
+                print(f"hikbench run: not exporting SOTH text: {skipped[fmt]}", file=sys.stderr)
+                continue
+        keep.append(fmt)
+    return tuple(keep), skipped
 
 
 def _references(todo, problems, out: Path, executor, timeout, progress) -> dict:

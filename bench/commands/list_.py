@@ -11,6 +11,7 @@ HELP = "list solvers, problem families, suites or robots"
 # what -> "module:function" returning rows of (name, description)
 PROVIDERS: dict[str, str] = {
     "solvers": "bench.commands.list_:_solvers",
+    "suites": "bench.commands.list_:_suites",
 }
 
 
@@ -30,6 +31,12 @@ def _solvers():
     for name, hint in registry.missing().items():
         rows.append((name, f"(not installed) {hint}"))
     return rows
+
+
+def _suites():
+    from bench.suites import builtin_suites, load_suite
+
+    return [(name, load_suite(name).description) for name in builtin_suites()]
 
 
 def run(args) -> int:
