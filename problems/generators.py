@@ -8,7 +8,8 @@ the levels above (these conflict with the higher levels) and the rest in its
 orthogonal complement. When the DOF are used up (the levels above span all of
 R^n) the remaining directions are drawn from the higher row space too, so the
 rank of a level is ``min(r_k, n)`` and its rank in the null space of the levels
-above is ``min(r_k - shared_k, n - rank of the levels above)``. Then
+above is ``min(r_k - min(shared_k, R_k), n - R_k)`` with ``R_k`` the rank of the
+levels above (a request ``shared_k > R_k`` gets ``R_k`` shared dimensions). Then
 
     A_k = diag(d) U diag(s) B^T,     U (m_k, r_k), B (n, r_k) orthonormal columns,
     s = logspace(0, -log10(cond), r_k),   d = row scales, log-uniform in
@@ -34,12 +35,20 @@ __all__ = ["random_hierarchy", "equality_stack", "ik_like", "degenerate", "DEGEN
 INEQUALITY_MIXES = ("none", "one-sided", "two-sided", "mixed")
 
 
+def _integer(v, label: str) -> int:
+    """v as an int; HikbenchError (not a silent truncation) for 2.5, "abc", True."""
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer, float, np.floating)) \
+            or v != int(v):
+        raise HikbenchError(f"{label} must be an integer; got {v!r}")
+    return int(v)
+
+
 def _per_level(value, depth: int, label: str) -> list[int]:
     if value is None:
         return [None] * depth
     if np.isscalar(value):
-        return [int(value)] * depth
-    vals = [int(v) for v in value]
+        return [_integer(value, label)] * depth
+    vals = [_integer(v, label) for v in value]
     if len(vals) != depth:
         raise HikbenchError(f"{label} has {len(vals)} entries: expected one per level ({depth})")
     return vals
@@ -102,7 +111,8 @@ def random_hierarchy(n: int, depth: int, rows: int | Sequence[int], *, rank=None
         Rank of each level (default: min(rows, n)).
     shared_rank : int or sequence of int
         Dimensions of each level's row space taken inside the row space of the
-        levels above (conflicts). Level 0 (no level above) ignores it.
+        levels above (conflicts), at most the rank of the levels above (level 0,
+        with no level above, gets 0).
     inequality : {"none", "one-sided", "two-sided", "mixed"}
         Row kinds of the task levels: equalities only, ``A x <= u`` or
         ``A x >= l``, ``l <= A x <= u``, or a random mix of all.
@@ -120,6 +130,7 @@ def random_hierarchy(n: int, depth: int, rows: int | Sequence[int], *, rank=None
     -------
     Hierarchy with ``depth`` (+1 with box) levels.
     """
+    n, depth = _integer(n, "n"), _integer(depth, "depth")
     if n < 1 or depth < 0:
         raise HikbenchError(f"need n >= 1 and depth >= 0; got n={n}, depth={depth}")
     if inequality not in INEQUALITY_MIXES:
@@ -166,6 +177,11 @@ def equality_stack(n: int, depth: int, rows: int, seed: int = 0, rank: int | Non
     targets N(0,1); full row rank unless ``rank`` is given (then each level is
     a random rank-``rank`` matrix with N(0,1)-like entries). The levels beyond
     sum(ranks) > n are decided by the ones above (saturated stack)."""
+    n, depth, rows = (_integer(v, label) for v, label in ((n, "n"), (depth, "depth"), (rows, "rows")))
+    if n < 1 or depth < 0 or rows < 0:
+        raise HikbenchError(f"need n >= 1, depth >= 0, rows >= 0; got n={n}, depth={depth}, rows={rows}")
+    if rank is not None:
+        rank = _integer(rank, "rank")
     rng = np.random.default_rng(seed)
     levels = []
     for k in range(depth):

@@ -11,6 +11,7 @@ HELP = "list solvers, problem families, suites or robots"
 # what -> "module:function" returning rows of (name, description)
 PROVIDERS: dict[str, str] = {
     "solvers": "bench.commands.list_:_solvers",
+    "families": "bench.commands.list_:_families",
     "suites": "bench.commands.list_:_suites",
 }
 
@@ -37,6 +38,16 @@ def _suites():
     from bench.suites import builtin_suites, load_suite
 
     return [(name, load_suite(name).description) for name in builtin_suites()]
+
+
+def _families():
+    from problems.generators import FAMILIES
+
+    rows = []
+    for name, fam in FAMILIES.items():
+        params = " ".join(f"{k}={v!r}" for k, v in fam.defaults.items())
+        rows.append((name, f"{fam.description} (defaults: {params})" if params else fam.description))
+    return rows
 
 
 def run(args) -> int:
