@@ -58,6 +58,16 @@ def sweeps(df: pd.DataFrame, var: str, min_points: int = 3) -> list[tuple[str, s
     return out
 
 
+def _readable_log_ticks(ax) -> None:
+    """Plain numbers on log axes (1, 2, 5, 10, 20, ...) instead of 2 x 10^1."""
+    fmt = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(fmt)
+        axis.set_minor_locator(matplotlib.ticker.LogLocator(subs=(2.0, 5.0)))
+        axis.set_minor_formatter(fmt)
+        axis.set_tick_params(which="minor", labelsize=7)
+
+
 def _finish(fig, ax, path: Path, title: str) -> Path:
     ax.set_title(title, fontsize=11)
     ax.grid(True, which="both", alpha=0.3)
@@ -85,9 +95,7 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
                 label=f"{label} (slope {slope:.2f})" if np.isfinite(slope) else label)
     ax.set_xscale("log")
     ax.set_yscale("log")
-    for axis in (ax.xaxis, ax.yaxis):
-        axis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
-        axis.set_minor_formatter(matplotlib.ticker.NullFormatter())
+    _readable_log_ticks(ax)
     ax.set_xlabel({"n": "DOF n (number of variables)", "depth": "number of levels (depth)"}.get(var, var))
     ax.set_ylabel(f"median solve time ({mode}) [us]")
     ax.legend(fontsize=8, loc="best")
@@ -100,7 +108,7 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
     label = df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
     tab = df.assign(_ok=df["verified"].eq(True).astype(float), _s=label).pivot_table(
         index="_s", columns="family", values="_ok", aggfunc="mean")
-    fig, ax = plt.subplots(figsize=(1.6 + 1.3 * tab.shape[1], 1.2 + 0.4 * tab.shape[0]), dpi=_STYLE["dpi"])
+    fig, ax = plt.subplots(figsize=(max(5.5, 2.5 + 1.3 * tab.shape[1]), max(2.8, 1.6 + 0.4 * tab.shape[0])), dpi=_STYLE["dpi"])
     im = ax.imshow(tab.to_numpy() * 100, cmap="RdYlGn", vmin=0, vmax=100, aspect="auto")
     ax.set_xticks(range(tab.shape[1]), tab.columns, rotation=30, ha="right", fontsize=8)
     ax.set_yticks(range(tab.shape[0]), tab.index, fontsize=8)
@@ -109,7 +117,7 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
             v = tab.iat[i, j]
             if np.isfinite(v):
                 ax.text(j, i, f"{100 * v:.0f}%", ha="center", va="center", fontsize=7)
-    fig.colorbar(im, ax=ax, label="verified success [%]")
+    fig.colorbar(im, ax=ax, label="success [%]")
     ax.set_title("Verified success rate per solver and family", fontsize=11)
     fig.tight_layout()
     fig.savefig(path)
@@ -178,6 +186,7 @@ def plot_cold_warm(df: pd.DataFrame, path: Path) -> Path | None:
     ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="warm = cold")
     ax.set_xscale("log")
     ax.set_yscale("log")
+    _readable_log_ticks(ax)
     ax.set_xlabel("cold solve time (fresh solver) [us]")
     ax.set_ylabel("warm re-solve time (same solver object) [us]")
     ax.legend(fontsize=8)

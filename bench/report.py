@@ -69,6 +69,12 @@ def write_report(run_dir) -> Path:
     ])
     L += _table("Package versions", ["package", "version"],
                 [[k, v if v else "not installed"] for k, v in sorted(env.get("versions", {}).items())])
+    hosts = df.groupby(df["host"].fillna("?").astype(str)).agg(rows=("problem", "count"),
+                                                                 calib=("calib_ns", "median"))
+    L += _table("Hosts (calibration kernel time of their workers; compare divides times by it)",
+                ["host", "rows", "calibration [ms]"],
+                [[h, int(r.rows), f"{r.calib / 1e6:.3f}" if np.isfinite(r.calib) else "-"]
+                 for h, r in hosts.iterrows()])
     skipped = meta.get("skipped_solvers", {})
     if skipped:
         L += _table("Solvers skipped (not installed)", ["solver", "why"], [[k, v] for k, v in sorted(skipped.items())])
