@@ -25,7 +25,7 @@ def run_job(worker: IsolatedWorker, job: dict, timeout: float) -> dict:
         from bench.external import run_external
         res = run_external(job, timeout)
     else:
-        res = worker.run(job, timeout)
+        res = worker.run(job, timeout, job.get("first_timeout"))
     res["wall_s"] = time.perf_counter() - t0
     res.setdefault("worker", f"{res.get('pid', os.getpid())}@{res.get('host', socket.gethostname())}")
     return res

@@ -8,6 +8,12 @@ that does not answer within its timeout gets the process killed (status
 ``crashed`` with the signal or exit code. Either way the next job starts a
 fresh process, so one bad backend costs one row, not the run.
 
+The first solve of a solver in a worker process may compile (numba) or fill
+caches; until the worker reports that first untimed solve done, a job of a
+solver that this process has not run yet is allowed ``first_timeout``
+seconds (if larger than the job timeout); after it, and for every later job
+of that solver, the job timeout applies.
+
 Plain subprocesses (not ``multiprocessing``) so that this also works inside
 daemonic Dask worker processes.
 """
@@ -32,6 +38,9 @@ __all__ = ["IsolatedWorker"]
 _HEADER = struct.Struct("<Q")
 _THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
                "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+_FIRST_SOLVE_DONE = "first-solve-done"  # frame sent by the child after a job's first untimed solve
 
 
 class _Timeout(Exception):
@@ -98,6 +107,7 @@ class IsolatedWorker:
         self.proc: subprocess.Popen | None = None
         self.info: dict = {}
         self.restarts = 0
+        self._warmed: set = set()  # solver specs whose first solve this process has done
 
     def _env(self) -> dict:
         env = dict(os.environ)
@@ -109,6 +119,7 @@ class IsolatedWorker:
 
     def start(self) -> None:
         self.close()
+        self._warmed = set()
         err = open(self.log, "ab") if self.log else None
         try:
             self.proc = subprocess.Popen([sys.executable, "-m", "bench.isolation"], stdin=subprocess.PIPE,
@@ -128,9 +139,11 @@ class IsolatedWorker:
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
 
-    def run(self, job: dict, timeout: float) -> dict:
+    def run(self, job: dict, timeout: float, first_timeout: float | None = None) -> dict:
         """Run ``job`` (see bench.worker); returns its result dict, or a
-        ``timeout`` / ``crashed`` result. Adds ``calib_ns``, ``host``, ``pid``."""
+        ``timeout`` / ``crashed`` result. Adds ``calib_ns``, ``host``, ``pid``.
+        ``first_timeout``: allowance for the first solve of a solver new to
+        this process (see the module docstring)."""
         if not self.alive:
             if self.proc is not None:
                 self.restarts += 1
@@ -138,13 +151,23 @@ class IsolatedWorker:
         proc = self.proc
         meta = {"host": self.info.get("host", socket.gethostname()), "pid": proc.pid,
                 "calib_ns": self.info.get("calib_ns")}
+        spec = job.get("solver")
+        first = bool(first_timeout and first_timeout > timeout and spec not in self._warmed)
         try:
             _write_frame(proc.stdin, job)
-            out = _read_frame(proc.stdout.fileno(), time.monotonic() + timeout)
+            deadline = time.monotonic() + (first_timeout if first else timeout)
+            while True:
+                out = _read_frame(proc.stdout.fileno(), deadline)
+                if not (isinstance(out, str) and out == _FIRST_SOLVE_DONE):
+                    break
+                self._warmed.add(spec)
+                first = False
+                deadline = time.monotonic() + timeout
         except _Timeout:
             self.kill()
+            limit = f"{first_timeout:g} s allowed for the first solve" if first else f"{timeout:g} s timeout"
             return {**meta, "status": TIMEOUT, "x": None, "samples_ns": [],
-                    "reason": f"no answer within the {timeout:g} s timeout; worker killed"}
+                    "reason": f"no answer within the {limit}; worker killed"}
         except (_Closed, BrokenPipeError, OSError):
             try:
                 code = proc.wait(timeout=5)
@@ -204,7 +227,7 @@ def _child_main() -> None:
             return
         if job is None:
             return
-        _write_frame(channel, execute(job))
+        _write_frame(channel, execute(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE)))
 
 
 if __name__ == "__main__":

@@ -20,7 +20,7 @@ from bench.shgeom import performance_profile  # noqa: E402
 __all__ = ["sweeps", "plot_sweep", "plot_success", "plot_profiles", "plot_accuracy", "plot_cold_warm",
            "loglog_slope"]
 
-_STYLE = {"figsize": (7.5, 5.0), "dpi": 110}
+_STYLE = {"figsize": (9.5, 5.0), "dpi": 110}
 
 
 def loglog_slope(x, y) -> tuple[float, float]:
@@ -58,6 +58,23 @@ def sweeps(df: pd.DataFrame, var: str, min_points: int = 3) -> list[tuple[str, s
     return out
 
 
+_LINESTYLES = ("-", "--", "-.", ":")
+_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+
+
+def _style(i: int) -> dict:
+    """Distinct colour / line style / marker for the i-th solver (20 colours,
+    then line styles change), so that 16+ solvers stay distinguishable."""
+    cmap = plt.get_cmap("tab20")
+    return {"color": cmap(i % 20), "linestyle": _LINESTYLES[(i // 10) % len(_LINESTYLES)],
+            "marker": _MARKERS[i % len(_MARKERS)]}
+
+
+def _legend(ax) -> None:
+    """Legend outside the axes on the right (never over the data)."""
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+
+
 def _readable_log_ticks(ax) -> None:
     """Plain numbers on log axes (1, 2, 5, 10, 20, ...) instead of 2 x 10^1."""
     fmt = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")
@@ -84,21 +101,21 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
         return None, {}
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
     slopes = {}
-    for (solver, settings), s in g.groupby(["solver", "settings"]):
+    for i, ((solver, settings), s) in enumerate(g.groupby(["solver", "settings"])):
         med = s.groupby(var)["time_median_s"].median().sort_index()
         if med.empty:
             continue
         slope, se = loglog_slope(s[var], s["time_median_s"])
         label = solver if settings == "default" else f"{solver} [{settings}]"
         slopes[label] = (slope, se)
-        ax.plot(med.index, med.to_numpy() * 1e6, marker="o",
+        ax.plot(med.index, med.to_numpy() * 1e6, **_style(i),
                 label=f"{label} (slope {slope:.2f})" if np.isfinite(slope) else label)
     ax.set_xscale("log")
     ax.set_yscale("log")
     _readable_log_ticks(ax)
     ax.set_xlabel({"n": "DOF n (number of variables)", "depth": "number of levels (depth)"}.get(var, var))
     ax.set_ylabel(f"median solve time ({mode}) [us]")
-    ax.legend(fontsize=8, loc="best")
+    _legend(ax)
     return _finish(fig, ax, path, title), slopes
 
 
@@ -138,13 +155,14 @@ def plot_profiles(times: pd.DataFrame, path: Path, title: str) -> Path | None:
     taus = np.logspace(0, np.log10(max(10.0, 2.0 * worst)), 300)
     prof = performance_profile(times, taus)
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
-    for s, y in prof.items():
-        ax.step(taus, y, where="post", label=s)
+    for i, (s, y) in enumerate(prof.items()):
+        st = _style(i)
+        ax.step(taus, y, where="post", label=s, color=st["color"], linestyle=st["linestyle"])
     ax.set_xscale("log")
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel("performance ratio tau (time / best time on the problem)")
     ax.set_ylabel("fraction of problems solved within tau")
-    ax.legend(fontsize=8, loc="lower right")
+    _legend(ax)
     return _finish(fig, ax, path, title)
 
 
@@ -154,7 +172,7 @@ def plot_accuracy(df: pd.DataFrame, path: Path) -> Path | None:
     if d.empty:
         return None
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
-    for solver, s in d.groupby("solver"):
+    for i, (solver, s) in enumerate(d.groupby("solver")):
         per_level: dict[int, list] = {}
         for a, b in zip(s["level_norms"], s["ref_level_norms"]):
             for k, (u, v) in enumerate(zip(json.loads(a), json.loads(b))):
@@ -162,11 +180,11 @@ def plot_accuracy(df: pd.DataFrame, path: Path) -> Path | None:
                     per_level.setdefault(k, []).append(abs(u - v))
         if per_level:
             ks = sorted(per_level)
-            ax.plot(ks, [max(np.median(per_level[k]), 1e-17) for k in ks], marker="o", label=solver)
+            ax.plot(ks, [max(np.median(per_level[k]), 1e-17) for k in ks], label=solver, **_style(i))
     ax.set_yscale("log")
     ax.set_xlabel("level k (0 = highest priority)")
     ax.set_ylabel("median | ||v_k(x)|| - ||v_k(x_ref)|| |  [units of the task]")
-    ax.legend(fontsize=8)
+    _legend(ax)
     return _finish(fig, ax, path, "Per-level accuracy against the reference (floored at 1e-17)")
 
 
@@ -178,9 +196,10 @@ def plot_cold_warm(df: pd.DataFrame, path: Path) -> Path | None:
     both = pd.concat([cold.rename("cold"), warm.rename("warm")], axis=1, join="inner")
     if both.empty:
         return None
-    fig, ax = plt.subplots(figsize=(6, 6), dpi=_STYLE["dpi"])
-    for solver, s in both.groupby(level="solver"):
-        ax.scatter(s["cold"] * 1e6, s["warm"] * 1e6, label=solver, s=18)
+    fig, ax = plt.subplots(figsize=(8, 6), dpi=_STYLE["dpi"])
+    for i, (solver, s) in enumerate(both.groupby(level="solver")):
+        st = _style(i)
+        ax.scatter(s["cold"] * 1e6, s["warm"] * 1e6, label=solver, s=22, color=st["color"], marker=st["marker"])
     lo = float(min(both.min())) * 1e6 / 2
     hi = float(max(both.max())) * 1e6 * 2
     ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="warm = cold")
@@ -189,5 +208,5 @@ def plot_cold_warm(df: pd.DataFrame, path: Path) -> Path | None:
     _readable_log_ticks(ax)
     ax.set_xlabel("cold solve time (fresh solver) [us]")
     ax.set_ylabel("warm re-solve time (same solver object) [us]")
-    ax.legend(fontsize=8)
+    _legend(ax)
     return _finish(fig, ax, path, "Cold vs warm: median time per problem")

@@ -8,7 +8,10 @@ own units, 10 us by default for solve times, not 10 s):
 Verified failures are *charged*: a row whose x is not verified (wrong level
 norms, no x, timeout, crash, error) counts with the run's job timeout in place
 of its time (the penalty of Mittelmann's and qpbenchmark's benchmarks); a
-problem the solver did not attempt is left out.
+problem the solver did not attempt, or declared ``unsupported`` (e.g. a
+null-space recursion on inequalities), is left out (the report shows how many).
+Non-strict solvers (weighted, damped) are judged against the strict optimum
+too, so their aggregate mostly measures that they solve a different problem.
 """
 
 from __future__ import annotations

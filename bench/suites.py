@@ -8,6 +8,7 @@ path. Schema (every key optional except ``problems``)::
     repeat = 5              # timed repetitions per row
     warmup = 1              # discarded solves before timing
     timeout = 60.0          # seconds per job (warm-up + repetitions), hard
+    first_solve_timeout = 60.0  # allowance for a solver's first solve in a worker process (JIT)
     modes = ["cold", "warm"]
     accuracy = "default"    # verification profile, see ACCURACY
     export = ["npz"]        # problem files written to OUT/problems/ ("npz", "soth")
@@ -57,8 +58,8 @@ ACCURACY: dict[str, tuple[float, float]] = {
     "default": (1e-6, 1e-9),
     "low": (1e-3, 1e-6),
 }
-_TOP_KEYS = {"description", "repeat", "warmup", "timeout", "modes", "accuracy", "export", "solvers",
-             "settings", "problems"}
+_TOP_KEYS = {"description", "repeat", "warmup", "timeout", "first_solve_timeout", "modes", "accuracy", "export",
+             "solvers", "settings", "problems"}
 _GROUP_KEYS = {"family", "params", "grid", "seeds", "solvers"}
 
 
@@ -101,6 +102,7 @@ class Suite:
     repeat: int = 5
     warmup: int = 1
     timeout: float = 60.0
+    first_solve_timeout: float = 60.0
     modes: tuple[str, ...] = ("cold",)
     accuracy: str = "default"
     export: tuple[str, ...] = ("npz",)
@@ -133,6 +135,7 @@ class Suite:
     def to_dict(self) -> dict:
         return {"name": self.name, "source": self.source, "description": self.description,
                 "repeat": self.repeat, "warmup": self.warmup, "timeout": self.timeout,
+                "first_solve_timeout": self.first_solve_timeout,
                 "modes": list(self.modes), "accuracy": self.accuracy, "export": list(self.export),
                 "solvers": list(self.solvers), "settings": self.settings, "problems": self.groups}
 
@@ -178,7 +181,8 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
     if acc not in ACCURACY:
         raise SuiteError(f"suite {name}: accuracy {acc!r}: expected one of {', '.join(ACCURACY)}")
     suite = Suite(name=name, description=data.get("description", ""), repeat=int(data.get("repeat", 5)),
-                  warmup=int(data.get("warmup", 1)), timeout=float(data.get("timeout", 60.0)), modes=modes,
+                  warmup=int(data.get("warmup", 1)), timeout=float(data.get("timeout", 60.0)),
+                  first_solve_timeout=float(data.get("first_solve_timeout", 60.0)), modes=modes,
                   accuracy=acc, export=tuple(data.get("export", ["npz"])),
                   solvers=tuple(data.get("solvers", ["*"])), settings=list(data.get("settings", [])),
                   groups=groups, source=source)

@@ -85,9 +85,22 @@ def write_suite(path, solvers, grid=None, seeds=(0,), repeat=3, timeout=5.0, mod
     """Write a suite TOML over the ``tiny`` generator; returns its path."""
     import tomli_w
 
-    data = {"repeat": repeat, "warmup": 1, "timeout": timeout, "modes": list(modes), "solvers": list(solvers),
+    data = {"repeat": repeat, "warmup": 1, "timeout": timeout, "first_solve_timeout": timeout, "modes": list(modes), "solvers": list(solvers),
             "problems": [{"family": spec(family), "grid": grid or {"n": [4, 6], "depth": [1, 2]},
                           "seeds": list(seeds)}]}
     path = Path(path)
     path.write_bytes(tomli_w.dumps(data).encode())
     return path
+
+
+class FirstSlowSolver(SleepSolver):
+    """The first solve in a process takes 1 s (like a JIT compilation)."""
+
+    name = "first-slow"
+    _compiled = False
+
+    def solve(self, hierarchy):
+        if not FirstSlowSolver._compiled:
+            time.sleep(1.0)
+            FirstSlowSolver._compiled = True
+        return super().solve(hierarchy)

@@ -161,3 +161,23 @@ def test_columns_command_documents_every_column(capsys):
         assert c in out
     readme = (ROOT / "README.md").read_text()
     assert all(f"`{c}`" in readme for c in names()), "README's column table is out of date"
+
+
+def test_first_solve_allowance(tmp_path):
+    """A solver whose first solve in a process is slow (JIT) gets the
+    first-solve allowance; a hang after it gets only the job timeout."""
+    from bench.isolation import IsolatedWorker
+    from doubles import tiny
+
+    h = tiny()
+    job = {"kind": "solve", "hierarchy": h, "solver": spec("FirstSlowSolver"), "options": {}, "mode": "cold",
+           "repeat": 2, "warmup": 1}
+    with IsolatedWorker() as w:
+        assert w.run(job, timeout=0.5, first_timeout=5.0)["status"] == "optimal"
+        w.start()  # fresh process: compiles again
+        assert w.run(job, timeout=0.5)["status"] == "timeout"
+        hang = {**job, "solver": spec("HangSolver")}
+        t0 = time.monotonic()
+        res = w.run(hang, timeout=0.5, first_timeout=1.0)
+        assert res["status"] == "timeout" and "first solve" in res["reason"]
+        assert time.monotonic() - t0 < 4
