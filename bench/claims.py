@@ -14,8 +14,9 @@ figure, the paper's figure and the criterion. Criteria (README, "Claims"):
     cost formula sum_k (2n+3) k n (m - kn) are printed next to them.
 (c) 50 DOF (equality with n = 50): median cold time of nullspace-svd over
     hcod; PASS when >= 2 (paper: 0.1 ms vs 5 ms, 50x).
-(d) reach scenario CSV (robots issue; columns solver, solve_time_s, optionally
-    warm_start): median time of the cascade of QPs over hcod with time warm
+(d) reach scenario CSVs (`hikbench scenario reach`, one per solver and
+    warm-start mode; columns solver, warm_start, step, solve_time_s, iterations,
+    activations): median time of the cascade of QPs over hcod with time warm
     start; PASS when >= 2 (paper: about 30 ms vs 3 ms).
 (e) same CSV, hcod rows with warm_start none / stage / time: mean iterations
     strictly decreasing none > stage > time, and the median iterations of the
@@ -35,7 +36,7 @@ from scipy import stats
 
 from bench.results import read_results
 
-__all__ = ["Claim", "check_claims", "find_scenario_csv", "paper_flops_formula"]
+__all__ = ["Claim", "check_claims", "find_scenario_csvs", "load_scenario", "paper_flops_formula"]
 
 PASS, FAIL, MISSING = "PASS", "FAIL", "MISSING"
 #: problem families of equality-only stacks (problems.generators)
@@ -130,17 +131,25 @@ def claim_c(df: pd.DataFrame) -> Claim:
                  f"hcod {h * 1e3:.3f} ms vs nullspace-svd {s * 1e3:.3f} ms: {s / h:.1f}x", paper, crit)
 
 
-def find_scenario_csv(run_dir, explicit=None) -> Path | None:
-    """--scenario FILE, else RUN/scenarios/reach*.csv, RUN/reach*.csv, results/scenarios/reach*.csv."""
+def find_scenario_csvs(run_dir, explicit=None) -> list[Path]:
+    """Per-step CSVs of the reach scenario (`hikbench scenario reach` writes one
+    per solver and warm-start mode): ``explicit`` (a CSV file or a directory
+    of them), else RUN/scenarios/reach/, RUN/scenarios/, RUN/, then
+    results/scenarios/reach/ -- the first of those holding reach*.csv files."""
     if explicit:
-        return Path(explicit)
+        p = Path(explicit)
+        return sorted(p.glob("*.csv")) if p.is_dir() else [p]
     run_dir = Path(run_dir)
-    for pattern in ("scenarios/reach*.csv", "reach*.csv", "scenario*/reach*.csv"):
-        hits = sorted(run_dir.glob(pattern))
+    for d in (run_dir / "scenarios" / "reach", run_dir / "scenarios", run_dir, Path("results/scenarios/reach")):
+        hits = sorted(d.glob("reach*.csv")) if d.is_dir() else []
         if hits:
-            return hits[0]
-    hits = sorted(Path("results").glob("scenarios/**/reach*.csv"))
-    return hits[0] if hits else None
+            return hits
+    return []
+
+
+def load_scenario(run_dir, explicit=None) -> pd.DataFrame | None:
+    paths = [p for p in find_scenario_csvs(run_dir, explicit) if p.exists()]
+    return pd.concat([pd.read_csv(p) for p in paths], ignore_index=True) if paths else None
 
 
 def claim_d(sc: pd.DataFrame | None) -> Claim:
@@ -184,6 +193,5 @@ def claim_e(sc: pd.DataFrame | None) -> Claim:
 
 def check_claims(run_dir, scenario=None) -> list[Claim]:
     df = read_results(run_dir)
-    path = find_scenario_csv(run_dir, scenario)
-    sc = pd.read_csv(path) if path is not None and path.exists() else None
+    sc = load_scenario(run_dir, scenario)
     return [claim_a(df), claim_b(df), claim_c(df), claim_d(sc), claim_e(sc)]

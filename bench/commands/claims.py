@@ -9,8 +9,9 @@ HELP = ("check the ICRA 2010 paper's claims on a run (PASS / FAIL / MISSING); ex
 def add_arguments(p) -> None:
     p.add_argument("run_dir", help="run directory (use the `paper` suite for claims a-c)")
     p.add_argument("--scenario", default=None,
-                   help="per-step CSV of the reach scenario for claims d-e (default: RUN/scenarios/reach*.csv, "
-                        "RUN/reach*.csv, results/scenarios/**/reach*.csv)")
+                   help="per-step CSV(s) of the reach scenario for claims d-e: a file or a directory "
+                        "(default: the reach*.csv of RUN/scenarios/reach/, RUN/scenarios/, RUN/, "
+                        "else results/scenarios/reach/, where `hikbench scenario reach` writes them)")
     p.add_argument("--allow-missing", action="store_true", help="a claim without data does not fail the command")
 
 

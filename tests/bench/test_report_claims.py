@@ -105,3 +105,21 @@ def test_claims_command_exit_codes(sweep_run, tmp_path, capsys):
     out = capsys.readouterr().out
     assert "| (a) depth past saturation | MISSING |" in out
     assert [c.status for c in check_claims(sweep_run)] == [MISSING] * 5
+
+
+def test_scenario_csvs_are_found_and_concatenated(sweep_run, tmp_path):
+    """`hikbench scenario reach` writes one CSV per (solver, warm-start mode)."""
+    from bench.claims import load_scenario
+
+    d = tmp_path / "scenarios" / "reach"
+    d.mkdir(parents=True)
+    for ws, it in (("none", 10), ("stage", 5), ("time", 1)):
+        pd.DataFrame(dict(solver="hcod", warm_start=ws, step=range(6), solve_time_s=3e-3,
+                          iterations=[it, it, it + 1, it, it, it], activations=[0, 0, 1, 0, 0, 0])
+                     ).to_csv(d / f"reach_talos_hcod_{ws}_.csv", index=False)
+    pd.DataFrame(dict(solver="cascade-daqp", warm_start="n/a", step=range(6), solve_time_s=3e-2, iterations=3,
+                      activations=0)).to_csv(d / "reach_talos_cascade-daqp.csv", index=False)
+    sc = load_scenario(tmp_path)
+    assert len(sc) == 24
+    claims = check_claims(sweep_run, scenario=d)
+    assert [c.status for c in claims[3:]] == [PASS, PASS]
