@@ -122,8 +122,11 @@ class IsolatedWorker:
         self._warmed = set()
         err = open(self.log, "ab") if self.log else None
         try:
+            # own session: a Ctrl-C in the terminal interrupts the run, not the solve (no bogus
+            # `crashed` row); the child dies with its parent through PR_SET_PDEATHSIG (Linux)
             self.proc = subprocess.Popen([sys.executable, "-m", "bench.isolation"], stdin=subprocess.PIPE,
-                                         stdout=subprocess.PIPE, stderr=err, env=self._env())
+                                         stdout=subprocess.PIPE, stderr=err, env=self._env(),
+                                         start_new_session=True)
         finally:
             if err is not None:
                 err.close()
@@ -210,7 +213,20 @@ class IsolatedWorker:
         self.close()
 
 
+def _die_with_parent() -> None:
+    """Linux: SIGKILL this process when its parent dies (a killed run must not
+    leave a hanging solve behind). Elsewhere the closed stdin ends an idle worker."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+        except (OSError, AttributeError):
+            pass  # no glibc: rely on EOF on stdin
+
+
 def _child_main() -> None:
+    _die_with_parent()
     channel = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # anything a solver prints goes to stderr, not into the channel
     inp = sys.stdin.buffer

@@ -207,7 +207,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                     writer.write(row)
                     summary.written += 1
                     summary.statuses[row["status"]] = summary.statuses.get(row["status"], 0) + 1
-                    progress.advance(tid, f"{t.entry.solver} {t.mode}")
+                    progress.advance(tid, f"solves: {t.entry.solver} {t.mode}")
     finally:
         if own_executor:
             executor.close()

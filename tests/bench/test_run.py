@@ -181,3 +181,26 @@ def test_first_solve_allowance(tmp_path):
         res = w.run(hang, timeout=0.5, first_timeout=1.0)
         assert res["status"] == "timeout" and "first solve" in res["reason"]
         assert time.monotonic() - t0 < 4
+
+
+def test_worker_dies_with_a_killed_run(tmp_path):
+    """SIGKILL of the parent during a hanging solve leaves no orphan worker."""
+    code = ("import sys, time; sys.path.insert(0, %r)\n"
+            "from bench.isolation import IsolatedWorker\nfrom doubles import tiny, spec\n"
+            "w = IsolatedWorker(); w.start(); print(w.proc.pid, flush=True)\n"
+            "w.run({'kind': 'solve', 'hierarchy': tiny(), 'solver': spec('HangSolver'), 'options': {},"
+            " 'mode': 'cold', 'repeat': 1, 'warmup': 1}, timeout=60)\n") % str(Path(__file__).parent)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=env)
+    child = int(proc.stdout.readline())
+    time.sleep(0.5)
+    proc.kill()
+    proc.wait()
+    for _ in range(50):
+        try:
+            os.kill(child, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.1)
+    os.kill(child, signal.SIGKILL)
+    pytest.fail("the worker outlived its parent")
