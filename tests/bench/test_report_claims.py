@@ -123,3 +123,15 @@ def test_scenario_csvs_are_found_and_concatenated(sweep_run, tmp_path):
     assert len(sc) == 24
     claims = check_claims(sweep_run, scenario=d)
     assert [c.status for c in claims[3:]] == [PASS, PASS]
+
+
+def test_times_from_several_hosts_are_normalised():
+    from bench.report import normalise_hosts
+
+    df = pd.DataFrame(dict(host=["a", "a", "b"], calib_ns=[1e6, 1e6, 2e6], time_median_s=[1.0, 1.0, 2.0],
+                           time_min_s=[1.0, 1.0, 2.0], time_p95_s=[1.0, 1.0, 2.0]))
+    out, note = normalise_hosts(df)
+    np.testing.assert_allclose(out["time_median_s"], [1.0, 1.0, 1.0], rtol=1e-12)
+    assert "host a" in note
+    same, note = normalise_hosts(df[df["host"] == "a"])
+    assert note.startswith("as measured")
