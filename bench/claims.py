@@ -94,7 +94,8 @@ def claim_a(df: pd.DataFrame) -> Claim:
     (h, hl, hu), (v, vl, vu) = out["hcod"], out["nullspace-svd"]
     ok = hu < 0.5 and vl > 0.5
     return Claim("(a) depth past saturation", PASS if ok else FAIL,
-                 f"slope hcod {h:.2f} [{hl:.2f}, {hu:.2f}], nullspace-svd {v:.2f} [{vl:.2f}, {vu:.2f}]", paper, crit)
+                 f"slope hcod {h:.2f} [{hl:.2f}, {hu:.2f}], "
+                 f"nullspace-svd {v:.2f} [{vl:.2f}, {vu:.2f}]", paper, crit)
 
 
 def paper_flops_formula(m: int = 36, n: int = 6, N: int = 6) -> float:
@@ -108,7 +109,8 @@ def claim_b(df: pd.DataFrame) -> Claim:
     crit = "flops(hcod) < flops(nullspace-cod) and < flops(nullspace-svd)"
     d = df[df["family"].isin(EQUALITY_FAMILIES) & (df["mode"] == "cold") & (df["settings"] == "default")]
     d = _select(d, lambda q: q.get("n") == 36 and q.get("depth") == 6 and q.get("rows") == 6)
-    fl = {s: d[d["solver"] == s]["flops"].dropna() for s in ("hcod", "nullspace-cod", "nullspace-svd", "pinv-all")}
+    fl = {s: d[d["solver"] == s]["flops"].dropna() for s in ("hcod", "nullspace-cod", "nullspace-svd",
+                                                             "pinv-all")}
     if fl["hcod"].empty or (fl["nullspace-cod"].empty and fl["nullspace-svd"].empty):
         return Claim("(b) flops, 36 DOF, 6 tasks of 6", MISSING,
                      "no flop counts of hcod and a null-space recursion on equality n=36 depth=6 rows=6",
@@ -125,7 +127,8 @@ def claim_c(df: pd.DataFrame) -> Claim:
     d = _ok(df[df["family"].isin(EQUALITY_FAMILIES) & (df["n"] == 50)])
     t = {s: d[d["solver"] == s]["time_median_s"] for s in ("hcod", "nullspace-svd")}
     if any(v.empty for v in t.values()):
-        return Claim("(c) 50 DOF speed-up", MISSING, "no verified hcod and nullspace-svd rows at n = 50", paper, crit)
+        return Claim("(c) 50 DOF speed-up", MISSING, "no verified hcod and nullspace-svd rows at n = 50",
+                     paper, crit)
     h, s = float(t["hcod"].median()), float(t["nullspace-svd"].median())
     return Claim("(c) 50 DOF speed-up", PASS if s / h >= 2 else FAIL,
                  f"hcod {h * 1e3:.3f} ms vs nullspace-svd {s * 1e3:.3f} ms: {s / h:.1f}x", paper, crit)
@@ -140,7 +143,8 @@ def find_scenario_csvs(run_dir, explicit=None) -> list[Path]:
         p = Path(explicit)
         return sorted(p.glob("*.csv")) if p.is_dir() else [p]
     run_dir = Path(run_dir)
-    for d in (run_dir / "scenarios" / "reach", run_dir / "scenarios", run_dir, Path("results/scenarios/reach")):
+    for d in (run_dir / "scenarios" / "reach", run_dir / "scenarios", run_dir,
+              Path("results/scenarios/reach")):
         hits = sorted(d.glob("reach*.csv")) if d.is_dir() else []
         if hits:
             return hits

@@ -102,8 +102,10 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
                          base_median_s=b["time_median_s"], new_median_s=n["time_median_s"],
                          ratio=ratio, ratio_min=ratio_min, p_value=p, verdict=verdict))
     table = pd.DataFrame(rows, columns=[*KEY, "base_status", "new_status", "base_verified", "new_verified",
-                                        "base_median_s", "new_median_s", "ratio", "ratio_min", "p_value", "verdict"])
-    return Comparison(table, [k for k in base.index if k not in common], [k for k in new.index if k not in common])
+                                        "base_median_s", "new_median_s", "ratio", "ratio_min", "p_value",
+                                        "verdict"])
+    return Comparison(table, [k for k in base.index if k not in common],
+                      [k for k in new.index if k not in common])
 
 
 def compare_runs(base_dir, new_dir, threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
@@ -115,8 +117,10 @@ def format_table(c: Comparison, show_all: bool = False) -> str:
     t = c.table.sort_values("ratio", ascending=False, na_position="last")
     if not show_all:
         t = pd.concat([t[t["verdict"] != "ok"], t[t["verdict"] == "ok"].head(10)])
-    lines = [f"{'verdict':<13} {'ratio':>6} {'min r':>6} {'p':>7} {'base us':>9} {'new us':>9}  solver / settings / mode / problem"]
+    lines = [f"{'verdict':<13} {'ratio':>6} {'min r':>6} {'p':>7} {'base us':>9} {'new us':>9}  "
+             "solver / settings / mode / problem"]
     for r in t.itertuples():
-        lines.append(f"{r.verdict:<13} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.p_value:>7.4f} {r.base_median_s * 1e6:>9.1f} "
+        lines.append(f"{r.verdict:<13} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.p_value:>7.4f} "
+                     f"{r.base_median_s * 1e6:>9.1f} "
                      f"{r.new_median_s * 1e6:>9.1f}  {r.solver} / {r.settings} / {r.mode} / {r.problem}")
     return "\n".join(lines)

@@ -47,9 +47,8 @@ def cpu_model() -> str:
 
 
 def _blas() -> dict:
-    from threadpoolctl import threadpool_info
-
     import numpy as np
+    from threadpoolctl import threadpool_info
 
     info = {"threadpools": [{k: v for k, v in d.items() if k in ("user_api", "internal_api", "version",
                                                                   "num_threads", "threading_layer",

@@ -10,12 +10,12 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import matplotlib.ticker  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import matplotlib.pyplot as plt
+import matplotlib.ticker
+import numpy as np
+import pandas as pd
 
-from bench.shgeom import performance_profile  # noqa: E402
+from bench.shgeom import performance_profile
 
 __all__ = ["sweeps", "plot_sweep", "plot_success", "plot_profiles", "plot_accuracy", "plot_cold_warm",
            "loglog_slope"]
@@ -94,7 +94,8 @@ def _finish(fig, ax, path: Path, title: str) -> Path:
     return path
 
 
-def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "cold") -> tuple[Path | None, dict]:
+def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "cold") -> tuple[Path | None,
+                                                                                               dict]:
     """Median time vs ``var`` per solver, log-log, fitted slopes in the legend."""
     g = g[(g["mode"] == mode) & g["verified"].eq(True) & g["time_median_s"].notna()]
     if g.empty:
@@ -125,7 +126,8 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
     label = df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
     tab = df.assign(_ok=df["verified"].eq(True).astype(float), _s=label).pivot_table(
         index="_s", columns="family", values="_ok", aggfunc="mean")
-    fig, ax = plt.subplots(figsize=(max(5.5, 2.5 + 1.3 * tab.shape[1]), max(2.8, 1.6 + 0.4 * tab.shape[0])), dpi=_STYLE["dpi"])
+    fig, ax = plt.subplots(figsize=(max(5.5, 2.5 + 1.3 * tab.shape[1]), max(2.8, 1.6 + 0.4 * tab.shape[0])),
+                           dpi=_STYLE["dpi"])
     im = ax.imshow(tab.to_numpy() * 100, cmap="RdYlGn", vmin=0, vmax=100, aspect="auto")
     ax.set_xticks(range(tab.shape[1]), tab.columns, rotation=30, ha="right", fontsize=8)
     ax.set_yticks(range(tab.shape[0]), tab.index, fontsize=8)
@@ -199,7 +201,8 @@ def plot_cold_warm(df: pd.DataFrame, path: Path) -> Path | None:
     fig, ax = plt.subplots(figsize=(8, 6), dpi=_STYLE["dpi"])
     for i, (solver, s) in enumerate(both.groupby(level="solver")):
         st = _style(i)
-        ax.scatter(s["cold"] * 1e6, s["warm"] * 1e6, label=solver, s=22, color=st["color"], marker=st["marker"])
+        ax.scatter(s["cold"] * 1e6, s["warm"] * 1e6, label=solver, s=22, color=st["color"],
+                   marker=st["marker"])
     lo = float(min(both.min())) * 1e6 / 2
     hi = float(max(both.max())) * 1e6 * 2
     ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="warm = cold")

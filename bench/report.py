@@ -51,7 +51,8 @@ def normalise_hosts(df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
     hosts = df["host"].fillna("?").astype(str)
     cal = df.assign(_h=hosts).groupby("_h")["calib_ns"].median()
     if len(cal) <= 1 or cal.isna().any():
-        return df, "as measured (one host)" if len(cal) <= 1 else "as measured (calibration missing on a host)"
+        why = "one host" if len(cal) <= 1 else "calibration missing on a host"
+        return df, f"as measured ({why})"
     ref = hosts.value_counts().index[0]
     factor = hosts.map(lambda h: cal[ref] / cal[h]).astype(float)
     df = df.copy()
@@ -79,7 +80,8 @@ def write_report(run_dir) -> Path:
         ["host(s)", ", ".join(sorted(df["host"].dropna().astype(str).unique()))],
         ["CPU", f"{env.get('cpu')} ({env.get('cpu_count')} logical cores)"],
         ["BLAS", "; ".join(f"{t.get('internal_api')} {t.get('version')} ({t.get('num_threads')} threads)"
-                           for t in env.get("blas", {}).get("threadpools", [])) + "; solves timed at 1 thread"],
+                           for t in env.get("blas", {}).get("threadpools",
+                                                            [])) + "; solves timed at 1 thread"],
         ["calibration kernel", f"{meta.get('calibration_ns', float('nan')) / 1e6:.3f} ms "
                                f"({meta.get('calibration_kernel', '')})"],
         ["accuracy", json.dumps(meta.get("accuracy", {}))],
@@ -98,32 +100,38 @@ def write_report(run_dir) -> Path:
                  for h, r in hosts.iterrows()])
     skipped = meta.get("skipped_solvers", {})
     if skipped:
-        L += _table("Solvers skipped (not installed)", ["solver", "why"], [[k, v] for k, v in sorted(skipped.items())])
+        L += _table("Solvers skipped (not installed)", ["solver", "why"], [[k, v] for k,
+                                                                           v in sorted(skipped.items())])
 
     # per solver summary
     rows = []
     for label, g in sorted(df.groupby("label")):
         strict = "yes" if g["strict"].astype(str).eq("True").all() else "no"
         sup = g[g["status"] != "unsupported"]
-        r = [label, strict, str(len(g)), str(len(g) - len(sup)), f"{100 * g['verified'].eq(True).mean():.0f}%"]
+        r = [label, strict, str(len(g)), str(len(g) - len(sup)),
+             f"{100 * g['verified'].eq(True).mean():.0f}%"]
         for mode in ("cold", "warm"):
             gm = sup[sup["mode"] == mode]
             r.append(_us(shifted_geometric_mean(charged_times(gm, penalty))) if len(gm) else "-")
         rows.append(r)
     L += _table("Solvers: verified success and shifted geometric mean time (us; unverified rows charged, "
                 "unsupported rows left out)",
-                ["solver", "strict", "rows", "unsupported", "verified", "sgm cold [us]", "sgm warm [us]"], rows)
+                ["solver", "strict", "rows", "unsupported", "verified", "sgm cold [us]",
+                 "sgm warm [us]"], rows)
 
     fam = df.assign(ok=df["verified"].eq(True)).pivot_table(index="label", columns="family", values="ok",
                                                              aggfunc="mean")
     L += _table("Verified success rate per solver and family", ["solver", *fam.columns],
-                [[i, *[("-" if not np.isfinite(v) else f"{100 * v:.0f}%") for v in fam.loc[i]]] for i in fam.index])
+                [[i,
+                  *[("-" if not np.isfinite(v) else f"{100 * v:.0f}%") for v in fam.loc[i]]]
+                 for i in fam.index])
 
     st = df.pivot_table(index="label", columns="status", values="problem", aggfunc="count", fill_value=0)
     L += _table("Statuses per solver", ["solver", *st.columns], [[i, *st.loc[i].tolist()] for i in st.index])
 
     bad = df[~df["verified"].eq(True)].sort_values(["label", "problem", "mode"])
-    L += _table(f"Unverified rows ({len(bad)}; first 40)", ["solver", "problem", "mode", "status", "verdict", "reason"],
+    L += _table(f"Unverified rows ({len(bad)}; first 40)", ["solver", "problem", "mode", "status", "verdict",
+                                                            "reason"],
                 [[r.label, r.problem, r.mode, r.status,
                   f"{r.verdict_side} at level {int(r.verdict_level)}" if pd.notna(r.verdict_level) else
                   (r.verdict_side if isinstance(r.verdict_side, str) else ""),
@@ -134,10 +142,12 @@ def write_report(run_dir) -> Path:
         for i, (family, fixed, g) in enumerate(plots.sweeps(df, var)):
             name = f"time_vs_{'dof' if var == 'n' else 'depth'}_{family}_{i}.png".replace(":", "_")
             p, slopes = plots.plot_sweep(g, var, plot_dir / name,
-                                         f"{family}: time vs {what} ({fixed.strip('{}') or 'defaults'}), cold")
+                                         f"{family}: time vs {what} "
+                                         f"({fixed.strip('{}') or 'defaults'}), cold")
             if p:
                 figures.append((f"Time vs {what}: {family} {fixed}", p))
-                L += _table(f"Log-log slope of time vs {what}: {family} {fixed}", ["solver", "slope", "std. err."],
+                L += _table(f"Log-log slope of time vs {what}: {family} {fixed}", ["solver", "slope",
+                                                                                   "std. err."],
                             [[s, f"{a:.2f}", f"{b:.2f}"] for s, (a, b) in sorted(slopes.items())])
     p = plots.plot_success(df, plot_dir / "success_rate.png")
     if p:

@@ -70,7 +70,8 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: floa
     samples = np.asarray(res.get("samples_ns") or [], dtype=np.int64)
     row = dict(pcols)
     e = task.entry
-    row.update(solver=e.solver, settings=e.settings, options=e.options_json(), strict=e.strict, mode=task.mode,
+    row.update(solver=e.solver, settings=e.settings, options=e.options_json(), strict=e.strict,
+               mode=task.mode,
                repeat=len(samples), status=res["status"], reason=res.get("reason", ""))
     if x is not None and np.shape(x) == (h.n,):
         norms = level_norms(h, x)
@@ -96,7 +97,8 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: floa
         row["iterations_per_level"] = json.dumps(res["iterations_per_level"])
     if samples.size:
         row.update(time_median_s=float(np.median(samples)) * 1e-9, time_min_s=float(samples.min()) * 1e-9,
-                   time_p95_s=float(np.percentile(samples, 95)) * 1e-9, samples_ns=json.dumps(samples.tolist()))
+                   time_p95_s=float(np.percentile(samples,
+                                                  95)) * 1e-9, samples_ns=json.dumps(samples.tolist()))
     row["build_time_s"] = _finite(res.get("build_time_s"))
     row["solve_time_s"] = _finite(res.get("solve_time_s"))
     row.update(calib_ns=res.get("calib_ns"), host=res.get("host"), worker=res.get("worker"),
@@ -110,8 +112,14 @@ class _Progress:
     def __init__(self, quiet: bool):
         self.p = None
         if not quiet:
-            from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
-                                       TimeElapsedColumn, TimeRemainingColumn)
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
             self.p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
                               TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"),
                               TimeRemainingColumn(), transient=False)
@@ -214,7 +222,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         session["finished"] = utc_now()
         session["calibration_end_ns"] = calibrate()
         session["written"] = summary.written
-        cal = [s[k] for s in meta["sessions"] for k in ("calibration_start_ns", "calibration_end_ns") if k in s]
+        cal = [s[k] for s in meta["sessions"] for k in ("calibration_start_ns",
+                                                        "calibration_end_ns") if k in s]
         meta["calibration_ns"] = int(np.median(cal))
         write_run_json(out, meta)
     return summary
@@ -252,6 +261,7 @@ def _references(todo, problems, out: Path, executor, timeout, progress) -> dict:
         for pid, res in executor.map(items):
             x = res.get("x") if res["status"] == "optimal" else None
             refs[pid] = (x, res["status"], res.get("reason", ""))
-            _save_reference(out / "reference" / (file_stem(pid) + ".npz"), x, res["status"], res.get("reason", ""))
+            _save_reference(out / "reference" / (file_stem(pid) + ".npz"), x, res["status"],
+                            res.get("reason", ""))
             progress.advance(tid)
     return refs

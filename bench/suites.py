@@ -58,7 +58,8 @@ ACCURACY: dict[str, tuple[float, float]] = {
     "default": (1e-6, 1e-9),
     "low": (1e-3, 1e-6),
 }
-_TOP_KEYS = {"description", "repeat", "warmup", "timeout", "first_solve_timeout", "modes", "accuracy", "export",
+_TOP_KEYS = {"description", "repeat", "warmup", "timeout", "first_solve_timeout", "modes", "accuracy",
+             "export",
              "solvers", "settings", "problems"}
 _GROUP_KEYS = {"family", "params", "grid", "seeds", "solvers"}
 
@@ -194,7 +195,8 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
 def _entry_for_object(spec: str) -> SolverEntry:
     obj = load_object(spec)
     name = getattr(obj, "name", "") or spec.rpartition(":")[2]
-    return SolverEntry(solver=name if isinstance(name, str) else spec, spec=spec, strict=bool(getattr(obj, "strict", True)),
+    return SolverEntry(solver=name if isinstance(name, str) else spec, spec=spec, strict=bool(getattr(obj,
+                                                                                                      "strict", True)),
                        warm=bool(getattr(obj, "supports_warm_start", False)))
 
 

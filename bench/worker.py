@@ -69,7 +69,7 @@ def execute(job: dict, notify=None) -> dict:
         t = time_solves(make, h, repeat=int(job["repeat"]), mode=job["mode"],
                         warmup=max(int(job["warmup"]) - 1, 0))
         return {**base, **_result_dict(t.result, t.samples_ns)}
-    except Exception as err:  # noqa: BLE001 - the reason goes to the CSV row, not a log
+    except Exception as err:
         tb = traceback.extract_tb(err.__traceback__)
         where = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
         return {**base, "status": ERROR, "reason": f"{type(err).__name__}: {err}{where}", "x": None,

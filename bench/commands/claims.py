@@ -12,7 +12,8 @@ def add_arguments(p) -> None:
                    help="per-step CSV(s) of the reach scenario for claims d-e: a file or a directory "
                         "(default: the reach*.csv of RUN/scenarios/reach/, RUN/scenarios/, RUN/, "
                         "else results/scenarios/reach/, where `hikbench scenario reach` writes them)")
-    p.add_argument("--allow-missing", action="store_true", help="a claim without data does not fail the command")
+    p.add_argument("--allow-missing", action="store_true",
+                   help="a claim without data does not fail the command")
 
 
 def run(args) -> int:

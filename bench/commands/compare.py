@@ -9,7 +9,8 @@ def add_arguments(p) -> None:
     p.add_argument("base", help="baseline run directory")
     p.add_argument("run", help="new run directory")
     p.add_argument("--threshold", type=float, default=1.15,
-                   help="flag a case whose normalised median time grew by more than this factor (default 1.15)")
+                   help="flag a case whose normalised median (and minimum) time grew by more than this "
+                        "factor (default 1.15)")
     p.add_argument("--alpha", type=float, default=0.01,
                    help="significance level of the one-sided Mann-Whitney test (default 0.01)")
     p.add_argument("--all", action="store_true", help="print every compared case")

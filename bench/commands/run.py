@@ -15,9 +15,11 @@ def add_arguments(p) -> None:
                    help="replace the suite's solvers: names, glob patterns ('cascade-*'), module:Class, "
                         "or external:NAME=CMD")
     p.add_argument("--out", default=None, help="output directory (default: results/<suite>)")
-    p.add_argument("--repeat", type=int, default=None, help="timed repetitions per row (default: the suite's)")
+    p.add_argument("--repeat", type=int, default=None,
+                   help="timed repetitions per row (default: the suite's)")
     p.add_argument("--timeout", type=float, default=None,
-                   help="hard limit per job in seconds, warm-up and repetitions included (default: the suite's)")
+                   help="hard limit per job in seconds, warm-up and repetitions included "
+                        "(default: the suite's)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, default=None,
                    help="run on a local Dask cluster of N single-threaded worker processes")
@@ -54,6 +56,7 @@ def run(args) -> int:
         if executor is not None:
             executor.close()
     statuses = ", ".join(f"{k} {v}" for k, v in sorted(s.statuses.items())) or "none"
-    print(f"hikbench run: suite {suite.name}: {s.total} rows in the suite, {s.skipped_finished} already done, "
+    print(f"hikbench run: suite {suite.name}: {s.total} rows in the suite, "
+          f"{s.skipped_finished} already done, "
           f"{s.written} written ({statuses}) -> {out / 'results.csv'}")
     return 0

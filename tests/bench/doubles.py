@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from problems.hierarchy import Hierarchy, Level
-from solvers.base import OPTIMAL, SolveResult, Solver
+from solvers.base import OPTIMAL, Solver, SolveResult
 from solvers.reference import nullspace_reference
 
 HERE = Path(__file__).with_name("doubles.py")
@@ -85,7 +85,8 @@ def write_suite(path, solvers, grid=None, seeds=(0,), repeat=3, timeout=5.0, mod
     """Write a suite TOML over the ``tiny`` generator; returns its path."""
     import tomli_w
 
-    data = {"repeat": repeat, "warmup": 1, "timeout": timeout, "first_solve_timeout": timeout, "modes": list(modes), "solvers": list(solvers),
+    data = {"repeat": repeat, "warmup": 1, "timeout": timeout, "first_solve_timeout": timeout,
+            "modes": list(modes), "solvers": list(solvers),
             "problems": [{"family": spec(family), "grid": grid or {"n": [4, 6], "depth": [1, 2]},
                           "seeds": list(seeds)}]}
     path = Path(path)

@@ -6,10 +6,10 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from doubles import spec, write_suite
 
 from bench.cli import main
 from bench.compare import compare_frames
-from doubles import spec, write_suite
 
 
 def _frame(samples: dict, calib=1_000_000, verified=True, host="h"):
@@ -50,7 +50,8 @@ def test_slower_machine_is_normalised_by_calibration():
     rng = np.random.default_rng(2)
     base = _samples(rng)
     new = {k: (v * 2).astype(int) for k, v in _samples(rng).items()}  # everything 2x slower ...
-    c = compare_frames(_frame(base, calib=1_000_000), _frame(new, calib=2_000_000), {}, {})  # ... and so is the kernel
+    c = compare_frames(_frame(base, calib=1_000_000), _frame(new, calib=2_000_000), {},
+                       {})  # ... and so is the kernel
     assert not c.failed
 
 

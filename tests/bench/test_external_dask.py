@@ -2,12 +2,11 @@
 
 from pathlib import Path
 
-import pytest
+from doubles import spec, write_suite
 
 from bench.cli import main
 from bench.columns import KEY
 from bench.results import read_results
-from doubles import spec, write_suite
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "bench" / "examples" / "nullspace_external.py"
@@ -40,7 +39,8 @@ def test_dask_workers_give_the_same_rows_as_serial(tmp_path):
     suite = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), spec("WrongSolver"),
                                               spec("SegfaultSolver")], grid={"n": [4, 6], "depth": [1, 2]})
     assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "serial")]) == 0
-    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "dask"), "--workers", "2"]) == 0
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "dask"), "--workers",
+                 "2"]) == 0
     cols = [*KEY, "status", "verified"]
     a = read_results(tmp_path / "serial")[cols].sort_values(list(KEY)).reset_index(drop=True)
     b_full = read_results(tmp_path / "dask")

@@ -5,12 +5,22 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from doubles import spec, write_suite
 
-from bench.claims import MISSING, PASS, FAIL, check_claims, claim_a, claim_b, claim_c, claim_d, claim_e, \
-    paper_flops_formula
+from bench.claims import (
+    FAIL,
+    MISSING,
+    PASS,
+    check_claims,
+    claim_a,
+    claim_b,
+    claim_c,
+    claim_d,
+    claim_e,
+    paper_flops_formula,
+)
 from bench.cli import main
 from bench.columns import names
-from doubles import spec, write_suite
 
 
 @pytest.fixture(scope="module")

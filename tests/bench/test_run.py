@@ -9,13 +9,12 @@ import sys
 import time
 from pathlib import Path
 
-import pandas as pd
 import pytest
+from doubles import spec, write_suite
 
 from bench.cli import main
 from bench.columns import KEY, names
 from bench.results import finished_keys, read_results
-from doubles import spec, write_suite
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -31,7 +30,8 @@ def _keys(df):
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("tiny")
-    suite = write_suite(d / "s.toml", ["reference", spec("SleepSolver"), spec("WrongSolver"), spec("RaisingSolver"),
+    suite = write_suite(d / "s.toml", ["reference", spec("SleepSolver"), spec("WrongSolver"),
+                                       spec("RaisingSolver"),
                                        "not-a-solver"])
     assert _run("--suite", suite, "--out", d / "out") == 0
     return d / "out"
@@ -79,7 +79,8 @@ def test_second_run_skips_finished_rows(tiny_run, capsys):
 
 
 def test_hang_and_segfault_become_rows(tmp_path):
-    suite = write_suite(tmp_path / "s.toml", [spec("HangSolver"), spec("SegfaultSolver"), spec("SleepSolver")],
+    suite = write_suite(tmp_path / "s.toml", [spec("HangSolver"), spec("SegfaultSolver"),
+                                              spec("SleepSolver")],
                         grid={"n": [4]}, modes=("cold",), timeout=1.5)
     assert _run("--suite", suite, "--out", tmp_path / "out") == 0
     df = read_results(tmp_path / "out").set_index("solver")
@@ -132,7 +133,8 @@ def test_killed_run_restarts_and_finishes(tmp_path):
     suite.write_text(text.replace('"SleepSolver"', '"SleepSolver"'))
     out = tmp_path / "out"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(Path(__file__).parent)])}
-    proc = subprocess.Popen([sys.executable, "-m", "bench", "run", "--quiet", "--suite", str(suite), "--out", str(out)],
+    proc = subprocess.Popen([sys.executable, "-m", "bench", "run", "--quiet", "--suite", str(suite), "--out",
+                             str(out)],
                             env=env, cwd=tmp_path, start_new_session=True)
     deadline = time.monotonic() + 60
     while time.monotonic() < deadline:
@@ -166,8 +168,9 @@ def test_columns_command_documents_every_column(capsys):
 def test_first_solve_allowance(tmp_path):
     """A solver whose first solve in a process is slow (JIT) gets the
     first-solve allowance; a hang after it gets only the job timeout."""
-    from bench.isolation import IsolatedWorker
     from doubles import tiny
+
+    from bench.isolation import IsolatedWorker
 
     h = tiny()
     job = {"kind": "solve", "hierarchy": h, "solver": spec("FirstSlowSolver"), "options": {}, "mode": "cold",

@@ -2,10 +2,10 @@
 modes and skipped solvers expand as documented in bench/suites.py."""
 
 import pytest
+from doubles import spec, write_suite
 
 from bench.problemset import ProblemSpec, file_stem, generate
 from bench.suites import SuiteError, builtin_suites, expand, load_suite, suite_from_dict
-from doubles import spec, write_suite
 
 
 @pytest.mark.parametrize("name", sorted(builtin_suites()), ids=str)
