@@ -54,8 +54,9 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("build_time_s", "time the solver reports for assembling matrices (last repetition), seconds"),
     ("solve_time_s", "time the solver (or an external program) reports for itself, seconds"),
     ("samples_ns", "JSON list: every timed repetition, nanoseconds (used by compare)"),
-    ("calib_ns", "calibration kernel time of the worker process that ran the row, ns "
-                 "(bench/calibration.py; compare divides times by it)"),
+    ("calib_ns", "calibration kernel time, ns (bench/calibration.py): around this row's timed solves when "
+                 "the suite sets calibrate_each_job, else at the start of the worker process; compare "
+                 "divides times by it"),
     ("host", "host name of the worker"),
     ("worker", "worker id (pid@host serial, dask worker address with --workers/--scheduler)"),
     ("wall_s", "wall time of the whole job (warm-up + repetitions + transport), seconds"),

@@ -1,10 +1,11 @@
 """``hikbench compare BASE RUN``: timing regressions and newly failing cases.
 
 For every key (problem, solver, settings, mode) present in both runs, the
-timing samples are divided by the calibration kernel time of the host that
-measured them (bench/calibration.py; per host, the median ``calib_ns`` of its
-rows), so runs of different machines or of a loaded CI runner compare as
-ratios. A case is a **slowdown** when
+timing samples are divided by a calibration kernel time (bench/calibration.py):
+the row's own ``calib_ns`` when the suite timed the kernel around every job
+(``calibrate_each_job``, the ``ci`` suite: tracks load that comes and goes
+during the run), else the median ``calib_ns`` of the rows of the same host.
+So runs of different machines or of a loaded CI runner compare as ratios. A case is a **slowdown** when
 
 * ratio = median(new normalised samples) / median(base normalised samples)
   exceeds ``threshold`` (default 1.15), and so does the ratio of the minima
@@ -14,7 +15,10 @@ ratios. A case is a **slowdown** when
   the normalised samples gives p < ``alpha`` (default 0.01),
 
 and **newly failing** when it was verified in BASE and is not in RUN. Either
-makes ``compare`` exit 1. Keys in only one run are listed, not judged.
+makes ``compare`` exit 1. Keys in only one run are listed, not judged. Given
+several runs (``compare BASE RUN1 RUN2``), a case fails only when it fails in
+every run (``confirmed``): a neighbour's load on a shared CI runner slows one
+job once, a regression slows it every time.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ from bench.columns import KEY
 from bench.environment import read_run_json
 from bench.results import read_results
 
-__all__ = ["compare_runs", "Comparison", "normalised_samples"]
+__all__ = ["compare_runs", "Comparison", "normalised_samples", "confirmed"]
 
 
 @dataclass
@@ -59,12 +63,13 @@ def _host_calibration(df: pd.DataFrame, meta: dict) -> dict:
 
 
 def normalised_samples(df: pd.DataFrame, meta: dict) -> pd.Series:
-    """Samples (ns) divided by their host's calibration time: dimensionless."""
+    """Samples (ns) divided by a calibration time (see the module docstring): dimensionless."""
     cal = _host_calibration(df, meta)
+    per_job = bool(meta.get("suite", {}).get("calibrate_each_job"))
     out = []
-    for s, h in zip(df["samples_ns"], df["host"].fillna("")):
+    for s, h, c in zip(df["samples_ns"], df["host"].fillna(""), df["calib_ns"]):
         v = np.asarray(json.loads(s), dtype=float) if s else np.zeros(0)
-        out.append(v / cal.get(h, cal[""]))
+        out.append(v / (float(c) if per_job and pd.notna(c) else cal.get(h, cal[""])))
     return pd.Series(out, index=df.index)
 
 
@@ -111,6 +116,25 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
 def compare_runs(base_dir, new_dir, threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
     return compare_frames(read_results(base_dir), read_results(new_dir), read_run_json(base_dir),
                           read_run_json(new_dir), threshold, alpha)
+
+
+def confirmed(comparisons: list[Comparison]) -> Comparison:
+    """Several runs against one baseline: a case stays SLOWER / NEWLY FAILING
+    only when every run says so (a one-off disturbance does not reproduce);
+    otherwise it reads "not reproduced". Numbers are those of the first run."""
+    first = comparisons[0]
+    if len(comparisons) == 1:
+        return first
+    key = list(KEY)
+    verdicts = [c.table.set_index(key)["verdict"] for c in comparisons]
+    t = first.table.set_index(key)
+    for bad in ("SLOWER", "NEWLY FAILING"):
+        hit = t["verdict"] == bad
+        for v in verdicts[1:]:
+            same = v.reindex(t.index).eq(bad)
+            t.loc[hit & ~same, "verdict"] = f"{bad.lower()}, not reproduced"
+            hit = hit & same
+    return Comparison(t.reset_index(), first.only_base, first.only_new)
 
 
 def format_table(c: Comparison, show_all: bool = False) -> str:

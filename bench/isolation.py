@@ -179,7 +179,7 @@ class IsolatedWorker:
                 code = None
             self.proc = None
             return {**meta, "status": CRASHED, "x": None, "samples_ns": [], "reason": _describe_exit(code)}
-        out["calib_ns"] = meta["calib_ns"]
+        out.setdefault("calib_ns", meta["calib_ns"])
         return out
 
     def kill(self) -> None:

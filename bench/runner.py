@@ -205,7 +205,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
             items = ((i, {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
                           "hierarchy": problems[t.problem.id], "solver": t.entry.spec,
                           "options": t.entry.options, "mode": t.mode, "repeat": repeat,
-                          "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout}, timeout)
+                          "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
+                          "calibrate": suite.calibrate_each_job}, timeout)
                      for i, t in by_tag.items())
             with ResultsWriter(out) as writer:
                 for i, res in executor.map(items):

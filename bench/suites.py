@@ -9,6 +9,7 @@ path. Schema (every key optional except ``problems``)::
     warmup = 1              # discarded solves before timing
     timeout = 60.0          # seconds per job (warm-up + repetitions), hard
     first_solve_timeout = 60.0  # allowance for a solver's first solve in a worker process (JIT)
+    calibrate_each_job = false  # time the calibration kernel around every job (else once per worker)
     modes = ["cold", "warm"]
     accuracy = "default"    # verification profile, see ACCURACY
     export = ["npz"]        # problem files written to OUT/problems/ ("npz", "soth")
@@ -58,9 +59,8 @@ ACCURACY: dict[str, tuple[float, float]] = {
     "default": (1e-6, 1e-9),
     "low": (1e-3, 1e-6),
 }
-_TOP_KEYS = {"description", "repeat", "warmup", "timeout", "first_solve_timeout", "modes", "accuracy",
-             "export",
-             "solvers", "settings", "problems"}
+_TOP_KEYS = {"description", "repeat", "warmup", "timeout", "first_solve_timeout", "calibrate_each_job", "modes",
+             "accuracy", "export", "solvers", "settings", "problems"}
 _GROUP_KEYS = {"family", "params", "grid", "seeds", "solvers"}
 
 
@@ -104,6 +104,7 @@ class Suite:
     warmup: int = 1
     timeout: float = 60.0
     first_solve_timeout: float = 60.0
+    calibrate_each_job: bool = False
     modes: tuple[str, ...] = ("cold",)
     accuracy: str = "default"
     export: tuple[str, ...] = ("npz",)
@@ -136,7 +137,7 @@ class Suite:
     def to_dict(self) -> dict:
         return {"name": self.name, "source": self.source, "description": self.description,
                 "repeat": self.repeat, "warmup": self.warmup, "timeout": self.timeout,
-                "first_solve_timeout": self.first_solve_timeout,
+                "first_solve_timeout": self.first_solve_timeout, "calibrate_each_job": self.calibrate_each_job,
                 "modes": list(self.modes), "accuracy": self.accuracy, "export": list(self.export),
                 "solvers": list(self.solvers), "settings": self.settings, "problems": self.groups}
 
@@ -183,7 +184,8 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
         raise SuiteError(f"suite {name}: accuracy {acc!r}: expected one of {', '.join(ACCURACY)}")
     suite = Suite(name=name, description=data.get("description", ""), repeat=int(data.get("repeat", 5)),
                   warmup=int(data.get("warmup", 1)), timeout=float(data.get("timeout", 60.0)),
-                  first_solve_timeout=float(data.get("first_solve_timeout", 60.0)), modes=modes,
+                  first_solve_timeout=float(data.get("first_solve_timeout", 60.0)),
+                  calibrate_each_job=bool(data.get("calibrate_each_job", False)), modes=modes,
                   accuracy=acc, export=tuple(data.get("export", ["npz"])),
                   solvers=tuple(data.get("solvers", ["*"])), settings=list(data.get("settings", [])),
                   groups=groups, source=source)

@@ -1,13 +1,15 @@
-"""``hikbench compare BASE RUN [--threshold 1.15] [--alpha 0.01] [--all]``."""
+"""``hikbench compare BASE RUN [RUN ...] [--threshold 1.15] [--alpha 0.01] [--all]``."""
 
 from __future__ import annotations
 
-HELP = "compare a run with a baseline run; exit 1 on a significant slowdown or a newly failing case"
+HELP = ("compare a run (or several: a case must fail in all) with a baseline run; exit 1 on a significant "
+        "slowdown or a newly failing case")
 
 
 def add_arguments(p) -> None:
     p.add_argument("base", help="baseline run directory")
-    p.add_argument("run", help="new run directory")
+    p.add_argument("run", nargs="+", help="new run directory; with several, a case fails only if it fails "
+                                         "in every one (confirmation re-runs in CI)")
     p.add_argument("--threshold", type=float, default=1.15,
                    help="flag a case whose normalised median (and minimum) time grew by more than this "
                         "factor (default 1.15)")
@@ -17,12 +19,12 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from bench.compare import compare_runs, format_table
+    from bench.compare import compare_runs, confirmed, format_table
     from problems.errors import HikbenchError
 
     if args.threshold <= 1.0:
         raise HikbenchError(f"--threshold must be > 1; got {args.threshold}")
-    c = compare_runs(args.base, args.run, threshold=args.threshold, alpha=args.alpha)
+    c = confirmed([compare_runs(args.base, r, threshold=args.threshold, alpha=args.alpha) for r in args.run])
     print(format_table(c, show_all=args.all))
     print(f"\ncompared {len(c.table)} cases (times normalised by the calibration kernel of each host): "
           f"{len(c.slowdowns)} slower (> {args.threshold:g}x, p < {args.alpha:g}), "

@@ -85,3 +85,31 @@ def test_injected_slowdown_end_to_end(tmp_path, capsys):
     assert main(["compare", str(tmp_path / "base"), str(tmp_path / "same")]) == 0
     assert main(["compare", str(tmp_path / "base"), str(tmp_path / "slow")]) == 1
     assert "SLOWER" in capsys.readouterr().out
+
+
+def test_per_job_calibration_absorbs_transient_load():
+    """With calibrate_each_job, a case timed while the machine was 2x loaded
+    (its own calibration 2x too) is not flagged; per host it would be."""
+    rng = np.random.default_rng(5)
+    base = _frame(_samples(rng))
+    new = _frame({k: (v * 2).astype(int) for k, v in _samples(rng).items()}, calib=2_000_000)
+    new.loc[1:, "calib_ns"] = 1_000_000  # only the first case ran under load ...
+    new.loc[1:, "samples_ns"] = base.loc[1:, "samples_ns"]  # ... the others as in the baseline
+    per_job = {"suite": {"calibrate_each_job": True}}
+    assert not compare_frames(base, new, per_job, per_job).failed
+    assert len(compare_frames(base, new, {}, {}).slowdowns) == 1
+
+
+def test_a_case_must_fail_in_every_confirmation_run():
+    from bench.compare import confirmed
+
+    rng = np.random.default_rng(6)
+    base = _frame(_samples(rng))
+    once = {k: (v * (2.0 if k[0] == "p0" else 1.0)).astype(int) for k, v in _samples(rng).items()}
+    always = {k: (v * 2.0).astype(int) for k, v in _samples(rng).items()}
+    a = compare_frames(base, _frame(once), {}, {})
+    b = compare_frames(base, _frame(always), {}, {})
+    assert len(a.slowdowns) == 1 and len(b.slowdowns) == 20
+    both = confirmed([a, b])
+    assert len(both.slowdowns) == 1 and both.table.iloc[0]["verdict"] == "SLOWER"
+    assert confirmed([b, a]).table["verdict"].str.contains("not reproduced").sum() == 19
