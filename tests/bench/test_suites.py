@@ -40,7 +40,7 @@ def test_generation_is_deterministic():
 
 
 def test_expand_modes_settings_and_skips(tmp_path):
-    path = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), "cascade-*", "no-such-solver"],
+    path = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), "nomatch-*", "no-such-solver"],
                        grid={"n": [4]})
     path.write_text(path.read_text() + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.1 }\n')
     tasks, skipped = expand(load_suite(str(path)))
@@ -48,7 +48,7 @@ def test_expand_modes_settings_and_skips(tmp_path):
     assert got == [("reference", "default", "cold"),  # no warm start: no warm row
                    ("sleep", "default", "cold"), ("sleep", "default", "warm"),
                    ("sleep", "slow", "cold"), ("sleep", "slow", "warm")]
-    assert set(skipped) == {"cascade-*", "no-such-solver"}
+    assert set(skipped) == {"nomatch-*", "no-such-solver"}
     tasks, _ = expand(load_suite(str(path)), solver_patterns=["reference"])
     assert {t.entry.solver for t in tasks} == {"reference"}
 
