@@ -47,3 +47,16 @@ def test_dask_workers_give_the_same_rows_as_serial(tmp_path):
     b = b_full[cols].sort_values(list(KEY)).reset_index(drop=True)
     assert a.equals(b)
     assert b_full["worker"].str.startswith("tcp://").all()
+
+
+def test_existing_scheduler(tmp_path):
+    from distributed import LocalCluster
+
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], grid={"n": [4], "depth": [1]},
+                        modes=("cold",))
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "o"),
+                     "--scheduler", cluster.scheduler_address]) == 0
+        workers = set(cluster.scheduler_info["workers"])
+    df = read_results(tmp_path / "o")
+    assert len(df) == 1 and df["verified"].all() and set(df["worker"]) <= workers
