@@ -2,6 +2,8 @@
 
 from pathlib import Path
 
+import pandas as pd
+
 from doubles import spec, write_suite
 
 from bench.cli import main
@@ -60,3 +62,15 @@ def test_existing_scheduler(tmp_path):
         workers = set(cluster.scheduler_info["workers"])
     df = read_results(tmp_path / "o")
     assert len(df) == 1 and df["verified"].all() and set(df["worker"]) <= workers
+
+
+def test_external_reads_soth_text(tmp_path):
+    import sys
+    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [5], "depth": [2]}, repeat=1,
+                        modes=("cold",))
+    prog = Path(__file__).with_name("soth_external.py")
+    ext = f"external:soth={sys.executable} {prog} {{problem_soth}} {{out}}"
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "o"), "--solvers", ext]) == 0
+    row = read_results(tmp_path / "o").iloc[0]
+    assert row["status"] == "optimal" and row["verified"]
+    assert pd.isna(row["solve_time_s"])  # not reported: the samples are process wall times
