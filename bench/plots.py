@@ -94,9 +94,10 @@ def _finish(fig, ax, path: Path, title: str) -> Path:
     return path
 
 
-def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "cold") -> tuple[Path | None,
-                                                                                               dict]:
-    """Median time vs ``var`` per solver, log-log, fitted slopes in the legend."""
+def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "cold",
+               vline: tuple[float, str] | None = None) -> tuple[Path | None, dict]:
+    """Median time vs ``var`` per solver, log-log, fitted slopes in the legend;
+    ``vline = (x, label)`` marks e.g. the depth where the DOF are saturated."""
     g = g[(g["mode"] == mode) & g["verified"].eq(True) & g["time_median_s"].notna()]
     if g.empty:
         return None, {}
@@ -116,6 +117,8 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
     _readable_log_ticks(ax)
     ax.set_xlabel({"n": "DOF n (number of variables)", "depth": "number of levels (depth)"}.get(var, var))
     ax.set_ylabel(f"median solve time ({mode}) [us]")
+    if vline is not None:
+        ax.axvline(vline[0], color="0.4", linestyle=":", linewidth=1.2, label=vline[1])
     _legend(ax)
     return _finish(fig, ax, path, title), slopes
 

@@ -144,9 +144,13 @@ def write_report(run_dir) -> Path:
     for var, what in (("n", "DOF"), ("depth", "depth")):
         for i, (family, fixed, g) in enumerate(plots.sweeps(df, var)):
             name = f"time_vs_{'dof' if var == 'n' else 'depth'}_{family}_{i}.png".replace(":", "_")
+            fx = json.loads(fixed)
+            sat = None
+            if var == "depth" and {"n", "rows"} <= set(fx):
+                sat = (fx["n"] / fx["rows"], f"DOF saturated (depth = n / rows = {fx['n'] / fx['rows']:g})")
             p, slopes = plots.plot_sweep(g, var, plot_dir / name,
                                          f"{family}: time vs {what} "
-                                         f"({fixed.strip('{}') or 'defaults'}), cold")
+                                         f"({fixed.strip('{}') or 'defaults'}), cold", vline=sat)
             if p:
                 figures.append((f"Time vs {what}: {family} {fixed}", p))
                 L += _table(f"Log-log slope of time vs {what}: {family} {fixed}", ["solver", "slope",
