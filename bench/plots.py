@@ -188,6 +188,7 @@ def plot_accuracy(df: pd.DataFrame, path: Path) -> Path | None:
             ax.plot(ks, [max(np.median(per_level[k]), 1e-17) for k in ks], label=solver, **_style(i))
     ax.set_yscale("log")
     ax.set_xlabel("level k (0 = highest priority)")
+    ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax.set_ylabel("median | ||v_k(x)|| - ||v_k(x_ref)|| |  [units of the task]")
     _legend(ax)
     return _finish(fig, ax, path, "Per-level accuracy against the reference (floored at 1e-17)")

@@ -140,6 +140,12 @@ def write_report(run_dir) -> Path:
                   (r.verdict_side if isinstance(r.verdict_side, str) else ""),
                   str(r.reason)[:80].replace("|", "/")] for r in bad.head(40).itertuples()])
 
+    from bench.claims import check_claims
+
+    L += _table("Claims of the ICRA 2010 paper (hikbench claims; MISSING = no data in this run)",
+                ["claim", "result", "measured", "paper"],
+                [[c.name, c.status, c.measured, c.paper] for c in check_claims(run_dir)])
+
     figures = []
     for var, what in (("n", "DOF"), ("depth", "depth")):
         for i, (family, fixed, g) in enumerate(plots.sweeps(df, var)):
