@@ -199,7 +199,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     session["executor"] = getattr(executor, "name", type(executor).__name__)
     try:
         with _Progress(quiet) as progress:
-            refs = _references(todo, problems, out, executor, timeout, progress)
+            refs = _references(todo, problems, out, executor, max(timeout, suite.first_solve_timeout), progress)
             tid = progress.add("solves", len(todo))
             by_tag = {i: t for i, t in enumerate(todo)}
             items = ((i, {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
@@ -248,7 +248,9 @@ def _export_formats(formats) -> tuple[tuple, dict]:
 
 def _references(todo, problems, out: Path, executor, timeout, progress) -> dict:
     """x_ref, status, reason per problem id, from OUT/reference/ or computed
-    through the executor (isolated, with the timeout)."""
+    through the executor (isolated; ``timeout`` is the larger of the job
+    timeout and the first-solve allowance: the reference is trusted code and
+    its first call imports its QP backends)."""
     refs, need = {}, []
     for pid in dict.fromkeys(t.problem.id for t in todo):
         path = out / "reference" / (file_stem(pid) + ".npz")
