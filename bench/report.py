@@ -126,6 +126,17 @@ def write_report(run_dir) -> Path:
                   *[("-" if not np.isfinite(v) else f"{100 * v:.0f}%") for v in fam.loc[i]]]
                  for i in fam.index])
 
+    for mode in ("cold", "warm"):
+        d = df[(df["mode"] == mode) & df["verified"].eq(True)]
+        if d.empty:
+            continue
+        grp = d["problem"].str.replace(r"/seed=\d+$", "", regex=True)
+        med = d.assign(group=grp).pivot_table(index="group", columns="label", values="time_median_s",
+                                              aggfunc="median")
+        L += _table(f"Median {mode} time per problem over its seeds [us] (verified rows; the speed table)",
+                    ["problem", *med.columns],
+                    [[g, *[_us(v) for v in med.loc[g]]] for g in med.index])
+
     st = df.pivot_table(index="label", columns="status", values="problem", aggfunc="count", fill_value=0)
     L += _table("Statuses per solver", ["solver", *st.columns], [[i, *st.loc[i].tolist()] for i in st.index])
 
