@@ -158,7 +158,26 @@ def load_suite(name_or_path: str) -> Suite:
         data = tomllib.loads(p.read_text())
     except tomllib.TOMLDecodeError as err:
         raise SuiteError(f"{p}: invalid TOML ({err})") from err
+    _resolve_paths(data, p.parent)
     return suite_from_dict(data, name=p.stem, source=str(p))
+
+
+def _resolve_paths(data: dict, base: Path) -> None:
+    """``file.py:attr`` families and solvers given relative to the suite file
+    are found next to it (when the file exists there)."""
+    def fix(spec):
+        if not isinstance(spec, str) or spec.startswith("external:"):
+            return spec
+        mod, sep, attr = spec.rpartition(":")
+        if sep and mod.endswith(".py") and not Path(mod).is_absolute() and (base / mod).exists():
+            return f"{(base / mod).resolve()}:{attr}"
+        return spec
+
+    data["solvers"] = [fix(s) for s in data.get("solvers", ["*"])]
+    for g in data.get("problems", []):
+        g["family"] = fix(g.get("family"))
+        if "solvers" in g:
+            g["solvers"] = [fix(s) for s in g["solvers"]]
 
 
 def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:

@@ -70,3 +70,16 @@ def test_unknown_family_names_the_known_ones():
     from problems.errors import UnknownFamilyError
     with pytest.raises(UnknownFamilyError, match="equality"):
         generate(ProblemSpec("nope", {}, 0))
+
+
+def test_relative_py_paths_resolve_next_to_the_suite(tmp_path):
+    import shutil
+    from pathlib import Path
+
+    shutil.copy(Path(__file__).with_name("doubles.py"), tmp_path / "mydoubles.py")
+    (tmp_path / "s.toml").write_text('solvers = ["mydoubles.py:SleepSolver"]\n'
+                                     '[[problems]]\nfamily = "mydoubles.py:tiny"\ngrid = { n = [4] }\n')
+    tasks, skipped = expand(load_suite(str(tmp_path / "s.toml")))
+    assert not skipped and [t.entry.solver for t in tasks] == ["sleep"]
+    assert tasks[0].problem.id == "mydoubles.py:tiny/n=4/seed=0"
+    assert generate(tasks[0].problem).n == 4
