@@ -105,3 +105,19 @@ class FirstSlowSolver(SleepSolver):
             time.sleep(1.0)
             FirstSlowSolver._compiled = True
         return super().solve(hierarchy)
+
+
+class Sleep2ms(SleepSolver):
+    """``sleeper``: 2 ms per solve (the baseline of the compare tests)."""
+
+    name = "sleeper"
+
+    def __init__(self, delay: float = 0.002):
+        super().__init__(delay)
+
+
+class Sleep4ms(Sleep2ms):
+    """``sleeper`` again, 4 ms per solve: an injected 2x slowdown."""
+
+    def __init__(self, delay: float = 0.004):
+        super().__init__(delay)
