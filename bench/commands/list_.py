@@ -11,6 +11,7 @@ HELP = "list solvers, problem families, suites or robots"
 # what -> "module:function" returning rows of (name, description)
 PROVIDERS: dict[str, str] = {
     "solvers": "bench.commands.list_:_solvers",
+    "robots": "problems.robots.models:robot_rows",
 }
 
 
