@@ -18,6 +18,7 @@ from problems.errors import HikbenchError
 COMMANDS: dict[str, str] = {
     "solve": "solve",
     "list": "list_",
+    "scenario": "scenario",
 }
 
 

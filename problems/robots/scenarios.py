@@ -29,6 +29,8 @@ TOML format (``problems/robots/scenarios/*.toml``)::
     limits = true                # joint limits never violated
     regulated = ["com"]          # errors decay exponentially and stay regulated
     reach = { task = "right_hand", out_of_reach_until = 1.2 }
+    [plot]
+    joints = ["torso_1_joint"]   # joints of Fig. 3 (default: the 12 that move most)
 """
 
 from __future__ import annotations
@@ -51,7 +53,7 @@ __all__ = ["ScenarioError", "Scenario", "SCENARIO_DIR", "scenario_names", "load_
 
 SCENARIO_DIR = Path(__file__).parent / "scenarios"
 _TOP_KEYS = {"name", "description", "stack", "robot", "steps", "dt", "initial", "events", "trajectories",
-             "checks"}
+             "checks", "plot"}
 
 
 class ScenarioError(HikbenchError, ValueError):
@@ -137,6 +139,7 @@ class Scenario:
     q_init: np.ndarray
     checks: dict = field(default_factory=dict)
     description: str = ""
+    plot_joints: list[str] | None = None
     _schedule: dict = field(default_factory=dict)
     _nominal: dict = field(default_factory=dict)
 
@@ -178,7 +181,8 @@ class Scenario:
             inset = 0.02 * (stack.robot.upper - stack.robot.lower)  # start strictly inside the limits
             q[qb] = np.clip(q[qb], stack.robot.lower + inset, stack.robot.upper - inset)
         sc = cls(name=str(d["name"]), stack=stack, steps=steps, q_init=q, checks=dict(d.get("checks", {})),
-                 description=str(d.get("description", "")))
+                 description=str(d.get("description", "")),
+                 plot_joints=d.get("plot", {}).get("joints"))
         sc._nominal = {t.name: _copy_target(t.target) for t in stack.tasks if hasattr(t, "target")}
         for kind in ("events", "trajectories"):
             for k, item in enumerate(d.get(kind, [])):
