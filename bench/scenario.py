@@ -156,12 +156,17 @@ def check_run(run: ScenarioRun) -> list[Check]:
         e = df[f"err_{name}"].to_numpy()
         worst = int(np.argmax(e))
         k = min(50, len(e) - 1)
-        rate = (e[k] / e[0]) ** (1.0 / k) if k > 0 and e[0] > 0 and e[k] > 0 else float("nan")
+        rate = (e[k] / e[0]) ** (1.0 / k) if k > 0 and e[0] > 1e-9 and e[k] > 0 else float("nan")
         ok = bool(np.all(e <= e[0] + REGULATED_ATOL) and e[-1] <= REGULATED_FINAL)
         out.append(Check(f"{name} regulated", ok,
                          f"e0 {e[0]:.2e}, max {e[worst]:.2e} at step {worst}, final {e[-1]:.2e} "
                          f"(tol {REGULATED_FINAL}); decay per step {rate:.4f} vs commanded "
                          f"{1 - task.gain * run.scenario.dt:.4f}"))
+    for name, tol in spec.get("tracked", {}).items():
+        e = df[f"err_{name}"].to_numpy()
+        worst = int(np.argmax(e))
+        out.append(Check(f"{name} tracked", bool(e[worst] <= tol),
+                         f"max error {e[worst]:.2e} at step {worst} (tol {tol}); final {e[-1]:.2e}"))
     reach = spec.get("reach")
     if reach:
         e = df[f"err_{reach['task']}"].to_numpy()

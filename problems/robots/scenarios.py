@@ -29,6 +29,7 @@ TOML format (``problems/robots/scenarios/*.toml``)::
     limits = true                # joint limits never violated
     regulated = ["com"]          # errors decay exponentially and stay regulated
     reach = { task = "right_hand", out_of_reach_until = 1.2 }
+    tracked = { right_foot = 0.005 }   # max error along a trajectory
     [plot]
     joints = ["torso_1_joint"]   # joints of Fig. 3 (default: the 12 that move most)
 """
