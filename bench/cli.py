@@ -2,8 +2,9 @@
 
 One module per sub-command in ``bench/commands/``; each defines ``HELP``,
 ``add_arguments(parser)`` and ``run(args) -> int``. User mistakes
-(:class:`~problems.errors.HikbenchError`) print one line on stderr and exit 2;
-anything else is a bug and keeps its traceback.
+(:class:`~problems.errors.HikbenchError`, and command lines argparse rejects)
+print one line on stderr and exit 2; ``--help`` exits 0; anything else is a
+bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -17,13 +18,28 @@ from problems.errors import HikbenchError
 # sub-command name -> module in bench.commands
 COMMANDS: dict[str, str] = {
     "solve": "solve",
+    "generate": "generate",
+    "inspect": "inspect_",
+    "export": "export",
     "list": "list_",
     "scenario": "scenario",
 }
 
 
+class UsageError(HikbenchError):
+    """A command line argparse rejects (unknown option, missing argument)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse that raises UsageError instead of printing usage and exiting,
+    so that main() reports it like any user error: one line, exit code 2."""
+
+    def error(self, message: str):
+        raise UsageError(f"{message} (see `{self.prog} --help`)")
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog="hikbench", description="Benchmark of hierarchized (prioritized) inverse kinematics solvers.")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, modname in COMMANDS.items():
@@ -37,15 +53,25 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code (0 ok, 1 a check failed, 2 user error)."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    try:
+        args = parser.parse_args(argv)
+    except UsageError as err:
+        print(f"hikbench: error: {_one_line(err)}", file=sys.stderr)
+        return 2
+    except SystemExit as stop:  # --help / --version print and stop
+        return stop.code if isinstance(stop.code, int) else 0
     try:
         return int(args._run(args) or 0)
     except HikbenchError as err:
-        print(f"hikbench {args.command}: error: {err}", file=sys.stderr)
+        print(f"hikbench {args.command}: error: {_one_line(err)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"hikbench {args.command}: interrupted", file=sys.stderr)
         return 130
+
+
+def _one_line(err: Exception) -> str:
+    return " ".join(str(err).splitlines())
 
 
 if __name__ == "__main__":  # pragma: no cover

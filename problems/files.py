@@ -11,7 +11,7 @@ import zipfile
 
 import numpy as np
 
-from problems.errors import ProblemFileError
+from problems.errors import InvalidHierarchyError, ProblemFileError
 from problems.hierarchy import Hierarchy
 
 __all__ = ["save_npz", "load_npz", "load", "save"]
@@ -25,8 +25,11 @@ def save_npz(h: Hierarchy, path: str | os.PathLike) -> None:
                   names=np.array(h.names, dtype=str))
     if h.x0 is not None:
         arrays["x0"] = h.x0
-    with open(path, "wb") as f:  # np.savez would append .npz to a str path without it
-        np.savez(f, **arrays)
+    try:
+        with open(path, "wb") as f:  # np.savez would append .npz to a str path without it
+            np.savez(f, **arrays)
+    except OSError as err:
+        raise ProblemFileError(f"{os.fspath(path)}: cannot write ({err.strerror or err})") from err
 
 
 def load_npz(path: str | os.PathLike) -> Hierarchy:
@@ -39,20 +42,23 @@ def load_npz(path: str | os.PathLike) -> Hierarchy:
             if missing:
                 raise ProblemFileError(f"{path}: missing array(s) {missing}; expected {list(_REQUIRED)}")
             data = {k: z[k] for k in z.files}
-    except (OSError, ValueError, zipfile.BadZipFile) as err:
+    except (OSError, EOFError, ValueError, zipfile.BadZipFile) as err:  # EOFError: an empty file
         raise ProblemFileError(f"{path}: cannot read as .npz problem file ({err})") from err
     names = [str(s) for s in data["names"]] if "names" in data else None
-    if np.ndim(data["n"]) != 0:
-        raise ProblemFileError(f"{path}: n must be a scalar; got shape {np.shape(data['n'])}")
-    return Hierarchy(data["A"], data["lower"], data["upper"], data["level"], n=int(data["n"]),
-                     names=names, x0=data.get("x0"))
+    if np.ndim(data["n"]) != 0 or data["n"].dtype.kind not in "iu":
+        raise ProblemFileError(f"{path}: n must be a scalar integer; got {data['n']!r}")
+    try:
+        return Hierarchy(data["A"], data["lower"], data["upper"], data["level"], n=int(data["n"]),
+                         names=names, x0=data.get("x0"))
+    except InvalidHierarchyError as err:  # say which file
+        raise InvalidHierarchyError(f"{path}: {err}", level=err.level, row=err.row) from err
 
 
 def load(path: str | os.PathLike) -> Hierarchy:
     """Load a problem by extension: ``.npz`` or SOTH text (``.txt``/``.soth``)."""
     p = os.fspath(path)
-    if not os.path.exists(p):
-        raise ProblemFileError(f"{p}: no such file")
+    if not os.path.isfile(p):
+        raise ProblemFileError(f"{p}: no such file" if not os.path.exists(p) else f"{p}: not a file")
     if p.endswith(".npz"):
         return load_npz(p)
     from problems.soth import load_soth  # SOTH text format

@@ -117,7 +117,9 @@ class Hierarchy:
             if arr.shape != (m,):
                 raise InvalidHierarchyError(
                     f"{label} has shape {arr.shape} but A has {m} rows: expected {label} of shape ({m},)")
-        if m and not np.issubdtype(level_arr.dtype, np.integer):
+        if level_arr.dtype.kind not in "iub" and not (level_arr.dtype.kind == "f" or m == 0):
+            raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
+        if m and level_arr.dtype.kind == "f":
             if not np.all(np.isfinite(level_arr)) or np.any(level_arr != np.round(level_arr)):
                 raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
         level_arr = level_arr.astype(np.int64)
@@ -126,6 +128,8 @@ class Hierarchy:
         if depth is None:
             depth = len(names) if names is not None else (int(level_arr.max()) + 1 if m else 0)
         depth = _as_int(depth, "depth")
+        if depth < 0:
+            raise InvalidHierarchyError(f"depth must be >= 0; got {depth}")
         if names is None:
             names = tuple(f"level {k}" for k in range(depth))
         if len(names) != depth:
@@ -150,15 +154,27 @@ class Hierarchy:
             if not np.all(np.isfinite(x0)):
                 raise InvalidHierarchyError("x0 holds NaN or inf: expected finite values")
             x0 = _frozen(x0)
-        self.A = _frozen(A)
-        self.lower = _frozen(lower)
-        self.upper = _frozen(upper)
-        self.level = _frozen(level_arr)
-        self.n = n
-        self.depth = depth
-        self.names = names
-        self.x0 = x0
+        init = object.__setattr__  # __setattr__ below refuses any later assignment
+        init(self, "A", _frozen(A))
+        init(self, "lower", _frozen(lower))
+        init(self, "upper", _frozen(upper))
+        init(self, "level", _frozen(level_arr))
+        init(self, "n", n)
+        init(self, "depth", depth)
+        init(self, "names", names)
+        init(self, "x0", x0)
         self.__dict__["starts"] = _frozen(starts)
+
+    def __setattr__(self, name, value):
+        raise AttributeError(f"Hierarchy is immutable: cannot set {name!r}; build a new one "
+                             "(e.g. with_bounds())")
+
+    def __delattr__(self, name):
+        raise AttributeError(f"Hierarchy is immutable: cannot delete {name!r}")
+
+    def __reduce__(self):  # pickling (process pools) rebuilds through __init__
+        return (Hierarchy, (self.A, self.lower, self.upper, self.level, self.n, self.depth, self.names,
+                            self.x0))
 
     # -- construction helpers -------------------------------------------------
     @classmethod
@@ -215,7 +231,8 @@ class Hierarchy:
             i = int(np.argmax(bad))
             loc, k, r = where(i)
             raise InvalidHierarchyError(
-                f"{loc}: lower ({lower[i]!r}) > upper ({upper[i]!r}): expected lower <= upper", level=k, row=r)
+                f"{loc}: lower ({float(lower[i])!r}) > upper ({float(upper[i])!r}): expected lower <= upper",
+                level=k, row=r)
 
     # -- views -----------------------------------------------------------------
     @property

@@ -50,9 +50,7 @@ def level_norms(h: Hierarchy, x) -> np.ndarray:
     """``(||v_0(x)||_2, ..., ||v_{N-1}(x)||_2)``, shape (depth,); 0 for an
     empty level."""
     v = violation(h, x)
-    sq = np.add.reduceat(v * v, h.starts[:-1]) if h.rows else np.zeros(h.depth)
-    sq = np.where(np.diff(h.starts) > 0, sq, 0.0)  # reduceat repeats a row on empty segments
-    return np.sqrt(sq)
+    return np.sqrt(np.bincount(h.level, weights=v * v, minlength=h.depth))
 
 
 def level_scales(h: Hierarchy, x=None) -> np.ndarray:

@@ -39,7 +39,7 @@ __all__ = ["nullspace_reference", "cascade_reference", "reference_solution", "Re
 
 RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
 _ACTIVE_RTOL = 1e-7  #: a constraint within this (relative) distance of its bound is read as active
-_FEAS_RTOL = 1e-11  #: feasibility slack allowed to a polished point (relative)
+_FEAS_RTOL = 1e-11  #: feasibility slack allowed to a polished point (relative, per row)
 
 
 class ReferenceError(HikbenchError):
@@ -73,12 +73,11 @@ def nullspace_reference(h: Hierarchy) -> np.ndarray:
     return x
 
 
-def _constrained_lstsq(C: np.ndarray, d: np.ndarray, G: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """min-norm argmin ||G x - t|| s.t. C x = d (least squares on C if
-    inconsistent), by the SVD null-space method."""
-    n = C.shape[1] if C.size else G.shape[1]
-    x = np.zeros(n)
-    Z = np.eye(n)
+def _constrained_lstsq(x0: np.ndarray, C: np.ndarray, d: np.ndarray, G: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """argmin ||G x - t|| s.t. C x = d (least squares on C if inconsistent)
+    closest to x0, by the SVD null-space method started at x0."""
+    x = np.array(x0, dtype=float)
+    Z = np.eye(x.size)
     x, Z = _null_update(x, Z, C, d)
     x, Z = _null_update(x, Z, G, t)
     return x
@@ -116,21 +115,48 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
     G = np.vstack(G_parts)
     hv = np.concatenate(h_parts)
     Aeq, beq = Afull[eq], lo[eq]
-    problem = qpsolvers.Problem(P, np.zeros(nz), G if G.size else None, hv if hv.size else None,
-                                Aeq if Aeq.size else None, beq if beq.size else None)
-    sol = qpsolvers.solve_problem(problem, solver="clarabel", tol_gap_abs=1e-11, tol_gap_rel=1e-11,
-                                  tol_feas=1e-11, tol_ktratio=1e-9, max_iter=500, verbose=False)
-    if sol.x is None or not np.all(np.isfinite(sol.x)):
-        raise ReferenceError("Clarabel found no solution")
-    return sol.x[:n]
+    problem = qpsolvers.Problem(P, np.zeros(nz), _csc(G), hv if hv.size else None,
+                                _csc(Aeq), beq if beq.size else None)
+    problem.P = _csc(P)
+    tried = []
+    for backend, options in _QP_BACKENDS:
+        sol = qpsolvers.solve_problem(problem, solver=backend, **options)
+        status = sol.extras.get("status") if isinstance(sol.extras, dict) else None
+        if sol.found and sol.x is not None and np.all(np.isfinite(sol.x)):
+            return sol.x[:n], backend
+        tried.append(f"{backend}: {status}")
+    raise ReferenceError("no QP backend solved the level (" + "; ".join(tried) + ")")
 
 
-def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, scale, final: bool):
-    """Read the active set off x_qp and solve the equality problem on it exactly.
+def _csc(M: np.ndarray):
+    from scipy import sparse
+    return sparse.csc_matrix(M) if M.size else None
+
+
+# Tried in order: Clarabel (interior point) at tight tolerances; PIQP
+# (proximal interior point) when Clarabel stalls, as it does on rows whose
+# norms spread over 1e8. The backend used is recorded per stage.
+_QP_BACKENDS = (
+    ("clarabel", dict(tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10, tol_ktratio=1e-8,
+                      max_iter=500, verbose=False)),
+    ("piqp", dict(eps_abs=1e-10, eps_rel=1e-10, verbose=False)),
+)
+
+
+def _row_scale(A: np.ndarray, lo: np.ndarray, up: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Per-row size of the terms of ``A_i x - bound_i``, shape (rows,)."""
+    b = np.maximum(np.where(np.isfinite(lo), np.abs(lo), 0.0), np.where(np.isfinite(up), np.abs(up), 0.0))
+    return np.linalg.norm(A, axis=1) * (1.0 + np.linalg.norm(x)) + b + 1e-300
+
+
+def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
+    """Read the active set off x_qp and solve the equality problem on it
+    exactly, by the smallest correction of x_qp (so that constraints inactive
+    at x_qp stay satisfied).
 
     Returns the polished x if it is feasible and no worse than x_qp, else x_qp,
     and whether polishing was kept."""
-    delta = _ACTIVE_RTOL * scale
+    delta = _ACTIVE_RTOL * _row_scale(A_hi, lo_hi, up_hi, x_qp)
     r_hi = A_hi @ x_qp
     eq_hi = lo_hi == up_hi
     at_up = ~eq_hi & np.isfinite(up_hi) & (np.abs(r_hi - up_hi) <= delta)
@@ -141,6 +167,7 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, scale, final: bool):
         G, t = np.eye(A_hi.shape[1]), np.zeros(A_hi.shape[1])
     else:
         r_k = A_k @ x_qp
+        delta = _ACTIVE_RTOL * _row_scale(A_k, lo_k, up_k, x_qp)
         above = r_k > up_k + delta
         below = r_k < lo_k - delta
         eq_k = lo_k == up_k
@@ -153,18 +180,37 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, scale, final: bool):
         C = np.vstack([C, A_k[tight_u], A_k[tight_l]])
         d = np.concatenate([d, up_k[tight_u], lo_k[tight_l]])
         G, t = A_k[soft], target[soft]
-    x = _constrained_lstsq(C, d, G, t)
-    feas = _FEAS_RTOL * scale
-    r = A_hi @ x
-    feasible = bool(np.all(r <= up_hi + feas) and np.all(r >= lo_hi - feas))
-
     def cost(z):
         if final:
             return float(z @ z)
         w = _signed_slack(A_k @ z, lo_k, up_k)
         return float(w @ w)
 
-    if feasible and cost(x) <= cost(x_qp) * (1 + 1e-9) + (feas * feas):
+    # Primal active-set refinement (activations only): go from the feasible
+    # point toward the exact point of the current active set, stop at the
+    # first blocking constraint, activate it, repeat.
+    x_cur = x_qp
+    for _ in range(A_hi.shape[0] + 1):
+        x = _constrained_lstsq(x_cur, C, d, G, t)
+        feas = _FEAS_RTOL * _row_scale(A_hi, lo_hi, up_hi, x)
+        r = A_hi @ x
+        if np.all(r <= up_hi + feas) and np.all(r >= lo_hi - feas):
+            break
+        r0 = A_hi @ x_cur
+        dr = r - r0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tau_u = np.where(dr > 0, (up_hi - r0) / dr, np.inf)
+            tau_l = np.where(dr < 0, (lo_hi - r0) / dr, np.inf)
+        tau = np.minimum(tau_u, tau_l)
+        j = int(np.argmin(tau))
+        step = float(np.clip(tau[j], 0.0, 1.0))
+        x_cur = x_cur + step * (x - x_cur)
+        C = np.vstack([C, A_hi[j:j + 1]])
+        d = np.append(d, up_hi[j] if tau_u[j] <= tau_l[j] else lo_hi[j])
+    else:
+        return x_qp, False
+    c_tol = 0.0 if final else float(np.sum((_FEAS_RTOL * _row_scale(A_k, lo_k, up_k, x)) ** 2))
+    if cost(x) <= cost(x_qp) * (1 + 1e-9) + c_tol:
         return x, True
     return x_qp, False
 
@@ -172,41 +218,43 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, scale, final: bool):
 def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
     """Minimum-norm lexicographic solution of any hierarchy.
 
-    Returns x, shape (n,), and an info dict with ``polished`` (one bool per
-    stage: levels then the final minimum-norm stage) and ``slack`` (the signed
-    optimal slack w_k* of each level)."""
+    Returns x, shape (n,), and an info dict with, per stage (levels then the
+    final minimum-norm stage), ``polished`` (bool: the exact active-set point
+    was kept) and ``backend`` (the QP backend that solved it), and ``slack``
+    (the signed optimal slack w_k* of each level). Raises ReferenceError when
+    no backend solves a stage."""
     n = h.n
     A_hi = np.zeros((0, n))
     lo_hi = np.zeros(0)
     up_hi = np.zeros(0)
     x = np.zeros(n)
-    polished, slacks = [], []
+    polished, slacks, backends = [], [], []
     for k in range(h.depth):
         s = h.level_rows(k)
         A_k, lo_k, up_k = h.A[s], h.lower[s], h.upper[s]
         if A_k.shape[0] == 0:
             slacks.append(np.zeros(0))
             polished.append(True)
+            backends.append("none")
             continue
-        scale = max(1.0, float(np.linalg.norm(A_k, 2)) * (1 + np.linalg.norm(x)),
-                    float(np.abs(np.concatenate([lo_k, up_k])[np.isfinite(np.concatenate([lo_k, up_k]))]).max(initial=0)))
-        x_qp = _qp_level(n, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final=False)
-        x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, scale, final=False)
+        x_qp, backend = _qp_level(n, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final=False)
+        backends.append(backend)
+        x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final=False)
         polished.append(ok)
         w = _signed_slack(A_k @ x, lo_k, up_k)
-        w[np.abs(w) <= 1e-13 * scale] = 0.0
+        w[np.abs(w) <= 1e-13 * _row_scale(A_k, lo_k, up_k, x)] = 0.0
         slacks.append(w)
         A_hi = np.vstack([A_hi, A_k])
         lo_hi = np.concatenate([lo_hi, np.where(np.isfinite(lo_k), lo_k + w, lo_k)])
         up_hi = np.concatenate([up_hi, np.where(np.isfinite(up_k), up_k + w, up_k)])
         # an equality row stays an equality at its achieved value
     if A_hi.shape[0]:
-        scale = max(1.0, float(np.linalg.norm(A_hi, 2)) * (1 + np.linalg.norm(x)))
         empty = np.zeros((0, n))
-        x_qp = _qp_level(n, A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), final=True)
-        x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), scale, final=True)
+        x_qp, backend = _qp_level(n, A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), final=True)
+        backends.append(backend)
+        x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), final=True)
         polished.append(ok)
-    return x, {"polished": polished, "slack": slacks}
+    return x, {"polished": polished, "slack": slacks, "backend": backends}
 
 
 def reference_solution(h: Hierarchy) -> np.ndarray:

@@ -14,6 +14,7 @@ Importing this module imports no solver (nothing compiles at import time).
 from __future__ import annotations
 
 import importlib
+import inspect
 from dataclasses import dataclass, field
 from importlib import metadata
 from typing import Callable
@@ -21,7 +22,7 @@ from typing import Callable
 from problems.errors import SolverNotFoundError, SolverOptionError
 from solvers.base import Solver
 
-__all__ = ["SolverInfo", "available", "get", "create", "missing"]
+__all__ = ["SolverInfo", "available", "get", "create", "missing", "option_names"]
 
 _BUILTIN_MODULES: tuple[str, ...] = (
     "solvers.reference",
@@ -122,11 +123,34 @@ def get(name: str) -> SolverInfo:
     raise SolverNotFoundError(f"unknown solver {name!r} (found solvers: {found})")
 
 
+def option_names(info: SolverInfo) -> tuple[str, ...] | None:
+    """Keyword options accepted by ``info.factory`` (from its signature), or
+    None when it takes ``**kwargs`` (then the factory validates them itself)."""
+    try:
+        sig = inspect.signature(info.factory)
+    except (TypeError, ValueError):  # a builtin without a signature: cannot tell
+        return None
+    params = sig.parameters.values()
+    if any(p.kind is p.VAR_KEYWORD for p in params):
+        return None
+    return tuple(p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY))
+
+
 def create(name: str, **options) -> Solver:
-    """Build a fresh solver object; unknown options raise SolverOptionError."""
+    """Build a fresh solver object.
+
+    Option names are checked against the factory's signature (unless it takes
+    ``**kwargs``): an unknown one raises SolverOptionError naming it and the
+    allowed ones. Errors raised by the factory itself propagate unchanged (a
+    wrong option *value* should raise SolverOptionError there)."""
     info = get(name)
     opts = {**info.options, **options}
-    try:
-        return info.factory(**opts)
-    except TypeError as err:
-        raise SolverOptionError(f"solver {name!r}: bad options {options} ({err})") from err
+    allowed = option_names(info)
+    if allowed is not None:
+        unknown = [k for k in opts if k not in allowed]
+        if unknown:
+            listed = ", ".join(allowed) if allowed else "none"
+            raise SolverOptionError(
+                f"solver {name!r}: unknown option(s) {', '.join(map(repr, unknown))}; "
+                f"allowed options: {listed}")
+    return info.factory(**opts)

@@ -11,6 +11,7 @@ HELP = "list solvers, problem families, suites or robots"
 # what -> "module:function" returning rows of (name, description)
 PROVIDERS: dict[str, str] = {
     "solvers": "bench.commands.list_:_solvers",
+    "families": "bench.commands.list_:_families",
     "robots": "problems.robots.models:robot_rows",
 }
 
@@ -30,6 +31,16 @@ def _solvers():
         rows.append((name, info.description + (f" [{caps}]" if caps else "")))
     for name, hint in registry.missing().items():
         rows.append((name, f"(not installed) {hint}"))
+    return rows
+
+
+def _families():
+    from problems.generators import FAMILIES
+
+    rows = []
+    for name, fam in FAMILIES.items():
+        params = " ".join(f"{k}={v!r}" for k, v in fam.defaults.items())
+        rows.append((name, f"{fam.description} (defaults: {params})" if params else fam.description))
     return rows
 
 

@@ -1,0 +1,105 @@
+"""``hikbench generate FAMILY [--seed S] [--seeds N] [--param KEY=VALUE ...] --out DIR
+[--format npz|soth]``: write problems of a named family to files."""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+
+from problems.errors import HikbenchError, ProblemFileError, UnknownFamilyError
+from problems.files import save_npz
+from problems.generators import FAMILIES, generate
+from problems.soth import save_soth
+
+HELP = "generate problems of a named family (see `hikbench list families`) into files"
+
+_EXT = {"npz": ".npz", "soth": ".soth"}
+
+
+def add_arguments(p) -> None:
+    p.add_argument("family", help="family name (see `hikbench list families`)")
+    p.add_argument("--seed", type=int, default=0, help="first seed (default 0)")
+    p.add_argument("--seeds", type=int, default=1, metavar="N",
+                   help="number of problems, seeds S .. S+N-1 (default 1)")
+    p.add_argument("--param", action="append", default=[], metavar="KEY=VALUE",
+                   help="family parameter (repeatable); VALUE is parsed as JSON when it can be "
+                        "(3, 1e-3, [2, 3], true, null), else taken as a string")
+    p.add_argument("--out", required=True, metavar="DIR", help="output directory (created if missing)")
+    p.add_argument("--format", choices=sorted(_EXT), default="npz", help="file format (default npz)")
+
+
+def parse_params(items: list[str], defaults: dict, family: str) -> dict:
+    """``["n=20", "inequality=mixed"]`` -> ``{"n": 20, "inequality": "mixed"}``,
+    each value checked against the type of the family's default."""
+    out = {}
+    for item in items:
+        key, sep, text = item.partition("=")
+        if not sep or not key:
+            raise HikbenchError(f"--param {item!r}: expected KEY=VALUE")
+        if key not in defaults:
+            raise HikbenchError(f"family {family!r}: unknown parameter {key!r}; "
+                                f"expected one of {', '.join(sorted(defaults))}")
+        try:
+            value = json.loads(text)
+        except json.JSONDecodeError:
+            value = text
+        out[key] = _check_type(key, value, defaults[key], item)
+    return out
+
+
+def _check_type(key: str, value, default, item: str):
+    if default is None:  # optional: the generator checks it
+        return value
+    if isinstance(default, bool):
+        ok = isinstance(value, bool)
+        want = "true or false"
+    elif isinstance(default, int):
+        ok = isinstance(value, int) and not isinstance(value, bool)
+        want = "an integer"
+    elif isinstance(default, float):
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        want = "a number"
+        value = float(value) if ok else value
+    elif isinstance(default, str):
+        ok = isinstance(value, str)
+        want = "a string"
+    else:
+        return value
+    if not ok:
+        raise HikbenchError(f"--param {item!r}: {key} must be {want} (default {default!r})")
+    return value
+
+
+def _tag(v) -> str:
+    if isinstance(v, (list, tuple)):
+        return ",".join(_tag(e) for e in v)
+    return v if isinstance(v, str) else json.dumps(v)
+
+
+def file_name(family: str, params: dict, seed: int, fmt: str) -> str:
+    """``<family>[-<key>=<value>...]-seed<seed>.<ext>``, parameters sorted, a
+    list written ``a,b,c``, characters other than letters, digits and
+    ``._=+,-`` replaced by ``_``."""
+    tag = "".join(f"-{k}={_tag(v)}" for k, v in sorted(params.items()))
+    return re.sub(r"[^A-Za-z0-9._=+,-]", "_", f"{family}{tag}-seed{seed}") + _EXT[fmt]
+
+
+def run(args) -> int:
+    if args.family not in FAMILIES:
+        raise UnknownFamilyError(f"unknown family {args.family!r}; expected one of {', '.join(FAMILIES)}")
+    if args.seeds < 1:
+        raise HikbenchError(f"--seeds must be >= 1; got {args.seeds}")
+    params = parse_params(args.param, FAMILIES[args.family].defaults, args.family)
+    try:
+        os.makedirs(args.out, exist_ok=True)
+    except OSError as err:
+        why = err.strerror or err
+        raise ProblemFileError(f"--out {args.out}: cannot create the directory ({why})") from err
+    save = save_npz if args.format == "npz" else save_soth
+    for seed in range(args.seed, args.seed + args.seeds):
+        h = generate(args.family, seed=seed, **params)
+        path = os.path.join(args.out, file_name(args.family, params, seed, args.format))
+        save(h, path)
+        print(path)
+    return 0

@@ -1,0 +1,234 @@
+"""The command line, called through main(argv): solve, generate, inspect,
+export, list; user errors exit 2 with one line on stderr and no traceback."""
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from bench.cli import COMMANDS, main
+from problems import Hierarchy, Level
+from problems.files import load, save_npz
+from problems.generators import FAMILIES, generate
+from problems.soth import save_soth, soth_order
+from problems.verify import level_norms
+
+INF = np.inf
+
+
+@pytest.fixture
+def problem(tmp_path):
+    """level 0: x0 + x1 = 2 and x1 <= 0.5 (named 'reach'); level 1: x0 = 3 (conflicts with level 0)."""
+    h = Hierarchy.from_levels([Level([[1.0, 1.0], [0.0, 1.0]], [2.0, -INF], [2.0, 0.5], "reach"),
+                               Level.equality([[1.0, 0.0]], [3.0], "posture")])
+    path = tmp_path / "p.npz"
+    save_npz(h, path)
+    return h, str(path)
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_user_error(code, err, *fragments):
+    assert code == 2
+    assert len(err.strip().splitlines()) == 1, err
+    assert "Traceback" not in err
+    for f in fragments:
+        assert f in err, err
+
+
+# ------------------------------------------------------------------- solve
+@pytest.mark.parametrize("extra", [[], ["--repeat", "3"], ["--repeat", "2", "--warm"]],
+                         ids=["once", "repeat", "warm"])
+def test_solve_json(capsys, problem, extra):
+    h, path = problem
+    code, out, err = run(capsys, "solve", path, "--solver", "reference", "--json", *extra)
+    assert code == 0, err
+    res = json.loads(out)
+    assert {"solver", "status", "x", "level_norms", "iterations", "time_s"} <= set(res)
+    assert set(res["time_s"]) >= {"median", "min"}
+    assert res["solver"] == "reference" and res["status"] == "optimal"
+    assert 0 < res["time_s"]["min"] <= res["time_s"]["median"]
+    # level norms are recomputed from x by the problem model
+    np.testing.assert_allclose(res["level_norms"], level_norms(h, np.array(res["x"])), rtol=1e-15, atol=0)
+    # optimum: x1 = 2 - x0 with x1 <= 0.5 -> x0 >= 1.5; level 1 wants x0 = 3 -> x = (3, -1), norms (0, 0)
+    np.testing.assert_allclose(res["x"], [3.0, -1.0], atol=1e-8)
+
+
+def test_solve_text(capsys, problem):
+    code, out, _ = run(capsys, "solve", problem[1])
+    assert code == 0
+    assert "status      optimal" in out and "level norms" in out
+
+
+def test_solve_soth_file(capsys, problem, tmp_path):
+    h, _ = problem
+    path = tmp_path / "p.soth"
+    save_soth(h, path)
+    code, out, _ = run(capsys, "solve", str(path), "--json")
+    assert code == 0
+    np.testing.assert_allclose(json.loads(out)["x"], [3.0, -1.0], atol=1e-8)
+
+
+@pytest.mark.parametrize("argv, fragments", [
+    (["solve", "{missing}"], ["hikbench solve: error:", "no such file"]),
+    (["solve", "{path}", "--solver", "nope"], ["unknown solver 'nope'", "found solvers:"]),
+    (["solve", "{path}", "--option", "tol=1"], ["unknown option(s) 'tol'"]),
+    (["solve", "{path}", "--option", "novalue"], ["--option 'novalue': expected KEY=VALUE"]),
+    (["solve", "{path}", "--repeat", "0"], ["--repeat must be >= 1; got 0"]),
+    (["solve", "{garbage}"], ["cannot read as .npz problem file"]),
+    (["solve", "{badsoth}"], ["line 1: expected 'size', got 'sizes'"]),
+], ids=["missing file", "unknown solver", "unknown option", "option syntax", "repeat", "bad npz", "bad soth"])
+def test_solve_user_errors(capsys, problem, tmp_path, argv, fragments):
+    (tmp_path / "g.npz").write_bytes(b"garbage")
+    (tmp_path / "b.soth").write_text("variable sizes 2")
+    names = dict(path=problem[1], missing=str(tmp_path / "none.npz"), garbage=str(tmp_path / "g.npz"),
+                 badsoth=str(tmp_path / "b.soth"))
+    code, _, err = run(capsys, *[a.format(**names) for a in argv])
+    assert_user_error(code, err, *fragments)
+
+
+# ---------------------------------------------------------------- generate
+@pytest.mark.parametrize("fmt, ext", [("npz", ".npz"), ("soth", ".soth")])
+def test_generate_writes_loadable_deterministic_files(capsys, tmp_path, fmt, ext):
+    out_dir = tmp_path / "gen"
+    code, out, err = run(capsys, "generate", "random", "--seed", "4", "--seeds", "2", "--param", "n=6",
+                         "--param", "inequality=one-sided", "--param", "rank=[2,3,1,2]",
+                         "--out", str(out_dir),
+                         "--format", fmt)
+    assert code == 0, err
+    paths = out.split()
+    assert [os.path.basename(p) for p in paths] == [
+        f"random-inequality=one-sided-n=6-rank=2,3,1,2-seed{s}{ext}" for s in (4, 5)]
+    for seed, path in zip((4, 5), paths):
+        expected = generate("random", seed=seed, n=6, inequality="one-sided", rank=[2, 3, 1, 2])
+        got = load(path)
+        if fmt == "npz":
+            assert got == expected
+        else:
+            np.testing.assert_array_equal(got.A, soth_order(expected).A)
+
+
+@pytest.mark.parametrize("family", list(FAMILIES))
+def test_generate_every_family(capsys, tmp_path, family):
+    code, out, err = run(capsys, "generate", family, "--out", str(tmp_path))
+    assert code == 0, err
+    assert load(out.strip()) == generate(family, seed=0)
+
+
+@pytest.mark.parametrize("argv, fragments", [
+    (["generate", "nope", "--out", "{d}"], ["unknown family 'nope'; expected one of"]),
+    (["generate", "random", "--param", "depht=3", "--out", "{d}"], ["unknown parameter 'depht'"]),
+    (["generate", "random", "--param", "n=abc", "--out", "{d}"], ["n must be an integer (default 20)"]),
+    (["generate", "random", "--param", "cond=big", "--out", "{d}"], ["cond must be a number"]),
+    (["generate", "random", "--param", "box=1", "--out", "{d}"], ["box must be true or false"]),
+    (["generate", "random", "--param", "n", "--out", "{d}"], ["--param 'n': expected KEY=VALUE"]),
+    (["generate", "random", "--param", "rank=9", "--out", "{d}"], ["level 0: rank 9 must be in [0, rows=5]"]),
+    (["generate", "random", "--param", "rank=x", "--out", "{d}"], ["rank must be an integer; got 'x'"]),
+    (["generate", "random", "--seeds", "0", "--out", "{d}"], ["--seeds must be >= 1"]),
+    (["generate", "random", "--out", "{file}/sub"], ["cannot create the directory"]),
+], ids=["family", "param name", "int", "float", "bool", "syntax", "rank", "rank type", "seeds", "out"])
+def test_generate_user_errors(capsys, tmp_path, argv, fragments):
+    (tmp_path / "f").write_text("a file")
+    code, _, err = run(capsys, *[a.format(d=tmp_path, file=tmp_path / "f") for a in argv])
+    assert_user_error(code, err, *fragments)
+
+
+# ----------------------------------------------------------------- inspect
+def test_inspect_table(capsys, problem):
+    code, out, _ = run(capsys, "inspect", problem[1])
+    assert code == 0
+    lines = out.splitlines()
+    assert lines[0].endswith("n = 2, depth = 2, rows = 3 (2 equality, 1 inequality, 0 free), total rank = 2")
+    assert lines[1].split() == ["level", "name", "rows", "eq", "1-sided", "2-sided", "free", "rank", "cond",
+                                "proj", "rank", "proj", "sv", "min", "proj", "cond", "conflicts"]
+    # level 0: 2 rows (1 eq, 1 one-sided), rank 2; level 1: x0 = 3, rank 1, decided above: conflicts 1
+    assert lines[2].split()[:2] == ["0", "reach"] and lines[2].split()[2:8] == ["2", "1", "1", "0", "0", "2"]
+    assert lines[3].split()[-5:] == ["1", "0", "-", "-", "1"]
+
+
+def test_inspect_json(capsys, problem):
+    code, out, _ = run(capsys, "inspect", problem[1], "--json")
+    res = json.loads(out)
+    assert (res["n"], res["depth"], res["rows"]) == (2, 2, 3)
+    assert [L["conflicts"] for L in res["levels"]] == [0, 1]
+    assert res["levels"][1]["projected_cond"] is None
+
+
+# ------------------------------------------------------------------ export
+def test_export_soth_and_back(capsys, problem, tmp_path):
+    h, path = problem
+    code, out, _ = run(capsys, "export", path, "--format", "soth")
+    assert code == 0 and out.strip() == str(tmp_path / "p.soth")
+    code, out, _ = run(capsys, "export", out.strip(), "--format", "npz", "--out", str(tmp_path / "q.npz"))
+    assert code == 0
+    back = load(tmp_path / "q.npz")
+    np.testing.assert_array_equal(back.A, h.A)  # equalities already first in each level
+    np.testing.assert_array_equal(back.upper, h.upper)
+
+
+def test_export_to_stdout(capsys, problem):
+    code, out, _ = run(capsys, "export", problem[1], "--format", "soth", "--out", "-")
+    assert code == 0 and out.startswith("variable size 2\n") and out.rstrip().endswith("end")
+
+
+@pytest.mark.parametrize("argv, fragments", [
+    (["export", "{path}", "--format", "npz"], ["is the input file"]),
+    (["export", "{path}", "--format", "npz", "--out", "{d}/x.txt"], ["must end in .npz"]),
+    (["export", "{path}", "--format", "soth", "--out", "{d}/x.npz"], ["must not end in .npz"]),
+    (["export", "{path}", "--format", "npz", "--out", "-"], ["only for --format soth"]),
+    (["export", "{path}", "--format", "soth", "--out", "{d}/no/x.soth"], ["cannot write"]),
+], ids=["overwrite input", "npz extension", "soth extension", "stdout npz", "missing dir"])
+def test_export_user_errors(capsys, problem, tmp_path, argv, fragments):
+    code, _, err = run(capsys, *[a.format(path=problem[1], d=tmp_path) for a in argv])
+    assert_user_error(code, err, *fragments)
+
+
+# -------------------------------------------------------------------- list
+@pytest.mark.parametrize("what, expected", [("solvers", "reference"), ("families", "ik-like")])
+def test_list(capsys, what, expected):
+    code, out, _ = run(capsys, "list", what)
+    assert code == 0
+    assert any(line.split()[0] == expected for line in out.splitlines())
+
+
+def test_list_families_shows_every_family(capsys):
+    _, out, _ = run(capsys, "list", "families")
+    assert [line.split()[0] for line in out.splitlines()] == list(FAMILIES)
+
+
+# ------------------------------------------------------------ usage errors
+@pytest.mark.parametrize("argv, fragment", [
+    ([], "the following arguments are required: COMMAND"),
+    (["frobnicate"], "invalid choice: 'frobnicate'"),
+    (["solve"], "the following arguments are required: file"),
+    (["solve", "p.npz", "--bogus"], "unrecognized arguments: --bogus"),
+    (["solve", "p.npz", "--repeat", "many"], "argument --repeat: invalid int value: 'many'"),
+    (["export", "p.npz", "--format", "csv"], "argument --format: invalid choice: 'csv'"),
+    (["list", "robots"], "cannot list 'robots'"),
+], ids=["no command", "unknown command", "missing file", "unknown option", "bad int", "bad choice", "list"])
+def test_usage_errors_exit_2_with_one_line(capsys, argv, fragment):
+    code, _, err = run(capsys, *argv)
+    assert_user_error(code, err, fragment)
+    assert err.startswith("hikbench")
+
+
+@pytest.mark.parametrize("argv", [["--help"]] + [[c, "--help"] for c in COMMANDS], ids=["main", *COMMANDS])
+def test_help_exits_0(capsys, argv):
+    code, out, _ = run(capsys, *argv)
+    assert code == 0 and "usage: hikbench" in out
+
+
+def test_export_notes_what_soth_loses(capsys, tmp_path):
+    h = Hierarchy.from_levels([Level([[1.0, 0.0], [0.0, 1.0]], [-INF, 1.0], [INF, 1.0], "named"),
+                               Level(np.zeros((0, 2)), [], [])], x0=[0.0, 1.0])
+    save_npz(h, tmp_path / "h.npz")
+    code, _, err = run(capsys, "export", str(tmp_path / "h.npz"), "--format", "soth")
+    assert code == 0
+    assert err == ("hikbench export: note: level names are dropped; x0 is dropped; rows are reordered "
+                   "(equality rows first in each level); 1 free row(s), which SOTH's own reader refuses; "
+                   "empty level(s), which SOTH's own reader refuses\n")

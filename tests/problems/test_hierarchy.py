@@ -1,0 +1,153 @@
+"""The hierarchy model: construction, views, and every documented bad input."""
+
+import copy
+import pickle
+
+import numpy as np
+import pytest
+
+from problems import Hierarchy, InvalidHierarchyError, Level
+
+INF = np.inf
+
+
+def two_levels():
+    """Level 0: one equality and one one-sided row; level 1: a two-sided and a free row."""
+    A = np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0], [1.0, -1.0]])
+    return Hierarchy(A, [1.0, -INF, -1.0, -INF], [1.0, 2.0, 1.0, INF], [0, 0, 1, 1], names=["top", "bottom"])
+
+
+def test_views():
+    h = two_levels()
+    assert (h.n, h.depth, h.rows) == (2, 2, 4)
+    np.testing.assert_array_equal(h.starts, [0, 2, 4])
+    np.testing.assert_array_equal(h.is_equality, [True, False, False, False])
+    np.testing.assert_array_equal(h.is_free, [False, False, False, True])
+    assert h.has_inequalities
+    assert h[1].name == "bottom"
+    np.testing.assert_array_equal(h[1].A, [[1.0, 1.0], [1.0, -1.0]])
+    assert [L.rows for L in h] == [2, 2]
+
+
+def test_from_levels_with_empty_levels_and_names():
+    h = Hierarchy.from_levels([Level(np.zeros((0, 3)), [], [], "empty top"),
+                               Level.equality(np.eye(3), [1, 2, 3]),
+                               Level(np.zeros((0, 3)), [], [])], n=3)
+    assert h.depth == 3
+    np.testing.assert_array_equal(h.rows_per_level, [0, 3, 0])
+    assert h.names == ("empty top", "level 1", "level 2")
+    assert not h.has_inequalities
+
+
+def test_immutable():
+    h = two_levels()
+    with pytest.raises(ValueError, match="read-only"):
+        h.A[0, 0] = 5.0
+    with pytest.raises(AttributeError, match="immutable"):
+        h.A = np.zeros((4, 2))
+    with pytest.raises(AttributeError, match="immutable"):
+        del h.n
+
+
+def test_arrays_are_copies():
+    A = np.eye(2)
+    h = Hierarchy(A, [0, 0], [1, 1], [0, 0])
+    A[0, 0] = 7.0
+    assert h.A[0, 0] == 1.0
+
+
+def _pickled(h):
+    return pickle.loads(pickle.dumps(h))
+
+
+@pytest.mark.parametrize("dup", [_pickled, copy.deepcopy, copy.copy], ids=["pickle", "deepcopy", "copy"])
+def test_pickle_and_copy(dup):
+    h = Hierarchy.from_levels([Level.equality(np.eye(2), [1, 2], "a"), Level(np.zeros((0, 2)), [], [])],
+                              x0=[0.5, 0.25])
+    h.is_equality  # a cached property must not break pickling
+    g = dup(h)
+    assert g == h
+    assert not g.A.flags.writeable
+
+
+# Each bad input: constructor kwargs, the pinned message, and the .level/.row fields.
+A2 = np.eye(2)
+BAD = [
+    ("A 1-D", dict(A=[1.0, 2.0], lower=[0], upper=[1], level=[0]),
+     r"A must be a 2-D array \(rows, n\); got shape \(2,\)", None, None),
+    ("A columns != n", dict(A=A2, lower=[0, 0], upper=[1, 1], level=[0, 0], n=3),
+     r"A has 2 columns but n = 3: expected A of shape \(rows, 3\)", None, None),
+    ("lower shape", dict(A=A2, lower=[0], upper=[1, 1], level=[0, 0]),
+     r"lower has shape \(1,\) but A has 2 rows: expected lower of shape \(2,\)", None, None),
+    ("upper shape", dict(A=A2, lower=[0, 0], upper=[[1, 1]], level=[0, 0]),
+     r"upper has shape \(1, 2\) but A has 2 rows", None, None),
+    ("level shape", dict(A=A2, lower=[0, 0], upper=[1, 1], level=[0]),
+     r"level has shape \(1,\) but A has 2 rows", None, None),
+    ("NaN in A", dict(A=[[1, 0], [0, np.nan]], lower=[0, 0], upper=[1, 1], level=[0, 1]),
+     r"^level 1, row 0: A holds NaN$", 1, 0),
+    ("inf in A", dict(A=[[1, 0], [0, 1], [INF, 0]], lower=[0, 0, 0], upper=[1, 1, 1], level=[0, 0, 0]),
+     r"^level 0, row 2: A holds inf: coefficients must be finite$", 0, 2),
+    ("NaN lower", dict(A=A2, lower=[0, np.nan], upper=[1, 1], level=[0, 0]),
+     r"^level 0, row 1: lower is NaN \(use -inf for no lower bound\)$", 0, 1),
+    ("NaN upper", dict(A=A2, lower=[0, 0], upper=[np.nan, 1], level=[0, 1]),
+     r"^level 0, row 0: upper is NaN \(use \+inf for no upper bound\)$", 0, 0),
+    ("lower > upper", dict(A=A2, lower=[0, 2.5], upper=[1, 1], level=[0, 1]),
+     r"^level 1, row 0: lower \(2.5\) > upper \(1.0\): expected lower <= upper$", 1, 0),
+    ("lower = +inf", dict(A=A2, lower=[0, INF], upper=[1, INF], level=[0, 0]),
+     r"^level 0, row 1: lower is \+inf: no x can satisfy it$", 0, 1),
+    ("upper = -inf", dict(A=A2, lower=[-INF, 0], upper=[-INF, 1], level=[0, 0]),
+     r"^level 0, row 0: upper is -inf: no x can satisfy it$", 0, 0),
+    ("levels decrease", dict(A=np.eye(3), lower=[0] * 3, upper=[1] * 3, level=[0, 1, 0]),
+     r"row 2: level 0 follows level 1: levels must be nondecreasing \(level 0 first\)", 0, None),
+    ("negative level", dict(A=A2, lower=[0, 0], upper=[1, 1], level=[-1, 0]),
+     r"row 0: level -1 is outside \[0, 1\)", -1, None),
+    ("level >= depth", dict(A=A2, lower=[0, 0], upper=[1, 1], level=[0, 2], depth=2),
+     r"row 1: level 2 is outside \[0, 2\)", 2, None),
+    ("fractional level", dict(A=A2, lower=[0, 0], upper=[1, 1], level=[0, 0.5]),
+     r"level must hold integers; got dtype float64", None, None),
+    ("string level", dict(A=A2, lower=[0, 0], upper=[1, 1], level=["a", "b"]),
+     r"level must hold integers; got dtype <U1", None, None),
+    ("names count", dict(A=A2, lower=[0, 0], upper=[1, 1], level=[0, 1], names=["only one"], depth=2),
+     r"names has 1 entries but the hierarchy has 2 levels", None, None),
+    ("negative depth", dict(A=np.zeros((0, 2)), lower=[], upper=[], level=[], depth=-1),
+     r"depth must be >= 0; got -1", None, None),
+    ("n not integer", dict(A=np.zeros((0, 2)), lower=[], upper=[], level=[], n=2.5),
+     r"n must be an integer; got 2.5", None, None),
+    ("x0 shape", dict(A=A2, lower=[0, 0], upper=[1, 1], level=[0, 0], x0=[1.0]),
+     r"x0 has shape \(1,\): expected \(2,\)", None, None),
+    ("x0 NaN", dict(A=A2, lower=[0, 0], upper=[1, 1], level=[0, 0], x0=[1.0, np.nan]),
+     r"x0 holds NaN or inf: expected finite values", None, None),
+]
+
+
+@pytest.mark.parametrize("kwargs, message, level, row", [b[1:] for b in BAD], ids=[b[0] for b in BAD])
+def test_bad_input_raises(kwargs, message, level, row):
+    with pytest.raises(InvalidHierarchyError, match=message) as info:
+        Hierarchy(**kwargs)
+    assert (info.value.level, info.value.row) == (level, row)
+
+
+@pytest.mark.parametrize("levels, message", [
+    ([Level(np.ones((2, 3)), [0, 0], [1, 1]), Level(np.ones((1, 2)), [0], [1])],
+     r"level 1: A has shape \(1, 2\): expected \(rows, 3\)"),
+    ([Level(np.ones((2, 3)), [0], [1, 1])], r"level 0: lower has shape \(1,\): expected \(2,\)"),
+    ([], r"n is required for a hierarchy without levels"),
+], ids=["columns", "bound shape", "no levels without n"])
+def test_from_levels_bad_input(levels, message):
+    with pytest.raises(InvalidHierarchyError, match=message):
+        Hierarchy.from_levels(levels)
+
+
+def test_empty_hierarchy_needs_nothing_but_n():
+    h = Hierarchy.from_levels([], n=4)
+    assert (h.n, h.depth, h.rows) == (4, 0, 0)
+    np.testing.assert_array_equal(h.level_norms(np.zeros(4)), np.zeros(0))
+
+
+def test_with_bounds_keeps_rows_and_validates():
+    h = two_levels()
+    g = h.with_bounds(h.lower - 1, h.upper)
+    np.testing.assert_array_equal(g.A, h.A)
+    assert g.names == h.names
+    with pytest.raises(InvalidHierarchyError, match=r"level 0, row 0: lower \(3.0\) > upper \(1.0\)"):
+        h.with_bounds(h.lower + 2, h.upper)

@@ -1,0 +1,129 @@
+"""Violation, level norms, scales and the lexicographic comparison on hand-made
+cases whose expected values are derived in the comments."""
+
+import numpy as np
+import pytest
+from hik_strategies import hierarchies, moderate
+from hypothesis import given
+from hypothesis import strategies as st
+
+from problems import Hierarchy, HikbenchError, Level, compare_lexicographic, level_norms, level_scales, verify
+from problems.verify import violation
+
+INF = np.inf
+
+# Rows (n = 2), levels [0, 0, 1, 1, 2]:
+#   r0: x0 = 1             (equality)
+#   r1: x1 >= 2            (lower only)
+#   r2: x0 + x1 <= 0       (upper only)
+#   r3: -1 <= x0 - x1 <= 1 (two-sided)
+#   r4: free
+H = Hierarchy([[1, 0], [0, 1], [1, 1], [1, -1], [3, 7]], [1, 2, -INF, -1, -INF], [1, INF, 0, 1, INF],
+              [0, 0, 1, 1, 2])
+
+
+@pytest.mark.parametrize("x, expected_v, expected_norms", [
+    # x = (3, 1): r0: Ax=3, v=max(1-3,0)+max(3-1,0)=2; r1: Ax=1, v=2-1=1; r2: Ax=4, v=4-0=4;
+    # r3: Ax=2, v=2-1=1; r4: free, 0. Norms: sqrt(2^2+1^2)=sqrt5, sqrt(4^2+1^2)=sqrt17, 0.
+    ((3.0, 1.0), [2, 1, 4, 1, 0], [np.sqrt(5), np.sqrt(17), 0]),
+    # x = (1, 2): r0 exact; r1 at its bound; r2: 3 > 0 by 3; r3: -1 at its lower bound. Norms 0, 3, 0.
+    ((1.0, 2.0), [0, 0, 3, 0, 0], [0, 3, 0]),
+    # x = (-1, -1): r0: |-1-1|=2; r1: 2-(-1)=3; r2: -2 <= 0 ok; r3: 0 ok. Norms sqrt13, 0, 0.
+    ((-1.0, -1.0), [2, 3, 0, 0, 0], [np.sqrt(13), 0, 0]),
+], ids=["all violated", "second level only", "first level only"])
+def test_violation_and_norms_by_hand(x, expected_v, expected_norms):
+    np.testing.assert_allclose(violation(H, x), expected_v, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(level_norms(H, x), expected_norms, rtol=1e-15, atol=0)
+    np.testing.assert_allclose(H.level_norms(x), expected_norms, rtol=1e-15, atol=0)
+
+
+def test_level_norms_with_empty_levels():
+    # levels: empty, {x0 = 1}, empty, {x0 + x1 = 1}, empty; at x = 0: norms 0, 1, 0, 1, 0
+    e = Level(np.zeros((0, 2)), [], [])
+    h = Hierarchy.from_levels([e, Level.equality([[1, 0]], [1]), e, Level.equality([[1, 1]], [1]), e])
+    np.testing.assert_array_equal(level_norms(h, [0.0, 0.0]), [0, 1, 0, 1, 0])
+
+
+def test_nan_in_x_gives_nan_not_zero():
+    norms = level_norms(H, [np.nan, 0.0])
+    assert np.isnan(norms[0]) and np.isnan(norms[1])
+    assert norms[2] == 0.0 or np.isnan(norms[2])  # the free row: NaN too (a wrong x must look wrong)
+
+
+def test_x_with_wrong_shape():
+    with pytest.raises(HikbenchError, match=r"x has shape \(3,\): expected \(2,\)"):
+        level_norms(H, [0.0, 0.0, 0.0])
+
+
+@given(hierarchies(coefficients=moderate, bounds=moderate, min_n=1, names=False, x0=False),
+       st.data())
+def test_violation_is_distance_to_the_interval(h, data):
+    """v_i = dist(A_i x, [lower_i, upper_i]): zero inside, and the projection
+    clip(A x, lower, upper) is at exactly that distance."""
+    x = np.array(data.draw(st.lists(moderate, min_size=h.n, max_size=h.n)))
+    r = h.A @ x
+    v = violation(h, x)
+    assert np.all(v >= 0)
+    np.testing.assert_allclose(v, np.abs(r - np.clip(r, h.lower, h.upper)), rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(level_norms(h, x) ** 2, np.bincount(h.level, v * v, minlength=h.depth),
+                               rtol=1e-12, atol=1e-12)
+
+
+def test_level_scales_by_hand():
+    # level 0: A = [[3, 4]] (||A||_F = 5), bounds (-inf, 12] -> finite bounds norm 12;
+    # level 1: A = [[0, 0]], bounds [0, 0] -> 0, floored at 1.
+    h = Hierarchy([[3, 4], [0, 0]], [-INF, 0], [12, 0], [0, 1])
+    np.testing.assert_allclose(level_scales(h), [5 * 1 + 12, 1.0], rtol=1e-15)
+    # with ||x|| = 1: 5 * (1 + 1) + 12 = 22
+    np.testing.assert_allclose(level_scales(h, [0.6, 0.8]), [22.0, 1.0], rtol=1e-15)
+
+
+@pytest.mark.parametrize("a, b, kwargs, level, lower, difference", [
+    # identical vectors: no verdict
+    ([1.0, 2.0], [1.0, 2.0], {}, None, None, 0.0),
+    # 1e-12 apart with tolerance rtol * scale = 1e-9 * 1: equal
+    ([1.0, 2.0], [1.0 + 1e-12, 2.0], {}, None, None, 0.0),
+    # level 0 equal, level 1: 5 vs 3 -> b is lower there, difference a - b = 2
+    ([1.0, 5.0], [1.0, 3.0], {}, 1, "b", 2.0),
+    # level 0 decides even though a is far worse below: 0.9 < 1.0 -> a lower, difference -0.1
+    ([0.9, 100.0], [1.0, 0.0], {}, 0, "a", 0.9 - 1.0),
+    # 1e-6 apart: tolerance 1e-9 * 1e4 = 1e-5 -> equal ...
+    ([1.0], [1.0 + 1e-6], dict(scales=[1e4]), None, None, 0.0),
+    # ... but with scale 1 the tolerance is 1e-9 -> b is worse (higher), a lower, difference -1e-6
+    ([1.0], [1.0 + 1e-6], dict(scales=[1.0]), 0, "a", 1.0 - (1.0 + 1e-6)),
+    # atol adds to the tolerance: 1e-6 <= 0 + 2e-6 -> equal
+    ([1.0], [1.0 + 1e-6], dict(rtol=0.0, atol=2e-6), None, None, 0.0),
+    # NaN is worse than any number: a = NaN at level 1 -> b lower
+    ([0.0, np.nan], [0.0, 7.0], {}, 1, "b", np.nan),
+    ([0.0, 7.0], [0.0, np.nan], {}, 1, "a", np.nan),
+    # empty vectors (no levels): equal
+    ([], [], {}, None, None, 0.0),
+], ids=["identical", "within tolerance", "second level", "first level decides", "scaled tolerance",
+        "unit tolerance", "atol", "nan in a", "nan in b", "empty"])
+def test_compare_lexicographic_by_hand(a, b, kwargs, level, lower, difference):
+    v = compare_lexicographic(a, b, **kwargs)
+    assert (v.level, v.lower) == (level, lower)
+    assert v.equal == (level is None)
+    np.testing.assert_allclose(v.difference, difference, rtol=1e-12, atol=0)
+
+
+@pytest.mark.parametrize("a, b, kwargs, message", [
+    ([1.0, 2.0], [1.0], {}, r"norm vectors must have the same 1-D shape; got \(2,\) and \(1,\)"),
+    ([1.0], [1.0], dict(scales=[1.0, 2.0]), r"scales has shape \(2,\): expected \(1,\)"),
+], ids=["shapes", "scales"])
+def test_compare_lexicographic_bad_input(a, b, kwargs, message):
+    with pytest.raises(HikbenchError, match=message):
+        compare_lexicographic(a, b, **kwargs)
+
+
+def test_verify_by_hand():
+    # level 0: x0 + x1 = 2; level 1: x0 = 3. Optimum: x = (3, -1), norms (0, 0).
+    h = Hierarchy.from_levels([Level.equality([[1, 1]], [2]), Level.equality([[1, 0]], [3])])
+    assert verify(h, [3.0, -1.0], [3.0, -1.0]).equal
+    # x = (1, 1): level 0 exact, level 1 off by 2 -> worse than the reference at level 1
+    v = verify(h, [1.0, 1.0], [3.0, -1.0])
+    assert (v.level, v.lower) == (1, "b")
+    np.testing.assert_allclose(v.difference, 2.0, rtol=1e-15)
+    # x = (3, 0): level 0 off by 1 -> the verdict is at level 0 even though level 1 is exact
+    v = verify(h, [3.0, 0.0], [3.0, -1.0])
+    assert (v.level, v.lower) == (0, "b")

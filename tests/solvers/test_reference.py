@@ -1,0 +1,190 @@
+"""The reference agrees with independent methods.
+
+1. Equality hierarchies: ``nullspace_reference`` (SVD null-space recursion)
+   against ``cascade_reference`` (QP cascade + polishing) forced on the same
+   problem by one added free row (a free row changes no level's optimum, but
+   makes the hierarchy "have inequalities"). The two share no code beyond the
+   Hierarchy model.
+
+2. Inequality hierarchies: ``cascade_reference`` against a brute-force solution
+   of the sequence of LSIs (ICRA 2010 eqs. (33)-(36)) by **enumeration of the
+   KKT points of each level's QP** (:func:`enumerate_qp`). Why it is correct
+   and independent:
+
+   * Level k's LSI is the convex QP  min 1/2 z^T P z  s.t.  G_eq z = h_eq,
+     G_in z <= h_in  in z = (x, w_k), P = diag(0, I). For any working set W of
+     inequalities with [G_eq; G_W] linearly independent modulo G_eq, solving
+     the KKT system  P z + G_eq^T mu + G_W^T lam = 0,  G_eq z = h_eq,
+     G_W z = h_W  exactly, with lam >= 0, gives a minimiser z' of the
+     Lagrangian, so 1/2 z'^T P z' is a **lower bound** of the optimum (weak
+     duality). The working set of an optimal multiplier (reduced to
+     independent rows, conic Caratheodory) is among the candidates and gives
+     the optimum (strong duality of convex QPs). So the optimum is the
+     **largest** candidate value; no primal feasibility test is needed.
+   * All minimisers of one Lagrangian share P z, so the maximising candidate
+     gives the optimal slack w_k* exactly (it is unique, DESIGN.md), which
+     freezes level k for the next levels: lower_k + w_k* <= A_k x <= upper_k + w_k*.
+   * A last stage with P = I (min ||x||) gives the unique minimum-norm x.
+
+   Dense linear algebra on every subset: no QP solver, no tolerances on
+   activity, no polishing; exponential, so only tiny problems (n <= 3).
+"""
+
+from itertools import combinations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from problems import Hierarchy, Level, compare_lexicographic
+from problems.generators import equality_stack, random_hierarchy
+from solvers.base import OPTIMAL
+from solvers.reference import ReferenceSolver, cascade_reference, nullspace_reference, reference_solution
+
+INF = np.inf
+
+
+def enumerate_qp(P, G_eq, h_eq, G_in, h_in):
+    """Optimal value and a Lagrangian minimiser z' of min 1/2 z^T P z s.t.
+    G_eq z = h_eq, G_in z <= h_in, by enumeration of working sets (see the
+    module docstring). Returns (value, z')."""
+    nz = P.shape[0]
+    r_eq = np.linalg.matrix_rank(G_eq) if G_eq.shape[0] else 0
+    best_value, best_z = -INF, None
+    for size in range(0, min(len(h_in), nz - r_eq) + 1):
+        for W in combinations(range(len(h_in)), size):
+            M = np.vstack([G_eq, G_in[list(W)]])
+            hM = np.concatenate([h_eq, h_in[list(W)]])
+            if size and np.linalg.matrix_rank(M) < r_eq + size:
+                continue  # lam would not be unique: a smaller working set covers it
+            K = np.block([[P, M.T], [M, np.zeros((M.shape[0], M.shape[0]))]])
+            rhs = np.concatenate([np.zeros(nz), hM])
+            sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
+            if np.linalg.norm(K @ sol - rhs) > 1e-9 * (1 + np.linalg.norm(rhs)):
+                continue  # inconsistent: no KKT point on this working set
+            lam = sol[nz + G_eq.shape[0]:]
+            if np.any(lam < -1e-9):
+                continue  # not dual feasible: no lower bound
+            z = sol[:nz]
+            value = 0.5 * z @ P @ z
+            if value > best_value:
+                best_value, best_z = value, z
+    return best_value, best_z
+
+
+def _rows(A, lo, up):
+    """Inequality rows G z <= h and equality rows of lo <= A z <= up."""
+    eq = lo == up
+    fu, fl = np.isfinite(up) & ~eq, np.isfinite(lo) & ~eq
+    return A[eq], lo[eq], np.vstack([A[fu], -A[fl]]), np.concatenate([up[fu], -lo[fl]])
+
+
+def brute_force_lexicographic(h: Hierarchy):
+    """(optimal level norms, minimum-norm lexicographic x) by KKT enumeration."""
+    n = h.n
+    A_hi, lo_hi, up_hi = np.zeros((0, n)), np.zeros(0), np.zeros(0)
+    norms = []
+    for k in range(h.depth):
+        s = h.level_rows(k)
+        A_k, lo_k, up_k = h.A[s], h.lower[s], h.upper[s]
+        m = A_k.shape[0]
+        # z = (x, w): frozen levels on x, level k as lo_k <= A_k x - w <= up_k
+        A_z = np.vstack([np.hstack([A_hi, np.zeros((A_hi.shape[0], m))]), np.hstack([A_k, -np.eye(m)])])
+        G_eq, h_eq, G_in, h_in = _rows(A_z, np.concatenate([lo_hi, lo_k]), np.concatenate([up_hi, up_k]))
+        P = np.diag(np.concatenate([np.zeros(n), np.ones(m)]))
+        value, z = enumerate_qp(P, G_eq, h_eq, G_in, h_in)
+        w = z[n:]
+        norms.append(np.sqrt(2 * max(value, 0.0)))
+        A_hi = np.vstack([A_hi, A_k])
+        lo_hi = np.concatenate([lo_hi, lo_k + w])  # -inf + w stays -inf
+        up_hi = np.concatenate([up_hi, up_k + w])
+    G_eq, h_eq, G_in, h_in = _rows(A_hi, lo_hi, up_hi)
+    _, x = enumerate_qp(np.eye(n), G_eq, h_eq, G_in, h_in)
+    return np.array(norms), x
+
+
+def test_enumerate_qp_by_hand():
+    # min 1/2 ||z||^2 s.t. z0 + z1 >= 2 (i.e. -z0 - z1 <= -2): z* = (1, 1), value 1
+    value, z = enumerate_qp(np.eye(2), np.zeros((0, 2)), np.zeros(0), np.array([[-1.0, -1.0]]),
+                            np.array([-2.0]))
+    np.testing.assert_allclose([value, *z], [1.0, 1.0, 1.0], rtol=1e-14)
+
+
+def conflicting_top():
+    # level 0: x0 >= 1 and x0 <= -1: min (1 - x0)^2 + (x0 + 1)^2 -> x0 = 0, norm sqrt(2);
+    # level 1: x1 = 2 (exact); level 2: x0 + x1 <= 0 with x = (0, 2): 2 > 0, norm 2.
+    return Hierarchy([[1, 0], [1, 0], [0, 1], [1, 1]], [1, -INF, 2, -INF], [INF, -1, 2, 0], [0, 0, 1, 2])
+
+
+CASES = {
+    "conflicting top": conflicting_top(),
+    **{f"{mix} n={n} seed={seed}": random_hierarchy(n, 3, 2, inequality=mix, shared_rank=[0, 1, 1], seed=seed)
+       for n, mix, seed in [(2, "mixed", 0), (3, "mixed", 1), (3, "one-sided", 2), (3, "two-sided", 3),
+                            (2, "one-sided", 4), (3, "mixed", 5)]},
+    "box and mixed, n=2": random_hierarchy(2, 2, 2, inequality="mixed", box=True, box_bound=0.3, seed=6),
+    "equalities in inequality levels": random_hierarchy(3, 2, 3, inequality="mixed", equality_fraction=0.4,
+                                                        seed=7),
+}
+
+
+def test_brute_force_on_the_hand_case():
+    norms, x = brute_force_lexicographic(conflicting_top())
+    np.testing.assert_allclose(norms, [np.sqrt(2), 0, 2], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(x, [0, 2], atol=1e-12)
+
+
+@pytest.mark.parametrize("h", CASES.values(), ids=CASES.keys())
+def test_cascade_reference_agrees_with_kkt_enumeration(h):
+    norms, x_bf = brute_force_lexicographic(h)
+    x, info = cascade_reference(h)
+    np.testing.assert_allclose(h.level_norms(x), norms, rtol=1e-7, atol=1e-8)
+    np.testing.assert_allclose(x, x_bf, rtol=1e-6, atol=1e-7)
+    for k, w in enumerate(info["slack"]):  # reported slacks: same norms
+        np.testing.assert_allclose(np.linalg.norm(w), norms[k], rtol=1e-7, atol=1e-8)
+
+
+@settings(max_examples=15)
+@given(n=st.integers(1, 8), depth=st.integers(1, 4), rows=st.integers(1, 4), seed=st.integers(0, 2**32 - 1),
+       deficient=st.booleans())
+def test_nullspace_reference_agrees_with_cascade_reference(n, depth, rows, seed, deficient):
+    h = equality_stack(n, depth, rows, seed=seed, rank=min(rows, n) - 1 if deficient else None)
+    forced = Hierarchy.from_levels([*h, Level(np.ones((1, n)), [-INF], [INF])], n=n)  # one free row
+    assert forced.has_inequalities
+    x_ns = nullspace_reference(h)
+    x_qp, _ = cascade_reference(forced)
+    np.testing.assert_allclose(h.level_norms(x_qp), h.level_norms(x_ns), rtol=1e-7, atol=1e-8)
+    np.testing.assert_allclose(x_qp, x_ns, rtol=1e-6, atol=1e-7)
+
+
+def test_nullspace_reference_by_hand():
+    # level 0: x0 + x1 = 2; level 1: x0 - x1 = 0 -> x = (1, 1); level 2: x0 = 5 is decided above (norm 4)
+    h = Hierarchy.from_levels([Level.equality([[1, 1, 0]], [2]), Level.equality([[1, -1, 0]], [0]),
+                               Level.equality([[1, 0, 0]], [5])])
+    x = nullspace_reference(h)
+    np.testing.assert_allclose(x, [1, 1, 0], atol=1e-14)  # min norm: x2 = 0
+    np.testing.assert_allclose(h.level_norms(x), [0, 0, 4], atol=1e-14)
+    assert np.array_equal(reference_solution(h), x)
+
+
+def test_reference_solver_interface():
+    res = ReferenceSolver().solve(conflicting_top())
+    assert res.status == OPTIMAL
+    np.testing.assert_allclose(res.x, [0, 2], atol=1e-8)
+
+
+@settings(max_examples=20)
+@given(n=st.integers(1, 3), depth=st.integers(1, 3), rows=st.integers(1, 2),
+       mix=st.sampled_from(["one-sided", "two-sided", "mixed"]), box=st.booleans(),
+       seed=st.integers(0, 2**32 - 1))
+def test_cascade_reference_agrees_with_kkt_enumeration_random(n, depth, rows, mix, box, seed):
+    h = random_hierarchy(n, depth, rows, inequality=mix, box=box, box_bound=0.5, seed=seed)
+    norms, x_bf = brute_force_lexicographic(h)
+    x, _ = cascade_reference(h)
+    np.testing.assert_allclose(h.level_norms(x), norms, rtol=1e-7, atol=1e-8)
+    np.testing.assert_allclose(x, x_bf, rtol=1e-6, atol=1e-7)
+    # sanity of the brute force itself: no random x is lexicographically better
+    rng = np.random.default_rng(seed)
+    for x_try in rng.standard_normal((20, n)):
+        v = compare_lexicographic(h.level_norms(x_try), norms, rtol=0.0, atol=1e-9)
+        assert v.lower != "a", f"x={x_try} beats the brute force at level {v.level}"

@@ -1,0 +1,72 @@
+"""The registry: lookup, and option-name validation in create()."""
+
+import pytest
+
+from problems import SolverNotFoundError, SolverOptionError
+from solvers import registry
+from solvers.base import Solver, SolveResult
+from solvers.registry import SolverInfo
+
+
+class _Opt(Solver):
+    name = "test-opt"
+
+    def __init__(self, tol: float = 1e-9, *, max_iter: int = 10):
+        if tol <= 0:
+            raise SolverOptionError(f"test-opt: tol must be > 0; got {tol}")
+        self.tol, self.max_iter = tol, max_iter
+
+    def solve(self, hierarchy):
+        return SolveResult(x=None, status="unsupported")
+
+
+class _Broken(Solver):
+    name = "test-broken"
+
+    def __init__(self, tol: float = 1.0):
+        raise TypeError("a bug inside the constructor")
+
+    def solve(self, hierarchy):  # pragma: no cover
+        raise AssertionError
+
+
+def _kwargs_factory(**options):
+    return _Opt(**options)
+
+
+@pytest.fixture
+def fake_registry(monkeypatch):
+    reg = dict(registry._load())
+    for info in (SolverInfo("test-opt", "options", _Opt, options={"tol": 1e-6}),
+                 SolverInfo("test-broken", "raises TypeError inside", _Broken),
+                 SolverInfo("test-kwargs", "takes **options", _kwargs_factory)):
+        reg[info.name] = info
+    monkeypatch.setattr(registry, "_registry", reg)
+    return reg
+
+
+def test_create_passes_defaults_and_options(fake_registry):
+    s = registry.create("test-opt", max_iter=3)
+    assert (s.tol, s.max_iter) == (1e-6, 3)
+
+
+@pytest.mark.parametrize("name, options, error, message", [
+    ("test-opt", dict(tolerance=1.0), SolverOptionError,
+     r"solver 'test-opt': unknown option\(s\) 'tolerance'; allowed options: tol, max_iter"),
+    ("reference", dict(tol=1.0), SolverOptionError,
+     r"solver 'reference': unknown option\(s\) 'tol'; allowed options: none"),
+    ("test-opt", dict(tol=-1.0), SolverOptionError, r"test-opt: tol must be > 0; got -1.0"),
+    # a TypeError raised inside a constructor is a bug, not a bad option: it propagates unchanged
+    ("test-broken", {}, TypeError, r"a bug inside the constructor"),
+    # a factory taking **options validates names itself
+    ("test-kwargs", dict(bogus=1), TypeError, r"unexpected keyword argument 'bogus'"),
+    ("nope", {}, SolverNotFoundError, r"unknown solver 'nope' \(found solvers: .*reference"),
+], ids=["unknown option", "no options", "bad value", "constructor bug", "kwargs factory", "unknown solver"])
+def test_create_errors(fake_registry, name, options, error, message):
+    with pytest.raises(error, match=message):
+        registry.create(name, **options)
+
+
+def test_option_names(fake_registry):
+    assert registry.option_names(fake_registry["test-opt"]) == ("tol", "max_iter")
+    assert registry.option_names(fake_registry["test-kwargs"]) is None
