@@ -81,9 +81,25 @@ def run(args) -> int:
             for check in check_run(run_):
                 failed |= not check.passed
                 print(f"  [{'pass' if check.passed else 'FAIL'}] {check.name}: {check.detail}")
+    if len(runs) > 1:
+        _print_side_by_side(runs)
     if args.plot:
         from bench.scenario_plots import plot_runs
 
         for path in plot_runs(runs, out, joints=scenario.plot_joints):
             print(f"figure {path}")
     return 1 if failed else 0
+
+
+def _print_side_by_side(runs) -> None:
+    """Task errors of every run side by side: max over the run / final value."""
+    cols = [c for c in runs[0].records.columns if c.startswith("err_")]
+    width = max(len(c) for c in cols) - 4
+    print("\ntask errors, max / final over the run:")
+    print(" " * width + "  " + "  ".join(f"{r.label:>21}" for r in runs))
+    for c in cols:
+        cells = [f"{r.records[c].max():.2e} / {r.records[c].iloc[-1]:.2e}" if c in r.records else "-"
+                 for r in runs]
+        print(f"{c[4:]:<{width}}  " + "  ".join(f"{cell:>21}" for cell in cells))
+    med = [f"{np.median(r.records['solve_time_s']) * 1e3:.3f} ms" for r in runs]
+    print(f"{'median solve':<{width}}  " + "  ".join(f"{m:>21}" for m in med))

@@ -12,12 +12,14 @@ from pathlib import Path
 import numpy as np
 
 from problems.files import save_npz
+from problems.generators import Family
 from problems.hierarchy import Hierarchy
-from problems.robots.stacks import build_stack, stack_names
 
-__all__ = ["stack_problem", "save_test_set", "DEFAULT_SEEDS"]
+__all__ = ["stack_problem", "save_test_set", "DEFAULT_SEEDS", "ROBOT_FAMILIES", "SHIPPED_STACKS"]
 
 DEFAULT_SEEDS = tuple(range(5))
+#: the stacks in problems/robots/stacks (kept here so listing families needs no pinocchio import)
+SHIPPED_STACKS = ("arm_reach", "humanoid_reach", "humanoid_step", "humanoid_tasks", "quadruped_stance")
 
 
 def stack_problem(stack_name: str, seed: int = 0, robot: str | None = None) -> Hierarchy:
@@ -32,6 +34,8 @@ def stack_problem(stack_name: str, seed: int = 0, robot: str | None = None) -> H
     robot : str, optional
         Run the stack on another robot having the frame aliases it uses.
     """
+    from problems.robots.stacks import build_stack  # pinocchio is imported on first use only
+
     stack = build_stack(stack_name, robot=robot)
     rng = np.random.default_rng(seed)
     q = stack.robot.random_configuration(rng)
@@ -42,6 +46,8 @@ def stack_problem(stack_name: str, seed: int = 0, robot: str | None = None) -> H
 def save_test_set(out_dir: str | os.PathLike, stacks: list[str] | None = None,
                   seeds=DEFAULT_SEEDS) -> list[Path]:
     """Write ``<stack>-seed<k>.npz`` for every stack and seed; returns the paths."""
+    from problems.robots.stacks import stack_names
+
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     paths = []
@@ -51,3 +57,16 @@ def save_test_set(out_dir: str | os.PathLike, stacks: list[str] | None = None,
             save_npz(stack_problem(name, seed), path)
             paths.append(path)
     return paths
+
+
+def _robot_stack(seed: int = 0, stack: str = "humanoid_reach", robot: str | None = None) -> Hierarchy:
+    return stack_problem(stack, seed=seed, robot=robot)
+
+
+#: generator families (``problems.generators.Family``) for the harness: merge them into
+#: ``problems.generators.FAMILIES`` to sweep the robot stacks by seed and stack name.
+ROBOT_FAMILIES: dict[str, Family] = {f.name: f for f in (
+    Family("robot-stack", "a robot task stack (problems/robots/stacks) at a random configuration within "
+           "the limits with reachable targets; variables u (n = nv)", _robot_stack,
+           dict(stack="humanoid_reach", robot=None), sweep=dict(stack=list(SHIPPED_STACKS))),
+)}

@@ -94,3 +94,47 @@ def test_step_checks_pass_with_reference():
     run = run_scenario(load_scenario("step"), "reference")
     checks = check_run(run)
     assert all(c.passed for c in checks), [c for c in checks if not c.passed]
+
+
+class _WarmReference:
+    """A stand-in for a warm-start solver (hcod): the reference plus a warm_start option."""
+
+    def __init__(self, warm_start="time"):
+        from solvers.reference import ReferenceSolver
+
+        if warm_start not in ("none", "stage", "time"):
+            from problems.errors import SolverOptionError
+            raise SolverOptionError(f"warm_start must be none, stage or time; got {warm_start!r}")
+        self.warm_start = warm_start
+        self._ref = ReferenceSolver()
+
+    def solve(self, h):
+        res = self._ref.solve(h)
+        res.activations = 1 if self.warm_start == "none" else 0
+        return res
+
+
+@pytest.fixture
+def warm_solver(monkeypatch):
+    from solvers import registry
+    from solvers.registry import SolverInfo
+
+    reg = dict(registry._load())
+    reg["fake-warm"] = SolverInfo("fake-warm", "test double", _WarmReference, supports_inequalities=True,
+                                  supports_warm_start=True, options={"warm_start": "time"})
+    monkeypatch.setattr(registry, "_registry", reg)
+    return "fake-warm"
+
+
+def test_warm_start_modes_reach_the_solver(warm_solver, tmp_path, capsys):
+    sc = load_scenario("reach")
+    assert (run_scenario(sc, warm_solver, steps=2).records["warm_start"] == "time").all()
+    run = run_scenario(sc, warm_solver, warm_start="none", steps=2)
+    assert (run.records["warm_start"] == "none").all() and (run.records["activations"] == 1).all()
+    rc = main(["scenario", "reach", "--solver", warm_solver, "--warm-start", "none", "stage", "time",
+               "--steps", "2", "--out", str(tmp_path), "--plot"])
+    assert rc in (0, 1)
+    for mode in ("none", "stage", "time"):
+        df = pd.read_csv(tmp_path / f"reach_talos_fake-warm_{mode}.csv")
+        assert (df["warm_start"] == mode).all()
+    assert (tmp_path / "fig1_solve_time.png").exists()

@@ -63,3 +63,12 @@ def test_toml_errors_name_the_problem(tmp_path, panda):
         StackSpec.from_dict({"name": "x", "levels": []})
     with pytest.raises(StackError, match="unknown stack 'nope'"):
         load_stack_spec("nope")
+
+
+def test_robot_family_for_the_harness():
+    from problems.robots.testsets import ROBOT_FAMILIES, SHIPPED_STACKS
+
+    assert list(SHIPPED_STACKS) == stack_names()
+    fam = ROBOT_FAMILIES["robot-stack"]
+    assert fam.generate(seed=2, stack="arm_reach") == stack_problem("arm_reach", 2)
+    assert fam.generate(seed=0).n == 38  # talos, the paper's stack
