@@ -18,6 +18,7 @@ iterations                 SolveResult.iterations
 activations, deactivations SolveResult counts (active-set solvers; 0 otherwise)
 status                     SolveResult.status, or ``diverged`` when q (+) u dt is not
                            finite (the run stops there)
+reason                     SolveResult.reason (empty when optimal)
 min_joint_limit_margin     min over bounded joints of min(q - q_l, q_u - q) at q_k
                            (rad or m; negative = violated)
 err_<task>                 the task's error norm at q_k (``Task.error_norm``;
@@ -44,7 +45,7 @@ from solvers import registry
 __all__ = ["ScenarioRun", "run_scenario", "check_run", "COLUMNS", "NO_WARM_START"]
 
 COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_s", "iterations", "activations",
-           "deactivations", "status", "min_joint_limit_margin")
+           "deactivations", "status", "reason", "min_joint_limit_margin")
 NO_WARM_START = "n/a"
 
 
@@ -104,7 +105,7 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
         u = res.x
         row = {"solver": solver, "warm_start": mode, "step": k, "time_s": t, "solve_time_s": elapsed,
                "iterations": int(res.iterations), "activations": int(res.activations),
-               "deactivations": int(res.deactivations), "status": res.status,
+               "deactivations": int(res.deactivations), "status": res.status, "reason": res.reason,
                "min_joint_limit_margin": float(np.min(robot.limit_margin(q), initial=np.inf))}
         row.update({f"err_{name}": v for name, v in stack.errors(q, u, state).items()})
         norms = h.level_norms(u) if u is not None else np.full(h.depth, np.nan)
@@ -144,7 +145,7 @@ def check_run(run: ScenarioRun) -> list[Check]:
     robot = run.scenario.robot
     if len(df) and (df["status"] != "optimal").any():
         bad = df[df["status"] != "optimal"].iloc[0]
-        out.append(Check("solved", False, f"step {int(bad['step'])}: status {bad['status']}"))
+        out.append(Check("solved", False, f"step {int(bad['step'])}: status {bad['status']} {bad['reason']}"))
     if spec.get("limits", False):
         margin = min(float(np.min(robot.limit_margin(q))) for q in run.q)
         out.append(Check("joint limits", margin >= -LIMIT_TOL, f"min margin {margin:.3e}"))

@@ -105,9 +105,8 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
     # Fig. 3: joint trajectories normalised to their limits (one file per run)
     for run in runs:
         z, names = normalised_joints(run)
-        if joints:
-            idx = [names.index(j) for j in joints if j in names]
-        else:  # the 12 joints that move most
+        idx = [names.index(j) for j in joints or () if j in names]
+        if not idx:  # no list, or none of its joints on this robot: the 12 joints that move most
             idx = list(np.argsort(-(z.max(axis=0) - z.min(axis=0)))[:12])
         t = np.arange(len(z)) * run.scenario.dt
         fig, ax = plt.subplots(figsize=(10, 4.5))

@@ -7,9 +7,14 @@ import functools
 import numpy as np
 import pinocchio as pin
 
+from problems.errors import HikbenchError
 from problems.robots.models import Robot
 
-__all__ = ["KinematicState", "skew"]
+__all__ = ["KinematicState", "skew", "TaskError"]
+
+
+class TaskError(HikbenchError, ValueError):
+    """A task or configuration with a bad parameter (shape, axis name, missing target)."""
 
 
 def skew(v: np.ndarray) -> np.ndarray:
@@ -29,6 +34,9 @@ class KinematicState:
         self.robot = robot
         self.model = robot.model
         self.q = np.array(q, dtype=float)
+        if self.q.shape != (robot.nq,) or not np.all(np.isfinite(self.q)):
+            raise TaskError(f"robot {robot.name!r}: q must be {robot.nq} finite numbers; got shape "
+                            f"{self.q.shape}" + ("" if np.all(np.isfinite(self.q)) else " with NaN/inf"))
         self.data = self.model.createData()
         pin.computeJointJacobians(self.model, self.data, self.q)
         pin.updateFramePlacements(self.model, self.data)

@@ -21,16 +21,11 @@ from typing import ClassVar
 import numpy as np
 import pinocchio as pin
 
-from problems.errors import HikbenchError
-from problems.robots.kinematics import KinematicState, skew
+from problems.robots.kinematics import KinematicState, TaskError, skew
 from problems.robots.models import Robot
 
 __all__ = ["Task", "TaskError", "PositionTask", "OrientationTask", "PoseTask", "DirectionTask",
            "AlignmentTask", "ComTask", "PostureTask", "MinimalVelocityTask", "axes_index"]
-
-
-class TaskError(HikbenchError, ValueError):
-    """A task with a bad parameter (shape, axis name, missing target)."""
 
 
 def axes_index(axes: str) -> np.ndarray:
