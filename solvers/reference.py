@@ -27,6 +27,8 @@ Two methods that share no code with the HCOD solver:
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from problems.errors import HikbenchError
@@ -120,7 +122,10 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
     problem.P = _csc(P)
     tried = []
     for backend, options in _QP_BACKENDS:
-        sol = qpsolvers.solve_problem(problem, solver=backend, **options)
+        with warnings.catch_warnings():  # a stalled backend is recorded below, not warned
+            warnings.simplefilter("ignore", RuntimeWarning)
+            warnings.simplefilter("ignore", UserWarning)
+            sol = qpsolvers.solve_problem(problem, solver=backend, **options)
         status = sol.extras.get("status") if isinstance(sol.extras, dict) else None
         if sol.found and sol.x is not None and np.all(np.isfinite(sol.x)):
             return sol.x[:n], backend

@@ -26,6 +26,10 @@ __all__ = ["SolverInfo", "available", "get", "create", "missing", "option_names"
 
 _BUILTIN_MODULES: tuple[str, ...] = (
     "solvers.reference",
+    "solvers.cascade",
+    "solvers.cascade_cvxpy",
+    "solvers.nullspace",
+    "solvers.damped",
 )
 _OWN_PACKAGES = ("solvers", "problems", "bench")
 

@@ -1,0 +1,272 @@
+"""Cascades of generic QPs (Kanoun et al., ref. [8] of the ICRA 2010 paper).
+
+Level k of a hierarchy is solved as one QP in ``z = (x, w_k)``, shapes
+x (n,), w_k (m_k,) (one slack per non-free row of level k):
+
+    min_{x, w_k}  1/2 ||w_k||^2 + eps/2 ||x||^2
+    s.t.          lower_k <= A_k x - w_k <= upper_k          (level k, eq. (34) of ICRA 2010)
+                  frozen rows of the levels j < k            (eq. (35))
+
+``eps`` is a tiny regularisation (option ``regularization``, default
+:data:`solvers._qp_backends.REGULARIZATION`, 1e-12): it makes the Hessian
+positive definite for backends that need it and picks a small-norm x; its
+effect on the optimal slack is of order ``eps ||x||^2``.
+
+After level k is solved, its achieved slack is recomputed from x,
+``w_k* = A_k x - clip(A_k x, lower_k, upper_k)`` (so x is feasible for the
+frozen rows by construction), and the level is frozen for the levels below
+by one of three modes (option ``freeze``):
+
+* ``"shift"`` (Kanoun): ``lower_k + w_k* <= A_k x <= upper_k + w_k*``;
+* ``"equality"``: rows with ``|w_k*| > slack_tol`` become equalities at their
+  achieved value ``A_k x = A_k x*``; the other rows keep their own bounds;
+* ``"relaxed"``: the shifted bounds widened by ``delta`` (option
+  ``relax_delta``; default ``NOMINAL_TOL[accuracy]``):
+  ``lower_k + w_k* - delta <= A_k x <= upper_k + w_k* + delta``.
+
+``slack_tol`` defaults to ``NOMINAL_TOL[accuracy]``. Free rows are dropped.
+No final minimum-norm stage is run (the regularisation plays that role).
+
+Failures come back as statuses naming the level: ``infeasible_level`` (the
+QP of level k has no solution once levels 0..k-1 are frozen — as reported by
+the backend, or presumed when k > 0 and the backend's status is not passed
+on by qpsolvers), ``error`` (the backend raised; the reason carries the
+exception), ``numerical_failure`` (NaN in the backend's x, a numerical-error
+status, or no solution at level 0 without a status), ``max_iterations`` (the
+backend's iteration cap). A backend that stops "inaccurate" (OSQP solved
+inaccurate, Clarabel AlmostSolved) is accepted; those levels are listed in
+``info["inaccurate_levels"]`` — the verification judges the result.
+``build_time_s`` is the assembly of the level QPs (dense blocks, CSC
+conversion); ``solve_time_s`` the ``qpsolvers.solve_problem`` calls (the
+backend's own set-up and factorisation included). On failure x is the point
+reached after the last successful level (None if level 0 failed).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from typing import ClassVar
+
+import numpy as np
+import scipy.sparse as spa
+
+from problems.errors import SolverOptionError
+from problems.hierarchy import Hierarchy
+from solvers import _qp_backends as tables
+from solvers.base import (ERROR, INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL,
+                          SolveResult, Solver)
+from solvers.registry import SolverInfo
+
+__all__ = ["CascadeBase", "QPSolversCascade", "FREEZE_MODES", "freeze_level", "level_qp"]
+
+FREEZE_MODES = ("shift", "equality", "relaxed")
+
+
+def freeze_level(mode: str, A_k, lower_k, upper_k, x, slack_tol: float, delta: float):
+    """Bounds that freeze level k at x, shapes (m_k,) each (see module doc).
+
+    Returns ``(lower, upper, w)`` with w the achieved signed slack
+    ``A_k x - clip(A_k x, lower_k, upper_k)``."""
+    r = A_k @ x
+    w = r - np.clip(r, lower_k, upper_k)
+    if mode == "shift":  # -inf + w stays -inf: a one-sided row stays one-sided
+        return lower_k + w, upper_k + w, w
+    if mode == "relaxed":
+        return lower_k + w - delta, upper_k + w + delta, w
+    nonzero = np.abs(w) > slack_tol  # "equality": pin the violated rows, keep the others' bounds
+    return np.where(nonzero, r, lower_k), np.where(nonzero, r, upper_k), w
+
+
+def level_qp(A_f, lower_f, upper_f, A_k, lower_k, upper_k, eps: float):
+    """Dense QP of one level in ``z = (x, w_k)``, shape (n + m_k,).
+
+    Returns ``P, G, h, Aeq, beq`` for ``min 1/2 z^T P z s.t. G z <= h,
+    Aeq z = beq`` (None for an empty block): the frozen rows ``(A_f, 0)`` and
+    the level rows ``(A_k, -I)``; a row with ``lower == upper`` is an
+    equality, each finite side of any other row one inequality."""
+    n, m = A_k.shape[1], A_k.shape[0]
+    P = np.diag(np.concatenate([np.full(n, eps), np.ones(m)]))
+    C = np.vstack([np.hstack([A_f, np.zeros((A_f.shape[0], m))]), np.hstack([A_k, -np.eye(m)])])
+    lo = np.concatenate([lower_f, lower_k])
+    up = np.concatenate([upper_f, upper_k])
+    eq = lo == up
+    fu = np.isfinite(up) & ~eq
+    fl = np.isfinite(lo) & ~eq
+    G = np.vstack([C[fu], -C[fl]])
+    h = np.concatenate([up[fu], -lo[fl]])
+    return (P, G if G.shape[0] else None, h if h.shape[0] else None,
+            C[eq] if eq.any() else None, lo[eq] if eq.any() else None)
+
+
+class CascadeBase(Solver):
+    """The cascade loop, the freezing and the failure statuses; subclasses
+    implement :meth:`_solve_level` for one modelling layer / backend."""
+
+    supports_inequalities = True
+    backend: ClassVar[str] = ""
+
+    def __init__(self, freeze: str = "shift", accuracy: str = "high", regularization: float | None = None,
+                 max_iter: int | None = None, relax_delta: float | None = None,
+                 slack_tol: float | None = None):
+        if freeze not in FREEZE_MODES:
+            raise SolverOptionError(f"{self.name}: option freeze={freeze!r}: expected one of {FREEZE_MODES}")
+        if accuracy not in tables.PROFILES:
+            raise SolverOptionError(f"{self.name}: option accuracy={accuracy!r}: expected one of "
+                                    f"{tables.PROFILES}")
+        for opt, val in (("regularization", regularization), ("relax_delta", relax_delta),
+                         ("slack_tol", slack_tol)):
+            if val is not None and not (np.isfinite(val) and val >= 0):
+                raise SolverOptionError(f"{self.name}: option {opt}={val!r}: expected a finite number >= 0")
+        if max_iter is not None and (not isinstance(max_iter, (int, np.integer)) or max_iter < 1):
+            raise SolverOptionError(f"{self.name}: option max_iter={max_iter!r}: expected an int >= 1")
+        if max_iter is not None and self.backend in tables.MAX_ITER_NAME and \
+                tables.MAX_ITER_NAME[self.backend] is None:
+            raise SolverOptionError(f"{self.name}: option max_iter: backend {self.backend} has no "
+                                    "iteration limit")
+        self.freeze = freeze
+        self.accuracy = accuracy
+        self.eps = tables.REGULARIZATION.get(self.backend, 1e-12) if regularization is None else float(
+            regularization)
+        self.max_iter = max_iter
+        tol = tables.NOMINAL_TOL[accuracy]
+        self.delta = tol if relax_delta is None else float(relax_delta)
+        self.slack_tol = tol if slack_tol is None else float(slack_tol)
+        self._last_z: dict[int, np.ndarray] = {}
+
+    def reset(self) -> None:
+        self._last_z = {}
+
+    def _solve_level(self, k: int, A_f, lower_f, upper_f, A_k, lower_k, upper_k, z0):
+        """Solve the QP of level k. Returns ``(kind, z, iterations, build_s,
+        solve_s, text)``; kind is ``"ok"``, ``"inaccurate"``, ``"infeasible"``,
+        ``"max_iterations"`` or ``"unknown"``; exceptions propagate."""
+        raise NotImplementedError
+
+    def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        h = hierarchy
+        n = h.n
+        x = np.zeros(n)
+        A_f = np.zeros((0, n))
+        lower_f = np.zeros(0)
+        upper_f = np.zeros(0)
+        iters: list[int] = []
+        build_s = solve_s = 0.0
+        inaccurate: list[int] = []
+        info = {"backend": self.backend, "freeze": self.freeze, "accuracy": self.accuracy}
+
+        def fail(status: str, k: int, why: str, x_out) -> SolveResult:
+            info["failed_level"] = k
+            return SolveResult(x=x_out, status=status, reason=f"{self.name}: level {k}: {why}",
+                               iterations=sum(iters),
+                               iterations_per_level=tuple(iters + [0] * (h.depth - len(iters))),
+                               build_time_s=build_s, solve_time_s=solve_s, info=info)
+
+        for k in range(h.depth):
+            s = h.level_rows(k)
+            keep = ~h.is_free[s]
+            A_k, lower_k, upper_k = h.A[s][keep], h.lower[s][keep], h.upper[s][keep]
+            if A_k.shape[0] == 0:
+                iters.append(0)
+                continue
+            z0 = self._last_z.get(k)
+            if z0 is None or z0.shape[0] != n + A_k.shape[0]:
+                r = A_k @ x
+                z0 = np.concatenate([x, r - np.clip(r, lower_k, upper_k)])
+            x_prev = x if k else None
+            try:
+                kind, z, it, b_s, s_s, text = self._solve_level(k, A_f, lower_f, upper_f, A_k, lower_k,
+                                                                upper_k, z0)
+            except Exception as err:  # noqa: BLE001 - any backend exception becomes a status with its text
+                return fail(ERROR, k, f"backend {self.backend} raised {type(err).__name__}: {err}", x_prev)
+            build_s += b_s
+            solve_s += s_s
+            iters.append(it)
+            if z is not None and not np.all(np.isfinite(z)):
+                return fail(NUMERICAL_FAILURE, k, f"backend {self.backend} returned NaN/inf (status {text})",
+                            x_prev)
+            if kind == "max_iterations":
+                x_out = z[:n] if z is not None else x_prev
+                return fail(MAX_ITERATIONS, k, f"backend {self.backend} hit its iteration limit "
+                                               f"({it} iterations, status {text})", x_out)
+            if kind == "infeasible" or (kind == "unknown" and k > 0):
+                presumed = "" if kind == "infeasible" else "; status not reported, infeasibility presumed"
+                return fail(INFEASIBLE_LEVEL, k, f"infeasible after freezing levels 0..{k - 1} "
+                                                 f"(backend {self.backend} found no solution, status {text}"
+                                                 f"{presumed})", x_prev)
+            if kind in ("unknown", "numerical") or z is None:
+                return fail(NUMERICAL_FAILURE, k, f"backend {self.backend} found no solution (status {text})",
+                            x_prev)
+            if kind == "inaccurate":
+                inaccurate.append(k)
+            self._last_z[k] = z
+            x = z[:n]
+            lo, up, _ = freeze_level(self.freeze, A_k, lower_k, upper_k, x, self.slack_tol, self.delta)
+            A_f = np.vstack([A_f, A_k])
+            lower_f = np.concatenate([lower_f, lo])
+            upper_f = np.concatenate([upper_f, up])
+        if inaccurate:
+            info["inaccurate_levels"] = inaccurate
+        return SolveResult(x=x, status=OPTIMAL, iterations=sum(iters), iterations_per_level=tuple(iters),
+                           build_time_s=build_s, solve_time_s=solve_s, info=info)
+
+
+class QPSolversCascade(CascadeBase):
+    """Cascade whose levels are solved by a qpsolvers backend (class attribute ``backend``)."""
+
+    def _solve_level(self, k, A_f, lower_f, upper_f, A_k, lower_k, upper_k, z0):
+        import qpsolvers
+
+        t0 = time.perf_counter()
+        P, G, hv, Aeq, beq = level_qp(A_f, lower_f, upper_f, A_k, lower_k, upper_k, self.eps)
+        if tables.SPARSE[self.backend]:
+            P, G, Aeq = (None if M is None else spa.csc_matrix(M) for M in (P, G, Aeq))
+        problem = qpsolvers.Problem(P, np.zeros(P.shape[0]), G, hv, Aeq, beq)
+        opts = dict(tables.ACCURACY[self.backend][self.accuracy])
+        if self.max_iter is not None:
+            opts[tables.MAX_ITER_NAME[self.backend]] = int(self.max_iter)
+        initvals = z0 if tables.WARM_START[self.backend] else None
+        t1 = time.perf_counter()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # statuses are read from the Solution, not from warnings
+            sol = qpsolvers.solve_problem(problem, solver=self.backend, initvals=initvals, verbose=False,
+                                          **opts)
+        t2 = time.perf_counter()
+        it = tables.iterations(self.backend, sol)
+        z = None if sol.x is None else np.asarray(sol.x, dtype=float)
+        if z is not None and z.shape != (P.shape[0],):
+            z = None
+        if sol.found:
+            return "ok", z, it, t1 - t0, t2 - t1, "solved"
+        kind, text = tables.status_kind(self.backend, sol)
+        return kind, (z if kind in ("inaccurate", "max_iterations") else None), it, t1 - t0, t2 - t1, text
+
+
+def _make(backend: str) -> type[QPSolversCascade]:
+    cls = type(f"Cascade_{backend}", (QPSolversCascade,), {
+        "name": f"cascade-{backend}",
+        "description": f"cascade of QPs (Kanoun et al.), one QP per level solved by {backend} via qpsolvers",
+        "backend": backend,
+        "supports_warm_start": tables.WARM_START[backend],
+        "__doc__": f"Cascade of QPs solved by {backend}.",
+    })
+    return cls
+
+
+def _installed() -> list[str]:
+    try:
+        import qpsolvers
+    except ModuleNotFoundError:
+        return []
+    return [b for b in tables.BACKENDS if b in qpsolvers.available_solvers]
+
+
+CLASSES = {b: _make(b) for b in tables.BACKENDS}
+_DEFAULTS = {"freeze": "shift", "accuracy": "high", "regularization": None, "max_iter": None,
+             "relax_delta": None, "slack_tol": None}
+SOLVERS = [SolverInfo(CLASSES[b].name, CLASSES[b].description, CLASSES[b], supports_inequalities=True,
+                      supports_warm_start=CLASSES[b].supports_warm_start, strict=True,
+                      options=dict(_DEFAULTS))
+           for b in _installed()]
+MISSING = {f"cascade-{b}": f"qpsolvers backend {b!r} is not installed; install it with: {tables.INSTALL[b]}"
+           for b in tables.BACKENDS if b not in _installed()}

@@ -1,0 +1,304 @@
+"""Weighted and damped IK: no strict hierarchy (``strict=False``).
+
+All levels are stacked into one task ``J x = e`` (J shape (m, n)); the
+harness reports how far the result lands from the lexicographic optimum.
+
+* ``weighted`` — one regularised least-squares step with per-level weights
+  (kinematics lecture 003, "optimality principle"):
+
+      x = J# e,   J# = (J^T C J + W)^-1 J^T C,
+
+  C = diag(c_k on the rows of level k), c_k from option ``weights`` (one per
+  level) or ``ratio ** k`` (option ``ratio``, default 1e-2), W = ``regularization`` I
+  (default 1e-9).
+* ``dls`` — one damped least-squares step (Wampler; Boutin et al. eq. (1)
+  without the joint-limit term), all rows with the same weight:
+
+      x = J^T (J J^T + lambda^2 I)^-1 e,     lambda = option ``damping`` (1e-3).
+
+* ``dls-liegeois`` — Boutin et al. eq. (1) iterated from x = 0 (they iterate
+  until the task is met; here until ``||dx|| <= tol (1 + ||x||)``, at most
+  ``max_iter`` steps, else status ``max_iterations``):
+
+      dx = J^+_lambda (e - J x) + alpha (I - J^+ J) grad(phi)(x),
+
+  with J^+_lambda the damped pseudo-inverse above, J^+ the exact
+  (SVD, rank threshold 1e-10 ||J||_2) pseudo-inverse in the null-space
+  projector (Boutin prints ``I - J^T J``, a misprint for the projector), and
+  Liegeois' joint-limit gradient (Boutin et al. eq. (2)), per variable,
+
+      grad(phi)_i = (qmax_i - qmin_i)^2 (qmax_i + qmin_i - 2 q_i) / ((qmax_i - q_i)^2 (qmin_i - q_i)^2),
+
+  which points towards the middle of [qmin_i, qmax_i] (so alpha > 0 moves
+  away from the limits). Near the middle c_i of a box of half-width a_i,
+  grad(phi)_i ~ -8 (q_i - c_i) / a_i^2; option ``alpha`` (Boutin's scalar)
+  defaults to ``min_i a_i^2 / 8``, the step that takes the narrowest joint to
+  its middle in that quadratic approximation (a fixed alpha would be stable
+  for some box widths and crawl for others). q is the current iterate x: the limits are taken
+  from the first **box level** of the hierarchy — a level whose rows are
+  +-unit vectors on distinct variables — and that level is not part of the
+  task. Variables without two finite, distinct limits get a zero gradient. A
+  hierarchy without a box level gets status ``unsupported``.
+
+Inequality rows (all three solvers): a free row is ignored; an inequality
+row is a target only where it is violated — the first solve uses the
+equality rows only, then it is repeated (``passes`` solves at most, default 3)
+adding the rows violated by the current x as equality targets at their
+violated bound (rows once added stay,
+at the bound first violated). dls-liegeois does the same at every iteration
+(re-selecting from scratch makes the iteration chatter between two row sets).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg
+
+from problems.errors import SolverOptionError
+from problems.hierarchy import Hierarchy
+from solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, SolveResult, Solver
+from solvers.registry import SolverInfo
+
+__all__ = ["Weighted", "DLS", "DLSLiegeois", "liegeois_gradient", "box_limits"]
+
+
+def _check_pos(name: str, opt: str, value, strict: bool = False) -> float:
+    ok = value is not None and np.isfinite(value) and (value > 0 if strict else value >= 0)
+    if not ok:
+        raise SolverOptionError(f"{name}: option {opt}={value!r}: expected a finite number "
+                                f"{'> 0' if strict else '>= 0'}")
+    return float(value)
+
+
+def _check_int(name: str, opt: str, value) -> int:
+    if not isinstance(value, (int, np.integer)) or value < 1:
+        raise SolverOptionError(f"{name}: option {opt}={value!r}: expected an int >= 1")
+    return int(value)
+
+
+def _mark_violated(h: Hierarchy, rows: np.ndarray, x: np.ndarray, side: np.ndarray) -> int:
+    """Mark in ``side`` (m,) int8 the inequality rows among ``rows`` (bool mask)
+    violated at x and not yet targets: 1 above the upper bound, -1 below the
+    lower. Returns how many were added."""
+    r = h.A @ x
+    cand = rows & ~h.is_equality & (side == 0)
+    new_up = cand & (r > h.upper)
+    new_lo = cand & (r < h.lower)
+    side[new_up] = 1
+    side[new_lo] = -1
+    return int(new_up.sum() + new_lo.sum())
+
+
+def _selection(h: Hierarchy, side: np.ndarray):
+    """Target rows (side != 0) and their targets: the upper bound (equality
+    rows: lower == upper) for side 1, the lower bound for side -1."""
+    sel = np.flatnonzero(side != 0)
+    return sel, np.where(side[sel] < 0, h.lower[sel], h.upper[sel])
+
+
+def box_limits(h: Hierarchy):
+    """Per-variable limits from the first box level.
+
+    Returns ``(k, qmin, qmax)``, qmin/qmax shape (n,) (+-inf where a variable
+    has no row), or None when no level is a box level (rows that are +-unit
+    vectors on distinct variables)."""
+    for k in range(h.depth):
+        s = h.level_rows(k)
+        A = h.A[s]
+        if A.shape[0] == 0:
+            continue
+        nz = A != 0
+        if not np.all(nz.sum(axis=1) == 1):
+            continue
+        cols = np.argmax(nz, axis=1)
+        vals = A[np.arange(A.shape[0]), cols]
+        if not np.all(np.abs(vals) == 1.0) or np.unique(cols).size != cols.size:
+            continue
+        qmin = np.full(h.n, -np.inf)
+        qmax = np.full(h.n, np.inf)
+        lo, up = h.lower[s], h.upper[s]
+        qmin[cols] = np.where(vals > 0, lo, -up)
+        qmax[cols] = np.where(vals > 0, up, -lo)
+        return k, qmin, qmax
+    return None
+
+
+def liegeois_gradient(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray) -> np.ndarray:
+    """Boutin et al. eq. (2), shape (n,); 0 where a limit is infinite or qmin >= qmax."""
+    ok = np.isfinite(qmin) & np.isfinite(qmax) & (qmax > qmin)
+    g = np.zeros_like(q)
+    lo, hi, qq = qmin[ok], qmax[ok], q[ok]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g[ok] = (hi - lo) ** 2 * (hi + lo - 2 * qq) / ((hi - qq) ** 2 * (lo - qq) ** 2)
+    return g
+
+
+class _Stacked(Solver):
+    supports_inequalities = True
+    supports_warm_start = False
+
+    def _row_weights(self, h: Hierarchy) -> np.ndarray:
+        return np.ones(h.rows)
+
+    def _step(self, J, e, c) -> np.ndarray:
+        raise NotImplementedError
+
+    def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        h = hierarchy
+        rows = ~h.is_free
+        side = np.zeros(h.rows, dtype=np.int8)
+        side[rows & h.is_equality] = 1
+        c_all = self._row_weights(h)
+        x = np.zeros(h.n)
+        passes = 0
+        with np.errstate(all="ignore"):
+            while passes < self.passes:
+                if passes and _mark_violated(h, rows, x, side) == 0:
+                    break
+                passes += 1
+                sel, e = _selection(h, side)
+                try:
+                    x = self._step(h.A[sel], e, c_all[sel]) if sel.size else np.zeros(h.n)
+                except (np.linalg.LinAlgError, ValueError) as err:
+                    return SolveResult(x=None, status=NUMERICAL_FAILURE,
+                                       reason=f"{self.name}: factorisation failed: {err}", iterations=passes)
+                if not np.all(np.isfinite(x)):
+                    return SolveResult(x=x, status=NUMERICAL_FAILURE, reason=f"{self.name}: NaN/inf in x",
+                                       iterations=passes)
+        return SolveResult(x=x, status=OPTIMAL, iterations=passes,
+                           info={"target_rows": int((side != 0).sum())})
+
+
+class Weighted(_Stacked):
+    """x = (J^T C J + W)^-1 J^T C e with per-level weights (lecture 003)."""
+
+    name = "weighted"
+    description = "one weighted regularised least-squares step J# = (J^T C J + W)^-1 J^T C, per-level weights"
+
+    def __init__(self, weights=None, ratio: float = 1e-2, regularization: float = 1e-9, passes: int = 3):
+        self.ratio = _check_pos(self.name, "ratio", ratio, strict=True)
+        self.regularization = _check_pos(self.name, "regularization", regularization)
+        self.passes = _check_int(self.name, "passes", passes)
+        if weights is not None:
+            w = np.asarray(weights, dtype=float)
+            if w.ndim != 1 or not np.all(np.isfinite(w)) or np.any(w < 0):
+                raise SolverOptionError(f"{self.name}: option weights={weights!r}: expected one finite "
+                                        "weight >= 0 per level")
+            weights = w
+        self.weights = weights
+
+    def _row_weights(self, h: Hierarchy) -> np.ndarray:
+        if self.weights is None:
+            c = self.ratio ** np.arange(h.depth, dtype=float)
+        else:
+            if self.weights.size != h.depth:
+                raise SolverOptionError(f"{self.name}: option weights has {self.weights.size} entries: "
+                                        f"expected one per level ({h.depth})")
+            c = self.weights
+        return c[h.level]
+
+    def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        if self.weights is not None and self.weights.size != hierarchy.depth:
+            return self.unsupported(hierarchy, f"option weights has {self.weights.size} entries, the "
+                                               f"hierarchy has {hierarchy.depth} levels")
+        return super().solve(hierarchy)
+
+    def _step(self, J, e, c):
+        JtC = J.T * c  # (n, m): J^T C
+        H = JtC @ J + self.regularization * np.eye(J.shape[1])
+        return scipy.linalg.cho_solve(scipy.linalg.cho_factor(H), JtC @ e)
+
+
+class DLS(_Stacked):
+    """x = J^T (J J^T + lambda^2 I)^-1 e (damped least squares)."""
+
+    name = "dls"
+    description = "one damped least-squares step J^T (J J^T + lambda^2 I)^-1 e, all levels stacked"
+
+    def __init__(self, damping: float = 1e-3, passes: int = 3):
+        self.damping = _check_pos(self.name, "damping", damping)
+        self.passes = _check_int(self.name, "passes", passes)
+
+    def _step(self, J, e, c):
+        G = J @ J.T + self.damping ** 2 * np.eye(J.shape[0])
+        return J.T @ scipy.linalg.cho_solve(scipy.linalg.cho_factor(G), e)
+
+
+class DLSLiegeois(Solver):
+    """Boutin et al. eqs. (1)-(2): DLS plus the Liegeois joint-limit gradient in the null space."""
+
+    name = "dls-liegeois"
+    description = "iterated DLS + Liegeois joint-limit gradient projected in the null space (Boutin eqs. 1-2)"
+    supports_inequalities = True
+    supports_warm_start = False
+
+    def __init__(self, damping: float = 1e-3, alpha: float | None = None, max_iter: int = 1000,
+                 tol: float = 1e-10):
+        self.damping = _check_pos(self.name, "damping", damping)
+        self.alpha = None if alpha is None else _check_pos(self.name, "alpha", alpha)
+        self.max_iter = _check_int(self.name, "max_iter", max_iter)
+        self.tol = _check_pos(self.name, "tol", tol, strict=True)
+
+    def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        h = hierarchy
+        box = box_limits(h)
+        if box is None:
+            return self.unsupported(h, "needs per-variable limits: no level is a box level (rows that are "
+                                       "+-unit vectors on distinct variables)")
+        kbox, qmin, qmax = box
+        alpha = self.alpha
+        if alpha is None:
+            half = (qmax - qmin)[np.isfinite(qmax - qmin) & (qmax > qmin)] / 2
+            alpha = float(half.min() ** 2 / 8) if half.size else 0.0
+        rows = ~h.is_free & (h.level != kbox)
+        n = h.n
+        x = np.zeros(n)
+        cache: dict[bytes, tuple] = {}
+        side = np.zeros(h.rows, dtype=np.int8)
+        side[rows & h.is_equality] = 1
+        it = 0
+        with np.errstate(all="ignore"):
+            for it in range(1, self.max_iter + 1):
+                _mark_violated(h, rows, x, side)  # rows once targets stay targets
+                sel, e = _selection(h, side)
+                key = side.tobytes()
+                if key not in cache:
+                    J = h.A[sel]
+                    if sel.size:
+                        G = J @ J.T + self.damping ** 2 * np.eye(sel.size)
+                        try:
+                            Jd = J.T @ scipy.linalg.cho_solve(scipy.linalg.cho_factor(G), np.eye(sel.size))
+                        except (np.linalg.LinAlgError, ValueError) as err:
+                            return SolveResult(x=x, status=NUMERICAL_FAILURE, iterations=it,
+                                               reason=f"{self.name}: damped inverse failed: {err}")
+                        _, S, Vt = np.linalg.svd(J, full_matrices=True)
+                        rank = int(np.sum(S > 1e-10 * (S[0] if S.size else 0.0)))
+                        N = Vt[rank:].T @ Vt[rank:]  # I - J^+ J, shape (n, n)
+                    else:
+                        Jd, N = np.zeros((n, 0)), np.eye(n)
+                    cache[key] = (J, Jd, N)
+                J, Jd, N = cache[key]
+                dx = Jd @ (e - J @ x) + alpha * (N @ liegeois_gradient(x, qmin, qmax))
+                if not np.all(np.isfinite(dx)):
+                    return SolveResult(x=x, status=NUMERICAL_FAILURE, iterations=it,
+                                       reason=f"{self.name}: NaN/inf step at iteration {it} "
+                                              "(an iterate on a limit?)")
+                x = x + dx
+                if np.linalg.norm(dx) <= self.tol * (1 + np.linalg.norm(x)):
+                    return SolveResult(x=x, status=OPTIMAL, iterations=it,
+                                       info={"box_level": kbox, "alpha": alpha})
+        return SolveResult(x=x, status=MAX_ITERATIONS, iterations=it,
+                           info={"box_level": kbox, "alpha": alpha},
+                           reason=f"{self.name}: no convergence in {self.max_iter} iterations "
+                                  f"(last ||dx|| = {np.linalg.norm(dx):.3g})")
+
+
+SOLVERS = [
+    SolverInfo(Weighted.name, Weighted.description, Weighted, supports_inequalities=True, strict=False,
+               options={"weights": None, "ratio": 1e-2, "regularization": 1e-9, "passes": 3}),
+    SolverInfo(DLS.name, DLS.description, DLS, supports_inequalities=True, strict=False,
+               options={"damping": 1e-3, "passes": 3}),
+    SolverInfo(DLSLiegeois.name, DLSLiegeois.description, DLSLiegeois, supports_inequalities=True,
+               strict=False,
+               options={"damping": 1e-3, "alpha": None, "max_iter": 1000, "tol": 1e-10}),
+]

@@ -1,0 +1,440 @@
+"""Cascades of QPs: lexicographic agreement with the independent reference,
+per backend, freeze mode and accuracy profile; failure modes as statuses.
+
+Every (solver, profile, freeze, case) runs; the outcome is ``"ok"`` (status
+optimal and :func:`problems.verify.verify` finds no level that differs beyond
+the tolerance of :data:`RTOL`), ``"differs"`` (status optimal but the
+verification finds a level that differs: a wrong answer) or the status. The
+expected outcome is ``"ok"`` unless :data:`KNOWN` records otherwise — those
+entries are the backend failures observed on this machine (qpsolvers 4.13,
+osqp 1.1, proxsuite 0.8, clarabel 0.11, daqp, quadprog, piqp 0.7, highspy)
+and are asserted exactly, so a backend that gets better or worse shows up.
+"""
+
+from __future__ import annotations
+
+import importlib
+
+import numpy as np
+import pytest
+from baseline_cases import BIG_CASES, CASES, case, reference
+from hypothesis import assume, given, settings
+from hypothesis import strategies as st
+
+from problems import generators as g
+from problems.errors import SolverNotFoundError, SolverOptionError
+from problems.hierarchy import Hierarchy, Level
+from problems.verify import verify
+from solvers import _qp_backends as tables
+from solvers import cascade, registry
+from solvers.base import ERROR, INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL
+from solvers.reference import reference_solution
+
+QP_SOLVERS = tuple(info.name for info in cascade.SOLVERS)
+ALL_CASCADES = QP_SOLVERS + ("cascade-cvxpy",)
+
+#: verify() rtol per accuracy profile and solver (10x the worst deviation seen
+#: on CASES, rounded up to a decade). Level tolerance = rtol * level scale.
+RTOL = {
+    "high": {"cascade-osqp": 1e-8, "cascade-proxqp": 1e-8, "cascade-clarabel": 1e-8, "cascade-daqp": 1e-8,
+             "cascade-quadprog": 1e-8, "cascade-piqp": 1e-7, "cascade-highs": 1e-6, "cascade-cvxpy": 1e-8},
+    "default": {"cascade-osqp": 1e-3, "cascade-proxqp": 1e-3, "cascade-clarabel": 1e-8, "cascade-daqp": 1e-7,
+                "cascade-quadprog": 1e-8, "cascade-piqp": 1e-7, "cascade-highs": 1e-6, "cascade-cvxpy": 1e-8},
+    "low": {"cascade-osqp": 1e-4, "cascade-proxqp": 1e-3, "cascade-clarabel": 1e-5, "cascade-daqp": 1e-7,
+            "cascade-quadprog": 1e-8, "cascade-piqp": 1e-3, "cascade-highs": 1e-6, "cascade-cvxpy": 1e-5},
+}
+#: freeze="relaxed" lets every frozen row move by delta (1e-9 at "high"); an
+#: exact backend (quadprog) uses all of it, so its deeper levels move further.
+RTOL_RELAXED = {"cascade-quadprog": 1e-5}
+
+# (solver, profile, freeze, case) -> expected outcome when not "ok"
+# Most are cascades that find a frozen level set infeasible (redundant frozen
+# equalities that agree only up to round-off, or a feasible set shrunk to a
+# point), iteration caps, and HiGHS returning "optimal" for a wrong x.
+KNOWN: dict[tuple[str, str, str, str], str | tuple[str, ...]] = {
+    # not reproducible run to run (4 of 5 runs infeasible): either outcome accepted
+    ("cascade-proxqp", "low", "shift", "deg-deep_inequalities"): ("infeasible_level", "ok"),
+    ("cascade-osqp", "high", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-osqp", "high", "shift", "deg-saturated"): "infeasible_level",
+    ("cascade-osqp", "high", "equality", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-osqp", "high", "equality", "deg-saturated"): "max_iterations",
+    ("cascade-osqp", "high", "relaxed", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-osqp", "default", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-osqp", "default", "shift", "deg-deep_inequalities"): "max_iterations",
+    ("cascade-osqp", "default", "shift", "deg-equalities_in_inequality_levels"): "max_iterations",
+    ("cascade-osqp", "low", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-osqp", "low", "shift", "deg-deep_inequalities"): "max_iterations",
+    ("cascade-proxqp", "high", "shift", "deg-rank_deficient"): "infeasible_level",
+    ("cascade-proxqp", "high", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-proxqp", "high", "shift", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-proxqp", "high", "equality", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-proxqp", "high", "relaxed", "ik-like-8"): "infeasible_level",
+    ("cascade-proxqp", "high", "relaxed", "deg-infeasible_top"): "infeasible_level",
+    ("cascade-proxqp", "high", "relaxed", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-proxqp", "high", "relaxed", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-proxqp", "high", "relaxed", "deg-saturated"): "infeasible_level",
+    ("cascade-proxqp", "default", "shift", "deg-infeasible_top"): "infeasible_level",
+    ("cascade-proxqp", "default", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-proxqp", "default", "shift", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-proxqp", "default", "shift", "deg-equalities_in_inequality_levels"): "infeasible_level",
+    ("cascade-proxqp", "low", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-proxqp", "low", "shift", "deg-equalities_in_inequality_levels"): "infeasible_level",
+    ("cascade-clarabel", "high", "shift", "deg-badly_scaled"): "numerical_failure",
+    ("cascade-clarabel", "high", "equality", "ik-like-8"): "infeasible_level",
+    ("cascade-clarabel", "high", "equality", "deg-badly_scaled"): "numerical_failure",
+    ("cascade-clarabel", "high", "relaxed", "deg-badly_scaled"): "numerical_failure",
+    ("cascade-clarabel", "default", "shift", "ik-like-8"): "infeasible_level",
+    ("cascade-clarabel", "low", "shift", "ik-like-8"): "infeasible_level",
+    ("cascade-daqp", "high", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-daqp", "high", "shift", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-daqp", "high", "shift", "deg-equalities_in_inequality_levels"): "infeasible_level",
+    ("cascade-daqp", "high", "equality", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-daqp", "high", "equality", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-daqp", "high", "relaxed", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-daqp", "high", "relaxed", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-daqp", "high", "relaxed", "deg-saturated"): "infeasible_level",
+    ("cascade-daqp", "default", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-daqp", "default", "shift", "deg-equalities_in_inequality_levels"): "infeasible_level",
+    ("cascade-daqp", "low", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-daqp", "low", "shift", "deg-equalities_in_inequality_levels"): "infeasible_level",
+    ("cascade-quadprog", "high", "shift", "ik-like-8"): "infeasible_level",
+    ("cascade-quadprog", "high", "shift", "deg-rank_deficient"): "infeasible_level",
+    ("cascade-quadprog", "high", "shift", "deg-infeasible_top"): "infeasible_level",
+    ("cascade-quadprog", "high", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-quadprog", "high", "shift", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-quadprog", "high", "shift", "deg-saturated"): "infeasible_level",
+    ("cascade-quadprog", "high", "shift", "deg-equalities_in_inequality_levels"): "infeasible_level",
+    ("cascade-quadprog", "high", "equality", "ik-like-8"): "infeasible_level",
+    ("cascade-quadprog", "high", "equality", "deg-rank_deficient"): "infeasible_level",
+    ("cascade-quadprog", "high", "equality", "deg-infeasible_top"): "infeasible_level",
+    ("cascade-quadprog", "high", "equality", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-quadprog", "high", "equality", "deg-saturated"): "infeasible_level",
+    ("cascade-quadprog", "high", "equality", "deg-equalities_in_inequality_levels"): "infeasible_level",
+    ("cascade-quadprog", "default", "shift", "ik-like-8"): "infeasible_level",
+    ("cascade-quadprog", "default", "shift", "deg-rank_deficient"): "infeasible_level",
+    ("cascade-quadprog", "default", "shift", "deg-infeasible_top"): "infeasible_level",
+    ("cascade-quadprog", "default", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-quadprog", "default", "shift", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-quadprog", "default", "shift", "deg-saturated"): "infeasible_level",
+    ("cascade-quadprog", "default", "shift", "deg-equalities_in_inequality_levels"): "infeasible_level",
+    ("cascade-quadprog", "low", "shift", "ik-like-8"): "infeasible_level",
+    ("cascade-quadprog", "low", "shift", "deg-rank_deficient"): "infeasible_level",
+    ("cascade-quadprog", "low", "shift", "deg-infeasible_top"): "infeasible_level",
+    ("cascade-quadprog", "low", "shift", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-quadprog", "low", "shift", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-quadprog", "low", "shift", "deg-saturated"): "infeasible_level",
+    ("cascade-quadprog", "low", "shift", "deg-equalities_in_inequality_levels"): "infeasible_level",
+    ("cascade-piqp", "high", "shift", "deg-badly_scaled"): "max_iterations",
+    ("cascade-piqp", "high", "equality", "ik-like-8"): "max_iterations",
+    ("cascade-piqp", "high", "equality", "deg-badly_scaled"): "max_iterations",
+    ("cascade-piqp", "high", "relaxed", "deg-rank_deficient"): "max_iterations",
+    ("cascade-piqp", "high", "relaxed", "deg-badly_scaled"): "max_iterations",
+    ("cascade-piqp", "default", "shift", "deg-deep_inequalities"): "max_iterations",
+    ("cascade-piqp", "low", "shift", "deg-badly_scaled"): "max_iterations",
+    ("cascade-piqp", "low", "shift", "deg-deep_inequalities"): "max_iterations",
+    ("cascade-highs", "high", "shift", "deg-badly_scaled"): "differs",
+    ("cascade-highs", "high", "equality", "rand-mixed"): "differs",
+    ("cascade-highs", "high", "equality", "deg-duplicate_rows"): "differs",
+    ("cascade-highs", "high", "equality", "deg-badly_scaled"): "differs",
+    ("cascade-highs", "high", "equality", "deg-free_rows"): "differs",
+    ("cascade-highs", "high", "relaxed", "ik-like-8"): "infeasible_level",
+    ("cascade-highs", "high", "relaxed", "deg-infeasible_top"): "infeasible_level",
+    ("cascade-highs", "high", "relaxed", "deg-badly_scaled"): "differs",
+    ("cascade-highs", "high", "relaxed", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-highs", "high", "relaxed", "deg-saturated"): "infeasible_level",
+    ("cascade-highs", "default", "shift", "deg-badly_scaled"): "differs",
+    ("cascade-highs", "low", "shift", "deg-badly_scaled"): "differs",
+    ("cascade-cvxpy", "high", "shift", "deg-badly_scaled"): "error",
+    ("cascade-cvxpy", "high", "equality", "ik-like-8"): "infeasible_level",
+    ("cascade-cvxpy", "high", "equality", "deg-badly_scaled"): "error",
+    ("cascade-cvxpy", "high", "relaxed", "deg-badly_scaled"): "error",
+    ("cascade-cvxpy", "default", "shift", "ik-like-8"): "infeasible_level",
+    ("cascade-cvxpy", "low", "shift", "ik-like-8"): "infeasible_level",
+}
+
+
+def outcome(name: str, profile: str, freeze: str, case_name: str):
+    h = case(case_name)
+    res = registry.create(name, freeze=freeze, accuracy=profile).solve(h)
+    if res.status != OPTIMAL:
+        return res.status, res
+    rtol = RTOL[profile][name]
+    if freeze == "relaxed":
+        rtol = max(rtol, RTOL_RELAXED.get(name, 0.0))
+    verdict = verify(h, res.x, reference(case_name), rtol=rtol)
+    return ("ok" if verdict.equal else "differs"), res
+
+
+def _matrix():
+    for name in ALL_CASCADES:
+        for freeze in cascade.FREEZE_MODES:
+            for c in CASES:
+                yield pytest.param(name, "high", freeze, c, id=f"{name}-high-{freeze}-{c}")
+        for profile in ("default", "low"):
+            for c in CASES:
+                yield pytest.param(name, profile, "shift", c, id=f"{name}-{profile}-shift-{c}")
+
+
+@pytest.mark.parametrize("name, profile, freeze, case_name", list(_matrix()))
+def test_cascade_matches_reference_or_known_status(name, profile, freeze, case_name):
+    got, res = outcome(name, profile, freeze, case_name)
+    expected = KNOWN.get((name, profile, freeze, case_name), "ok")
+    allowed = expected if isinstance(expected, tuple) else (expected,)
+    assert got in allowed, f"{res.status}: {res.reason}"
+    if res.status != OPTIMAL:
+        assert f"level {res.info['failed_level']}" in res.reason
+        assert res.reason.startswith(name)
+
+
+# (solver, freeze, case) -> expected outcome when not "ok", accuracy "high"
+KNOWN_BIG: dict[tuple[str, str, str], str] = {
+    ("cascade-osqp", "shift", "equality-36x8x6"): "max_iterations",
+    ("cascade-osqp", "equality", "equality-36x8x6"): "max_iterations",
+    ("cascade-osqp", "relaxed", "ik-like-20"): "max_iterations",
+    ("cascade-osqp", "relaxed", "ik-like-40"): "max_iterations",
+    ("cascade-osqp", "relaxed", "equality-36x8x6"): "max_iterations",
+    ("cascade-proxqp", "relaxed", "ik-like-20"): "infeasible_level",
+    ("cascade-proxqp", "relaxed", "equality-36x8x6"): "infeasible_level",
+    ("cascade-clarabel", "shift", "equality-36x8x6"): "numerical_failure",
+    ("cascade-clarabel", "equality", "equality-36x8x6"): "numerical_failure",
+    ("cascade-clarabel", "relaxed", "equality-36x8x6"): "differs",
+    ("cascade-daqp", "shift", "ik-like-20"): "infeasible_level",
+    ("cascade-daqp", "relaxed", "ik-like-20"): "infeasible_level",
+    ("cascade-daqp", "relaxed", "equality-36x8x6"): "infeasible_level",
+    ("cascade-quadprog", "shift", "ik-like-20"): "infeasible_level",
+    ("cascade-quadprog", "shift", "ik-like-40"): "infeasible_level",
+    ("cascade-quadprog", "shift", "equality-36x8x6"): "infeasible_level",
+    ("cascade-quadprog", "equality", "ik-like-20"): "infeasible_level",
+    ("cascade-quadprog", "equality", "ik-like-40"): "infeasible_level",
+    ("cascade-quadprog", "equality", "equality-36x8x6"): "infeasible_level",
+    ("cascade-quadprog", "relaxed", "ik-like-20"): "infeasible_level",
+    ("cascade-piqp", "relaxed", "ik-like-40"): "max_iterations",
+    ("cascade-highs", "equality", "ik-like-40"): "differs",
+    ("cascade-highs", "equality", "random-20"): "differs",
+    ("cascade-highs", "relaxed", "ik-like-20"): "infeasible_level",
+    ("cascade-highs", "relaxed", "equality-36x8x6"): "infeasible_level",
+    ("cascade-cvxpy", "shift", "equality-36x8x6"): "error",
+    ("cascade-cvxpy", "equality", "equality-36x8x6"): "error",
+}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, freeze, case_name",
+                         [pytest.param(n, f, c, id=f"{n}-{f}-{c}") for n in ALL_CASCADES
+                          for f in cascade.FREEZE_MODES for c in BIG_CASES])
+def test_cascade_on_family_sized_problems(name, freeze, case_name):
+    got, res = outcome(name, "high", freeze, case_name)
+    assert got == KNOWN_BIG.get((name, freeze, case_name), "ok"), f"{res.status}: {res.reason}"
+
+
+@pytest.mark.parametrize("name", ALL_CASCADES)
+def test_times_and_iterations_recorded(name):
+    h = case("rand-mixed")
+    res = registry.create(name).solve(h)
+    assert res.status == OPTIMAL
+    assert res.build_time_s > 0 and res.solve_time_s > 0
+    assert len(res.iterations_per_level) == h.depth
+    assert res.iterations == sum(res.iterations_per_level)
+
+
+@pytest.mark.parametrize("name", [n for n in QP_SOLVERS if tables.WARM_START[n[8:]]])
+def test_warm_resolve_gives_same_answer(name):
+    h = case("rand-mixed")
+    solver = registry.create(name)
+    first = solver.solve(h)
+    again = solver.solve(h)
+    assert registry.get(name).supports_warm_start
+    assert again.status == OPTIMAL
+    assert verify(h, again.x, first.x, rtol=RTOL["high"][name]).equal
+    if name == "cascade-proxqp":  # primal warm start pays off for ProxQP (28 -> 10 iterations here);
+        assert again.iterations < first.iterations  # OSQP gets x only (no duals), DAQP reports none
+
+
+def test_warm_start_flags_follow_backend_table():
+    for name in QP_SOLVERS:
+        assert registry.get(name).supports_warm_start == tables.WARM_START[name[8:]]
+    assert not registry.get("cascade-cvxpy").supports_warm_start
+
+
+# ----------------------------------------------------------------- failures
+
+def _tiny() -> Hierarchy:
+    return Hierarchy.from_levels([Level.equality(np.eye(2, 3), [1.0, 2.0]),
+                                  Level.equality(np.ones((1, 3)), [0.0])])
+
+
+def test_backend_exception_becomes_error_status(monkeypatch):
+    import qpsolvers
+
+    calls = []
+
+    def boom(problem, solver, **kw):
+        calls.append(solver)
+        if len(calls) == 2:
+            raise RuntimeError("injected failure")
+        return real(problem, solver, **kw)
+
+    real = qpsolvers.solve_problem
+    monkeypatch.setattr(qpsolvers, "solve_problem", boom)
+    res = registry.create("cascade-clarabel").solve(_tiny())
+    assert res.status == ERROR
+    assert "level 1" in res.reason and "RuntimeError: injected failure" in res.reason
+    assert res.x is not None and res.x.shape == (3,)  # the point after level 0
+
+
+def test_nan_from_backend_becomes_numerical_failure(monkeypatch):
+    import qpsolvers
+
+    def nan_solution(problem, solver, **kw):
+        sol = qpsolvers.Solution(problem)
+        sol.found = True
+        sol.x = np.full(problem.P.shape[0], np.nan)
+        return sol
+
+    monkeypatch.setattr(qpsolvers, "solve_problem", nan_solution)
+    res = registry.create("cascade-daqp").solve(_tiny())
+    assert res.status == NUMERICAL_FAILURE
+    assert "level 0" in res.reason and "NaN" in res.reason
+    assert res.x is None
+
+
+def test_iteration_limit_becomes_max_iterations():
+    res = registry.create("cascade-osqp", max_iter=1).solve(case("rand-mixed"))
+    assert res.status == MAX_ITERATIONS
+    assert f"level {res.info['failed_level']}: backend osqp hit its iteration limit" in res.reason
+
+
+def test_infeasible_after_freezing_names_the_level():
+    # level 0 fixes x0 = 0, level 1 asks x0 >= 1 (slack -1). With slack_tol = 10
+    # the "equality" freeze keeps that row as an inequality at its own bound,
+    # so levels 0 and 1 frozen together are inconsistent: level 2 is infeasible.
+    h = Hierarchy.from_levels([Level.equality(np.array([[1.0, 0.0]]), [0.0]),
+                               Level(np.array([[1.0, 0.0]]), np.array([1.0]), np.array([np.inf])),
+                               Level.equality(np.array([[0.0, 1.0]]), [1.0])])
+    res = registry.create("cascade-quadprog", freeze="equality", slack_tol=10.0).solve(h)
+    assert res.status == INFEASIBLE_LEVEL
+    assert res.reason.startswith("cascade-quadprog: level 2: infeasible after freezing levels 0..1")
+
+
+# ------------------------------------------------------------------ options
+
+@pytest.mark.parametrize("opts, match", [
+    ({"freeze": "melt"}, "freeze='melt'"),
+    ({"accuracy": "best"}, "accuracy='best'"),
+    ({"regularization": -1.0}, "regularization"),
+    ({"max_iter": 0}, "max_iter"),
+    ({"bogus": 1}, "bogus"),
+], ids=["freeze", "accuracy", "regularization", "max_iter", "unknown"])
+def test_bad_options_raise(opts, match):
+    with pytest.raises(SolverOptionError, match=match):
+        registry.create("cascade-osqp", **opts)
+
+
+def test_quadprog_has_no_iteration_limit_option():
+    with pytest.raises(SolverOptionError, match="quadprog has no iteration limit"):
+        registry.create("cascade-quadprog", max_iter=10)
+
+
+def test_cvxpy_solver_option():
+    with pytest.raises(SolverOptionError, match="'bogus'"):
+        registry.create("cascade-cvxpy", bogus=1)
+    with pytest.raises(SolverOptionError, match="solver='GUROBI'"):
+        registry.create("cascade-cvxpy", solver="GUROBI")
+    res = registry.create("cascade-cvxpy", solver="OSQP").solve(case("rand-eq"))
+    assert res.status == OPTIMAL
+    assert verify(case("rand-eq"), res.x, reference("rand-eq"), rtol=1e-8).equal
+
+
+def test_accuracy_tables_cover_every_backend_and_profile():
+    for backend in tables.BACKENDS:
+        assert set(tables.ACCURACY[backend]) == set(tables.PROFILES)
+        high = tables.ACCURACY[backend]["high"]
+        for key, value in high.items():
+            if "rel" in key:
+                assert value == 0.0, f"{backend}: relative tolerance {key} must be off in 'high'"
+            elif "tol" in key or "eps" in key:
+                assert value == 1e-9, f"{backend}: {key} must be 1e-9 in 'high'"
+
+
+def test_missing_backend_is_absent_and_says_how_to_install(monkeypatch):
+    import qpsolvers
+
+    others = [s for s in qpsolvers.available_solvers if s != "highs"]
+    monkeypatch.setattr(qpsolvers, "available_solvers", others)
+    try:
+        mod = importlib.reload(cascade)
+        assert "cascade-highs" not in [i.name for i in mod.SOLVERS]
+        assert "pip install highspy" in mod.MISSING["cascade-highs"]
+        monkeypatch.setattr(registry, "_registry", None)
+        monkeypatch.setattr(registry, "_missing", {})
+        with pytest.raises(SolverNotFoundError, match="pip install highspy"):
+            registry.get("cascade-highs")
+    finally:
+        monkeypatch.undo()
+        importlib.reload(cascade)
+
+
+def test_freeze_modes_keep_x_feasible():
+    h = g.random_hierarchy(6, 2, 3, inequality="mixed", seed=5)
+    x = np.random.default_rng(0).standard_normal(6)
+    lv = h[0]
+    for mode in cascade.FREEZE_MODES:
+        lo, up, w = cascade.freeze_level(mode, lv.A, lv.lower, lv.upper, x, slack_tol=1e-9, delta=1e-6)
+        r = lv.A @ x
+        assert np.all(r >= lo - 1e-12) and np.all(r <= up + 1e-12), mode
+    np.testing.assert_allclose(w, lv.A @ x - np.clip(lv.A @ x, lv.lower, lv.upper), rtol=0, atol=0)
+
+
+# ------------------------------------------------------- random hierarchies
+
+#: backends (freeze "shift", accuracy "high") that solved all of 200 random
+#: unsaturated hierarchies (depth * rows < n, n <= 9) in a survey; on the same
+#: survey osqp hit max_iterations twice, quadprog and proxqp reported
+#: infeasible levels, piqp max_iterations, highs no solution: those backends
+#: are covered by the explicit KNOWN table above instead
+ROBUST = ("cascade-clarabel", "cascade-daqp")
+
+
+@settings(max_examples=10)
+@given(n=st.integers(4, 9), depth=st.integers(1, 3), rows=st.integers(1, 3),
+       inequality=st.sampled_from(g.INEQUALITY_MIXES), box=st.booleans(), seed=st.integers(0, 10_000))
+def test_robust_cascades_match_reference_on_random_hierarchies(n, depth, rows, inequality, box, seed):
+    assume(depth * rows < n)
+    h = g.random_hierarchy(n, depth, rows, inequality=inequality, box=box, seed=seed)
+    x_ref = reference_solution(h)
+    for name in ROBUST:
+        res = registry.create(name).solve(h)
+        assert res.status == OPTIMAL, res.reason
+        v = verify(h, res.x, x_ref, rtol=RTOL["high"][name])
+        assert v.equal, (name, v)
+
+
+def test_equality_freeze_pins_only_rows_with_nonzero_slack():
+    A = np.eye(3)
+    lower, upper = np.array([0.0, -np.inf, -1.0]), np.array([0.0, 1.0, 1.0])
+    x = np.array([0.5, 2.0, 0.0])  # row 0 off its equality, row 1 above its bound, row 2 inside
+    lo, up, w = cascade.freeze_level("equality", A, lower, upper, x, slack_tol=1e-9, delta=0.0)
+    np.testing.assert_array_equal(w, [0.5, 1.0, 0.0])
+    np.testing.assert_array_equal(lo, [0.5, 2.0, -1.0])
+    np.testing.assert_array_equal(up, [0.5, 2.0, 1.0])
+    lo, up, _ = cascade.freeze_level("shift", A, lower, upper, x, 1e-9, 0.0)
+    np.testing.assert_array_equal(lo, [0.5, -np.inf, -1.0])
+    np.testing.assert_array_equal(up, [0.5, 2.0, 1.0])
+    lo, up, _ = cascade.freeze_level("relaxed", A, lower, upper, x, 1e-9, 0.25)
+    np.testing.assert_array_equal(lo, [0.25, -np.inf, -1.25])
+    np.testing.assert_array_equal(up, [0.75, 2.25, 1.25])
+
+
+def test_level_qp_is_the_documented_qp():
+    """z = (x, w): cost 1/2 ||w||^2 + eps/2 ||x||^2; (x, w(x)) is feasible
+    with w(x) = A_k x - clip(A_k x, lower_k, upper_k)."""
+    h = g.random_hierarchy(5, 2, 3, inequality="mixed", seed=9)
+    hi, lv = h[0], h[1]
+    x = np.random.default_rng(1).standard_normal(5)
+    lo_f, up_f, _ = cascade.freeze_level("shift", hi.A, hi.lower, hi.upper, x, 1e-9, 0.0)
+    P, G, hv, Aeq, beq = cascade.level_qp(hi.A, lo_f, up_f, lv.A, lv.lower, lv.upper, eps=1e-12)
+    r = lv.A @ x
+    z = np.concatenate([x, r - np.clip(r, lv.lower, lv.upper)])
+    np.testing.assert_array_equal(np.diag(P), np.concatenate([np.full(5, 1e-12), np.ones(3)]))
+    assert G is None or np.all(G @ z <= hv + 1e-12)
+    assert Aeq is None or np.allclose(Aeq @ z, beq, atol=1e-12)
