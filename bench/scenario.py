@@ -9,8 +9,8 @@ and per level):
 
 =========================  ==================================================
 solver                     registry name
-warm_start                 ``none`` / ``stage`` / ``time`` (solver option), ``n/a``
-                           for a solver without warm start
+warm_start                 ``none`` / ``stage`` / ``time`` (the solver's ``warm_start``
+                           option), ``n/a`` for a solver without that option
 step                       k
 time_s                     t_k = k dt (s)
 solve_time_s               wall time of ``solver.solve`` (perf_counter_ns), s
@@ -73,17 +73,17 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
     options : dict
         Solver options (``registry.create(solver, **options)``).
     warm_start : str, optional
-        Passed as the ``warm_start`` option to solvers that support warm start;
-        the column reads ``n/a`` for the others.
+        Passed as the ``warm_start`` option to solvers that have one (HCOD's
+        none / stage / time); ignored, and the column reads ``n/a``, for the others.
     steps : int, optional
         Number of control steps (default: the scenario's).
     """
     options = dict(options or {})
     info = registry.get(solver)
-    if info.supports_warm_start:
+    if "warm_start" in info.options:  # solvers with the HCOD warm-start modes (none / stage / time)
         if warm_start is not None:
             options["warm_start"] = warm_start
-        mode = str(options.get("warm_start", info.options.get("warm_start", "default")))
+        mode = str(options.get("warm_start", info.options["warm_start"]))
     else:
         mode = NO_WARM_START
     slv = registry.create(solver, **options)
@@ -143,9 +143,16 @@ def check_run(run: ScenarioRun) -> list[Check]:
     """Verify the scenario's ``[checks]`` on a run (see problems/robots/scenarios.py)."""
     spec, df, out = run.scenario.checks, run.records, []
     robot = run.scenario.robot
-    if len(df) and (df["status"] != "optimal").any():
-        bad = df[df["status"] != "optimal"].iloc[0]
-        out.append(Check("solved", False, f"step {int(bad['step'])}: status {bad['status']} {bad['reason']}"))
+    steps_run = len(df)
+    stopped = steps_run and (df["status"].iloc[-1] == "diverged" or not np.all(np.isfinite(run.q[-1]))
+                             or len(run.q) < steps_run + 1)
+    not_optimal = df[df["status"] != "optimal"] if steps_run else df
+    detail = f"{steps_run} steps; {len(not_optimal)} with a status other than optimal"
+    if len(not_optimal):
+        first = not_optimal.iloc[0]
+        detail += f" (first: step {int(first['step'])}, {first['status']}: {first['reason']})"
+    # judged on completion, not on the solver's own status (level norms are in the CSV)
+    out.append(Check("run completed", not stopped, detail))
     if spec.get("limits", False):
         margin = min(float(np.min(robot.limit_margin(q))) for q in run.q)
         out.append(Check("joint limits", margin >= -LIMIT_TOL, f"min margin {margin:.3e}"))

@@ -29,7 +29,8 @@ def add_arguments(p) -> None:
     p.add_argument("--solver", action="append", default=None,
                    help="solver name (repeatable; default: reference)")
     p.add_argument("--warm-start", nargs="+", default=None, choices=WARM_MODES,
-                   help="warm-start modes to run for solvers that support it (default: time)")
+                   help="warm-start modes to run, one run each, for solvers with a warm_start option "
+                        "(default: the solver's default); ignored for the others")
     p.add_argument("--steps", type=int, default=None, help="control steps (default: the scenario's)")
     p.add_argument("--out", default=None, help="output directory (default: results/scenarios/NAME)")
     p.add_argument("--plot", action="store_true", help="write the figures (PNG)")
@@ -63,9 +64,11 @@ def run(args) -> int:
     runs, failed = [], False
     for solver in solvers:
         info = registry.get(solver)
-        modes = (args.warm_start or [options.get("warm_start", "time")]) if info.supports_warm_start else [None]
+        has_modes = "warm_start" in info.options  # HCOD-style none / stage / time
+        modes = (args.warm_start or [options.get("warm_start", info.options["warm_start"])]) if has_modes \
+            else [None]
         for mode in modes:
-            opts = {k: v for k, v in options.items() if k != "warm_start" or info.supports_warm_start}
+            opts = {k: v for k, v in options.items() if k != "warm_start" or has_modes}
             run_ = run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps)
             runs.append(run_)
             stem = _slug(f"{scenario.name}_{scenario.robot.name}_{run_.label}")
