@@ -42,7 +42,7 @@ from problems.robots.kinematics import KinematicState
 from problems.robots.scenarios import Scenario
 from solvers import registry
 
-__all__ = ["ScenarioRun", "run_scenario", "check_run", "COLUMNS", "NO_WARM_START"]
+__all__ = ["COLUMNS", "NO_WARM_START", "ScenarioRun", "check_run", "run_scenario"]
 
 COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_s", "iterations", "activations",
            "deactivations", "status", "reason", "min_joint_limit_margin")

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["plot_runs", "normalised_joints"]
+__all__ = ["normalised_joints", "plot_runs"]
 
 
 def _plt():

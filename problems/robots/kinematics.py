@@ -10,7 +10,7 @@ import pinocchio as pin
 from problems.errors import HikbenchError
 from problems.robots.models import Robot
 
-__all__ = ["KinematicState", "skew", "TaskError"]
+__all__ = ["KinematicState", "TaskError", "skew"]
 
 
 class TaskError(HikbenchError, ValueError):

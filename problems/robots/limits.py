@@ -14,7 +14,7 @@ import pinocchio as pin
 from problems.robots.models import Robot
 from problems.robots.tasks import Task, TaskError
 
-__all__ = ["JointPositionLimits", "JointVelocityLimits", "FrameDistance", "INEQUALITY_TASKS"]
+__all__ = ["INEQUALITY_TASKS", "FrameDistance", "JointPositionLimits", "JointVelocityLimits"]
 
 
 class _Inequality(Task):

@@ -17,8 +17,16 @@ import pinocchio as pin
 
 from problems.errors import HikbenchError
 
-__all__ = ["Robot", "RobotSpec", "ROBOTS", "RobotNotFoundError", "FrameNotFoundError", "load_robot",
-           "robot_names", "robot_rows"]
+__all__ = [
+    "ROBOTS",
+    "FrameNotFoundError",
+    "Robot",
+    "RobotNotFoundError",
+    "RobotSpec",
+    "load_robot",
+    "robot_names",
+    "robot_rows",
+]
 
 _HUGE = 1e10  #: limits beyond this magnitude count as "no limit" (URDF free flyers use +-DBL_MAX)
 
@@ -228,6 +236,6 @@ def robot_rows() -> list[tuple[str, str]]:
             rows.append((name, f"(not in the installed example-robot-data) {spec.description}"))
             continue
         r = load_robot(name)
-        rows.append((name, f"nq={r.nq:<3d} nv={r.nv:<3d} bounded={int(r.bounded.sum()):<3d} "
-                           f"{'free-flyer ' if r.floating_base else ''}{spec.description}"))
+        rows.append((name, (f"nq={r.nq:<3d} nv={r.nv:<3d} bounded={int(r.bounded.sum()):<3d} "
+                            f"{'free-flyer ' if r.floating_base else ''}{spec.description}")))
     return rows

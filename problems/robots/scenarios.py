@@ -50,7 +50,7 @@ from problems.robots.stacks import Stack, build_stack
 from problems.robots.tasks import ComTask, PoseTask, PositionTask, Task
 from problems.robots.trajectories import PointSegment, PoseSegment
 
-__all__ = ["ScenarioError", "Scenario", "SCENARIO_DIR", "scenario_names", "load_scenario"]
+__all__ = ["SCENARIO_DIR", "Scenario", "ScenarioError", "load_scenario", "scenario_names"]
 
 SCENARIO_DIR = Path(__file__).parent / "scenarios"
 _TOP_KEYS = {"name", "description", "stack", "robot", "steps", "dt", "initial", "events", "trajectories",
@@ -153,7 +153,7 @@ class Scenario:
         return self.stack.robot
 
     @classmethod
-    def from_dict(cls, d: dict, source: str = "<dict>", robot: str | None = None) -> "Scenario":
+    def from_dict(cls, d: dict, source: str = "<dict>", robot: str | None = None) -> Scenario:
         unknown = set(d) - _TOP_KEYS
         if unknown:
             raise ScenarioError(f"{source}: unknown key(s) {sorted(unknown)}; expected {sorted(_TOP_KEYS)}")

@@ -36,11 +36,29 @@ from problems.hierarchy import Hierarchy, Level
 from problems.robots.kinematics import KinematicState
 from problems.robots.limits import FrameDistance, JointPositionLimits, JointVelocityLimits
 from problems.robots.models import Robot, load_robot
-from problems.robots.tasks import (AlignmentTask, ComTask, DirectionTask, MinimalVelocityTask,
-                                   OrientationTask, PoseTask, PositionTask, PostureTask, Task)
+from problems.robots.tasks import (
+    AlignmentTask,
+    ComTask,
+    DirectionTask,
+    MinimalVelocityTask,
+    OrientationTask,
+    PoseTask,
+    PositionTask,
+    PostureTask,
+    Task,
+)
 
-__all__ = ["StackError", "StackSpec", "Stack", "TASK_TYPES", "STACK_DIR", "stack_names", "load_stack_spec",
-           "build_stack", "make_task"]
+__all__ = [
+    "STACK_DIR",
+    "TASK_TYPES",
+    "Stack",
+    "StackError",
+    "StackSpec",
+    "build_stack",
+    "load_stack_spec",
+    "make_task",
+    "stack_names",
+]
 
 STACK_DIR = Path(__file__).parent / "stacks"
 
@@ -69,7 +87,7 @@ class StackSpec:
     description: str = ""
 
     @classmethod
-    def from_dict(cls, d: dict, source: str = "<dict>") -> "StackSpec":
+    def from_dict(cls, d: dict, source: str = "<dict>") -> StackSpec:
         unknown = set(d) - {"name", "robot", "dt", "levels", "description"}
         if unknown:
             raise StackError(f"{source}: unknown key(s) {sorted(unknown)}; expected name, robot, dt, "
@@ -91,7 +109,7 @@ class StackSpec:
                    description=str(d.get("description", "")))
 
     @classmethod
-    def from_toml(cls, path: str | os.PathLike) -> "StackSpec":
+    def from_toml(cls, path: str | os.PathLike) -> StackSpec:
         try:
             with open(path, "rb") as f:
                 data = tomllib.load(f)

@@ -24,8 +24,19 @@ import pinocchio as pin
 from problems.robots.kinematics import KinematicState, TaskError, skew
 from problems.robots.models import Robot
 
-__all__ = ["Task", "TaskError", "PositionTask", "OrientationTask", "PoseTask", "DirectionTask",
-           "AlignmentTask", "ComTask", "PostureTask", "MinimalVelocityTask", "axes_index"]
+__all__ = [
+    "AlignmentTask",
+    "ComTask",
+    "DirectionTask",
+    "MinimalVelocityTask",
+    "OrientationTask",
+    "PoseTask",
+    "PositionTask",
+    "PostureTask",
+    "Task",
+    "TaskError",
+    "axes_index",
+]
 
 
 def axes_index(axes: str) -> np.ndarray:

@@ -15,7 +15,7 @@ from problems.files import save_npz
 from problems.generators import Family
 from problems.hierarchy import Hierarchy
 
-__all__ = ["stack_problem", "save_test_set", "DEFAULT_SEEDS", "ROBOT_FAMILIES", "SHIPPED_STACKS"]
+__all__ = ["DEFAULT_SEEDS", "ROBOT_FAMILIES", "SHIPPED_STACKS", "save_test_set", "stack_problem"]
 
 DEFAULT_SEEDS = tuple(range(5))
 #: the stacks in problems/robots/stacks (kept here so listing families needs no pinocchio import)
@@ -68,5 +68,5 @@ def _robot_stack(seed: int = 0, stack: str = "humanoid_reach", robot: str | None
 ROBOT_FAMILIES: dict[str, Family] = {f.name: f for f in (
     Family("robot-stack", "a robot task stack (problems/robots/stacks) at a random configuration within "
            "the limits with reachable targets; variables u (n = nv)", _robot_stack,
-           dict(stack="humanoid_reach", robot=None), sweep=dict(stack=list(SHIPPED_STACKS))),
+           {"stack": "humanoid_reach", "robot": None}, sweep={"stack": list(SHIPPED_STACKS)}),
 )}

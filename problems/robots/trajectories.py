@@ -24,7 +24,7 @@ import pinocchio as pin
 
 from problems.errors import HikbenchError
 
-__all__ = ["sixth_order", "Polynomial", "progress", "bump", "PoseSegment", "PointSegment"]
+__all__ = ["PointSegment", "Polynomial", "PoseSegment", "TrajectoryError", "bump", "progress", "sixth_order"]
 
 
 class TrajectoryError(HikbenchError, ValueError):

@@ -10,8 +10,15 @@ import pytest
 
 from problems.robots.kinematics import KinematicState
 from problems.robots.limits import FrameDistance, JointPositionLimits
-from problems.robots.tasks import (AlignmentTask, ComTask, DirectionTask, OrientationTask, PoseTask,
-                                   PositionTask, PostureTask)
+from problems.robots.tasks import (
+    AlignmentTask,
+    ComTask,
+    DirectionTask,
+    OrientationTask,
+    PoseTask,
+    PositionTask,
+    PostureTask,
+)
 
 H = 1e-6
 RTOL, ATOL = 1e-5, 1e-6

@@ -30,9 +30,9 @@ def test_distance_bound_keeps_d_min_after_one_step(panda):
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(axes="xw"), "subset of 'xyz'"),
-    (dict(target=[1.0, 2.0]), "target must be 3 finite numbers"),
-    (dict(gain=-1.0), "gain must be finite and >= 0"),
+    ({"axes": "xw"}, "subset of 'xyz'"),
+    ({"target": [1.0, 2.0]}, "target must be 3 finite numbers"),
+    ({"gain": -1.0}, "gain must be finite and >= 0"),
 ], ids=["axes", "target", "gain"])
 def test_task_parameters_are_checked(panda, kwargs, match):
     with pytest.raises(TaskError, match=match):

@@ -32,7 +32,7 @@ def test_paper_stack_shape(talos):
 def test_stack_problem_is_seeded_and_reachable(talos):
     h1, h2 = stack_problem("humanoid_reach", seed=3), stack_problem("humanoid_reach", seed=3)
     assert h1 == h2
-    assert not (h1 == stack_problem("humanoid_reach", seed=4))
+    assert h1 != stack_problem("humanoid_reach", seed=4)
     # the current configuration is within its limits: the joint-limit box contains u = 0
     s = h1.level_rows(0)
     assert np.all(h1.lower[s] < 0) and np.all(h1.upper[s] > 0)

@@ -4,7 +4,14 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from problems.robots.trajectories import PointSegment, PoseSegment, TrajectoryError, bump, progress, sixth_order
+from problems.robots.trajectories import (
+    PointSegment,
+    PoseSegment,
+    TrajectoryError,
+    bump,
+    progress,
+    sixth_order,
+)
 
 
 @pytest.mark.parametrize("p0,p1,tau,pv", [(0.0, 1.0, 0.5, 0.5), (0.0, 0.0, 0.3, 1.0), (2.0, -1.0, 0.7, 0.4)],
