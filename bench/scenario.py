@@ -13,7 +13,9 @@ warm_start                 ``none`` / ``stage`` / ``time`` (the solver's ``warm_
                            option), ``n/a`` for a solver without that option
 step                       k
 time_s                     t_k = k dt (s)
-solve_time_s               wall time of ``solver.solve`` (perf_counter_ns), s
+solve_time_s               wall time of ``solver.solve`` (perf_counter_ns, GC off, BLAS
+                           threads = 1; one untimed warm-up solve on a separate solver
+                           object before the run), s
 iterations                 SolveResult.iterations
 activations, deactivations SolveResult counts (active-set solvers; 0 otherwise)
 status                     SolveResult.status, or ``diverged`` when q (+) u dt is not
@@ -30,12 +32,14 @@ level_norm_<level>         ||v_k(u)||, the level's violation recomputed from u
 
 from __future__ import annotations
 
+import gc
 import time
 from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 import pinocchio as pin
+from threadpoolctl import threadpool_limits
 
 from problems.errors import HikbenchError
 from problems.robots.kinematics import KinematicState
@@ -90,34 +94,44 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
     steps = scenario.steps if steps is None else int(steps)
     if steps < 1:
         raise HikbenchError(f"steps must be >= 1; got {steps}")
-    scenario.reset()
     robot, stack, dt = scenario.robot, scenario.stack, scenario.dt
+    # warm-up (untimed, on a separate solver object): numba compilation, backend caches
+    scenario.reset()
+    state = KinematicState(robot, scenario.q_init)
+    scenario.targets_at(0.0, state)
+    registry.create(solver, **options).solve(stack.hierarchy(scenario.q_init, state))
+    scenario.reset()
     q = scenario.q_init.copy()
     traj, rows = [q.copy()], []
-    for k in range(steps):
-        t = k * dt
-        state = KinematicState(robot, q)
-        scenario.targets_at(t, state)
-        h = stack.hierarchy(q, state)
-        t0 = time.perf_counter_ns()
-        res = slv.solve(h)
-        elapsed = (time.perf_counter_ns() - t0) * 1e-9
-        u = res.x
-        row = {"solver": solver, "warm_start": mode, "step": k, "time_s": t, "solve_time_s": elapsed,
-               "iterations": int(res.iterations), "activations": int(res.activations),
-               "deactivations": int(res.deactivations), "status": res.status, "reason": res.reason,
-               "min_joint_limit_margin": float(np.min(robot.limit_margin(q), initial=np.inf))}
-        row.update({f"err_{name}": v for name, v in stack.errors(q, u, state).items()})
-        norms = h.level_norms(u) if u is not None else np.full(h.depth, np.nan)
-        row.update({f"level_norm_{name}": float(v) for name, v in zip(h.names, norms)})
-        rows.append(row)
-        if u is None or not np.all(np.isfinite(u)):
-            break  # the status column says why
-        q = pin.integrate(robot.model, q, u * dt)
-        if not np.all(np.isfinite(q)):  # e.g. u ~ 1e154 returned as "optimal"
-            row["status"] = "diverged"
-            break
-        traj.append(q.copy())
+    with threadpool_limits(limits=1):
+        for k in range(steps):
+            t = k * dt
+            state = KinematicState(robot, q)
+            scenario.targets_at(t, state)
+            h = stack.hierarchy(q, state)
+            gc.disable()  # GC off around the timed call only (DESIGN.md, performance ground rules)
+            try:
+                t0 = time.perf_counter_ns()
+                res = slv.solve(h)
+                elapsed = (time.perf_counter_ns() - t0) * 1e-9
+            finally:
+                gc.enable()
+            u = res.x
+            row = {"solver": solver, "warm_start": mode, "step": k, "time_s": t, "solve_time_s": elapsed,
+                   "iterations": int(res.iterations), "activations": int(res.activations),
+                   "deactivations": int(res.deactivations), "status": res.status, "reason": res.reason,
+                   "min_joint_limit_margin": float(np.min(robot.limit_margin(q), initial=np.inf))}
+            row.update({f"err_{name}": v for name, v in stack.errors(q, u, state).items()})
+            norms = h.level_norms(u) if u is not None else np.full(h.depth, np.nan)
+            row.update({f"level_norm_{name}": float(v) for name, v in zip(h.names, norms)})
+            rows.append(row)
+            if u is None or not np.all(np.isfinite(u)):
+                break  # the status column says why
+            q = pin.integrate(robot.model, q, u * dt)
+            if not np.all(np.isfinite(q)):  # e.g. u ~ 1e154 returned as "optimal"
+                row["status"] = "diverged"
+                break
+            traj.append(q.copy())
     return ScenarioRun(scenario, solver, mode, pd.DataFrame(rows), np.array(traj))
 
 
