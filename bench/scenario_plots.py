@@ -44,13 +44,6 @@ def normalised_joints(run) -> tuple[np.ndarray, list[str]]:
     return z, names
 
 
-def _event_times(run) -> list[float]:
-    times = []
-    for items in run.scenario._schedule.values():
-        times += [it.start for it in items if it.start > 0]
-    return sorted(set(times))
-
-
 def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) -> list[Path]:
     """Write the four figures for ``runs`` (ScenarioRun objects of one scenario); returns paths."""
     plt = _plt()
@@ -114,7 +107,7 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
             ax.plot(t, z[:, i], lw=1.0, label=names[i])
         ax.axhline(1.0, color="k", ls="--", lw=0.8)
         ax.axhline(-1.0, color="k", ls="--", lw=0.8)
-        for te in _event_times(run):
+        for te in run.scenario.event_times():
             ax.axvline(te, color="grey", ls=":", lw=0.8)
         ax.set_ylim(-1.1, 1.1)
         ax.set_xlabel("time (s)")
@@ -138,7 +131,7 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
             df = run.records
             ax.semilogy(df["time_s"], np.maximum(df[f"err_{task.name}"], 1e-16), lw=1.0, color=f"C{i}",
                         label=run.label)
-        for te in _event_times(runs[0]):
+        for te in runs[0].scenario.event_times():
             ax.axvline(te, color="grey", ls=":", lw=0.8)
         unit = {"PoseTask": "log6 error (m, rad)", "OrientationTask": "rad", "PostureTask": "rad",
                 "DirectionTask": "unit vector", "AlignmentTask": "1 - cos"}.get(type(task).__name__, "m")

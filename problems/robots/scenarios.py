@@ -210,6 +210,10 @@ class Scenario:
                 item.activate(state, self._nominal[name], _copy_target(item.task.target))
             item.apply(t)
 
+    def event_times(self) -> list[float]:
+        """Start times (s) of the scheduled changes after t = 0 (for plots)."""
+        return sorted({it.start for items in self._schedule.values() for it in items if it.start > 0})
+
     def reset(self) -> None:
         """Back to the nominal targets and an unstarted schedule (before a new run)."""
         for t in self.stack.tasks:

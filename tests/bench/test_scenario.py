@@ -23,6 +23,11 @@ def test_reach_runs_a_few_steps_with_reference():
     assert (df["warm_start"] == NO_WARM_START).all() and (df["status"] == "optimal").all()
     assert run.q.shape == (5, sc.robot.nq)
     assert df["min_joint_limit_margin"].min() > 0
+    # one recomputed level norm per level; joint limits hold exactly at every step
+    assert [c for c in df if c.startswith("level_norm_")] == [
+        f"level_norm_{n}" for n in ("joint_limits", "com", "feet", "right_hand", "velocity")]
+    assert (df["level_norm_joint_limits"] < 1e-9).all()
+    assert sc.event_times() == [3.0]
     # the hand error decreases from the first step
     assert df["err_right_hand"].iloc[-1] < df["err_right_hand"].iloc[0]
 
@@ -73,6 +78,17 @@ def test_cli_writes_csv_and_figures(tmp_path, capsys):
                 "fig4_task_errors.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
     assert rc in (0, 1)  # 3 steps: the checks may not hold yet; the run itself succeeded
+
+
+def test_cli_list(capsys):
+    assert main(["scenario", "x", "--list"]) == 0
+    out = capsys.readouterr().out
+    assert "reach" in out and "humanoid_reach" in out
+
+
+def test_cli_unknown_robot(tmp_path, capsys):
+    assert main(["scenario", "reach", "--robot", "r2d2", "--steps", "1", "--out", str(tmp_path)]) == 2
+    assert "robot 'r2d2' is not in the installed example-robot-data" in capsys.readouterr().err
 
 
 def test_cli_unknown_solver(tmp_path, capsys):

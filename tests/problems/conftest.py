@@ -15,11 +15,3 @@ def panda():
     from problems.robots.models import load_robot
 
     return load_robot("panda")
-
-
-@pytest.fixture(scope="session")
-def robot(request):
-    """Indirectly parametrized: ``@pytest.mark.parametrize("robot", [...], indirect=True)``."""
-    from problems.robots.models import load_robot
-
-    return load_robot(request.param)
