@@ -28,6 +28,7 @@ COMMANDS: dict[str, str] = {
     "compare": "compare",
     "claims": "claims",
     "columns": "columns",
+    "scenario": "scenario",
 }
 
 

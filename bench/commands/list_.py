@@ -13,6 +13,7 @@ PROVIDERS: dict[str, str] = {
     "solvers": "bench.commands.list_:_solvers",
     "families": "bench.commands.list_:_families",
     "suites": "bench.commands.list_:_suites",
+    "robots": "problems.robots.models:robot_rows",
 }
 
 
