@@ -99,13 +99,16 @@ def test_claims_d_e_from_scenario_csv(tmp_path):
     rows = []
     for ws, base in (("none", 10), ("stage", 5), ("time", 1)):
         for s, a in zip(steps, act):
-            rows.append(dict(solver="hcod", step=s, warm_start=ws, solve_time_s=3e-3, iterations=base + 1 * a,
+            rows.append(dict(solver="hcod", step=s, warm_start=ws, solve_time_s=3e-3, iterations=base + 2 * a,
                              activations=a))
     rows += [dict(solver="cascade-osqp", step=s, warm_start="none", solve_time_s=30e-3, iterations=0,
                   activations=0) for s in steps]
     sc = pd.DataFrame(rows)
     assert claim_d(sc).status == PASS
-    assert claim_e(sc).status == PASS
+    e = claim_e(sc)
+    assert e.status == PASS and "2.00 extra iterations per activation" in e.measured
+    many = sc.assign(iterations=sc["iterations"] + 8 * sc["activations"])  # 10 per activation: not "about 2"
+    assert claim_e(many).status == FAIL
     assert claim_d(None).status == MISSING and claim_e(None).status == MISSING
 
 
