@@ -7,7 +7,7 @@ STAMP  := $(VENV)/.installed
 SUITE  ?= quick
 OUT    ?= results/$(SUITE)
 
-.PHONY: install bench test test-all clean
+.PHONY: install bench paper test test-all clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +22,14 @@ install: $(STAMP)
 bench: install
 	$(VENV)/bin/hikbench run --suite $(SUITE) --out $(OUT)
 	$(VENV)/bin/hikbench report $(OUT)
+
+# the ICRA 2010 claims: paper suite (~5 min) + reach scenario, report, PASS/FAIL table
+paper: install
+	$(VENV)/bin/hikbench run --suite paper --out results/paper
+	$(VENV)/bin/hikbench scenario reach --solver hcod --solver cascade-daqp --warm-start none stage time \
+		--out results/paper/scenarios/reach
+	$(VENV)/bin/hikbench report results/paper
+	$(VENV)/bin/hikbench claims results/paper
 
 test: install
 	$(PY) -m pytest -q -m "not slow"

@@ -23,6 +23,12 @@ COMMANDS: dict[str, str] = {
     "inspect": "inspect_",
     "export": "export",
     "list": "list_",
+    "run": "run",
+    "report": "report",
+    "compare": "compare",
+    "claims": "claims",
+    "columns": "columns",
+    "scenario": "scenario",
 }
 
 

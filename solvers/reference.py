@@ -91,17 +91,31 @@ def _signed_slack(r: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
 
 
 def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
-    """Build and solve, with Clarabel, the QP of one level in z = (x, w).
+    """Build and solve the QP of one level.
 
     Level k (not final): min 1/2 ||w||^2  s.t. lo_hi <= A_hi x <= up_hi,
-    lo_k <= A_k x - w <= up_k. Final stage: min 1/2 ||x||^2 s.t. the first set."""
+    lo_k <= A_k x - w <= up_k. Final stage: min 1/2 ||x||^2 s.t. the first set.
+    The equality rows of the higher levels (frozen rows) are eliminated first,
+    ``x = x_p + N y`` with N an orthonormal basis of their null space (SVD,
+    rank threshold RANK_RTOL), so that the QP in z = (y, w) has no redundant
+    equality constraints, on which interior-point backends stall.
+    Returns x, shape (n,), and the backend name."""
     import qpsolvers
 
-    n, m = P_n, A_k.shape[0]
+    eq_hi = lo_hi == up_hi
+    x_p, N = _null_update(np.zeros(P_n), np.eye(P_n), A_hi[eq_hi], lo_hi[eq_hi])
+    A_hi, lo_hi, up_hi = A_hi[~eq_hi], lo_hi[~eq_hi] - A_hi[~eq_hi] @ x_p, up_hi[~eq_hi] - A_hi[~eq_hi] @ x_p
+    lo_k, up_k = lo_k - A_k @ x_p, up_k - A_k @ x_p
+    A_hi, A_k = A_hi @ N, A_k @ N
+    n, m = N.shape[1], A_k.shape[0]
+    if n == 0:
+        return x_p, "none"
     nz = n + m
     P = np.zeros((nz, nz))
+    q = np.zeros(nz)
     if final:
         P[:n, :n] = np.eye(n)
+        q[:n] = N.T @ x_p
     else:
         P[n:, n:] = np.eye(m)
     rows_A = [np.hstack([A_hi, np.zeros((A_hi.shape[0], m))]), np.hstack([A_k, -np.eye(m)])]
@@ -117,7 +131,7 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
     G = np.vstack(G_parts)
     hv = np.concatenate(h_parts)
     Aeq, beq = Afull[eq], lo[eq]
-    problem = qpsolvers.Problem(P, np.zeros(nz), _csc(G), hv if hv.size else None,
+    problem = qpsolvers.Problem(P, q, _csc(G), hv if hv.size else None,
                                 _csc(Aeq), beq if beq.size else None)
     problem.P = _csc(P)
     tried = []
@@ -128,7 +142,7 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
             sol = qpsolvers.solve_problem(problem, solver=backend, **options)
         status = sol.extras.get("status") if isinstance(sol.extras, dict) else None
         if sol.found and sol.x is not None and np.all(np.isfinite(sol.x)):
-            return sol.x[:n], backend
+            return x_p + N @ sol.x[:n], backend
         tried.append(f"{backend}: {status}")
     raise ReferenceError("no QP backend solved the level (" + "; ".join(tried) + ")")
 

@@ -28,15 +28,19 @@ def hierarchies(draw, max_n=5, max_depth=4, max_rows=3, coefficients=any_finite,
     for k in range(depth):
         m_k = draw(st.integers(0, max_rows))
         row_kinds = [draw(st.sampled_from(kinds)) for _ in range(m_k)]
-        if equalities_first:
-            row_kinds.sort(key=lambda c: c != "equality")
+        rows = []
         for kind in row_kinds:
-            A.append(draw(st.lists(coefficients, min_size=n, max_size=n)))
+            a_row = draw(st.lists(coefficients, min_size=n, max_size=n))
             a, b = sorted(draw(st.lists(bounds, min_size=2, max_size=2)))
             if kind == "two-sided" and a == b:
                 kind = "equality"
             lo, up = {"equality": (a, a), "lower only": (a, np.inf), "upper only": (-np.inf, b),
                       "two-sided": (a, b), "free": (-np.inf, np.inf)}[kind]
+            rows.append((a_row, lo, up))
+        if equalities_first:  # on the final bounds: a two-sided row may have become an equality
+            rows.sort(key=lambda r: r[1] != r[2])
+        for a_row, lo, up in rows:
+            A.append(a_row)
             lower.append(lo)
             upper.append(up)
             level.append(k)

@@ -12,6 +12,8 @@ HELP = "list solvers, problem families, suites or robots"
 PROVIDERS: dict[str, str] = {
     "solvers": "bench.commands.list_:_solvers",
     "families": "bench.commands.list_:_families",
+    "suites": "bench.commands.list_:_suites",
+    "robots": "problems.robots.models:robot_rows",
 }
 
 
@@ -31,6 +33,12 @@ def _solvers():
     for name, hint in registry.missing().items():
         rows.append((name, f"(not installed) {hint}"))
     return rows
+
+
+def _suites():
+    from bench.suites import builtin_suites, load_suite
+
+    return [(name, load_suite(name).description) for name in builtin_suites()]
 
 
 def _families():

@@ -189,7 +189,7 @@ def test_export_user_errors(capsys, problem, tmp_path, argv, fragments):
 
 
 # -------------------------------------------------------------------- list
-@pytest.mark.parametrize("what, expected", [("solvers", "reference"), ("families", "ik-like")])
+@pytest.mark.parametrize("what, expected", [("solvers", "reference"), ("families", "ik-like"), ("robots", "talos")])
 def test_list(capsys, what, expected):
     code, out, _ = run(capsys, "list", what)
     assert code == 0
@@ -209,7 +209,7 @@ def test_list_families_shows_every_family(capsys):
     (["solve", "p.npz", "--bogus"], "unrecognized arguments: --bogus"),
     (["solve", "p.npz", "--repeat", "many"], "argument --repeat: invalid int value: 'many'"),
     (["export", "p.npz", "--format", "csv"], "argument --format: invalid choice: 'csv'"),
-    (["list", "robots"], "cannot list 'robots'"),
+    (["list", "planets"], "cannot list 'planets'"),
 ], ids=["no command", "unknown command", "missing file", "unknown option", "bad int", "bad choice", "list"])
 def test_usage_errors_exit_2_with_one_line(capsys, argv, fragment):
     code, _, err = run(capsys, *argv)

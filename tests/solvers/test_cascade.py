@@ -392,7 +392,9 @@ def test_freeze_modes_keep_x_feasible():
 #: survey osqp hit max_iterations twice, quadprog and proxqp reported
 #: infeasible levels, piqp max_iterations, highs no solution: those backends
 #: are covered by the explicit KNOWN table above instead
-ROBUST = ("cascade-clarabel", "cascade-daqp")
+# cascade-daqp fails ~3 % of these (infeasible_level after freezing; 31 of 1200 in a survey), so it
+# is not in the property test; its failures are in the known-status tables.
+ROBUST = ("cascade-clarabel",)
 
 
 @settings(max_examples=10)

@@ -1,0 +1,211 @@
+"""``hikbench claims RUN``: the ICRA 2010 paper's claims checked on a run.
+
+Each claim gives PASS, FAIL or MISSING (no data in the run), the measured
+figure, the paper's figure and the criterion. Criteria (README, "Claims"):
+
+(a) equality HIK, depth sweep past saturation (depth >= ceil(n / rows)):
+    log-log slope of cold time vs depth, with a 95 % interval (t
+    distribution); PASS when hcod's upper bound < 0.5 (time stops growing)
+    and nullspace-svd's lower bound > 0.5 (time grows ~ linearly).
+(b) m = 36 DOF, N = 6 tasks of n = 6 (equality n=36 depth=6 rows=6):
+    counted flops (SolveResult.flops, median over seeds); PASS when hcod
+    counts fewer than both nullspace-cod and nullspace-svd. The paper's
+    figures (26.9K / 124K / 168K; all at once 69.5K COD / 1213K SVD) and its
+    cost formula sum_k (2n+3) k n (m - kn) are printed next to them.
+(c) 50 DOF (equality with n = 50): median cold time of nullspace-svd over
+    hcod; PASS when >= 2 (paper: 0.1 ms vs 5 ms, 50x).
+(d) reach scenario CSVs (`hikbench scenario reach`, one per solver and
+    warm-start mode; columns solver, warm_start, step, solve_time_s, iterations,
+    activations): median time of the cascade of QPs over hcod with time warm
+    start; PASS when >= 2 (paper: about 30 ms vs 3 ms).
+(e) same CSVs, hcod rows with warm_start none / stage / time: mean iterations
+    strictly decreasing none > stage > time, and, with time warm start, the
+    extra iterations per activated constraint at steps with activations,
+    median of (iterations - median iterations of quiet steps) / activations,
+    in [1, 3] (paper: a new constraint takes "in general two" iterations).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy import stats
+
+from bench.results import read_results
+
+__all__ = ["Claim", "check_claims", "find_scenario_csvs", "load_scenario", "paper_flops_formula"]
+
+PASS, FAIL, MISSING = "PASS", "FAIL", "MISSING"
+#: problem families of equality-only stacks (problems.generators)
+EQUALITY_FAMILIES = ("equality", "depth-sweep", "dof-sweep")
+
+
+@dataclass
+class Claim:
+    name: str
+    status: str
+    measured: str
+    paper: str
+    criterion: str
+
+
+def _params(df: pd.DataFrame) -> pd.Series:
+    return df["params"].map(lambda s: json.loads(s) if s else {})
+
+
+def _select(d: pd.DataFrame, pred) -> pd.DataFrame:
+    """Rows of d whose parsed params satisfy pred."""
+    return d[np.array([bool(pred(q)) for q in _params(d)], dtype=bool)] if len(d) else d
+
+
+def _ok(df: pd.DataFrame, mode: str = "cold") -> pd.DataFrame:
+    return df[(df["mode"] == mode) & df["verified"].eq(True) & df["time_median_s"].notna()
+              & (df["settings"] == "default")]
+
+
+def slope_interval(x, y, level: float = 0.95) -> tuple[float, float, float]:
+    """Slope of log y vs log x with its ``level`` confidence interval."""
+    lx, ly = np.log(np.asarray(x, float)), np.log(np.asarray(y, float))
+    if lx.size < 3 or np.ptp(lx) == 0:
+        return float("nan"), float("nan"), float("nan")
+    res = stats.linregress(lx, ly)
+    h = stats.t.ppf(0.5 + level / 2, lx.size - 2) * res.stderr
+    return float(res.slope), float(res.slope - h), float(res.slope + h)
+
+
+def claim_a(df: pd.DataFrame) -> Claim:
+    crit = "past saturation: slope(hcod) upper 95% bound < 0.5 and slope(nullspace-svd) lower bound > 0.5"
+    paper = "HCOD cost constant once DOF saturated; SVD recursion ~2nm^2 per task (linear in depth)"
+    d = _ok(df[df["family"].isin(EQUALITY_FAMILIES)])
+    if d.empty:
+        return Claim("(a) depth past saturation", MISSING, "no verified equality rows", paper, crit)
+    d = _select(d, lambda q: "depth" in q and "n" in q and "rows" in q)
+    d = _select(d, lambda q: q["depth"] >= math.ceil(q["n"] / q["rows"]))
+    out = {}
+    for solver in ("hcod", "nullspace-svd"):
+        s = d[d["solver"] == solver]
+        if s["depth"].nunique() < 3:
+            return Claim("(a) depth past saturation", MISSING,
+                         f"{solver}: fewer than 3 saturated depths (paper suite has them)", paper, crit)
+        out[solver] = slope_interval(s["depth"], s["time_median_s"])
+    (h, hl, hu), (v, vl, vu) = out["hcod"], out["nullspace-svd"]
+    ok = hu < 0.5 and vl > 0.5
+    return Claim("(a) depth past saturation", PASS if ok else FAIL,
+                 f"slope hcod {h:.2f} [{hl:.2f}, {hu:.2f}], "
+                 f"nullspace-svd {v:.2f} [{vl:.2f}, {vu:.2f}]", paper, crit)
+
+
+def paper_flops_formula(m: int = 36, n: int = 6, N: int = 6) -> float:
+    """The paper's per-task cost (2n+3) k n (m - kn) summed over k = 1..N (sec. VI)."""
+    return float(sum((2 * n + 3) * k * n * max(m - k * n, 0) for k in range(1, N + 1)))
+
+
+def claim_b(df: pd.DataFrame) -> Claim:
+    paper = ("HCOD 26.9K, COD recursion 124K, SVD recursion 168K; all at once 69.5K (COD) / 1213K (SVD); "
+             f"formula sum_k (2n+3)kn(m-kn) = {paper_flops_formula() / 1e3:.1f}K")
+    crit = "flops(hcod) < flops(nullspace-cod) and < flops(nullspace-svd)"
+    d = df[df["family"].isin(EQUALITY_FAMILIES) & (df["mode"] == "cold") & (df["settings"] == "default")]
+    d = _select(d, lambda q: q.get("n") == 36 and q.get("depth") == 6 and q.get("rows") == 6)
+    fl = {s: d[d["solver"] == s]["flops"].dropna() for s in ("hcod", "nullspace-cod", "nullspace-svd",
+                                                             "pinv-all")}
+    if fl["hcod"].empty or (fl["nullspace-cod"].empty and fl["nullspace-svd"].empty):
+        return Claim("(b) flops, 36 DOF, 6 tasks of 6", MISSING,
+                     "no flop counts of hcod and a null-space recursion on equality n=36 depth=6 rows=6",
+                     paper, crit)
+    med = {s: float(v.median()) for s, v in fl.items() if not v.empty}
+    ok = all(med["hcod"] < med[s] for s in ("nullspace-cod", "nullspace-svd") if s in med)
+    return Claim("(b) flops, 36 DOF, 6 tasks of 6", PASS if ok else FAIL,
+                 ", ".join(f"{s} {v / 1e3:.1f}K" for s, v in med.items()), paper, crit)
+
+
+def claim_c(df: pd.DataFrame) -> Claim:
+    paper = "0.1 ms (HCOD) vs 5 ms (SVD recursion): 50x"
+    crit = "median time nullspace-svd / hcod >= 2 on equality n = 50"
+    d = _ok(df[df["family"].isin(EQUALITY_FAMILIES) & (df["n"] == 50)])
+    t = {s: d[d["solver"] == s]["time_median_s"] for s in ("hcod", "nullspace-svd")}
+    if any(v.empty for v in t.values()):
+        return Claim("(c) 50 DOF speed-up", MISSING, "no verified hcod and nullspace-svd rows at n = 50",
+                     paper, crit)
+    h, s = float(t["hcod"].median()), float(t["nullspace-svd"].median())
+    return Claim("(c) 50 DOF speed-up", PASS if s / h >= 2 else FAIL,
+                 f"hcod {h * 1e3:.3f} ms vs nullspace-svd {s * 1e3:.3f} ms: {s / h:.1f}x", paper, crit)
+
+
+def find_scenario_csvs(run_dir, explicit=None) -> list[Path]:
+    """Per-step CSVs of the reach scenario (`hikbench scenario reach` writes one
+    per solver and warm-start mode): ``explicit`` (a CSV file or a directory
+    of them), else RUN/scenarios/reach/, RUN/scenarios/, RUN/, then
+    results/scenarios/reach/ -- the first of those holding reach*.csv files."""
+    if explicit:
+        p = Path(explicit)
+        return sorted(p.glob("*.csv")) if p.is_dir() else [p]
+    run_dir = Path(run_dir)
+    for d in (run_dir / "scenarios" / "reach", run_dir / "scenarios", run_dir,
+              Path("results/scenarios/reach")):
+        hits = sorted(d.glob("reach*.csv")) if d.is_dir() else []
+        if hits:
+            return hits
+    return []
+
+
+def load_scenario(run_dir, explicit=None) -> pd.DataFrame | None:
+    paths = [p for p in find_scenario_csvs(run_dir, explicit) if p.exists()]
+    return pd.concat([pd.read_csv(p) for p in paths], ignore_index=True) if paths else None
+
+
+def claim_d(sc: pd.DataFrame | None) -> Claim:
+    paper = "HCOD with warm start about 3 ms vs cascade of QPs about 30 ms (10x)"
+    crit = "median step time of the fastest cascade-* / hcod (warm_start = time if recorded) >= 2"
+    if sc is None or not {"solver", "solve_time_s"} <= set(sc.columns):
+        return Claim("(d) reach scenario: hcod vs QP cascade", MISSING, "no reach scenario CSV", paper, crit)
+    h = sc[sc["solver"] == "hcod"]
+    if "warm_start" in sc.columns and (h["warm_start"] == "time").any():
+        h = h[h["warm_start"] == "time"]
+    casc = sc[sc["solver"].astype(str).str.startswith("cascade-")]
+    if h.empty or casc.empty:
+        return Claim("(d) reach scenario: hcod vs QP cascade", MISSING,
+                     "scenario CSV lacks hcod or cascade-* rows", paper, crit)
+    th = float(h["solve_time_s"].median())
+    best = casc.groupby("solver")["solve_time_s"].median().sort_values()
+    tc, name = float(best.iloc[0]), best.index[0]
+    return Claim("(d) reach scenario: hcod vs QP cascade", PASS if tc / th >= 2 else FAIL,
+                 f"hcod {th * 1e3:.3f} ms vs {name} {tc * 1e3:.3f} ms: {tc / th:.1f}x", paper, crit)
+
+
+def claim_e(sc: pd.DataFrame | None) -> Claim:
+    paper = ("iterations: none > stage2stage > time warm start (Fig. 1); at an activation the new constraint "
+             "takes 'in general two' iterations (Fig. 2)")
+    crit = ("mean iterations none > stage > time, and with time warm start the median over steps with "
+            "activations of (iterations - median iterations of quiet steps) / activations in [1, 3]")
+    need = {"solver", "warm_start", "iterations", "activations"}
+    if sc is None or not need <= set(sc.columns):
+        return Claim("(e) warm start cuts iterations", MISSING,
+                     "no scenario CSV with warm_start, iterations and activations", paper, crit)
+    h = sc[sc["solver"] == "hcod"]
+    it = h.groupby("warm_start")["iterations"].mean()
+    if not {"none", "stage", "time"} <= set(it.index):
+        return Claim("(e) warm start cuts iterations", MISSING, "warm_start none/stage/time not all present",
+                     paper, crit)
+    ht = h[h["warm_start"] == "time"]
+    quiet = ht[ht["activations"] == 0]["iterations"]
+    act = ht[ht["activations"] > 0]
+    if quiet.empty or act.empty:
+        return Claim("(e) warm start cuts iterations", MISSING,
+                     "time warm start rows lack quiet steps or steps with activations", paper, crit)
+    base = float(quiet.median())
+    per = float(((act["iterations"] - base) / act["activations"]).median())
+    ok = it["none"] > it["stage"] > it["time"] and 1 <= per <= 3
+    return Claim("(e) warm start cuts iterations", PASS if ok else FAIL,
+                 f"mean iterations none {it['none']:.2f}, stage {it['stage']:.2f}, time {it['time']:.2f}; "
+                 f"{per:.2f} extra iterations per activation (quiet steps: {base:g})", paper, crit)
+
+
+def check_claims(run_dir, scenario=None) -> list[Claim]:
+    df = read_results(run_dir)
+    sc = load_scenario(run_dir, scenario)
+    return [claim_a(df), claim_b(df), claim_c(df), claim_d(sc), claim_e(sc)]

@@ -1,0 +1,108 @@
+"""``hikbench scenario NAME [--robot R] --solver S [--solver S2 ...] [--warm-start none stage time]
+[--steps K] [--out DIR] [--plot] [--option KEY=VALUE ...]``.
+
+Runs a closed-loop robot scenario (``problems/robots/scenarios/NAME.toml`` or a
+TOML path) once per (solver, warm-start mode), writes one per-step CSV per run
+(columns documented in ``bench/scenario.py``) and, with ``--plot``, the figures
+of ICRA 2010 sec. XII; prints the scenario's checks. Exit code 1 when a check fails.
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import numpy as np
+
+from bench.commands.solve import parse_options
+from problems.errors import HikbenchError
+
+HELP = "run a closed-loop robot scenario (reach, step, or a TOML file) and write CSV + figures"
+
+WARM_MODES = ("none", "stage", "time")
+
+
+def add_arguments(p) -> None:
+    p.add_argument("name", help="scenario name (reach, step, ...) or path of a scenario .toml; "
+                                "`hikbench scenario --list x` lists them")
+    p.add_argument("--robot", default=None, help="run on another robot (default: the scenario's)")
+    p.add_argument("--solver", action="append", default=None,
+                   help="solver name (repeatable; default: reference)")
+    p.add_argument("--warm-start", nargs="+", default=None, choices=WARM_MODES,
+                   help="warm-start modes to run, one run each, for solvers with a warm_start option "
+                        "(default: the solver's default); ignored for the others")
+    p.add_argument("--steps", type=int, default=None, help="control steps (default: the scenario's)")
+    p.add_argument("--out", default=None, help="output directory (default: results/scenarios/NAME)")
+    p.add_argument("--plot", action="store_true", help="write the figures (PNG)")
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                   help="solver option (repeatable), applied to every solver")
+    p.add_argument("--list", action="store_true", help="list the shipped scenarios and stacks, then exit")
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_")
+
+
+def run(args) -> int:
+    from bench.scenario import check_run, run_scenario
+    from problems.robots.scenarios import load_scenario, scenario_names
+    from problems.robots.stacks import stack_names
+    from solvers import registry
+
+    if args.list:
+        print("scenarios: " + ", ".join(scenario_names()))
+        print("stacks:    " + ", ".join(stack_names()))
+        return 0
+    scenario = load_scenario(args.name, robot=args.robot)
+    solvers = args.solver or ["reference"]
+    options = parse_options(args.option)
+    if "warm_start" in options and args.warm_start:
+        raise HikbenchError("give the warm-start mode either with --warm-start or --option warm_start=..., "
+                            "not both")
+    out = Path(args.out or Path("results") / "scenarios" / _slug(scenario.name))
+    out.mkdir(parents=True, exist_ok=True)
+    runs, failed = [], False
+    for solver in solvers:
+        info = registry.get(solver)
+        has_modes = "warm_start" in info.options  # HCOD-style none / stage / time
+        modes = (args.warm_start or [options.get("warm_start", info.options["warm_start"])]) if has_modes \
+            else [None]
+        for mode in modes:
+            opts = {k: v for k, v in options.items() if k != "warm_start" or has_modes}
+            run_ = run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps)
+            runs.append(run_)
+            stem = _slug(f"{scenario.name}_{scenario.robot.name}_{run_.label}")
+            csv = out / f"{stem}.csv"
+            run_.records.to_csv(csv, index=False)
+            np.save(out / f"{stem}_q.npy", run_.q)
+            df = run_.records
+            print(f"{run_.label}: {len(df)} steps, solve time median "
+                  f"{np.median(df['solve_time_s']) * 1e3:.3f} ms, max {df['solve_time_s'].max() * 1e3:.3f} ms"
+                  f" -> {csv}")
+            errs = [c for c in df.columns if c.startswith("err_")]
+            print("  final errors: " + ", ".join(f"{c[4:]}={df[c].iloc[-1]:.2e}" for c in errs))
+            for check in check_run(run_):
+                failed |= not check.passed
+                print(f"  [{'pass' if check.passed else 'FAIL'}] {check.name}: {check.detail}")
+    if len(runs) > 1:
+        _print_side_by_side(runs)
+    if args.plot:
+        from bench.scenario_plots import plot_runs
+
+        for path in plot_runs(runs, out, joints=scenario.plot_joints):
+            print(f"figure {path}")
+    return 1 if failed else 0
+
+
+def _print_side_by_side(runs) -> None:
+    """Task errors of every run side by side: max over the run / final value."""
+    cols = [c for c in runs[0].records.columns if c.startswith("err_")]
+    width = max(len(c) for c in cols) - 4
+    print("\ntask errors, max / final over the run:")
+    print(" " * width + "  " + "  ".join(f"{r.label:>21}" for r in runs))
+    for c in cols:
+        cells = [f"{r.records[c].max():.2e} / {r.records[c].iloc[-1]:.2e}" if c in r.records else "-"
+                 for r in runs]
+        print(f"{c[4:]:<{width}}  " + "  ".join(f"{cell:>21}" for cell in cells))
+    med = [f"{np.median(r.records['solve_time_s']) * 1e3:.3f} ms" for r in runs]
+    print(f"{'median solve':<{width}}  " + "  ".join(f"{m:>21}" for m in med))

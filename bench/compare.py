@@ -1,0 +1,150 @@
+"""``hikbench compare BASE RUN``: timing regressions and newly failing cases.
+
+For every key (problem, solver, settings, mode) present in both runs, the
+timing samples are divided by a calibration kernel time (bench/calibration.py):
+the row's own ``calib_ns`` when the suite timed the kernel around every job
+(``calibrate_each_job``, the ``ci`` suite: tracks load that comes and goes
+during the run), else the median ``calib_ns`` of the rows of the same host.
+So runs of different machines or of a loaded CI runner compare as ratios. A case is a **slowdown** when
+
+* ratio = median(new normalised samples) / median(base normalised samples)
+  exceeds ``threshold`` (default 1.15), and so does the ratio of the minima
+  (load from other processes only ever adds time, so a shift of the whole
+  distribution, minimum included, is what a real slowdown looks like), and
+* the one-sided Mann-Whitney U test (scipy.stats.mannwhitneyu, new > base) on
+  the normalised samples gives p < ``alpha`` (default 0.01),
+
+and **newly failing** when it was verified in BASE and is not in RUN. Either
+makes ``compare`` exit 1. Keys in only one run are listed, not judged. Given
+several runs (``compare BASE RUN1 RUN2``), a case fails only when it fails in
+every run (``confirmed``): a neighbour's load on a shared CI runner slows one
+job once, a regression slows it every time.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+from scipy.stats import mannwhitneyu
+
+from bench.columns import KEY
+from bench.environment import read_run_json
+from bench.results import read_results
+
+__all__ = ["compare_runs", "Comparison", "normalised_samples", "confirmed"]
+
+
+@dataclass
+class Comparison:
+    table: pd.DataFrame          # one row per common key
+    only_base: list
+    only_new: list
+
+    @property
+    def slowdowns(self) -> pd.DataFrame:
+        return self.table[self.table["verdict"] == "SLOWER"]
+
+    @property
+    def new_failures(self) -> pd.DataFrame:
+        return self.table[self.table["verdict"] == "NEWLY FAILING"]
+
+    @property
+    def failed(self) -> bool:
+        return bool(len(self.slowdowns) or len(self.new_failures))
+
+
+def _host_calibration(df: pd.DataFrame, meta: dict) -> dict:
+    fallback = float(meta.get("calibration_ns") or 1.0)
+    cal = df.dropna(subset=["calib_ns"]).groupby("host")["calib_ns"].median().to_dict()
+    return {h: float(cal.get(h, fallback)) for h in df["host"].fillna("").unique()} | {"": fallback}
+
+
+def normalised_samples(df: pd.DataFrame, meta: dict) -> pd.Series:
+    """Samples (ns) divided by a calibration time (see the module docstring): dimensionless."""
+    cal = _host_calibration(df, meta)
+    per_job = bool(meta.get("suite", {}).get("calibrate_each_job"))
+    out = []
+    for s, h, c in zip(df["samples_ns"], df["host"].fillna(""), df["calib_ns"]):
+        v = np.asarray(json.loads(s), dtype=float) if s else np.zeros(0)
+        out.append(v / (float(c) if per_job and pd.notna(c) else cal.get(h, cal[""])))
+    return pd.Series(out, index=df.index)
+
+
+def _true(v) -> bool:
+    return isinstance(v, (bool, np.bool_)) and bool(v)
+
+
+def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_meta: dict,
+                   threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
+    base = base.assign(_norm=normalised_samples(base, base_meta)).set_index(list(KEY))
+    new = new.assign(_norm=normalised_samples(new, new_meta)).set_index(list(KEY))
+    base = base[~base.index.duplicated(keep="last")]
+    new = new[~new.index.duplicated(keep="last")]
+    common = base.index.intersection(new.index)
+    rows = []
+    for key in common:
+        b, n = base.loc[key], new.loc[key]
+        bs, ns = b["_norm"], n["_norm"]
+        ratio, ratio_min, p = float("nan"), float("nan"), float("nan")
+        if len(bs) and len(ns):
+            ratio = float(np.median(ns) / np.median(bs))
+            ratio_min = float(np.min(ns) / np.min(bs))
+            p = float(mannwhitneyu(ns, bs, alternative="greater").pvalue)
+        if _true(b["verified"]) and not _true(n["verified"]):
+            verdict = "NEWLY FAILING"
+        elif np.isfinite(ratio) and ratio > threshold and ratio_min > threshold and p < alpha:
+            verdict = "SLOWER"
+        elif np.isfinite(ratio) and ratio < 1 / threshold and len(bs) and len(ns) and \
+                float(mannwhitneyu(ns, bs, alternative="less").pvalue) < alpha:
+            verdict = "faster"
+        else:
+            verdict = "ok"
+        rows.append(dict(zip(KEY, key), base_status=b["status"], new_status=n["status"],
+                         base_verified=b["verified"], new_verified=n["verified"],
+                         base_median_s=b["time_median_s"], new_median_s=n["time_median_s"],
+                         ratio=ratio, ratio_min=ratio_min, p_value=p, verdict=verdict))
+    table = pd.DataFrame(rows, columns=[*KEY, "base_status", "new_status", "base_verified", "new_verified",
+                                        "base_median_s", "new_median_s", "ratio", "ratio_min", "p_value",
+                                        "verdict"])
+    return Comparison(table, [k for k in base.index if k not in common],
+                      [k for k in new.index if k not in common])
+
+
+def compare_runs(base_dir, new_dir, threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
+    return compare_frames(read_results(base_dir), read_results(new_dir), read_run_json(base_dir),
+                          read_run_json(new_dir), threshold, alpha)
+
+
+def confirmed(comparisons: list[Comparison]) -> Comparison:
+    """Several runs against one baseline: a case stays SLOWER / NEWLY FAILING
+    only when every run says so (a one-off disturbance does not reproduce);
+    otherwise it reads "not reproduced". Numbers are those of the first run."""
+    first = comparisons[0]
+    if len(comparisons) == 1:
+        return first
+    key = list(KEY)
+    verdicts = [c.table.set_index(key)["verdict"] for c in comparisons]
+    t = first.table.set_index(key)
+    for bad in ("SLOWER", "NEWLY FAILING"):
+        hit = t["verdict"] == bad
+        for v in verdicts[1:]:
+            same = v.reindex(t.index).eq(bad)
+            t.loc[hit & ~same, "verdict"] = f"{bad.lower()}, not reproduced"
+            hit = hit & same
+    return Comparison(t.reset_index(), first.only_base, first.only_new)
+
+
+def format_table(c: Comparison, show_all: bool = False) -> str:
+    t = c.table.sort_values("ratio", ascending=False, na_position="last")
+    if not show_all:
+        t = pd.concat([t[t["verdict"] != "ok"], t[t["verdict"] == "ok"].head(10)])
+    lines = [f"{'verdict':<13} {'ratio':>6} {'min r':>6} {'p':>7} {'base us':>9} {'new us':>9}  "
+             "solver / settings / mode / problem"]
+    for r in t.itertuples():
+        lines.append(f"{r.verdict:<13} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.p_value:>7.4f} "
+                     f"{r.base_median_s * 1e6:>9.1f} "
+                     f"{r.new_median_s * 1e6:>9.1f}  {r.solver} / {r.settings} / {r.mode} / {r.problem}")
+    return "\n".join(lines)

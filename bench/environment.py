@@ -1,0 +1,100 @@
+"""What run.json records about the machine and the software: package
+versions, CPU model, BLAS (threadpoolctl + numpy's build config), git commit."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import platform
+import socket
+import subprocess
+import sys
+from importlib import metadata
+from pathlib import Path
+
+__all__ = ["environment", "utc_now", "PACKAGES", "read_run_json", "write_run_json"]
+
+PACKAGES = ("hikbench", "numpy", "scipy", "pandas", "numba", "llvmlite", "threadpoolctl", "qpsolvers", "osqp",
+            "proxsuite", "clarabel", "daqp", "quadprog", "piqp", "highspy", "cvxpy", "pin",
+            "example-robot-data-loaders", "matplotlib", "rich", "dask", "distributed")
+RUN_JSON = "run.json"
+
+
+def utc_now() -> str:
+    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+
+
+def _versions() -> dict:
+    out = {"python": platform.python_version()}
+    for p in PACKAGES:
+        try:
+            out[p] = metadata.version(p)
+        except metadata.PackageNotFoundError:
+            out[p] = None
+    return out
+
+
+def cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass  # not Linux: fall back to platform
+    return platform.processor() or platform.machine()
+
+
+def _blas() -> dict:
+    import numpy as np
+    from threadpoolctl import threadpool_info
+
+    info = {"threadpools": [{k: v for k, v in d.items() if k in ("user_api", "internal_api", "version",
+                                                                  "num_threads", "threading_layer",
+                                                                  "architecture", "filepath")}
+                            for d in threadpool_info()]}
+    try:
+        cfg = np.show_config(mode="dicts")
+        info["numpy_build"] = cfg.get("Build Dependencies", cfg)
+    except TypeError:  # numpy < 1.25 has no mode argument
+        info["numpy_build"] = None
+    return info
+
+
+def _git() -> dict:
+    root = Path(__file__).resolve().parent.parent
+    def git(*args):
+        try:
+            return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True,
+                                  timeout=10).stdout.strip()
+        except (OSError, subprocess.TimeoutExpired):
+            return ""
+    commit = git("rev-parse", "HEAD")
+    return {"commit": commit or None, "branch": git("rev-parse", "--abbrev-ref", "HEAD") or None,
+            "dirty": bool(git("status", "--porcelain", "--untracked-files=no")) if commit else None}
+
+
+def environment() -> dict:
+    return {
+        "host": socket.gethostname(),
+        "platform": platform.platform(),
+        "cpu": cpu_model(),
+        "cpu_count": os.cpu_count(),
+        "versions": _versions(),
+        "blas": _blas(),
+        "git": _git(),
+        "argv": sys.argv,
+    }
+
+
+def read_run_json(run_dir) -> dict:
+    p = Path(run_dir) / RUN_JSON
+    return json.loads(p.read_text()) if p.exists() else {}
+
+
+def write_run_json(run_dir, data: dict) -> None:
+    p = Path(run_dir) / RUN_JSON
+    tmp = p.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(data, indent=1, default=str) + "\n")
+    os.replace(tmp, p)

@@ -1,0 +1,42 @@
+#!/usr/bin/env python3
+"""A tiny external solver for ``--solvers external:NAME=CMD`` (README,
+"External solvers"). It uses numpy only (no hikbench), like a C++ program would
+use its own reader:
+
+    python bench/examples/nullspace_external.py PROBLEM.npz OUT.json
+
+reads the problem (.npz: A, lower, upper, level, n), solves its equality rows
+(lower == upper) with the SVD null-space recursion (ICRA 2010 eq. 2; inequality
+rows are ignored), and writes ``{"x": [...], "solve_time_s": t, "status": "optimal"}``.
+"""
+
+import json
+import sys
+import time
+
+import numpy as np
+
+
+def main(problem: str, out: str) -> int:
+    with np.load(problem) as z:
+        A, lower, upper, level, n = z["A"], z["lower"], z["upper"], z["level"], int(z["n"])
+    t0 = time.perf_counter()
+    x, Z = np.zeros(n), np.eye(n)
+    for k in np.unique(level):
+        rows = (level == k) & (lower == upper)
+        if not rows.any() or Z.shape[1] == 0:
+            continue
+        Ak, bk = A[rows], lower[rows]
+        U, s, Vt = np.linalg.svd(Ak @ Z)
+        r = int(np.sum(s > 1e-10 * max(np.linalg.norm(Ak, 2), 1e-300)))
+        if r:
+            x = x + Z @ (Vt[:r].T @ ((U[:, :r].T @ (bk - Ak @ x)) / s[:r]))
+        Z = Z @ Vt[r:].T
+    elapsed = time.perf_counter() - t0
+    with open(out, "w") as f:
+        json.dump({"x": x.tolist(), "solve_time_s": elapsed, "status": "optimal"}, f)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(*sys.argv[1:3]))

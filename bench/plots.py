@@ -1,0 +1,219 @@
+"""PNG figures of a run (matplotlib, Agg backend). Each function takes the
+results DataFrame (bench.results.read_results) and a path, writes one PNG and
+returns the path (or None when the run has no data for that figure)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt
+import matplotlib.ticker
+import numpy as np
+import pandas as pd
+
+from bench.shgeom import performance_profile
+
+__all__ = ["sweeps", "plot_sweep", "plot_success", "plot_profiles", "plot_accuracy", "plot_cold_warm",
+           "loglog_slope"]
+
+_STYLE = {"figsize": (9.5, 5.0), "dpi": 110}
+
+
+def loglog_slope(x, y) -> tuple[float, float]:
+    """Least-squares slope of log y vs log x and its standard error."""
+    lx, ly = np.log(np.asarray(x, float)), np.log(np.asarray(y, float))
+    if lx.size < 2 or np.ptp(lx) == 0:
+        return float("nan"), float("nan")
+    A = np.vstack([lx, np.ones_like(lx)]).T
+    coef, res, *_ = np.linalg.lstsq(A, ly, rcond=None)
+    dof = lx.size - 2
+    if dof <= 0:
+        return float(coef[0]), float("nan")
+    s2 = float(np.sum((ly - A @ coef) ** 2)) / dof
+    se = float(np.sqrt(s2 / np.sum((lx - lx.mean()) ** 2)))
+    return float(coef[0]), se
+
+
+def _other_params(params_json: str, var: str) -> str:
+    p = json.loads(params_json) if params_json else {}
+    p.pop(var, None)
+    return json.dumps(p, sort_keys=True)
+
+
+def sweeps(df: pd.DataFrame, var: str, min_points: int = 3) -> list[tuple[str, str, pd.DataFrame]]:
+    """(family, fixed-params JSON, rows) of each sweep over column ``var``
+    (n or depth) with at least ``min_points`` distinct values."""
+    if df.empty:
+        return []
+    d = df.assign(_fixed=[_other_params(p, var) for p in df["params"]])
+    d = d[[var in (json.loads(p) if p else {}) for p in d["params"]]]
+    out = []
+    for (fam, fixed), g in d.groupby(["family", "_fixed"]):
+        if g[var].nunique() >= min_points:
+            out.append((fam, fixed, g))
+    return out
+
+
+_LINESTYLES = ("-", "--", "-.", ":")
+_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
+
+
+def _style(i: int) -> dict:
+    """Distinct colour / line style / marker for the i-th solver (20 colours,
+    then line styles change), so that 16+ solvers stay distinguishable."""
+    cmap = plt.get_cmap("tab20")
+    return {"color": cmap(i % 20), "linestyle": _LINESTYLES[(i // 10) % len(_LINESTYLES)],
+            "marker": _MARKERS[i % len(_MARKERS)]}
+
+
+def _legend(ax) -> None:
+    """Legend outside the axes on the right (never over the data)."""
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+
+
+def _readable_log_ticks(ax) -> None:
+    """Plain numbers on log axes (1, 2, 5, 10, 20, ...) instead of 2 x 10^1."""
+    fmt = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")
+    for axis in (ax.xaxis, ax.yaxis):
+        axis.set_major_formatter(fmt)
+        axis.set_minor_locator(matplotlib.ticker.LogLocator(subs=(2.0, 5.0)))
+        axis.set_minor_formatter(fmt)
+        axis.set_tick_params(which="minor", labelsize=7)
+
+
+def _finish(fig, ax, path: Path, title: str) -> Path:
+    ax.set_title(title, fontsize=11)
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "cold",
+               vline: tuple[float, str] | None = None) -> tuple[Path | None, dict]:
+    """Median time vs ``var`` per solver, log-log, fitted slopes in the legend;
+    ``vline = (x, label)`` marks e.g. the depth where the DOF are saturated."""
+    g = g[(g["mode"] == mode) & g["verified"].eq(True) & g["time_median_s"].notna()]
+    if g.empty:
+        return None, {}
+    fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
+    slopes = {}
+    for i, ((solver, settings), s) in enumerate(g.groupby(["solver", "settings"])):
+        med = s.groupby(var)["time_median_s"].median().sort_index()
+        if med.empty:
+            continue
+        slope, se = loglog_slope(s[var], s["time_median_s"])
+        label = solver if settings == "default" else f"{solver} [{settings}]"
+        slopes[label] = (slope, se)
+        ax.plot(med.index, med.to_numpy() * 1e6, **_style(i),
+                label=f"{label} (slope {slope:.2f})" if np.isfinite(slope) else label)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    _readable_log_ticks(ax)
+    ax.set_xlabel({"n": "DOF n (number of variables)", "depth": "number of levels (depth)"}.get(var, var))
+    ax.set_ylabel(f"median solve time ({mode}) [us]")
+    if vline is not None:
+        ax.axvline(vline[0], color="0.4", linestyle=":", linewidth=1.2, label=vline[1])
+    _legend(ax)
+    return _finish(fig, ax, path, title), slopes
+
+
+def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
+    if df.empty:
+        return None
+    label = df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
+    tab = df.assign(_ok=df["verified"].eq(True).astype(float), _s=label).pivot_table(
+        index="_s", columns="family", values="_ok", aggfunc="mean")
+    fig, ax = plt.subplots(figsize=(max(5.5, 2.5 + 1.3 * tab.shape[1]), max(2.8, 1.6 + 0.4 * tab.shape[0])),
+                           dpi=_STYLE["dpi"])
+    im = ax.imshow(tab.to_numpy() * 100, cmap="RdYlGn", vmin=0, vmax=100, aspect="auto")
+    ax.set_xticks(range(tab.shape[1]), tab.columns, rotation=30, ha="right", fontsize=8)
+    ax.set_yticks(range(tab.shape[0]), tab.index, fontsize=8)
+    for i in range(tab.shape[0]):
+        for j in range(tab.shape[1]):
+            v = tab.iat[i, j]
+            if np.isfinite(v):
+                ax.text(j, i, f"{100 * v:.0f}%", ha="center", va="center", fontsize=7)
+    fig.colorbar(im, ax=ax, label="success [%]")
+    ax.set_title("Verified success rate per solver and family", fontsize=11)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+    return path
+
+
+def plot_profiles(times: pd.DataFrame, path: Path, title: str) -> Path | None:
+    """Dolan-More performance profiles of a problems x solvers table (NaN = failure)."""
+    if times.empty or times.shape[1] == 0:
+        return None
+    finite = times.to_numpy(dtype=float)
+    finite = finite[np.isfinite(finite)]
+    if finite.size == 0:
+        return None
+    best = np.nanmin(np.where(np.isfinite(times.to_numpy(float)), times.to_numpy(float), np.nan), axis=1)
+    worst = np.nanmax(times.to_numpy(float) / best[:, None]) if np.isfinite(best).any() else 10.0
+    taus = np.logspace(0, np.log10(max(10.0, 2.0 * worst)), 300)
+    prof = performance_profile(times, taus)
+    fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
+    for i, (s, y) in enumerate(prof.items()):
+        st = _style(i)
+        ax.step(taus, y, where="post", label=s, color=st["color"], linestyle=st["linestyle"])
+    ax.set_xscale("log")
+    ax.set_ylim(-0.02, 1.02)
+    ax.set_xlabel("performance ratio tau (time / best time on the problem)")
+    ax.set_ylabel("fraction of problems solved within tau")
+    _legend(ax)
+    return _finish(fig, ax, path, title)
+
+
+def plot_accuracy(df: pd.DataFrame, path: Path) -> Path | None:
+    """Median |level norm - reference level norm| per level and solver."""
+    d = df[(df["level_norms"] != "") & (df["ref_level_norms"] != "") & (df["mode"] == "cold")]
+    if d.empty:
+        return None
+    fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
+    for i, (solver, s) in enumerate(d.groupby("solver")):
+        per_level: dict[int, list] = {}
+        for a, b in zip(s["level_norms"], s["ref_level_norms"]):
+            for k, (u, v) in enumerate(zip(json.loads(a), json.loads(b))):
+                if u is not None and v is not None:
+                    per_level.setdefault(k, []).append(abs(u - v))
+        if per_level:
+            ks = sorted(per_level)
+            ax.plot(ks, [max(np.median(per_level[k]), 1e-17) for k in ks], label=solver, **_style(i))
+    ax.set_yscale("log")
+    ax.set_xlabel("level k (0 = highest priority)")
+    ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
+    ax.set_ylabel("median | ||v_k(x)|| - ||v_k(x_ref)|| |  [units of the task]")
+    _legend(ax)
+    return _finish(fig, ax, path, "Per-level accuracy against the reference (floored at 1e-17)")
+
+
+def plot_cold_warm(df: pd.DataFrame, path: Path) -> Path | None:
+    keys = ["problem", "solver", "settings"]
+    ok = df[df["verified"].eq(True) & df["time_median_s"].notna()]
+    cold = ok[ok["mode"] == "cold"].set_index(keys)["time_median_s"]
+    warm = ok[ok["mode"] == "warm"].set_index(keys)["time_median_s"]
+    both = pd.concat([cold.rename("cold"), warm.rename("warm")], axis=1, join="inner")
+    if both.empty:
+        return None
+    fig, ax = plt.subplots(figsize=(8, 6), dpi=_STYLE["dpi"])
+    for i, (solver, s) in enumerate(both.groupby(level="solver")):
+        st = _style(i)
+        ax.scatter(s["cold"] * 1e6, s["warm"] * 1e6, label=solver, s=22, color=st["color"],
+                   marker=st["marker"])
+    lo = float(min(both.min())) * 1e6 / 2
+    hi = float(max(both.max())) * 1e6 * 2
+    ax.plot([lo, hi], [lo, hi], "k--", lw=0.8, label="warm = cold")
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    _readable_log_ticks(ax)
+    ax.set_xlabel("cold solve time (fresh solver) [us]")
+    ax.set_ylabel("warm re-solve time (same solver object) [us]")
+    _legend(ax)
+    return _finish(fig, ax, path, "Cold vs warm: median time per problem")

@@ -1,0 +1,200 @@
+"""``hikbench report RUN``: RUN/report.md and RUN/plots/*.png.
+
+report.md is diff-friendly: every table has a one-line title before it, rows
+are sorted, numbers have fixed formats, and the environment (versions, CPU,
+BLAS, git commit) is recorded. Runtime aggregates are shifted geometric means
+(bench/shgeom.py) with failures charged at the job timeout.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from bench import plots
+from bench.environment import read_run_json
+from bench.results import read_results
+from bench.shgeom import SHIFT_S, charged_times, shifted_geometric_mean
+
+__all__ = ["write_report", "solver_label"]
+
+
+def solver_label(df: pd.DataFrame) -> pd.Series:
+    return df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
+
+
+def _table(title: str, header: list[str], rows: list[list]) -> list[str]:
+    out = [f"### {title}", "", "| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    out += ["| " + " | ".join(str(c) for c in r) + " |" for r in rows]
+    return out + [""]
+
+
+def _us(t: float) -> str:
+    return "-" if not np.isfinite(t) else f"{t * 1e6:.1f}"
+
+
+def _penalty(meta: dict) -> float:
+    sessions = meta.get("sessions") or [{}]
+    return float(max(s.get("timeout", meta.get("suite", {}).get("timeout", 60.0)) for s in sessions))
+
+
+TIME_COLUMNS = ("time_median_s", "time_min_s", "time_p95_s")
+
+
+def normalise_hosts(df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
+    """With rows from several hosts (Dask), scale each host's times by
+    calib(reference host) / calib(host), the reference host being the one
+    with most rows, so that the aggregates and plots compare like with like."""
+    hosts = df["host"].fillna("?").astype(str)
+    cal = df.assign(_h=hosts).groupby("_h")["calib_ns"].median()
+    if len(cal) <= 1 or cal.isna().any():
+        why = "one host" if len(cal) <= 1 else "calibration missing on a host"
+        return df, f"as measured ({why})"
+    ref = hosts.value_counts().index[0]
+    factor = hosts.map(lambda h: cal[ref] / cal[h]).astype(float)
+    df = df.copy()
+    for c in TIME_COLUMNS:
+        df[c] = df[c] * factor
+    return df, f"normalised to host {ref} by the calibration kernel ({len(cal)} hosts)"
+
+
+def write_report(run_dir) -> Path:
+    run_dir = Path(run_dir)
+    df = read_results(run_dir)
+    meta = read_run_json(run_dir)
+    env = meta.get("environment", {})
+    plot_dir = run_dir / "plots"
+    plot_dir.mkdir(exist_ok=True)
+    df = df.assign(label=solver_label(df))
+    df, norm_note = normalise_hosts(df)
+    penalty = _penalty(meta)
+    suite = meta.get("suite", {})
+    L = [f"# hikbench report: suite {suite.get('name', '?')}", ""]
+    L += _table("Run", ["field", "value"], [
+        ["suite", f"{suite.get('name')} ({suite.get('source', '')})"],
+        ["created", meta.get("created", "")],
+        ["git commit", f"{env.get('git', {}).get('commit')} (dirty: {env.get('git', {}).get('dirty')})"],
+        ["host(s)", ", ".join(sorted(df["host"].dropna().astype(str).unique()))],
+        ["CPU", f"{env.get('cpu')} ({env.get('cpu_count')} logical cores)"],
+        ["BLAS", "; ".join(f"{t.get('internal_api')} {t.get('version')} ({t.get('num_threads')} threads)"
+                           for t in env.get("blas", {}).get("threadpools",
+                                                            [])) + "; solves timed at 1 thread"],
+        ["calibration kernel", f"{meta.get('calibration_ns', float('nan')) / 1e6:.3f} ms "
+                               f"({meta.get('calibration_kernel', '')})"],
+        ["accuracy", json.dumps(meta.get("accuracy", {}))],
+        ["rows", str(len(df))],
+        ["times", norm_note],
+        ["runtime aggregate", f"shifted geometric mean, shift {SHIFT_S * 1e6:g} us; "
+                              f"unverified rows charged {penalty:g} s (the job timeout)"],
+    ])
+    L += _table("Package versions", ["package", "version"],
+                [[k, v if v else "not installed"] for k, v in sorted(env.get("versions", {}).items())])
+    hosts = df.groupby(df["host"].fillna("?").astype(str)).agg(rows=("problem", "count"),
+                                                                 calib=("calib_ns", "median"))
+    L += _table("Hosts (calibration kernel time of their workers; compare divides times by it)",
+                ["host", "rows", "calibration [ms]"],
+                [[h, int(r.rows), f"{r.calib / 1e6:.3f}" if np.isfinite(r.calib) else "-"]
+                 for h, r in hosts.iterrows()])
+    skipped = meta.get("skipped_solvers", {})
+    if skipped:
+        L += _table("Solvers skipped (not installed)", ["solver", "why"], [[k, v] for k,
+                                                                           v in sorted(skipped.items())])
+
+    # per solver summary
+    rows = []
+    for label, g in sorted(df.groupby("label")):
+        strict = "yes" if g["strict"].astype(str).eq("True").all() else "no"
+        sup = g[g["status"] != "unsupported"]
+        r = [label, strict, str(len(g)), str(len(g) - len(sup)),
+             f"{100 * g['verified'].eq(True).mean():.0f}%"]
+        for mode in ("cold", "warm"):
+            gm = sup[sup["mode"] == mode]
+            r.append(_us(shifted_geometric_mean(charged_times(gm, penalty))) if len(gm) else "-")
+        rows.append(r)
+    L += _table("Solvers: verified success and shifted geometric mean time (us; unverified rows charged, "
+                "unsupported rows left out)",
+                ["solver", "strict", "rows", "unsupported", "verified", "sgm cold [us]",
+                 "sgm warm [us]"], rows)
+
+    fam = df.assign(ok=df["verified"].eq(True)).pivot_table(index="label", columns="family", values="ok",
+                                                             aggfunc="mean")
+    L += _table("Verified success rate per solver and family", ["solver", *fam.columns],
+                [[i,
+                  *[("-" if not np.isfinite(v) else f"{100 * v:.0f}%") for v in fam.loc[i]]]
+                 for i in fam.index])
+
+    for mode in ("cold", "warm"):
+        d = df[(df["mode"] == mode) & df["verified"].eq(True)]
+        if d.empty:
+            continue
+        grp = d["problem"].str.replace(r"/seed=\d+$", "", regex=True)
+        med = d.assign(group=grp).pivot_table(index="group", columns="label", values="time_median_s",
+                                              aggfunc="median")
+        L += _table(f"Median {mode} time per problem over its seeds [us] (verified rows; the speed table)",
+                    ["problem", *med.columns],
+                    [[g, *[_us(v) for v in med.loc[g]]] for g in med.index])
+
+    st = df.pivot_table(index="label", columns="status", values="problem", aggfunc="count", fill_value=0)
+    L += _table("Statuses per solver", ["solver", *st.columns], [[i, *st.loc[i].tolist()] for i in st.index])
+
+    unverified = df[~df["verified"].eq(True)]
+    strict = unverified["strict"].astype(str).eq("True") & (unverified["status"] != "unsupported")
+    bad = unverified[strict].sort_values(["label", "problem", "mode"])
+    L += _table(f"Unverified rows of strict solvers ({len(bad)}, first 40; not listed: {int((~strict).sum())} "
+                "unsupported or non-strict rows)", ["solver", "problem", "mode", "status", "verdict",
+                                                            "reason"],
+                [[r.label, r.problem, r.mode, r.status,
+                  f"{r.verdict_side} at level {int(r.verdict_level)}" if pd.notna(r.verdict_level) else
+                  (r.verdict_side if isinstance(r.verdict_side, str) else ""),
+                  str(r.reason)[:80].replace("|", "/")] for r in bad.head(40).itertuples()])
+
+    from bench.claims import check_claims
+
+    L += _table("Claims of the ICRA 2010 paper (hikbench claims; MISSING = no data in this run)",
+                ["claim", "result", "measured", "paper"],
+                [[c.name, c.status, c.measured, c.paper] for c in check_claims(run_dir)])
+
+    figures = []
+    for var, what in (("n", "DOF"), ("depth", "depth")):
+        for i, (family, fixed, g) in enumerate(plots.sweeps(df, var)):
+            name = f"time_vs_{'dof' if var == 'n' else 'depth'}_{family}_{i}.png".replace(":", "_")
+            fx = json.loads(fixed)
+            sat = None
+            if var == "depth" and {"n", "rows"} <= set(fx):
+                sat = (fx["n"] / fx["rows"], f"DOF saturated (depth = n / rows = {fx['n'] / fx['rows']:g})")
+            p, slopes = plots.plot_sweep(g, var, plot_dir / name,
+                                         f"{family}: time vs {what} "
+                                         f"({fixed.strip('{}') or 'defaults'}), cold", vline=sat)
+            if p:
+                figures.append((f"Time vs {what}: {family} {fixed}", p))
+                L += _table(f"Log-log slope of time vs {what}: {family} {fixed}", ["solver", "slope",
+                                                                                   "std. err."],
+                            [[s, f"{a:.2f}", f"{b:.2f}"] for s, (a, b) in sorted(slopes.items())])
+    p = plots.plot_success(df, plot_dir / "success_rate.png")
+    if p:
+        figures.append(("Verified success rate", p))
+    for mode in ("cold", "warm"):
+        d = df[df["mode"] == mode]
+        if d.empty:
+            continue
+        t = d.assign(t=d["time_median_s"].where(d["verified"].eq(True))).pivot_table(
+            index="problem", columns="label", values="t", aggfunc="first", dropna=False)
+        p = plots.plot_profiles(t, plot_dir / f"performance_profile_{mode}.png",
+                                f"Performance profiles (Dolan-More), {mode} solves; failures never reach 1")
+        if p:
+            figures.append((f"Performance profile, {mode}", p))
+    p = plots.plot_accuracy(df, plot_dir / "accuracy_per_level.png")
+    if p:
+        figures.append(("Per-level accuracy", p))
+    p = plots.plot_cold_warm(df, plot_dir / "cold_vs_warm.png")
+    if p:
+        figures.append(("Cold vs warm", p))
+    L += ["### Figures", ""]
+    for title, p in figures:
+        L += [f"{title}:", "", f"![{title}]({p.relative_to(run_dir)})", ""]
+    out = run_dir / "report.md"
+    out.write_text("\n".join(L).rstrip() + "\n")
+    return out

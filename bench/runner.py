@@ -1,0 +1,270 @@
+"""``hikbench run``: expand a suite, generate and save its problems, compute
+(and cache) the reference of each problem, run every (problem, solver,
+settings, mode) not already in OUT/results.csv, verify each x against the
+reference, and append one row per job as it finishes.
+
+Layout of OUT::
+
+    results.csv           one row per job (bench/columns.py)
+    run.json              environment, suite, calibration, sessions
+    problems/<id>.npz     every problem of the suite (and .soth.txt if exported)
+    reference/<id>.npz    cached reference solution (x, status, reason)
+    worker.log            stderr of the isolated worker processes
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from bench.calibration import KERNEL, calibrate
+from bench.columns import KEY
+from bench.environment import environment, read_run_json, utc_now, write_run_json
+from bench.problemset import file_stem, generate, problem_columns, save_problem
+from bench.results import ResultsWriter, drop_keys, finished_keys
+from bench.suites import ACCURACY, Suite, Task, expand
+from problems.verify import level_norms, verify
+
+__all__ = ["run_suite", "RunSummary"]
+
+
+@dataclass
+class RunSummary:
+    total: int = 0
+    skipped_finished: int = 0
+    written: int = 0
+    statuses: dict = field(default_factory=dict)
+    skipped_solvers: dict = field(default_factory=dict)
+
+
+def _finite(v):
+    return None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v
+
+
+def _json_floats(a) -> str:
+    return json.dumps([None if not math.isfinite(float(v)) else float(v) for v in a])
+
+
+def _load_reference(path: Path):
+    with np.load(path, allow_pickle=False) as z:
+        return (z["x"] if z["x"].size else None), str(z["status"]), str(z["reason"])
+
+
+def _save_reference(path: Path, x, status: str, reason: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "wb") as f:
+        np.savez(f, x=np.zeros(0) if x is None else np.asarray(x, float), status=status, reason=reason)
+    tmp.replace(path)
+
+
+def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: float) -> dict:
+    """One results.csv row from a job result (bench.worker) and the reference."""
+    x_ref, ref_status, ref_reason = ref
+    x = res.get("x")
+    samples = np.asarray(res.get("samples_ns") or [], dtype=np.int64)
+    row = dict(pcols)
+    e = task.entry
+    row.update(solver=e.solver, settings=e.settings, options=e.options_json(), strict=e.strict,
+               mode=task.mode,
+               repeat=len(samples), status=res["status"], reason=res.get("reason", ""))
+    if x is not None and np.shape(x) == (h.n,):
+        norms = level_norms(h, x)
+        row["level_norms"] = _json_floats(norms)
+        row["x_norm"] = float(np.linalg.norm(x))
+    if x_ref is not None:
+        row["ref_level_norms"] = _json_floats(level_norms(h, x_ref))
+    if x_ref is None:
+        row["verified"] = None
+        row["verdict_side"] = "no reference"
+        row["reason"] = (row["reason"] + "; " if row["reason"] else "") + f"reference {ref_status}: {ref_reason}"
+    elif x is None or np.shape(x) != (h.n,):
+        row.update(verified=False, verdict_side="no x")
+    else:
+        v = verify(h, x, x_ref, rtol=rtol, atol=atol)
+        row["verified"] = bool(v.equal or v.lower == "a")
+        if not v.equal:
+            row.update(verdict_level=v.level, verdict_side="better" if v.lower == "a" else "worse",
+                       verdict_diff=_finite(float(v.difference)))
+    for k in ("iterations", "activations", "deactivations", "flops"):
+        row[k] = res.get(k)
+    if res.get("iterations_per_level"):
+        row["iterations_per_level"] = json.dumps(res["iterations_per_level"])
+    if samples.size:
+        row.update(time_median_s=float(np.median(samples)) * 1e-9, time_min_s=float(samples.min()) * 1e-9,
+                   time_p95_s=float(np.percentile(samples,
+                                                  95)) * 1e-9, samples_ns=json.dumps(samples.tolist()))
+    row["build_time_s"] = _finite(res.get("build_time_s"))
+    row["solve_time_s"] = _finite(res.get("solve_time_s"))
+    row.update(calib_ns=res.get("calib_ns"), host=res.get("host"), worker=res.get("worker"),
+               wall_s=res.get("wall_s"), finished_at=utc_now())
+    return row
+
+
+class _Progress:
+    """rich progress bar (done/total, rate, ETA), or nothing with --quiet."""
+
+    def __init__(self, quiet: bool):
+        self.p = None
+        if not quiet:
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+            self.p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                              TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"),
+                              TimeRemainingColumn(), transient=False)
+
+    def __enter__(self):
+        if self.p:
+            self.p.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.p:
+            self.p.stop()
+
+    def add(self, description: str, total: int):
+        return self.p.add_task(description, total=total, rate="") if self.p else None
+
+    def advance(self, tid, label: str = ""):
+        if self.p is not None:
+            self.p.advance(tid)
+            speed = self.p.tasks[tid].speed if tid < len(self.p.tasks) else None
+            self.p.update(tid, rate=f"{speed:.1f}/s" if speed else "", description=label or
+                          self.p.tasks[tid].description)
+
+
+def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rerun=False, executor=None,
+              quiet=False, limit=None, log=print) -> RunSummary:
+    """Run ``suite`` into directory ``out`` (see the module docstring).
+
+    ``solvers`` (patterns) replaces the suite's solver lists; ``repeat`` and
+    ``timeout`` override the suite's; ``limit`` stops after that many new rows
+    (the run resumes later). ``executor`` defaults to a SerialExecutor."""
+    from bench.executors import SerialExecutor
+
+    out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
+    repeat = int(repeat or suite.repeat)
+    timeout = float(timeout or suite.timeout)
+    rtol, atol = ACCURACY[suite.accuracy]
+    tasks, skipped = expand(suite, solvers)
+    summary = RunSummary(total=len(tasks), skipped_solvers=skipped)
+    export, export_skipped = _export_formats(suite.export)
+    for name, why in skipped.items():
+        print(f"hikbench run: skipping solver {name}: {why}", file=sys.stderr)
+
+    problems, pcols = {}, {}
+    for task in tasks:
+        pid = task.problem.id
+        if pid not in problems:
+            h = generate(task.problem)
+            problems[pid] = h
+            pcols[pid] = problem_columns(task.problem, h)
+            save_problem(h, out / "problems", pid, export)
+    if not tasks:  # still export the problems (e.g. a peers suite with no solver installed)
+        for spec, _ in suite.problems():
+            save_problem(generate(spec), out / "problems", spec.id, export)
+
+    if rerun:
+        drop_keys(out, {t.key for t in tasks})
+    done = finished_keys(out)
+    todo = [t for t in tasks if t.key not in done]
+    summary.skipped_finished = len(tasks) - len(todo)
+    if limit is not None:
+        todo = todo[: max(int(limit), 0)]
+
+    meta = read_run_json(out)
+    session = {"started": utc_now(), "calibration_start_ns": calibrate(), "todo": len(todo),
+               "repeat": repeat, "timeout": timeout}
+    meta.update({"suite": suite.to_dict(), "calibration_kernel": KERNEL, "key": list(KEY),
+                 "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
+                 "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
+    meta.setdefault("created", session["started"])
+    meta.setdefault("sessions", []).append(session)
+    write_run_json(out, meta)
+
+    own_executor = executor is None
+    executor = executor or SerialExecutor(log=out / "worker.log")
+    session["executor"] = getattr(executor, "name", type(executor).__name__)
+    try:
+        with _Progress(quiet) as progress:
+            refs = _references(todo, problems, out, executor, max(timeout, suite.first_solve_timeout), progress)
+            tid = progress.add("solves", len(todo))
+            by_tag = {i: t for i, t in enumerate(todo)}
+            items = ((i, {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
+                          "hierarchy": problems[t.problem.id], "solver": t.entry.spec,
+                          "options": t.entry.options, "mode": t.mode, "repeat": repeat,
+                          "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
+                          "calibrate": suite.calibrate_each_job}, timeout)
+                     for i, t in by_tag.items())
+            with ResultsWriter(out) as writer:
+                for i, res in executor.map(items):
+                    t = by_tag[i]
+                    pid = t.problem.id
+                    row = make_row(t, pcols[pid], problems[pid], refs[pid], res, rtol, atol)
+                    writer.write(row)
+                    summary.written += 1
+                    summary.statuses[row["status"]] = summary.statuses.get(row["status"], 0) + 1
+                    progress.advance(tid, f"solves: {t.entry.solver} {t.mode}")
+    finally:
+        if own_executor:
+            executor.close()
+        session["finished"] = utc_now()
+        session["calibration_end_ns"] = calibrate()
+        session["written"] = summary.written
+        cal = [s[k] for s in meta["sessions"] for k in ("calibration_start_ns",
+                                                        "calibration_end_ns") if k in s]
+        meta["calibration_ns"] = int(np.median(cal))
+        write_run_json(out, meta)
+    return summary
+
+
+def _export_formats(formats) -> tuple[tuple, dict]:
+    """The suite's export formats that this tree can write, and the others
+    with the reason (reported on stderr and in run.json, not silently)."""
+    keep, skipped = [], {}
+    for fmt in formats:
+        if fmt == "soth":
+            try:
+                import problems.soth  # noqa: F401
+            except ModuleNotFoundError:
+                skipped[fmt] = "problems.soth is not available in this tree; only npz was written"
+                print(f"hikbench run: not exporting SOTH text: {skipped[fmt]}", file=sys.stderr)
+                continue
+        keep.append(fmt)
+    return tuple(keep), skipped
+
+
+def _references(todo, problems, out: Path, executor, timeout, progress) -> dict:
+    """x_ref, status, reason per problem id, from OUT/reference/ or computed
+    through the executor (isolated; ``timeout`` is the larger of the job
+    timeout and the first-solve allowance: the reference is trusted code and
+    its first call imports its QP backends)."""
+    refs, need = {}, []
+    for pid in dict.fromkeys(t.problem.id for t in todo):
+        path = out / "reference" / (file_stem(pid) + ".npz")
+        if path.exists():
+            refs[pid] = _load_reference(path)
+        else:
+            need.append(pid)
+    if need:
+        tid = progress.add("references", len(need))
+        items = ((pid, {"kind": "reference", "hierarchy": problems[pid]}, timeout) for pid in need)
+        for pid, res in executor.map(items):
+            x = res.get("x") if res["status"] == "optimal" else None
+            refs[pid] = (x, res["status"], res.get("reason", ""))
+            _save_reference(out / "reference" / (file_stem(pid) + ".npz"), x, res["status"],
+                            res.get("reason", ""))
+            progress.advance(tid)
+    return refs

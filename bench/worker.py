@@ -1,0 +1,83 @@
+"""The worker side of a solve: build the solver, time it, return plain data.
+
+Runs inside the isolated worker process (``python -m bench.isolation``) or,
+for external programs, in the caller. A job is a dict::
+
+    {"kind": "solve" | "reference", "hierarchy": Hierarchy, "solver": spec,
+     "options": {...}, "mode": "cold" | "warm", "repeat": R, "warmup": W}
+
+``spec`` is a registry name or ``module:Class`` / ``file.py:Class`` (a
+:class:`~solvers.base.Solver` subclass or any factory), which is how tests
+inject hanging or crashing solvers without touching the registry.
+"""
+
+from __future__ import annotations
+
+import os
+import socket
+import traceback
+
+import numpy as np
+
+from solvers.base import ERROR, SolveResult
+
+__all__ = ["execute", "solver_factory"]
+
+
+def solver_factory(spec: str, options: dict):
+    """A zero-argument callable building a fresh solver."""
+    if ":" in spec:
+        from bench.problemset import load_object
+        obj = load_object(spec)
+        return lambda: obj(**options)
+    from solvers import registry
+    registry.create(spec, **options)  # validate name and options up front
+    return lambda: registry.create(spec, **options)
+
+
+def _result_dict(res: SolveResult, samples_ns) -> dict:
+    return {
+        "status": res.status, "reason": res.reason,
+        "x": None if res.x is None else np.asarray(res.x, dtype=float),
+        "iterations": int(res.iterations), "iterations_per_level": [int(i) for i in res.iterations_per_level],
+        "activations": int(res.activations), "deactivations": int(res.deactivations),
+        "flops": None if res.flops is None else int(res.flops),
+        "build_time_s": float(res.build_time_s), "solve_time_s": float(res.solve_time_s),
+        "samples_ns": [int(s) for s in samples_ns],
+    }
+
+
+def execute(job: dict, notify=None) -> dict:
+    """Run one job; never raises for a solver failure (the reason is returned).
+
+    A solve job starts with one untimed solve on a fresh solver (it counts as
+    the first warm-up solve: JIT compilation, caches), then calls
+    ``notify()`` so that the isolated worker's caller can switch from the
+    first-solve allowance to the job timeout (bench/isolation.py)."""
+    base = {"host": socket.gethostname(), "pid": os.getpid()}
+    h = job["hierarchy"]
+    try:
+        if job["kind"] == "reference":
+            from solvers.reference import reference_solution
+            x = reference_solution(h)
+            return {**base, "status": "optimal", "reason": "", "x": np.asarray(x, dtype=float)}
+        from bench.timing import time_solves
+        make = solver_factory(job["solver"], job.get("options", {}))
+        make().solve(h)
+        if notify is not None:
+            notify()
+        calib = []
+        if job.get("calibrate"):
+            from bench.calibration import calibrate
+            calib.append(calibrate(reps=3))
+        t = time_solves(make, h, repeat=int(job["repeat"]), mode=job["mode"],
+                        warmup=max(int(job["warmup"]) - 1, 0))
+        out = {**base, **_result_dict(t.result, t.samples_ns)}
+        if calib:
+            out["calib_ns"] = min(calib[0], calibrate(reps=3))  # around the timed solves
+        return out
+    except Exception as err:
+        tb = traceback.extract_tb(err.__traceback__)
+        where = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
+        return {**base, "status": ERROR, "reason": f"{type(err).__name__}: {err}{where}", "x": None,
+                "samples_ns": []}

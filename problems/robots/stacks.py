@@ -1,0 +1,228 @@
+"""Stacks of tasks: a robot, ordered levels of tasks, gains and dt, read from TOML,
+that turn a configuration q into a :class:`~problems.hierarchy.Hierarchy` in the
+velocity u (n = nv). Level names are the task names (``"+"``-joined when a level
+holds several tasks).
+
+TOML format (``problems/robots/stacks/*.toml``)::
+
+    name = "humanoid_reach"
+    robot = "talos"          # overridable: any robot with the aliases used below
+    dt = 0.02                # control period, s
+    [[levels]]               # level 0 = highest priority
+    tasks = [{ type = "joint_limits" }, { type = "velocity_limits", scale = 1.0 }]
+    [[levels]]
+    tasks = [{ type = "com", gain = 5.0 }]
+    [[levels]]
+    tasks = [{ type = "pose", name = "right_hand", frame = "right_hand", gain = 5.0 }]
+
+Task types: see :data:`TASK_TYPES`; keys other than ``type`` and ``name`` are the
+constructor arguments of the task class. Targets default to the values at the
+robot's nominal configuration q0.
+"""
+
+from __future__ import annotations
+
+import inspect
+import os
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from problems.errors import HikbenchError
+from problems.hierarchy import Hierarchy, Level
+from problems.robots.kinematics import KinematicState
+from problems.robots.limits import FrameDistance, JointPositionLimits, JointVelocityLimits
+from problems.robots.models import Robot, load_robot
+from problems.robots.tasks import (
+    AlignmentTask,
+    ComTask,
+    DirectionTask,
+    MinimalVelocityTask,
+    OrientationTask,
+    PoseTask,
+    PositionTask,
+    PostureTask,
+    Task,
+)
+
+__all__ = [
+    "STACK_DIR",
+    "TASK_TYPES",
+    "Stack",
+    "StackError",
+    "StackSpec",
+    "build_stack",
+    "load_stack_spec",
+    "make_task",
+    "stack_names",
+]
+
+STACK_DIR = Path(__file__).parent / "stacks"
+
+#: ``type`` in a stack file -> task class
+TASK_TYPES: dict[str, type[Task]] = {
+    "position": PositionTask, "orientation": OrientationTask, "pose": PoseTask,
+    "direction": DirectionTask, "alignment": AlignmentTask, "com": ComTask, "posture": PostureTask,
+    "velocity": MinimalVelocityTask, "joint_limits": JointPositionLimits,
+    "velocity_limits": JointVelocityLimits, "distance": FrameDistance,
+}
+
+
+class StackError(HikbenchError, ValueError):
+    """A stack spec or file that cannot be used (unknown task type, bad key, missing file)."""
+
+
+@dataclass(frozen=True)
+class StackSpec:
+    """A stack as written in TOML: ``levels`` is a list of lists of task dicts."""
+
+    name: str
+    robot: str
+    dt: float
+    levels: list[list[dict]]
+    level_names: list[str | None] = field(default_factory=list)
+    description: str = ""
+
+    @classmethod
+    def from_dict(cls, d: dict, source: str = "<dict>") -> StackSpec:
+        unknown = set(d) - {"name", "robot", "dt", "levels", "description"}
+        if unknown:
+            raise StackError(f"{source}: unknown key(s) {sorted(unknown)}; expected name, robot, dt, "
+                             "levels, description")
+        for key in ("name", "robot", "levels"):
+            if key not in d:
+                raise StackError(f"{source}: missing key {key!r}")
+        dt = float(d.get("dt", 0.01))
+        if not (np.isfinite(dt) and dt > 0):
+            raise StackError(f"{source}: dt must be > 0 (s); got {d.get('dt')}")
+        levels, names = [], []
+        for k, lv in enumerate(d["levels"]):
+            tasks = lv.get("tasks") if isinstance(lv, dict) else None
+            if not tasks or not all(isinstance(t, dict) and "type" in t for t in tasks):
+                raise StackError(f"{source}: level {k} needs a non-empty list 'tasks' of tables with a 'type'")
+            levels.append([dict(t) for t in tasks])
+            names.append(lv.get("name"))
+        return cls(name=str(d["name"]), robot=str(d["robot"]), dt=dt, levels=levels, level_names=names,
+                   description=str(d.get("description", "")))
+
+    @classmethod
+    def from_toml(cls, path: str | os.PathLike) -> StackSpec:
+        try:
+            with open(path, "rb") as f:
+                data = tomllib.load(f)
+        except (OSError, tomllib.TOMLDecodeError) as err:
+            raise StackError(f"{path}: cannot read stack file ({err})") from err
+        return cls.from_dict(data, source=str(path))
+
+
+def stack_names() -> list[str]:
+    """Stacks shipped in ``problems/robots/stacks``."""
+    return sorted(p.stem for p in STACK_DIR.glob("*.toml"))
+
+
+def load_stack_spec(name_or_path: str | os.PathLike) -> StackSpec:
+    """A shipped stack by name, or a TOML file by path."""
+    p = Path(name_or_path)
+    if p.suffix == ".toml" or p.exists():
+        return StackSpec.from_toml(p)
+    path = STACK_DIR / f"{name_or_path}.toml"
+    if not path.exists():
+        raise StackError(f"unknown stack {str(name_or_path)!r} (shipped: {', '.join(stack_names())}; "
+                         "or give the path of a .toml file)")
+    return StackSpec.from_toml(path)
+
+
+def _convert(key: str, value, robot: Robot):
+    if key == "target" and isinstance(value, dict):  # pose target {position, rpy}
+        R = pin.rpy.rpyToMatrix(*value.get("rpy", (0.0, 0.0, 0.0)))
+        return pin.SE3(R, np.asarray(value.get("position", (0.0, 0.0, 0.0)), dtype=float))
+    return value
+
+
+def make_task(robot: Robot, spec: dict) -> Task:
+    """Build one task from its table ``{type, name?, ...constructor arguments}``."""
+    spec = dict(spec)
+    kind = spec.pop("type")
+    if kind not in TASK_TYPES:
+        raise StackError(f"unknown task type {kind!r}; expected one of {', '.join(TASK_TYPES)}")
+    cls = TASK_TYPES[kind]
+    params = inspect.signature(cls.__init__).parameters
+    allowed = [p for p in params if p not in ("self", "robot")]
+    bad = set(spec) - set(allowed)
+    if bad:
+        raise StackError(f"task type {kind!r}: unknown key(s) {sorted(bad)}; expected {allowed}")
+    if "name" not in spec:  # default: the frame alias, else the class default, else the type
+        default = params["name"].default
+        if "frame" in spec:
+            spec["name"] = spec["frame"]
+        elif kind == "distance":
+            spec["name"] = f"distance_{spec.get('frame_a')}_{spec.get('frame_b')}"
+        else:
+            spec["name"] = kind if default is inspect.Parameter.empty else default
+    return cls(robot, **{k: _convert(k, v, robot) for k, v in spec.items()})
+
+
+class Stack:
+    """Ordered levels of tasks of one robot (level 0 the highest priority).
+
+    Parameters
+    ----------
+    spec : StackSpec
+    robot : str, optional
+        Overrides ``spec.robot``.
+    """
+
+    def __init__(self, spec: StackSpec, robot: str | None = None):
+        self.spec = spec
+        self.robot = load_robot(robot or spec.robot)
+        self.dt = spec.dt
+        self.levels: list[list[Task]] = [[make_task(self.robot, t) for t in lv] for lv in spec.levels]
+        self.level_names = [given or "+".join(t.name for t in lv)
+                            for given, lv in zip(spec.level_names or [None] * len(self.levels), self.levels)]
+        names = [t.name for t in self.tasks]
+        dup = sorted({n for n in names if names.count(n) > 1})
+        if dup:
+            raise StackError(f"stack {spec.name!r}: task names must be unique; repeated: {dup}")
+        self.set_targets_from(self.robot.q0)
+
+    @property
+    def tasks(self) -> list[Task]:
+        return [t for lv in self.levels for t in lv]
+
+    def task(self, name: str) -> Task:
+        for t in self.tasks:
+            if t.name == name:
+                return t
+        raise StackError(f"stack {self.spec.name!r} has no task {name!r} "
+                         f"(tasks: {', '.join(t.name for t in self.tasks)})")
+
+    def set_targets_from(self, q: np.ndarray) -> None:
+        """Every task's target := its value at q (error 0 there)."""
+        state = KinematicState(self.robot, q)
+        for t in self.tasks:
+            t.set_target_from(state)
+
+    def hierarchy(self, q: np.ndarray, state: KinematicState | None = None) -> Hierarchy:
+        """The hierarchy in u (shape (nv,)) at configuration q: one level per task level,
+        rows of eq. (47) for equality tasks, bounds (eq. 48 ...) for inequality tasks."""
+        state = state or KinematicState(self.robot, q)
+        levels = []
+        for name, tasks in zip(self.level_names, self.levels):
+            rows = [t.rows(state, self.dt) for t in tasks]
+            levels.append(Level(np.vstack([r[0] for r in rows]), np.concatenate([r[1] for r in rows]),
+                                np.concatenate([r[2] for r in rows]), name))
+        return Hierarchy.from_levels(levels, n=self.robot.nv)
+
+    def errors(self, q: np.ndarray, u: np.ndarray | None = None,
+               state: KinematicState | None = None) -> dict[str, float]:
+        """Task name -> reported error norm at q (u for velocity-space tasks)."""
+        state = state or KinematicState(self.robot, q)
+        return {t.name: t.error_norm(state, u) for t in self.tasks}
+
+
+def build_stack(name_or_path: str | os.PathLike, robot: str | None = None) -> Stack:
+    """A :class:`Stack` from a shipped name or a TOML path, optionally on another robot."""
+    return Stack(load_stack_spec(name_or_path), robot=robot)

@@ -1,0 +1,72 @@
+"""One-shot robot problems: a stack at a random configuration within the limits
+with random reachable targets (the task values at another random configuration,
+so every target is attained by some configuration), saved as ``.npz`` problem
+files so that every solver, and the C++ peers, see exactly the same rows.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from problems.files import save_npz
+from problems.generators import Family
+from problems.hierarchy import Hierarchy
+
+__all__ = ["DEFAULT_SEEDS", "ROBOT_FAMILIES", "SHIPPED_STACKS", "save_test_set", "stack_problem"]
+
+DEFAULT_SEEDS = tuple(range(5))
+#: the stacks in problems/robots/stacks (kept here so listing families needs no pinocchio import)
+SHIPPED_STACKS = ("arm_reach", "humanoid_reach", "humanoid_step", "humanoid_tasks", "quadruped_stance")
+
+
+def stack_problem(stack_name: str, seed: int = 0, robot: str | None = None) -> Hierarchy:
+    """The hierarchy (in u, n = nv) of stack ``stack_name`` at a random configuration.
+
+    Parameters
+    ----------
+    stack_name : str
+        A shipped stack (``problems.robots.stacks.stack_names()``) or a TOML path.
+    seed : int
+        Seeds ``numpy.random.default_rng``: q first, then the target configuration.
+    robot : str, optional
+        Run the stack on another robot having the frame aliases it uses.
+    """
+    from problems.robots.stacks import build_stack  # pinocchio is imported on first use only
+
+    stack = build_stack(stack_name, robot=robot)
+    rng = np.random.default_rng(seed)
+    q = stack.robot.random_configuration(rng)
+    stack.set_targets_from(stack.robot.random_configuration(rng))
+    return stack.hierarchy(q)
+
+
+def save_test_set(out_dir: str | os.PathLike, stacks: list[str] | None = None,
+                  seeds=DEFAULT_SEEDS) -> list[Path]:
+    """Write ``<stack>-seed<k>.npz`` for every stack and seed; returns the paths."""
+    from problems.robots.stacks import stack_names
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name in stacks or stack_names():
+        for seed in seeds:
+            path = out / f"{Path(name).stem}-seed{seed}.npz"
+            save_npz(stack_problem(name, seed), path)
+            paths.append(path)
+    return paths
+
+
+def _robot_stack(seed: int = 0, stack: str = "humanoid_reach", robot: str | None = None) -> Hierarchy:
+    return stack_problem(stack, seed=seed, robot=robot)
+
+
+#: generator families (``problems.generators.Family``) for the harness: merge them into
+#: ``problems.generators.FAMILIES`` to sweep the robot stacks by seed and stack name.
+ROBOT_FAMILIES: dict[str, Family] = {f.name: f for f in (
+    Family("robot-stack", "a robot task stack (problems/robots/stacks) at a random configuration within "
+           "the limits with reachable targets; variables u (n = nv)", _robot_stack,
+           {"stack": "humanoid_reach", "robot": None}, sweep={"stack": list(SHIPPED_STACKS)}),
+)}

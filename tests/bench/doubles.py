@@ -1,0 +1,123 @@
+"""Test doubles for the harness: solvers that hang, crash or sleep, and a tiny
+generator. Injected as ``/path/doubles.py:Name`` (never registered)."""
+
+from __future__ import annotations
+
+import ctypes
+import time
+from pathlib import Path
+
+import numpy as np
+
+from problems.hierarchy import Hierarchy, Level
+from solvers.base import OPTIMAL, Solver, SolveResult
+from solvers.reference import nullspace_reference
+
+HERE = Path(__file__).with_name("doubles.py")
+
+
+def spec(name: str) -> str:
+    """The solver / family spec of a double, e.g. spec("HangSolver")."""
+    return f"{HERE}:{name}"
+
+
+def tiny(seed: int = 0, n: int = 6, depth: int = 2, rows: int = 2) -> Hierarchy:
+    """A random equality hierarchy: ``depth`` levels of ``rows`` rows in R^n."""
+    rng = np.random.default_rng(seed)
+    return Hierarchy.from_levels([Level.equality(rng.standard_normal((rows, n)), rng.standard_normal(rows))
+                                  for _ in range(depth)])
+
+
+class SleepSolver(Solver):
+    """Correct (null-space recursion), after sleeping ``delay`` seconds."""
+
+    name = "sleep"
+    supports_warm_start = True
+
+    def __init__(self, delay: float = 0.0):
+        self.delay = float(delay)
+
+    def solve(self, hierarchy):
+        if self.delay:
+            time.sleep(self.delay)
+        return SolveResult(nullspace_reference(hierarchy), OPTIMAL, iterations=1)
+
+
+class WrongSolver(Solver):
+    """Returns x = 0: optimal by its own status, wrong by verification."""
+
+    name = "wrong"
+
+    def solve(self, hierarchy):
+        return SolveResult(np.zeros(hierarchy.n), OPTIMAL)
+
+
+class HangSolver(Solver):
+    """Never returns."""
+
+    name = "hang"
+
+    def solve(self, hierarchy):
+        while True:
+            time.sleep(0.05)
+
+
+class SegfaultSolver(Solver):
+    """Dereferences NULL: the process dies with SIGSEGV."""
+
+    name = "segfault"
+
+    def solve(self, hierarchy):
+        ctypes.string_at(0)
+
+
+class RaisingSolver(Solver):
+    """Raises from inside the backend."""
+
+    name = "raising"
+
+    def solve(self, hierarchy):
+        raise RuntimeError("backend exploded")
+
+
+def write_suite(path, solvers, grid=None, seeds=(0,), repeat=3, timeout=5.0, modes=("cold", "warm"),
+                family="tiny") -> Path:
+    """Write a suite TOML over the ``tiny`` generator; returns its path."""
+    import tomli_w
+
+    data = {"repeat": repeat, "warmup": 1, "timeout": timeout, "first_solve_timeout": timeout,
+            "modes": list(modes), "solvers": list(solvers),
+            "problems": [{"family": spec(family), "grid": grid or {"n": [4, 6], "depth": [1, 2]},
+                          "seeds": list(seeds)}]}
+    path = Path(path)
+    path.write_bytes(tomli_w.dumps(data).encode())
+    return path
+
+
+class FirstSlowSolver(SleepSolver):
+    """The first solve in a process takes 1 s (like a JIT compilation)."""
+
+    name = "first-slow"
+    _compiled = False
+
+    def solve(self, hierarchy):
+        if not FirstSlowSolver._compiled:
+            time.sleep(1.0)
+            FirstSlowSolver._compiled = True
+        return super().solve(hierarchy)
+
+
+class Sleep2ms(SleepSolver):
+    """``sleeper``: 2 ms per solve (the baseline of the compare tests)."""
+
+    name = "sleeper"
+
+    def __init__(self, delay: float = 0.002):
+        super().__init__(delay)
+
+
+class Sleep4ms(Sleep2ms):
+    """``sleeper`` again, 4 ms per solve: an injected 2x slowdown."""
+
+    def __init__(self, delay: float = 0.004):
+        super().__init__(delay)

@@ -1,0 +1,11 @@
+"""An external solver reading the SOTH text export: ``soth_external.py PROBLEM.soth.txt OUT.json``."""
+
+import json
+import sys
+
+from problems.soth import load_soth
+from solvers.reference import nullspace_reference
+
+h = load_soth(sys.argv[1])
+with open(sys.argv[2], "w") as f:
+    json.dump({"x": nullspace_reference(h).tolist()}, f)

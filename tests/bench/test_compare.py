@@ -1,0 +1,131 @@
+"""hikbench compare: an injected slowdown is caught, noise alone is not, a
+newly failing case is; calibration normalisation makes machines comparable."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from doubles import spec, write_suite
+
+from bench.cli import main
+from bench.compare import compare_frames
+
+
+def _frame(samples: dict, calib=1_000_000, verified=True, host="h"):
+    rows = []
+    for (problem, solver), s in samples.items():
+        s = np.asarray(s, dtype=np.int64)
+        rows.append(dict(problem=problem, solver=solver, settings="default", mode="cold", status="optimal",
+                         verified=verified, time_median_s=float(np.median(s)) * 1e-9,
+                         samples_ns=json.dumps(s.tolist()), calib_ns=calib, host=host))
+    return pd.DataFrame(rows)
+
+
+def _samples(rng, scale=1.0, n_cases=20, repeat=9, noise=0.05):
+    """Lognormal timing noise around 50 us per case."""
+    return {(f"p{i}", "s"): (50_000 * scale * np.exp(noise * rng.standard_normal(repeat))).astype(int)
+            for i in range(n_cases)}
+
+
+def test_noise_alone_is_not_flagged():
+    rng = np.random.default_rng(0)
+    flagged = 0
+    for trial in range(10):
+        c = compare_frames(_frame(_samples(rng)), _frame(_samples(rng)), {}, {})
+        flagged += len(c.slowdowns)
+    assert flagged == 0
+
+
+@pytest.mark.parametrize("scale", [1.3, 2.0], ids=["30pct", "2x"])
+def test_scaled_copy_is_caught(scale):
+    rng = np.random.default_rng(1)
+    base = _samples(rng)
+    new = {k: (v * scale).astype(int) for k, v in _samples(rng).items()}
+    c = compare_frames(_frame(base), _frame(new), {}, {})
+    assert len(c.slowdowns) == len(base) and c.failed
+
+
+def test_slower_machine_is_normalised_by_calibration():
+    rng = np.random.default_rng(2)
+    base = _samples(rng)
+    new = {k: (v * 2).astype(int) for k, v in _samples(rng).items()}  # everything 2x slower ...
+    c = compare_frames(_frame(base, calib=1_000_000), _frame(new, calib=2_000_000), {},
+                       {})  # ... and so is the kernel
+    assert not c.failed
+
+
+def test_below_threshold_is_not_flagged():
+    rng = np.random.default_rng(3)
+    base = _samples(rng, noise=0.01)
+    new = {k: (v * 1.05).astype(int) for k, v in _samples(rng, noise=0.01).items()}
+    c = compare_frames(_frame(base), _frame(new), {}, {})
+    assert not c.failed
+
+
+def test_newly_failing_case():
+    rng = np.random.default_rng(4)
+    c = compare_frames(_frame(_samples(rng)), _frame(_samples(rng), verified=False), {}, {})
+    assert len(c.new_failures) == 20 and c.failed
+
+
+def _same_calibration(out) -> None:
+    """Sleep does not scale with the CPU: pin calib_ns so that the test sees
+    the sleeps alone (normalisation is tested above on synthetic frames)."""
+    import csv
+
+    path = out / "results.csv"
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r["calib_ns"] = "1000000"
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+
+
+def test_injected_slowdown_end_to_end(tmp_path, capsys):
+    """The same solver name ("sleeper") sleeping 2 ms in the baseline, 2 ms
+    again (noise only), then 4 ms (an injected slowdown)."""
+    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4], "depth": [1, 2]}, modes=("cold",),
+                        repeat=7)
+
+    def run(out, double):
+        assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / out),
+                     "--solvers", spec(double)]) == 0
+        _same_calibration(tmp_path / out)
+    run("base", "Sleep2ms")
+    run("same", "Sleep2ms")
+    run("slow", "Sleep4ms")
+    assert main(["compare", str(tmp_path / "base"), str(tmp_path / "same")]) == 0
+    assert main(["compare", str(tmp_path / "base"), str(tmp_path / "slow")]) == 1
+    assert "SLOWER" in capsys.readouterr().out
+
+
+def test_per_job_calibration_absorbs_transient_load():
+    """With calibrate_each_job, a case timed while the machine was 2x loaded
+    (its own calibration 2x too) is not flagged; per host it would be."""
+    rng = np.random.default_rng(5)
+    base = _frame(_samples(rng))
+    new = _frame({k: (v * 2).astype(int) for k, v in _samples(rng).items()}, calib=2_000_000)
+    new.loc[1:, "calib_ns"] = 1_000_000  # only the first case ran under load ...
+    new.loc[1:, "samples_ns"] = base.loc[1:, "samples_ns"]  # ... the others as in the baseline
+    per_job = {"suite": {"calibrate_each_job": True}}
+    assert not compare_frames(base, new, per_job, per_job).failed
+    assert len(compare_frames(base, new, {}, {}).slowdowns) == 1
+
+
+def test_a_case_must_fail_in_every_confirmation_run():
+    from bench.compare import confirmed
+
+    rng = np.random.default_rng(6)
+    base = _frame(_samples(rng))
+    once = {k: (v * (2.0 if k[0] == "p0" else 1.0)).astype(int) for k, v in _samples(rng).items()}
+    always = {k: (v * 2.0).astype(int) for k, v in _samples(rng).items()}
+    a = compare_frames(base, _frame(once), {}, {})
+    b = compare_frames(base, _frame(always), {}, {})
+    assert len(a.slowdowns) == 1 and len(b.slowdowns) == 20
+    both = confirmed([a, b])
+    assert len(both.slowdowns) == 1 and both.table.iloc[0]["verdict"] == "SLOWER"
+    assert confirmed([b, a]).table["verdict"].str.contains("not reproduced").sum() == 19

@@ -1,0 +1,76 @@
+"""External solvers through the documented protocol, and Dask scale-out (about 10 s)."""
+
+from pathlib import Path
+
+import pandas as pd
+
+from doubles import spec, write_suite
+
+from bench.cli import main
+from bench.columns import KEY
+from bench.results import read_results
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLE = ROOT / "bench" / "examples" / "nullspace_external.py"
+
+
+def test_external_example_program(tmp_path):
+    import sys
+    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4, 6], "depth": [2]}, repeat=2)
+    ext = f"external:nsx={sys.executable} {EXAMPLE} {{problem}} {{out}}"
+    bad = f"external:bad={sys.executable} -c 'import sys; sys.exit(3)' {{out}}"
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "out"),
+                 "--solvers", "reference", ext, bad]) == 0
+    df = read_results(tmp_path / "out")
+    nsx = df[df["solver"] == "external:nsx"]
+    assert len(nsx) == 2 and set(nsx["mode"]) == {"cold"}
+    assert set(nsx["status"]) == {"optimal"} and set(nsx["verified"]) == {True}
+    assert nsx["solve_time_s"].notna().all()  # the program's own timer was used
+    badr = df[df["solver"] == "external:bad"]
+    assert set(badr["status"]) == {"error"} and badr["reason"].str.contains("exit code 3").all()
+
+
+def test_external_spec_needs_out_placeholder(tmp_path, capsys):
+    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4]})
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "o"),
+                 "--solvers", "external:x=prog {problem}"]) == 2
+    assert "{out}" in capsys.readouterr().err
+
+
+def test_dask_workers_give_the_same_rows_as_serial(tmp_path):
+    suite = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), spec("WrongSolver"),
+                                              spec("SegfaultSolver")], grid={"n": [4, 6], "depth": [1, 2]})
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "serial")]) == 0
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "dask"), "--workers",
+                 "2"]) == 0
+    cols = [*KEY, "status", "verified"]
+    a = read_results(tmp_path / "serial")[cols].sort_values(list(KEY)).reset_index(drop=True)
+    b_full = read_results(tmp_path / "dask")
+    b = b_full[cols].sort_values(list(KEY)).reset_index(drop=True)
+    assert a.equals(b)
+    assert b_full["worker"].str.startswith("tcp://").all()
+
+
+def test_existing_scheduler(tmp_path):
+    from distributed import LocalCluster
+
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], grid={"n": [4], "depth": [1]},
+                        modes=("cold",))
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "o"),
+                     "--scheduler", cluster.scheduler_address]) == 0
+        workers = set(cluster.scheduler_info["workers"])
+    df = read_results(tmp_path / "o")
+    assert len(df) == 1 and df["verified"].all() and set(df["worker"]) <= workers
+
+
+def test_external_reads_soth_text(tmp_path):
+    import sys
+    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [5], "depth": [2]}, repeat=1,
+                        modes=("cold",))
+    prog = Path(__file__).with_name("soth_external.py")
+    ext = f"external:soth={sys.executable} {prog} {{problem_soth}} {{out}}"
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "o"), "--solvers", ext]) == 0
+    row = read_results(tmp_path / "o").iloc[0]
+    assert row["status"] == "optimal" and row["verified"]
+    assert pd.isna(row["solve_time_s"])  # not reported: the samples are process wall times

@@ -1,0 +1,209 @@
+"""hikbench run end to end on the tiny generator with test doubles: rows,
+statuses, verification, isolation, resume without duplicates or losses."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from doubles import spec, write_suite
+
+from bench.cli import main
+from bench.columns import KEY, names
+from bench.results import finished_keys, read_results
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+def _run(*argv):
+    return main(["run", "--quiet", *map(str, argv)])
+
+
+def _keys(df):
+    return list(map(tuple, df[list(KEY)].to_numpy()))
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    d = tmp_path_factory.mktemp("tiny")
+    suite = write_suite(d / "s.toml", ["reference", spec("SleepSolver"), spec("WrongSolver"),
+                                       spec("RaisingSolver"),
+                                       "not-a-solver"])
+    assert _run("--suite", suite, "--out", d / "out") == 0
+    return d / "out"
+
+
+def test_rows_statuses_and_verification(tiny_run):
+    df = read_results(tiny_run)
+    assert list(df.columns) == names()
+    # 4 problems x (reference cold, sleep cold+warm, wrong cold, raising cold)
+    assert len(df) == 4 * 5
+    assert len(set(_keys(df))) == len(df)
+    by = df.groupby("solver")
+    assert set(by.get_group("reference")["verified"]) == {True}
+    assert set(by.get_group("sleep")["verified"]) == {True}
+    assert set(by.get_group("sleep")["mode"]) == {"cold", "warm"}
+    wrong = by.get_group("wrong")
+    assert set(wrong["status"]) == {"optimal"} and set(wrong["verified"]) == {False}
+    assert set(wrong["verdict_side"]) == {"worse"} and set(wrong["verdict_level"]) == {0}
+    raising = by.get_group("raising")
+    assert set(raising["status"]) == {"error"}
+    assert raising["reason"].str.contains("backend exploded").all()
+    ok = df[df["solver"] == "sleep"].iloc[0]
+    assert len(json.loads(ok["samples_ns"])) == 3 and ok["repeat"] == 3
+    assert ok["time_min_s"] <= ok["time_median_s"] <= ok["time_p95_s"]
+    assert json.loads(ok["level_norms"]) == pytest.approx(json.loads(ok["ref_level_norms"]), abs=1e-9)
+
+
+def test_outputs_beside_results(tiny_run):
+    meta = json.loads((tiny_run / "run.json").read_text())
+    assert meta["suite"]["name"] == "s"
+    assert meta["calibration_ns"] > 0
+    assert "not-a-solver" in meta["skipped_solvers"]
+    env = meta["environment"]
+    assert env["versions"]["numpy"] and env["cpu"] and "threadpools" in env["blas"]
+    assert len(list((tiny_run / "problems").glob("*.npz"))) == 4
+    assert len(list((tiny_run / "reference").glob("*.npz"))) == 4
+
+
+def test_second_run_skips_finished_rows(tiny_run, capsys):
+    before = (tiny_run / "results.csv").read_text()
+    suite = Path(tiny_run).parent / "s.toml"
+    assert _run("--suite", suite, "--out", tiny_run) == 0
+    assert "20 already done, 0 written" in capsys.readouterr().out
+    assert (tiny_run / "results.csv").read_text() == before
+
+
+def test_hang_and_segfault_become_rows(tmp_path):
+    suite = write_suite(tmp_path / "s.toml", [spec("HangSolver"), spec("SegfaultSolver"),
+                                              spec("SleepSolver")],
+                        grid={"n": [4]}, modes=("cold",), timeout=1.5)
+    assert _run("--suite", suite, "--out", tmp_path / "out") == 0
+    df = read_results(tmp_path / "out").set_index("solver")
+    assert df.loc["hang", "status"] == "timeout"
+    assert df.loc["segfault", "status"] == "crashed"
+    assert "SIGSEGV" in df.loc["segfault", "reason"]
+    assert df.loc["sleep", "status"] == "optimal" and df.loc["sleep", "verified"]
+
+
+def test_limit_then_resume_no_duplicate_no_loss(tmp_path):
+    suite = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver")])
+    out = tmp_path / "out"
+    assert _run("--suite", suite, "--out", out, "--limit", 5) == 0
+    assert len(read_results(out)) == 5
+    first = (out / "results.csv").read_text()
+    assert _run("--suite", suite, "--out", out) == 0
+    df = read_results(out)
+    assert len(df) == 12 and len(set(_keys(df))) == 12
+    assert (out / "results.csv").read_text().startswith(first)  # finished rows never rewritten
+
+
+def test_partial_last_line_is_dropped_and_rerun(tmp_path):
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], modes=("cold",))
+    out = tmp_path / "out"
+    assert _run("--suite", suite, "--out", out, "--limit", 2) == 0
+    with open(out / "results.csv", "a") as f:
+        f.write("half,a,row")  # what a kill during a write leaves
+    assert len(finished_keys(out)) == 2
+    assert _run("--suite", suite, "--out", out) == 0
+    df = read_results(out)
+    assert len(df) == 4 and len(set(_keys(df))) == 4
+
+
+def test_rerun_replaces_rows_and_keeps_backup(tmp_path):
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], modes=("cold",))
+    out = tmp_path / "out"
+    assert _run("--suite", suite, "--out", out) == 0
+    assert _run("--suite", suite, "--out", out, "--rerun") == 0
+    assert len(read_results(out)) == 4
+    assert (out / "results.csv.bak").exists()
+
+
+def test_killed_run_restarts_and_finishes(tmp_path):
+    """SIGKILL a real `hikbench run` mid-way; the restarted run completes the
+    suite with every key exactly once."""
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], grid={"n": [4, 5, 6, 7, 8, 9]},
+                        modes=("cold",))
+    # make each solve slow enough to kill in the middle
+    text = suite.read_text() + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.05 }\n'
+    suite.write_text(text.replace('"SleepSolver"', '"SleepSolver"'))
+    out = tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(Path(__file__).parent)])}
+    proc = subprocess.Popen([sys.executable, "-m", "bench", "run", "--quiet", "--suite", str(suite), "--out",
+                             str(out)],
+                            env=env, cwd=tmp_path, start_new_session=True)
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        if len(finished_keys(out)) >= 3:
+            break
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    done_before = len(finished_keys(out))
+    assert 3 <= done_before < 12
+    assert _run("--suite", suite, "--out", out) == 0
+    df = read_results(out)
+    assert len(df) == 12 and len(set(_keys(df))) == 12
+    assert set(df["status"]) == {"optimal"}
+
+
+def test_unknown_suite_is_a_user_error(tmp_path, capsys):
+    assert _run("--suite", "no-such-suite", "--out", tmp_path) == 2
+    assert "unknown suite" in capsys.readouterr().err
+
+
+def test_columns_command_documents_every_column(capsys):
+    assert main(["columns"]) == 0
+    out = capsys.readouterr().out
+    for c in names():
+        assert c in out
+    readme = (ROOT / "README.md").read_text()
+    assert all(f"`{c}`" in readme for c in names()), "README's column table is out of date"
+
+
+def test_first_solve_allowance(tmp_path):
+    """A solver whose first solve in a process is slow (JIT) gets the
+    first-solve allowance; a hang after it gets only the job timeout."""
+    from doubles import tiny
+
+    from bench.isolation import IsolatedWorker
+
+    h = tiny()
+    job = {"kind": "solve", "hierarchy": h, "solver": spec("FirstSlowSolver"), "options": {}, "mode": "cold",
+           "repeat": 2, "warmup": 1}
+    with IsolatedWorker() as w:
+        assert w.run(job, timeout=0.5, first_timeout=5.0)["status"] == "optimal"
+        w.start()  # fresh process: compiles again
+        assert w.run(job, timeout=0.5)["status"] == "timeout"
+        hang = {**job, "solver": spec("HangSolver")}
+        t0 = time.monotonic()
+        res = w.run(hang, timeout=0.5, first_timeout=1.0)
+        assert res["status"] == "timeout" and "first solve" in res["reason"]
+        assert time.monotonic() - t0 < 4
+
+
+def test_worker_dies_with_a_killed_run(tmp_path):
+    """SIGKILL of the parent during a hanging solve leaves no orphan worker."""
+    code = ("import sys, time; sys.path.insert(0, %r)\n"
+            "from bench.isolation import IsolatedWorker\nfrom doubles import tiny, spec\n"
+            "w = IsolatedWorker(); w.start(); print(w.proc.pid, flush=True)\n"
+            "w.run({'kind': 'solve', 'hierarchy': tiny(), 'solver': spec('HangSolver'), 'options': {},"
+            " 'mode': 'cold', 'repeat': 1, 'warmup': 1}, timeout=60)\n") % str(Path(__file__).parent)
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=env)
+    child = int(proc.stdout.readline())
+    time.sleep(0.5)
+    proc.kill()
+    proc.wait()
+    for _ in range(50):
+        try:
+            os.kill(child, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.1)
+    os.kill(child, signal.SIGKILL)
+    pytest.fail("the worker outlived its parent")

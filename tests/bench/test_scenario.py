@@ -1,0 +1,171 @@
+"""Closed-loop scenarios: runner, CSV columns, checks, CLI, figures."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.cli import main
+from bench.scenario import COLUMNS, NO_WARM_START, check_run, run_scenario
+from problems.robots.scenarios import ScenarioError, load_scenario, scenario_names
+
+
+def test_shipped_scenarios():
+    assert {"reach", "step"} <= set(scenario_names())
+
+
+def test_reach_runs_a_few_steps_with_reference():
+    sc = load_scenario("reach")
+    run = run_scenario(sc, "reference", steps=4)
+    df = run.records
+    assert list(df.columns[:len(COLUMNS)]) == list(COLUMNS)
+    for task in ("com", "left_foot", "right_foot", "right_hand", "velocity"):
+        assert f"err_{task}" in df
+    assert (df["warm_start"] == NO_WARM_START).all() and (df["status"] == "optimal").all()
+    assert run.q.shape == (5, sc.robot.nq)
+    assert df["min_joint_limit_margin"].min() > 0
+    # one recomputed level norm per level; joint limits hold exactly at every step
+    assert [c for c in df if c.startswith("level_norm_")] == [
+        f"level_norm_{n}" for n in ("joint_limits", "com", "feet", "right_hand", "velocity")]
+    assert (df["level_norm_joint_limits"] < 1e-9).all()
+    assert sc.event_times() == [3.0]
+    # the hand error decreases from the first step
+    assert df["err_right_hand"].iloc[-1] < df["err_right_hand"].iloc[0]
+
+
+def test_step_targets_follow_the_schedule():
+    """At t = 0 the swing foot target is its nominal placement; during the swing it lifts."""
+    from problems.robots.kinematics import KinematicState
+
+    sc = load_scenario("step")
+    sc.reset()
+    state = KinematicState(sc.robot, sc.q_init)
+    foot = sc.stack.task("right_foot")
+    z0 = foot.target.translation[2]
+    for t in np.arange(0.0, 2.11, sc.dt):  # targets are fixed at each segment's start, in order
+        sc.targets_at(t, state)
+    assert foot.target.translation[2] == pytest.approx(z0 + 0.05, abs=1e-9)  # apex at mid-swing
+    assert foot.target_velocity is not None
+
+
+def test_scenario_file_errors(tmp_path):
+    bad = tmp_path / "s.toml"
+    bad.write_text('name = "s"\nstack = "arm_reach"\n[[events]]\ntask = "gripper"\n')
+    with pytest.raises(Exception, match="no task 'gripper'"):
+        load_scenario(bad)
+    with pytest.raises(ScenarioError, match="unknown scenario 'dance'"):
+        load_scenario("dance")
+
+
+def test_user_scenario_on_an_arm(tmp_path):
+    """A user TOML: panda end effector moved by a polynomial; tracked within 5 mm."""
+    f = tmp_path / "arm.toml"
+    f.write_text('name = "arm"\nstack = "arm_reach"\nsteps = 30\n'
+                 '[[trajectories]]\ntask = "ee"\nstart = 0.0\nduration = 0.5\noffset = [0.05, 0.0, -0.05]\n'
+                 '[checks]\nlimits = true\ntracked = { ee = 5e-3 }\n')
+    run = run_scenario(load_scenario(f), "reference")
+    checks = check_run(run)
+    assert checks and all(c.passed for c in checks), checks
+
+
+def test_cli_writes_csv_and_figures(tmp_path, capsys):
+    rc = main(["scenario", "step", "--steps", "3", "--out", str(tmp_path), "--plot"])
+    out = capsys.readouterr().out
+    assert "reference: 3 steps" in out
+    csv = tmp_path / "step_talos_reference.csv"
+    df = pd.read_csv(csv)
+    assert len(df) == 3 and "err_right_foot" in df
+    for fig in ("fig1_solve_time.png", "fig2_time_activations.png", "fig3_joints_reference.png",
+                "fig4_task_errors.png"):
+        assert (tmp_path / fig).stat().st_size > 10_000
+    assert rc in (0, 1)  # 3 steps: the checks may not hold yet; the run itself succeeded
+
+
+def test_cli_list(capsys):
+    assert main(["scenario", "x", "--list"]) == 0
+    out = capsys.readouterr().out
+    assert "reach" in out and "humanoid_reach" in out
+
+
+def test_cli_unknown_robot(tmp_path, capsys):
+    assert main(["scenario", "reach", "--robot", "r2d2", "--steps", "1", "--out", str(tmp_path)]) == 2
+    assert "robot 'r2d2' is not in the installed example-robot-data" in capsys.readouterr().err
+
+
+def test_cli_unknown_solver(tmp_path, capsys):
+    assert main(["scenario", "reach", "--solver", "nope", "--steps", "1", "--out", str(tmp_path)]) == 2
+    assert "unknown solver 'nope'" in capsys.readouterr().err
+
+
+def _solver_params(names):
+    from solvers import registry
+
+    known = registry.available()
+    return [pytest.param(n, id=n, marks=[] if n in known else
+                         pytest.mark.skip(reason=f"solver {n!r} is not registered on this branch"))
+            for n in names]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("solver", _solver_params(["hcod", "cascade-daqp", "cascade-quadprog", "reference"]))
+def test_reach_checks_pass(solver):
+    """ICRA 2010 sec. XII: limits respected, CoM/feet regulated, reach error to its lowest value
+    while out of reach, then to 0 (700 steps; ~1 s with a cascade, ~10 s with the reference)."""
+    run = run_scenario(load_scenario("reach"), solver)
+    checks = check_run(run)
+    failed = [c for c in checks if not c.passed]
+    if solver == "reference" and any(c.name == "run completed" for c in failed):
+        pytest.xfail(f"reference stops mid-run: {failed[0].detail} (reported; problem saved in "
+                     "tests/problems/data/reference_error_talos_reach_step288.npz)")
+    assert not failed, failed
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("solver", _solver_params(["hcod", "cascade-daqp", "dls-liegeois", "reference"]))
+def test_step_checks_pass(solver):
+    run = run_scenario(load_scenario("step"), solver)
+    checks = check_run(run)
+    assert all(c.passed for c in checks), [c for c in checks if not c.passed]
+
+
+class _WarmReference:
+    """A stand-in for a warm-start solver (hcod): the reference plus a warm_start option."""
+
+    def __init__(self, warm_start="time"):
+        from solvers.reference import ReferenceSolver
+
+        if warm_start not in ("none", "stage", "time"):
+            from problems.errors import SolverOptionError
+            raise SolverOptionError(f"warm_start must be none, stage or time; got {warm_start!r}")
+        self.warm_start = warm_start
+        self._ref = ReferenceSolver()
+
+    def solve(self, h):
+        res = self._ref.solve(h)
+        res.activations = 1 if self.warm_start == "none" else 0
+        return res
+
+
+@pytest.fixture
+def warm_solver(monkeypatch):
+    from solvers import registry
+    from solvers.registry import SolverInfo
+
+    reg = dict(registry._load())
+    reg["fake-warm"] = SolverInfo("fake-warm", "test double", _WarmReference, supports_inequalities=True,
+                                  supports_warm_start=True, options={"warm_start": "time"})
+    monkeypatch.setattr(registry, "_registry", reg)
+    return "fake-warm"
+
+
+def test_warm_start_modes_reach_the_solver(warm_solver, tmp_path, capsys):
+    sc = load_scenario("reach")
+    assert (run_scenario(sc, warm_solver, steps=2).records["warm_start"] == "time").all()
+    run = run_scenario(sc, warm_solver, warm_start="none", steps=2)
+    assert (run.records["warm_start"] == "none").all() and (run.records["activations"] == 1).all()
+    rc = main(["scenario", "reach", "--solver", warm_solver, "--warm-start", "none", "stage", "time",
+               "--steps", "2", "--out", str(tmp_path), "--plot"])
+    assert rc in (0, 1)
+    for mode in ("none", "stage", "time"):
+        df = pd.read_csv(tmp_path / f"reach_talos_fake-warm_{mode}.csv")
+        assert (df["warm_start"] == mode).all()
+    assert (tmp_path / "fig1_solve_time.png").exists()

@@ -1,0 +1,85 @@
+"""Suites: built-in TOML files parse and generate; solver patterns, settings,
+modes and skipped solvers expand as documented in bench/suites.py."""
+
+import pytest
+from doubles import spec, write_suite
+
+from bench.problemset import ProblemSpec, file_stem, generate
+from bench.suites import SuiteError, builtin_suites, expand, load_suite, suite_from_dict
+
+
+@pytest.mark.parametrize("name", sorted(builtin_suites()), ids=str)
+def test_builtin_suites_generate(name):
+    suite = load_suite(name)
+    problems = suite.problems()
+    assert problems and suite.description
+    ids = [p.id for p, _ in problems]
+    assert len(ids) == len(set(ids))
+    for p, _ in problems[:: max(1, len(problems) // 12)]:  # a sample: every family's parameters are accepted
+        h = generate(p)
+        assert h.n == p.params.get("n", h.n)
+
+
+def test_quick_and_paper_cover_what_they_promise():
+    quick = {p.family for p, _ in load_suite("quick").problems()}
+    assert {"equality", "ik-like", "degenerate"} <= quick
+    paper = [p for p, _ in load_suite("paper").problems()]
+    assert any(p.params.get("n") == 36 and p.params.get("depth") == 6 and p.params.get("rows") == 6 for p in paper)
+    assert any(p.params.get("n") == 50 for p in paper)
+    depths = {p.params["depth"] for p in paper if p.params.get("n") == 30}
+    assert len([d for d in depths if d * 6 >= 30]) >= 3  # past saturation
+    assert "soth" in load_suite("peers").export
+
+
+def test_generation_is_deterministic():
+    p = ProblemSpec("equality", {"n": 8, "depth": 2, "rows": 3}, seed=4)
+    a, b = generate(p), generate(p)
+    assert (a.A == b.A).all() and (a.lower == b.lower).all()
+    assert p.id == "equality/depth=2,n=8,rows=3/seed=4"
+    assert "/" not in file_stem(p.id)
+
+
+def test_expand_modes_settings_and_skips(tmp_path):
+    path = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), "nomatch-*", "no-such-solver"],
+                       grid={"n": [4]})
+    path.write_text(path.read_text() + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.1 }\n')
+    tasks, skipped = expand(load_suite(str(path)))
+    got = sorted((t.entry.solver, t.entry.settings, t.mode) for t in tasks)
+    assert got == [("reference", "default", "cold"),  # no warm start: no warm row
+                   ("sleep", "default", "cold"), ("sleep", "default", "warm"),
+                   ("sleep", "slow", "cold"), ("sleep", "slow", "warm")]
+    assert set(skipped) == {"nomatch-*", "no-such-solver"}
+    tasks, _ = expand(load_suite(str(path)), solver_patterns=["reference"])
+    assert {t.entry.solver for t in tasks} == {"reference"}
+
+
+@pytest.mark.parametrize("data, match", [
+    ({"problems": []}, "no \\[\\[problems\\]\\]"),
+    ({"problems": [{"grid": {}}]}, "has no 'family'"),
+    ({"problems": [{"family": "equality", "bogus": 1}]}, "unknown key"),
+    ({"modes": ["hot"], "problems": [{"family": "equality"}]}, "mode 'hot'"),
+    ({"accuracy": "ultra", "problems": [{"family": "equality"}]}, "accuracy 'ultra'"),
+    ({"repeats": 3, "problems": [{"family": "equality"}]}, "unknown key"),
+], ids=["no-problems", "no-family", "group-key", "mode", "accuracy", "top-key"])
+def test_bad_suites(data, match):
+    with pytest.raises(SuiteError, match=match):
+        suite_from_dict(data, "bad")
+
+
+def test_unknown_family_names_the_known_ones():
+    from problems.errors import UnknownFamilyError
+    with pytest.raises(UnknownFamilyError, match="equality"):
+        generate(ProblemSpec("nope", {}, 0))
+
+
+def test_relative_py_paths_resolve_next_to_the_suite(tmp_path):
+    import shutil
+    from pathlib import Path
+
+    shutil.copy(Path(__file__).with_name("doubles.py"), tmp_path / "mydoubles.py")
+    (tmp_path / "s.toml").write_text('solvers = ["mydoubles.py:SleepSolver"]\n'
+                                     '[[problems]]\nfamily = "mydoubles.py:tiny"\ngrid = { n = [4] }\n')
+    tasks, skipped = expand(load_suite(str(tmp_path / "s.toml")))
+    assert not skipped and [t.entry.solver for t in tasks] == ["sleep"]
+    assert tasks[0].problem.id == "mydoubles.py:tiny/n=4/seed=0"
+    assert generate(tasks[0].problem).n == 4
