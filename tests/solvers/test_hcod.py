@@ -17,7 +17,7 @@ from __future__ import annotations
 import hik_strategies
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import given, reject, settings
 from hypothesis import strategies as st
 
 from problems import generators as G
@@ -27,10 +27,20 @@ from problems.verify import level_norms, verify
 from solvers import registry
 from solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL
 from solvers.hcod import HcodSolver
+from solvers.reference import ReferenceError as ReferenceFailure
 from solvers.reference import nullspace_reference, reference_solution
 
 RTOL = 1e-9
 RTOL_ILL = 1e-7
+
+
+def reference_or_reject(h: Hierarchy):
+    """The reference x; in a hypothesis test, an example the reference itself
+    cannot solve (a QP backend failure) gives no verdict and is rejected."""
+    try:
+        return reference_solution(h)
+    except ReferenceFailure:
+        reject()
 
 
 def check(h: Hierarchy, rtol: float = RTOL, solver: HcodSolver | None = None, x_ref=None):
@@ -40,7 +50,12 @@ def check(h: Hierarchy, rtol: float = RTOL, solver: HcodSolver | None = None, x_
     if x_ref is None:
         x_ref = reference_solution(h)
     v = verify(h, res.x, x_ref, rtol=rtol)
-    assert v.equal, (v, level_norms(h, res.x), level_norms(h, x_ref))
+    # With inequalities the reference is a polished QP cascade: where its x is
+    # lexicographically *worse* than the solver's (which cannot happen against an exact
+    # optimum), the reference missed the optimum -- e.g. random_hierarchy(10, 3, 1,
+    # inequality="one-sided", equality_fraction=0.3, shared_rank=1, seed=1688): level 1 is
+    # feasible (hcod: norm 0) but the reference leaves 0.47. Equality problems: exact match.
+    assert v.equal or (h.has_inequalities and v.lower == "a"), (v, level_norms(h, res.x), level_norms(h, x_ref))
     return res, x_ref
 
 
@@ -112,7 +127,7 @@ def test_ik_like(n):
 def test_random_hierarchies(n, depth, rows, inequality, box, eqf, shared, seed):
     h = G.random_hierarchy(n, depth, rows, inequality=inequality, box=box, equality_fraction=eqf,
                            shared_rank=min(shared, rows), seed=seed)
-    check(h)
+    check(h, x_ref=reference_or_reject(h))
 
 
 def test_deep_inequality_stack():
@@ -263,8 +278,8 @@ _grid = st.integers(-40, 40).map(lambda v: v / 4.0)
 def test_grid_random_hierarchies_match_reference(h):
     res = HcodSolver().solve(h)
     assert res.status == OPTIMAL, res.reason
-    v = verify(h, res.x, reference_solution(h), rtol=1e-8)
-    assert v.equal, v
+    v = verify(h, res.x, reference_or_reject(h), rtol=1e-8)
+    assert v.equal or (h.has_inequalities and v.lower == "a"), v  # (see check())
 
 
 def test_reset_and_warmup():
@@ -369,8 +384,9 @@ def test_warm_start_on_unrelated_problems_of_one_shape():
 def test_many_grid_hierarchies_cold_and_warm(h):
     """The long run of the grid test (``-m slow``), cold then warm on one object."""
     s = HcodSolver()
-    x_ref = reference_solution(h)
+    x_ref = reference_or_reject(h)
     for _ in range(2):
         res = s.solve(h)
         assert res.status == OPTIMAL, res.reason
-        assert verify(h, res.x, x_ref, rtol=1e-8).equal
+        v = verify(h, res.x, x_ref, rtol=1e-8)
+        assert v.equal or (h.has_inequalities and v.lower == "a"), v  # (see check())
