@@ -19,10 +19,12 @@ Two methods that share no code with the HCOD solver:
   tolerances, each level *polished*: its active set is read off the QP
   solution and the equality-constrained least-squares problem on that set is
   solved exactly (SVD null-space method); the polished point is kept only if it
-  is feasible and no worse. Higher levels are frozen by shifted bounds
-  ``lower_j + w_j* <= A_j x <= upper_j + w_j*`` (Kanoun et al.), exact because
-  the optimal slack is unique. A last stage picks the minimum-norm x in the
-  optimal set.
+  is feasible and no worse. Higher levels are frozen exactly, the optimal
+  slack being unique: a row with nonzero slack w_j* becomes the equality
+  ``A_j x = bound_j + w_j*``, a row with zero slack keeps its bounds. Frozen
+  equalities are eliminated (``x = x_p + N y``) before each QP. A last stage
+  picks the minimum-norm x in the optimal set. The QP backends are Clarabel,
+  then PIQP when Clarabel fails (the one used is recorded per stage).
 """
 
 from __future__ import annotations
@@ -41,6 +43,8 @@ __all__ = ["nullspace_reference", "cascade_reference", "reference_solution", "Re
 
 RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
 _ACTIVE_RTOL = 1e-7  #: a constraint within this (relative) distance of its bound is read as active
+_ALMOST_SOLVED = ("AlmostSolved",)  #: Clarabel's reduced-accuracy success
+_Y_REG = 1e-9  #: regularisation of the free coordinates y in a level's QP (removed by polishing)
 _FEAS_RTOL = 1e-11  #: feasibility slack allowed to a polished point (relative, per row)
 
 
@@ -118,6 +122,10 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
         q[:n] = N.T @ x_p
     else:
         P[n:, n:] = np.eye(m)
+        # y directions that no row sees have zero cost: unregularised, an
+        # interior-point method lets them drift until round-off in A N breaks
+        # the frozen rows. The O(_Y_REG) bias is removed by the polishing.
+        P[:n, :n] = _Y_REG * np.eye(n)
     rows_A = [np.hstack([A_hi, np.zeros((A_hi.shape[0], m))]), np.hstack([A_k, -np.eye(m)])]
     Afull = np.vstack(rows_A)
     lo = np.concatenate([lo_hi, lo_k])
@@ -141,8 +149,11 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
             warnings.simplefilter("ignore", UserWarning)
             sol = qpsolvers.solve_problem(problem, solver=backend, **options)
         status = sol.extras.get("status") if isinstance(sol.extras, dict) else None
-        if sol.found and sol.x is not None and np.all(np.isfinite(sol.x)):
-            return x_p + N @ sol.x[:n], backend
+        # the QP only has to identify the active set (polishing is exact), so
+        # an almost-solved point is accepted; its status is kept in the name
+        usable = sol.found or str(status) in _ALMOST_SOLVED
+        if usable and sol.x is not None and np.all(np.isfinite(sol.x)):
+            return x_p + N @ sol.x[:n], backend if sol.found else f"{backend} ({status})"
         tried.append(f"{backend}: {status}")
     raise ReferenceError("no QP backend solved the level (" + "; ".join(tried) + ")")
 
@@ -264,9 +275,13 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
         w[np.abs(w) <= 1e-13 * _row_scale(A_k, lo_k, up_k, x)] = 0.0
         slacks.append(w)
         A_hi = np.vstack([A_hi, A_k])
-        lo_hi = np.concatenate([lo_hi, np.where(np.isfinite(lo_k), lo_k + w, lo_k)])
-        up_hi = np.concatenate([up_hi, np.where(np.isfinite(up_k), up_k + w, up_k)])
-        # an equality row stays an equality at its achieved value
+        # freeze (exact, the optimal slack being unique): a row with nonzero
+        # slack becomes an equality at its achieved value (then eliminated by
+        # the null-space step of the next QPs); a row with zero slack keeps
+        # its bounds
+        achieved = A_k @ x
+        lo_hi = np.concatenate([lo_hi, np.where(w != 0, achieved, lo_k)])
+        up_hi = np.concatenate([up_hi, np.where(w != 0, achieved, up_k)])
     if A_hi.shape[0]:
         empty = np.zeros((0, n))
         x_qp, backend = _qp_level(n, A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), final=True)
