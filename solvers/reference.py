@@ -143,7 +143,7 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
                                 _csc(Aeq), beq if beq.size else None)
     problem.P = _csc(P)
     tried = []
-    for backend, options in _QP_BACKENDS:
+    for label, backend, options in _QP_BACKENDS:
         with warnings.catch_warnings():  # a stalled backend is recorded below, not warned
             warnings.simplefilter("ignore", RuntimeWarning)
             warnings.simplefilter("ignore", UserWarning)
@@ -153,8 +153,8 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
         # an almost-solved point is accepted; its status is kept in the name
         usable = sol.found or str(status) in _ALMOST_SOLVED
         if usable and sol.x is not None and np.all(np.isfinite(sol.x)):
-            return x_p + N @ sol.x[:n], backend if sol.found else f"{backend} ({status})"
-        tried.append(f"{backend}: {status}")
+            return x_p + N @ sol.x[:n], label if sol.found else f"{label} ({status})"
+        tried.append(f"{label}: {status}")
     raise ReferenceError("no QP backend solved the level (" + "; ".join(tried) + ")")
 
 
@@ -163,13 +163,17 @@ def _csc(M: np.ndarray):
     return sparse.csc_matrix(M) if M.size else None
 
 
-# Tried in order: Clarabel (interior point) at tight tolerances; PIQP
-# (proximal interior point) when Clarabel stalls, as it does on rows whose
-# norms spread over 1e8. The backend used is recorded per stage.
+# Tried in order, (label, backend, options): Clarabel (interior point) at
+# tight tolerances; PIQP (proximal interior point) when Clarabel stalls, as it
+# does on rows whose norms spread over 1e8; Clarabel at its default
+# tolerances when both break down numerically (seen on ik-like n=40 seed 3).
+# The QP only has to identify the active set: polishing is exact. The label of
+# the attempt that succeeded is recorded per stage.
 _QP_BACKENDS = (
-    ("clarabel", dict(tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10, tol_ktratio=1e-8,
-                      max_iter=500, verbose=False)),
-    ("piqp", dict(eps_abs=1e-10, eps_rel=1e-10, verbose=False)),
+    ("clarabel", "clarabel", dict(tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10, tol_ktratio=1e-8,
+                                  max_iter=500, verbose=False)),
+    ("piqp", "piqp", dict(eps_abs=1e-10, eps_rel=1e-10, verbose=False)),
+    ("clarabel-default-tol", "clarabel", dict(max_iter=500, verbose=False)),
 )
 
 
