@@ -30,6 +30,8 @@ import math
 import numpy as np
 from numba import njit
 
+from solvers.hcod._linalg import level_scale
+
 __all__ = ["eq_solve"]
 
 
@@ -201,26 +203,7 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
         # the unprojected level becomes rank_rtol. Copy the scaled rows, then project them
         # on Z_{k-1}: apply the reflectors of the levels above (lazily, only now: a level
         # reached with nf = 0 costs nothing)
-        s = 0.0
-        for i in range(s0, s1):
-            s += _dot(A, i, A, i, 0, n)
-        if s > 1e-280 and s < 1e280:
-            sc = 1.0 / math.sqrt(s)
-        else:  # rescale first (no underflow / overflow of the squares)
-            amax = 0.0
-            for i in range(s0, s1):
-                for c in range(n):
-                    amax = max(amax, abs(A[i, c]))
-            sc = 1.0
-            if amax > 0.0:
-                s = 0.0
-                for i in range(s0, s1):
-                    for c in range(n):
-                        a = A[i, c] / amax
-                        s += a * a
-                sc = 1.0 / (amax * math.sqrt(s))
-                if not (sc > 0.0 and sc < np.inf):
-                    sc = 1.0 / amax
+        sc = level_scale(A, s0, s1, n)
         for i in range(s0, s1):
             ra = A[i]
             rt = At[i]

@@ -26,6 +26,7 @@ BLAS_MIN_REFLECTORS = 8
 BLAS_MIN_WORK = 20_000
 
 __all__ = [
+    "level_scale",
     "apply_reflectors",
     "apply_reflectors_to_basis",
     "cod",
@@ -39,6 +40,33 @@ __all__ = [
     "solve_lower",
     "step_from_z",
 ]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath={"reassoc", "contract", "nsz", "arcp"})
+def level_scale(A, s0, s1, n):
+    """``1 / ||A[s0:s1, :n]||_F`` without overflow or underflow of the squares
+    (the per-level scaling of the HCOD kernels); 1.0 for a zero block."""
+    s = 0.0
+    for i in range(s0, s1):
+        for c in range(n):
+            s += A[i, c] * A[i, c]
+    if s > 1e-280 and s < 1e280:
+        return 1.0 / math.sqrt(s)
+    amax = 0.0  # rescale first
+    for i in range(s0, s1):
+        for c in range(n):
+            amax = max(amax, abs(A[i, c]))
+    if amax == 0.0:
+        return 1.0
+    s = 0.0
+    for i in range(s0, s1):
+        for c in range(n):
+            a = A[i, c] / amax
+            s += a * a
+    sc = 1.0 / (amax * math.sqrt(s))
+    if not (sc > 0.0 and sc < np.inf):
+        sc = 1.0 / amax
+    return sc
 
 
 @njit(cache=True, nogil=True, error_model="numpy")

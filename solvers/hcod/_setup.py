@@ -9,6 +9,8 @@ from itertools import accumulate
 import numpy as np
 from numba import njit
 
+from solvers.hcod._linalg import level_scale
+
 N_OUT = 9
 # float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n)
 F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
@@ -104,20 +106,7 @@ def scaled_problem(A, lo, up, starts, min_norm):
         for c in range(n):
             A2[m + c, c] = 1.0
     for k in range(D):
-        amax = 0.0
-        for i in range(starts[k], starts[k + 1]):
-            for c in range(n):
-                amax = max(amax, abs(A[i, c]))
-        sc = 1.0
-        if amax > 0.0:
-            s = 0.0
-            for i in range(starts[k], starts[k + 1]):
-                for c in range(n):
-                    a = A[i, c] / amax
-                    s += a * a
-            sc = 1.0 / (amax * math.sqrt(s))
-            if not (sc > 0.0 and sc < np.inf):
-                sc = 1.0 / amax
+        sc = level_scale(A, starts[k], starts[k + 1], n)
         for i in range(starts[k], starts[k + 1]):
             for c in range(n):
                 A2[i, c] = A[i, c] * sc
