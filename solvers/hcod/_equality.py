@@ -30,12 +30,12 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod._linalg import level_scale
+from solvers.hcod._linalg import FASTMATH, level_scale
 
 __all__ = ["eq_solve"]
 
 
-_FM = {"reassoc", "contract", "nsz", "arcp"}
+_FM = set(FASTMATH)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -319,7 +319,7 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
     return fl
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def _lsq_lower(At, s0, s1, p, r, xi, b, y):
     """``y = argmin ||L y - b[s0:s1]||`` for the lower-trapezoidal ``L``
     (mk, r) of the COD (``L[j, l] = At[s0+j, p+l]`` for l < j, ``L[l, l] =
@@ -366,7 +366,7 @@ def _lsq_lower(At, s0, s1, p, r, xi, b, y):
     return fl + r * r // 2
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def eq_run(A, e, starts, rank_rtol):
     """:func:`eq_solve` with its workspaces allocated here (one compiled call
     per solve, no Python-side set-up). Returns (x (n,), iterations per level

@@ -36,6 +36,7 @@ import numpy as np
 from numba import njit
 
 from solvers.hcod._linalg import (
+    FASTMATH,
     apply_reflectors,
     apply_reflectors_to_basis,
     cod,
@@ -50,6 +51,8 @@ from solvers.hcod._linalg import (
 )
 from solvers.hcod._setup import prepare
 
+_FM = set(FASTMATH)
+
 INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
@@ -57,7 +60,7 @@ O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P, O_PREPARED
 BLAND_AFTER = 8  #: consecutive degenerate steps before the anti-cycling rule takes over
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def _norm(x):
     s = 0.0
     for v in x:
@@ -65,7 +68,7 @@ def _norm(x):
     return math.sqrt(s)
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     """Solve the hierarchy (A, lo, up, starts) in the workspaces fw/iw.
 
@@ -207,10 +210,10 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 for i in range(s0):
                     if state[i] != INACTIVE or kind[i] != 1 or hist_state[k, i] == WORK:
                         continue
-                    ap = row_dot(A, i, bcol, bval, ps)
+                    ap = row_dot(A[i], bcol[i], bval[i], ps)
                     if ap == 0.0:
                         continue
-                    av = row_dot(A, i, bcol, bval, u)
+                    av = row_dot(A[i], bcol[i], bval[i], u)
                     if ap > 0.0 and up[i] < np.inf:
                         rt = (up[i] - av) / ap
                     elif ap < 0.0 and lo[i] > -np.inf:
@@ -240,7 +243,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 big = 0.0
                 for j in range(p):
                     i = widx[j]
-                    hv[j] = 0.0 if wside[j] == 0 else target[i] - row_dot(A, i, bcol, bval, u)
+                    hv[j] = 0.0 if wside[j] == 0 else target[i] - row_dot(A[i], bcol[i], bval[i], u)
                     big = max(big, abs(hv[j]))
                 if big > 0.0:
                     for j in range(p):
@@ -258,7 +261,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 feasible = True
                 for i in range(s0):
                     if state[i] == INACTIVE and kind[i] == 1:
-                        av = row_dot(A, i, bcol, bval, u)
+                        av = row_dot(A[i], bcol[i], bval[i], u)
                         tol = feas_rtol * (rnorm[i] * (1.0 + unorm) + 1.0)
                         if av > up[i] + tol or av < lo[i] - tol or not math.isfinite(av):
                             feasible = False
@@ -298,7 +301,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     Olist[nO] = i
                     nO += 1
                 elif kind[i] == 1:
-                    av = row_dot(A, i, bcol, bval, u)
+                    av = row_dot(A[i], bcol[i], bval[i], u)
                     if av > up[i]:
                         state[i] = OBJECTIVE
                         side[i] = 1
@@ -354,7 +357,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         mf_valid = True
                     for j in range(nO):
                         i = Olist[j]
-                        bvec[j] = target[i] - row_dot(A, i, bcol, bval, u)
+                        bvec[j] = target[i] - row_dot(A[i], bcol[i], bval[i], u)
                         piv[j] = j
                         for c in range(nf):
                             Mr[j, c] = Mf[j, p + c]
@@ -378,10 +381,10 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         for i in range(s1):
                             if state[i] != INACTIVE or kind[i] != 1:
                                 continue
-                            ap = row_dot(A, i, bcol, bval, ps)
+                            ap = row_dot(A[i], bcol[i], bval[i], ps)
                             if abs(ap) <= 1e-13 * rnorm[i] * pn:
                                 continue
-                            av = row_dot(A, i, bcol, bval, u)
+                            av = row_dot(A[i], bcol[i], bval[i], u)
                             if ap > 0.0 and up[i] < np.inf:
                                 rt = (up[i] - av) / ap
                                 sd = 1
@@ -438,7 +441,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     i = Olist[j]
                     if kind[i] != 1:
                         continue
-                    w = row_dot(A, i, bcol, bval, u) - target[i]  # eq. (38): mu = w
+                    w = row_dot(A[i], bcol[i], bval[i], u) - target[i]  # eq. (38): mu = w
                     val = side[i] * w
                     tol = dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
                     if val < -tol and (val / rnorm[i] < worst if degen < BLAND_AFTER
@@ -447,7 +450,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         jw = j
                 if jw >= 0:
                     i = Olist[jw]
-                    av = row_dot(A, i, bcol, bval, u)
+                    av = row_dot(A[i], bcol[i], bval[i], u)
                     deacts += 1
                     if side[i] > 0 and av < lo[i]:
                         # a two-sided row that crossed its interval: the other side is violated,
@@ -478,7 +481,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         g[c] = 0.0
                     for j in range(nO):
                         i = Olist[j]
-                        w = row_dot(A, i, bcol, bval, u) - target[i]
+                        w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
                         if bcol[i] >= 0:
                             g[bcol[i]] += bval[i] * w
                         else:
@@ -512,8 +515,10 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                             deacts += 1
                             if mf_valid:
                                 # Z gained the column p: project the objective rows on it
+                                wp = W[:, p]
                                 for j in range(nO):
-                                    Mf[j, p] = row_dot(A, Olist[j], bcol, bval, W[:, p])
+                                    io = Olist[j]
+                                    Mf[j, p] = row_dot(A[io], bcol[io], bval[io], wp)
                                 fl += nO * n
                             for i2 in range(s0):
                                 if state[i2] == IMPLIED:
@@ -577,7 +582,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     fl += apply_reflectors_to_basis(W, p, Mr, beta, r)
                 for j in range(nO):
                     i = Olist[piv[j]]
-                    av = row_dot(A, i, bcol, bval, u)
+                    av = row_dot(A[i], bcol[i], bval[i], u)
                     w = av - target[i]
                     sd = side[i]
                     if kind[i] == 0 or abs(w) > freeze_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i])):
