@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod._linalg import FASTMATH, level_scale
+from solvers.hcod._linalg import FASTMATH, level_scale, vaxpy, vdot, vreflect
 
 __all__ = ["eq_solve"]
 
@@ -39,129 +39,19 @@ _FM = set(FASTMATH)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _dot(a, ia, b, ib, j0, j1):
-    """``a[ia, j0:j1] @ b[ib, j0:j1]`` with eight accumulators (short rows: latency-bound)."""
-    ra = a[ia]
-    rb = b[ib]
-    s0 = 0.0
-    s1 = 0.0
-    s2 = 0.0
-    s3 = 0.0
-    s4 = 0.0
-    s5 = 0.0
-    s6 = 0.0
-    s7 = 0.0
-    c = j0
-    while c + 8 <= j1:
-        s0 += ra[c] * rb[c]
-        s1 += ra[c + 1] * rb[c + 1]
-        s2 += ra[c + 2] * rb[c + 2]
-        s3 += ra[c + 3] * rb[c + 3]
-        s4 += ra[c + 4] * rb[c + 4]
-        s5 += ra[c + 5] * rb[c + 5]
-        s6 += ra[c + 6] * rb[c + 6]
-        s7 += ra[c + 7] * rb[c + 7]
-        c += 8
-    while c < j1:
-        s0 += ra[c] * rb[c]
-        c += 1
-    s0 += s4
-    s1 += s5
-    s2 += s6
-    s3 += s7
-    return (s0 + s1) + (s2 + s3)
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _axpy(sv, a, ia, b, ib, j0, j1):
-    """``b[ib, j0:j1] -= sv * a[ia, j0:j1]``."""
-    ra = a[ia]
-    rb = b[ib]
-    c = j0
-    while c + 4 <= j1:
-        rb[c] -= sv * ra[c]
-        rb[c + 1] -= sv * ra[c + 1]
-        rb[c + 2] -= sv * ra[c + 2]
-        rb[c + 3] -= sv * ra[c + 3]
-        c += 4
-    while c < j1:
-        rb[c] -= sv * ra[c]
-        c += 1
-
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _reflect2(bt, At, it, i, j0, j1):
-    """Apply the reflector stored in row ``it`` (``I - bt v v^T``, ``v =
-    At[it, j0:j1]``) to rows i and i+1 together (shared loads, two chains)."""
-    rv = At[it]
-    ra = At[i]
-    rb = At[i + 1]
-    sa0 = 0.0
-    sa1 = 0.0
-    sb0 = 0.0
-    sb1 = 0.0
-    c = j0
-    while c + 2 <= j1:
-        v0 = rv[c]
-        v1 = rv[c + 1]
-        sa0 += v0 * ra[c]
-        sa1 += v1 * ra[c + 1]
-        sb0 += v0 * rb[c]
-        sb1 += v1 * rb[c + 1]
-        c += 2
-    if c < j1:
-        sa0 += rv[c] * ra[c]
-        sb0 += rv[c] * rb[c]
-    sa = bt * (sa0 + sa1)
-    sb = bt * (sb0 + sb1)
-    for c in range(j0, j1):
-        v = rv[c]
-        ra[c] -= sa * v
-        rb[c] -= sb * v
-
-#: levels of at least this many rows are projected in a transposed copy (the updates then
-#: vectorise across the level's rows); below it, pairs of rows in place are faster
-TRANSPOSED_MIN_ROWS = 10
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def _project_transposed(At, s0, s1, k, lev_p, lev_r, starts, beta):
-    """Apply the reflectors of levels 0..k-1 to the rows s0:s1 of ``At`` (the
-    lazy projection of level k on ``Z_{k-1}``), working on a transposed copy
-    ``Bt`` (n, m_k): ``s = beta Bt[c0:]^T v``, ``Bt[c0:] -= v s^T``. Returns flops."""
-    n = At.shape[1]
-    mk = s1 - s0
-    Bt = np.empty((n, mk))
-    for i in range(mk):
-        for c in range(n):
-            Bt[c, i] = At[s0 + i, c]
-    sv = np.empty(mk)
-    fl = 0
-    for j in range(k):
-        pj = lev_p[j]
-        for t in range(lev_r[j]):
-            it = starts[j] + t
-            c0 = pj + t
-            rv = At[it]
-            for i in range(mk):
-                sv[i] = 0.0
-            for c in range(c0, n):
-                v = rv[c]
-                for i in range(mk):
-                    sv[i] += v * Bt[c, i]
-            bt = beta[it]
-            for i in range(mk):
-                sv[i] *= bt
-            for c in range(c0, n):
-                v = rv[c]
-                for i in range(mk):
-                    Bt[c, i] -= v * sv[i]
-            fl += 2 * mk * (n - c0)
-    for i in range(mk):
-        for c in range(n):
-            At[s0 + i, c] = Bt[c, i]
-    return fl
+def _reflect2(bt, v, ra, rb):
+    """Apply the reflector ``I - bt v v^T`` to the row views ``ra`` and ``rb``
+    together (shared loads of v; all three views of equal length)."""
+    sa = 0.0
+    sb = 0.0
+    for c in range(v.shape[0]):
+        sa += v[c] * ra[c]
+        sb += v[c] * rb[c]
+    sa *= bt
+    sb *= bt
+    for c in range(v.shape[0]):
+        ra[c] -= sa * v[c]
+        rb[c] -= sb * v[c]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -210,32 +100,29 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
             for c in range(n):
                 rt[c] = ra[c] * sc
         thr = rank_rtol
-        if mk >= TRANSPOSED_MIN_ROWS and k > 0:
-            fl += _project_transposed(At, s0, s1, k, lev_p, lev_r, starts, beta)
-        else:
-            for j in range(k):
-                pj = lev_p[j]
-                for t in range(lev_r[j]):
-                    it = starts[j] + t
-                    c0 = pj + t
-                    i = s0
-                    while i + 2 <= s1:
-                        _reflect2(beta[it], At, it, i, c0, n)
-                        i += 2
-                    if i < s1:
-                        _axpy(beta[it] * _dot(At, it, At, i, c0, n), At, it, At, i, c0, n)
-                    fl += 2 * mk * (n - c0)
+        for j in range(k):
+            pj = lev_p[j]
+            for t in range(lev_r[j]):
+                it = starts[j] + t
+                c0 = pj + t
+                v = At[it, c0:]
+                bt = beta[it]
+                i = s0
+                while i + 2 <= s1:
+                    _reflect2(bt, v, At[i, c0:], At[i + 1, c0:])
+                    i += 2
+                if i < s1:
+                    vreflect(bt, v, At[i, c0:])
+                fl += 2 * mk * (n - c0)
         # b = e_k - J_k Y_bar xi[:p]; column norms of the projected rows
+        xp = xi[:p]
         for i in range(s0, s1):
-            t = e[i] * sc
-            for c in range(p):
-                t -= At[i, c] * xi[c]
-            cn[i] = t  # b, permuted with the rows below
-            beta[i] = 0.0
+            cn[i] = e[i] * sc - vdot(At[i, :p], xp)  # b, permuted with the rows below
         fl += mk * (n + p)
         b = cn  # alias: b lives in cn[s0:s1]; the norms in beta[] until used
         for i in range(s0, s1):
-            beta[i] = _dot(At, i, At, i, p, n)
+            ri = At[i, p:]
+            beta[i] = vdot(ri, ri)
         fl += mk * nf
         r = 0
         kmax = min(mk, nf)
@@ -248,7 +135,8 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
                 if beta[j] > best:
                     best = beta[j]
                     jb = j
-            best = _dot(At, jb, At, jb, p + t, n)
+            rj = At[jb, p + t:]
+            best = vdot(rj, rj)
             fl += nf - t
             nrm = math.sqrt(best)
             if not nrm > thr:
@@ -267,16 +155,21 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
             alpha = -nrm if x0 >= 0.0 else nrm
             At[it, c0] = x0 - alpha
             bt = 1.0 / (nrm * (nrm + abs(x0)))
+            v = At[it, c0:]
             j = it + 1
             while j + 2 <= s1:
-                _reflect2(bt, At, it, j, c0, n)
+                _reflect2(bt, v, At[j, c0:], At[j + 1, c0:])
                 j += 2
             if j < s1:
-                _axpy(bt * _dot(At, it, At, j, c0, n), At, it, At, j, c0, n)
+                vreflect(bt, v, At[j, c0:])
             for j in range(it + 1, s1):
                 # downdate the remaining norm of row j
-                v = beta[j] - At[j, c0] * At[j, c0]
-                beta[j] = v if v > 1e-3 * beta[j] else _dot(At, j, At, j, c0 + 1, n)
+                d = beta[j] - At[j, c0] * At[j, c0]
+                if d > 1e-3 * beta[j]:
+                    beta[j] = d
+                else:
+                    rj = At[j, c0 + 1:]
+                    beta[j] = vdot(rj, rj)
             fl += 2 * (s1 - it - 1) * (n - c0)
             beta[it] = bt
             xi[c0] = alpha  # R1[t, t], kept in xi until the solve
@@ -306,12 +199,7 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
         for t in range(lev_r[k] - 1, -1, -1):
             it = starts[k] + t
             c0 = pk + t
-            sv = 0.0
-            for c in range(c0, n):
-                sv += At[it, c] * x[c]
-            sv *= beta[it]
-            for c in range(c0, n):
-                x[c] -= sv * At[it, c]
+            vreflect(beta[it], At[it, c0:], x[c0:])
             fl += 2 * (n - c0)
     for c in range(n):
         if not math.isfinite(x[c]):
