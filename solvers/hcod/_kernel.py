@@ -48,6 +48,8 @@ from solvers.hcod._linalg import (
     row_dot,
     solve_lower,
     step_from_z,
+    vaxpy,
+    vdot,
 )
 from solvers.hcod._setup import prepare
 
@@ -60,12 +62,9 @@ O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P, O_PREPARED
 BLAND_AFTER = 8  #: consecutive degenerate steps before the anti-cycling rule takes over
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def _norm(x):
-    s = 0.0
-    for v in x:
-        s += v * v
-    return math.sqrt(s)
+    return math.sqrt(vdot(x, x))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -137,10 +136,9 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     for _once in range(1):  # (a block, left by break on failure)
         use_hist = warm == 2
         # cold initial state: u_0 = 0, W = I, nothing active
+        u[:] = 0.0
+        W[:, :] = 0.0
         for i in range(n):
-            u[i] = 0.0
-            for c in range(n):
-                W[i, c] = 0.0
             W[i, i] = 1.0
         for i in range(mt):
             state[i] = INACTIVE
@@ -198,13 +196,12 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     ps[c] = hist_du[k, c]
                     dun += abs(ps[c])
                 if p > 0 and dun > 0.0:  # (p = 0: Z spans everything)
-                    for c in range(nf):
-                        z[c] = 0.0
+                    zf = z[:nf]
+                    zf[:] = 0.0
                     for rr in range(n):
                         d = hist_du[k, rr]
                         if d != 0.0:
-                            for c in range(nf):
-                                z[c] += W[rr, p + c] * d
+                            vaxpy(d, W[rr, p:], zf)
                     fl += n * nf + step_from_z(W, p, z, ps)
                 tau = 1.0
                 for i in range(s0):
@@ -246,16 +243,13 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     hv[j] = 0.0 if wside[j] == 0 else target[i] - row_dot(A[i], bcol[i], bval[i], u)
                     big = max(big, abs(hv[j]))
                 if big > 0.0:
-                    for j in range(p):
-                        s = hv[j]
-                        for l in range(j):
-                            s -= R[l, j] * nu[l]
-                        nu[j] = s / R[j, j]
+                    # R^T nu = hv by columns of R^T (rows of R: contiguous)
+                    for l in range(p):
+                        nu[l] = hv[l] / R[l, l]
+                        vaxpy(-nu[l], R[l, l + 1:p], hv[l + 1:p])
+                    nup = nu[:p]
                     for rr in range(n):
-                        s = 0.0
-                        for j in range(p):
-                            s += W[rr, j] * nu[j]
-                        u[rr] += s
+                        u[rr] += vdot(W[rr, :p], nup)
                     fl += n * p + p * p // 2
                 unorm = _norm(u)
                 feasible = True
@@ -338,17 +332,15 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 if has_ineq and nf > 0 and nO == n and levid[k] != 0:
                     # identity-like level: J_k Z = D S Z has orthogonal columns (S a permutation,
                     # D = d I), so the LSE solution of eq. (28) is z = (J_k Z)^T b / d^2
-                    for c in range(nf):
-                        z[c] = 0.0
+                    zf = z[:nf]
+                    zf[:] = 0.0
                     for j in range(nO):
                         i = Olist[j]
                         bj = (target[i] - bval[i] * u[bcol[i]]) * bval[i]
-                        b = bcol[i]
-                        for c in range(nf):
-                            z[c] += bj * W[b, p + c]
+                        vaxpy(bj, W[bcol[i], p:], zf)
                     d2 = bval[Olist[0]] * bval[Olist[0]]
                     for c in range(nf):
-                        z[c] /= d2
+                        zf[c] /= d2
                     fl += n * nf + step_from_z(W, p, z, ps)
                     r = nf
                 elif nf > 0 and nO > 0:
@@ -359,8 +351,10 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         i = Olist[j]
                         bvec[j] = target[i] - row_dot(A[i], bcol[i], bval[i], u)
                         piv[j] = j
+                        mrj = Mr[j, :nf]
+                        mfj = Mf[j, p:]
                         for c in range(nf):
-                            Mr[j, c] = Mf[j, p + c]
+                            mrj[c] = mfj[c]
                     r, f = cod(Mr, nO, nf, thr_k, piv, bvec, diag, beta)
                     cod_done = True
                     fl += f
@@ -485,8 +479,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         if bcol[i] >= 0:
                             g[bcol[i]] += bval[i] * w
                         else:
-                            for c in range(n):
-                                g[c] += A[i, c] * w
+                            vaxpy(w, A[i], g)
                     gn = _norm(g)
                     # noise floor of g: its terms are rows of A_k times residuals of size
                     # ||A_k|| (1 + ||u||) + ||e_k||
@@ -564,18 +557,22 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     # the COD (19) of the last iteration is the update: its r pivot rows enter
                     # W by its reflectors (W[:, p:] <- W[:, p:] H, eq. 23), their R columns are
                     # (W[:, :p]^T a, R_cod[:, t]); the other rows are combinations of them
+                    hp = hv[:p]
                     for t in range(r):
                         i = Olist[piv[t]]
                         b = bcol[i]
-                        for l in range(p):
-                            R[l, p + t] = bval[i] * W[b, l] if b >= 0 else 0.0
-                        if b < 0:
+                        if b >= 0:
+                            for l in range(p):
+                                hp[l] = bval[i] * W[b, l]
+                        else:
+                            hp[:] = 0.0
                             for rr in range(n):
                                 a = A[i, rr]
                                 if a != 0.0:
-                                    for l in range(p):
-                                        R[l, p + t] += a * W[rr, l]
+                                    vaxpy(a, W[rr, :p], hp)
                             fl += n * p
+                        for l in range(p):
+                            R[l, p + t] = hp[l]
                         for l in range(t):
                             R[p + l, p + t] = Mr[t, l]
                         R[p + t, p + t] = diag[t]

@@ -413,10 +413,7 @@ def multipliers(W, R, p, g, h, nu):
         if gr != 0.0:
             vaxpy(gr, W[rr, :p], hp)
     for c in range(p - 1, -1, -1):
-        s = -h[c]
-        for l in range(c + 1, p):
-            s -= R[c, l] * nu[l]
-        nu[c] = s / R[c, c]
+        nu[c] = (-h[c] - vdot(R[c, c + 1:p], nu[c + 1:p])) / R[c, c]
     return n * p + p * p // 2
 
 
