@@ -42,6 +42,7 @@ from solvers.hcod._linalg import (
     cod,
     delete_row,
     insert_row,
+    insert_rows,
     mf_reflect,
     multipliers,
     project_into,
@@ -85,7 +86,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     feas_rtol = prm[1]
     dual_rtol = prm[2]
     freeze_rtol = prm[3]
-    W = fw[foff[0]:foff[1]].reshape((n, n))
+    Wt = fw[foff[0]:foff[1]].reshape((n, n))  # W stored by columns: Wt = W^T
     R = fw[foff[1]:foff[2]].reshape((n, n))
     u = fw[foff[2]:foff[3]]
     ps = fw[foff[3]:foff[4]]
@@ -107,6 +108,8 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     lnorm = fw[foff[19]:foff[20]]
     hist_du = fw[foff[20]:foff[21]].reshape((D, n))
     Mf = fw[foff[21]:foff[22]].reshape((mmax, n))
+    Qb = fw[foff[22]:foff[23]].reshape((n, n))
+    bq = fw[foff[23]:foff[24]]
     state = iw[ioff[0]:ioff[1]]
     side = iw[ioff[1]:ioff[2]]
     kind = iw[ioff[2]:ioff[3]]
@@ -122,6 +125,8 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     out = iw[ioff[12]:ioff[13]]
     levid = iw[ioff[13]:ioff[14]]
     piv = iw[ioff[14]:ioff[15]]
+    cand = iw[ioff[15]:ioff[16]]
+    cok = iw[ioff[16]:ioff[17]]
 
     if out[O_PREPARED] == 0:
         prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, widx)
@@ -137,9 +142,9 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
         use_hist = warm == 2
         # cold initial state: u_0 = 0, W = I, nothing active
         u[:] = 0.0
-        W[:, :] = 0.0
+        Wt[:, :] = 0.0
         for i in range(n):
-            W[i, i] = 1.0
+            Wt[i, i] = 1.0
         for i in range(mt):
             state[i] = INACTIVE
             side[i] = 0
@@ -172,14 +177,14 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 for j in range(p - 1, -1, -1):
                     i = widx[j]
                     if wside[j] != 0 and (warm == 0 or hist_state[k, i] != WORK):
-                        fl += delete_row(j, W, R, p, widx, wside)
+                        fl += delete_row(j, Wt, R, p, widx, wside)
                         p -= 1
                         state[i] = INACTIVE
                         dropped = True
                 if dropped:
                     for i in range(s0):
                         if state[i] == IMPLIED:
-                            ok, f, bt = insert_row(A, i, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[i]], q)
+                            ok, f, bt = insert_row(A, i, bcol, bval, Wt, R, p, rank_rtol * lnorm[rowlev[i]], q)
                             fl += f
                             if ok:
                                 widx[p] = i
@@ -196,13 +201,10 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     ps[c] = hist_du[k, c]
                     dun += abs(ps[c])
                 if p > 0 and dun > 0.0:  # (p = 0: Z spans everything)
-                    zf = z[:nf]
-                    zf[:] = 0.0
-                    for rr in range(n):
-                        d = hist_du[k, rr]
-                        if d != 0.0:
-                            vaxpy(d, W[rr, p:], zf)
-                    fl += n * nf + step_from_z(W, p, z, ps)
+                    duk = hist_du[k]
+                    for c in range(nf):
+                        z[c] = vdot(Wt[p + c], duk)
+                    fl += n * nf + step_from_z(Wt, p, z, ps)
                 tau = 1.0
                 for i in range(s0):
                     if state[i] != INACTIVE or kind[i] != 1 or hist_state[k, i] == WORK:
@@ -223,13 +225,20 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     u[c] += tau * ps[c]
                 # Delta^+ A: rows the level activated at the previous call
                 p_in = p
+                m_in = 0
                 for i in range(s0):
                     sd = hist_side[k, i]
                     if (hist_state[k, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0
-                            and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf)):
-                        ok, f, bt = insert_row(A, i, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[i]], q)
-                        fl += f
-                        if ok:
+                            and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf) and m_in < n):  # (<= n: WORK rows)
+                        cand[m_in] = i
+                        m_in += 1
+                if m_in > 0:
+                    t_in, f = insert_rows(A, cand, m_in, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok)
+                    fl += f
+                    for j in range(m_in):
+                        if cok[j]:
+                            i = cand[j]
+                            sd = hist_side[k, i]
                             widx[p] = i
                             wside[p] = sd
                             p += 1
@@ -247,9 +256,8 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     for l in range(p):
                         nu[l] = hv[l] / R[l, l]
                         vaxpy(-nu[l], R[l, l + 1:p], hv[l + 1:p])
-                    nup = nu[:p]
-                    for rr in range(n):
-                        u[rr] += vdot(W[rr, :p], nup)
+                    for j in range(p):
+                        vaxpy(nu[j], Wt[j], u)
                     fl += n * p + p * p // 2
                 unorm = _norm(u)
                 feasible = True
@@ -332,20 +340,19 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 if has_ineq and nf > 0 and nO == n and levid[k] != 0:
                     # identity-like level: J_k Z = D S Z has orthogonal columns (S a permutation,
                     # D = d I), so the LSE solution of eq. (28) is z = (J_k Z)^T b / d^2
-                    zf = z[:nf]
-                    zf[:] = 0.0
+                    # z = Z^T J_k^T (e_k - J_k u) / d^2, the gradient gathered in g first
+                    g[:] = 0.0
                     for j in range(nO):
                         i = Olist[j]
-                        bj = (target[i] - bval[i] * u[bcol[i]]) * bval[i]
-                        vaxpy(bj, W[bcol[i], p:], zf)
+                        g[bcol[i]] += (target[i] - bval[i] * u[bcol[i]]) * bval[i]
                     d2 = bval[Olist[0]] * bval[Olist[0]]
                     for c in range(nf):
-                        zf[c] /= d2
-                    fl += n * nf + step_from_z(W, p, z, ps)
+                        z[c] = vdot(Wt[p + c], g) / d2
+                    fl += n * nf + step_from_z(Wt, p, z, ps)
                     r = nf
                 elif nf > 0 and nO > 0:
                     if not mf_valid:
-                        fl += project_into(A, Olist, 0, nO, bcol, bval, W, p, Mf)
+                        fl += project_into(A, Olist, 0, nO, bcol, bval, Wt, p, Mf)
                         mf_valid = True
                     for j in range(nO):
                         i = Olist[j]
@@ -363,7 +370,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         for c in range(nf):
                             z[c] = y[c] if c < r else 0.0
                         fl += apply_reflectors(Mr, beta, r, nf, z)
-                        fl += step_from_z(W, p, z, ps)
+                        fl += step_from_z(Wt, p, z, ps)
                 tau = 1.0
                 blk = -1
                 bsd = 0
@@ -409,10 +416,10 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         state[blk] = OBJECTIVE
                         Olist[nO] = blk
                         if mf_valid:
-                            fl += project_into(A, Olist, nO, nO + 1, bcol, bval, W, p, Mf)
+                            fl += project_into(A, Olist, nO, nO + 1, bcol, bval, Wt, p, Mf)
                         nO += 1
                     else:
-                        ok, f, bt = insert_row(A, blk, bcol, bval, W, R, p, rank_rtol * lnorm[rowlev[blk]], q)
+                        ok, f, bt = insert_row(A, blk, bcol, bval, Wt, R, p, rank_rtol * lnorm[rowlev[blk]], q)
                         fl += f
                         if not ok:
                             status = ST_NUMERICAL
@@ -491,7 +498,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         gtol += rnorm[i] * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
                     gtol *= dual_rtol
                     if gn > gtol:
-                        fl += multipliers(W, R, p, g, hv, nu)  # eq. (39)
+                        fl += multipliers(Wt, R, p, g, hv, nu)  # eq. (39)
                         worst = 0.0
                         for j in range(p):
                             if wside[j] != 0:
@@ -502,20 +509,20 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                                     jw = j
                         if jw >= 0:
                             i = widx[jw]
-                            fl += delete_row(jw, W, R, p, widx, wside)
+                            fl += delete_row(jw, Wt, R, p, widx, wside)
                             p -= 1
                             state[i] = INACTIVE
                             deacts += 1
                             if mf_valid:
                                 # Z gained the column p: project the objective rows on it
-                                wp = W[:, p]
+                                wp = Wt[p]
                                 for j in range(nO):
                                     io = Olist[j]
                                     Mf[j, p] = row_dot(A[io], bcol[io], bval[io], wp)
                                 fl += nO * n
                             for i2 in range(s0):
                                 if state[i2] == IMPLIED:
-                                    ok, f, bt = insert_row(A, i2, bcol, bval, W, R, p,
+                                    ok, f, bt = insert_row(A, i2, bcol, bval, Wt, R, p,
                                                            rank_rtol * lnorm[rowlev[i2]], q)
                                     fl += f
                                     if ok and mf_valid:
@@ -547,7 +554,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                 break
             elif not has_ineq:
                 if r > 0:
-                    fl += apply_reflectors_to_basis(W, p, Mr, beta, r)
+                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r)
                 for j in range(nO):
                     state[Olist[piv[j]]] = WORK if j < r else IMPLIED
                 p += r
@@ -563,20 +570,18 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         b = bcol[i]
                         if b >= 0:
                             for l in range(p):
-                                hp[l] = bval[i] * W[b, l]
+                                hp[l] = bval[i] * Wt[l, b]
                         else:
-                            hp[:] = 0.0
-                            for rr in range(n):
-                                a = A[i, rr]
-                                if a != 0.0:
-                                    vaxpy(a, W[rr, :p], hp)
+                            ra = A[i]
+                            for l in range(p):
+                                hp[l] = vdot(Wt[l], ra)
                             fl += n * p
                         for l in range(p):
                             R[l, p + t] = hp[l]
                         for l in range(t):
                             R[p + l, p + t] = Mr[t, l]
                         R[p + t, p + t] = diag[t]
-                    fl += apply_reflectors_to_basis(W, p, Mr, beta, r)
+                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r)
                 for j in range(nO):
                     i = Olist[piv[j]]
                     av = row_dot(A[i], bcol[i], bval[i], u)
@@ -588,7 +593,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                     if cod_done:
                         ok = j < r
                     else:
-                        ok, f, bt = insert_row(A, i, bcol, bval, W, R, p, thr_k, q)
+                        ok, f, bt = insert_row(A, i, bcol, bval, Wt, R, p, thr_k, q)
                         fl += f
                     side[i] = sd
                     if ok:

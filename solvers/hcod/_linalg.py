@@ -3,7 +3,10 @@ projected level, and the updates of the constraint decomposition.
 
 Notation (ICRA 2010, sec. V-VI). ``W`` (n, n) is orthonormal; its first ``p``
 columns span the rows of the working (active) constraints of the levels above,
-its last ``nf = n - p`` columns are ``Z`` (the null-space basis, eq. 16).
+its last ``nf = n - p`` columns are ``Z`` (the null-space basis, eq. 16). It is
+stored by columns, as ``Wt = W^T`` (row c of ``Wt`` is column c of ``W``):
+the updates (reflectors from the right, Givens on two columns) and the products
+``W^T a`` then run on contiguous vectors of length n.
 ``R`` (n, n) holds, column j, the coordinates of working row j in ``W``:
 ``C^T = W[:, :p] R[:p, :p]`` with ``R[:p, :p]`` upper triangular (rows enter in
 order). Every routine returns the number of multiply-adds it did (the flop
@@ -66,10 +69,10 @@ __all__ = [
     "cod",
     "delete_row",
     "insert_row",
+    "insert_rows",
     "mf_reflect",
     "multipliers",
     "project_into",
-    "project_rows",
     "row_dot",
     "solve_lower",
     "step_from_z",
@@ -111,34 +114,6 @@ def row_dot(a, b, bv, x):
     if b >= 0:
         return bv * x[b]
     return vdot(a, x)
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def project_rows(A, rows, nO, bcol, bval, W, p, Mr):
-    """Rows of the projected level ``M = J_k Z_{k-1}`` (eq. 19): for the j-th
-    objective row ``a = A[rows[j]]``, ``Mr[j, :nf] = Z^T a`` with ``Z = W[:, p:]``.
-
-    Shapes: rows (>= nO,), W (n, n), Mr (>= nO, >= nf). Returns flops."""
-    n = W.shape[0]
-    nf = n - p
-    fl = 0
-    for j in range(nO):
-        i = rows[j]
-        b = bcol[i]
-        if b >= 0:
-            v = bval[i]
-            for c in range(nf):
-                Mr[j, c] = v * W[b, p + c]
-            fl += nf
-        else:
-            mj = Mr[j, :nf]
-            mj[:] = 0.0
-            for r in range(n):
-                a = A[i, r]
-                if a != 0.0:
-                    vaxpy(a, W[r, p:], mj)
-                    fl += nf
-    return fl
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -264,39 +239,47 @@ def apply_reflectors(Mr, beta, r, nf, z):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def step_from_z(W, p, z, out):
-    """``out = Z z`` with ``Z = W[:, p:]`` (n, nf). Returns flops."""
-    n = W.shape[0]
-    zz = z[:n - p]
-    for rr in range(n):
-        out[rr] = vdot(W[rr, p:], zz)
+def step_from_z(Wt, p, z, out):
+    """``out = Z z`` with ``Z = W[:, p:]`` (n, nf), i.e. the rows ``Wt[p:]``
+    combined. Returns flops."""
+    n = Wt.shape[0]
+    out[:] = 0.0
+    for c in range(n - p):
+        vaxpy(z[c], Wt[p + c], out)
     return n * (n - p)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def apply_reflectors_to_basis(W, p, Mr, beta, r):
-    """``W[:, p:] <- W[:, p:] H`` (eq. 23: ``[Y_bar_k, Z_k] = Z_{k-1} H``): after
-    it, ``W[:, p:p+r]`` spans the projected level and ``W[:, p+r:]`` is
+def apply_reflectors_to_basis(Wt, p, Mr, beta, r):
+    """``W[:, p:] <- W[:, p:] H`` (eq. 23: ``[Y_bar_k, Z_k] = Z_{k-1} H``) with
+    ``H = H_0 ... H_{r-1}``, reflector i = ``I - beta[i] v v^T`` on the
+    columns ``p + i:`` (``v = Mr[i, i:nf]``). On ``Wt = W^T``: ``s = sum_c v_c
+    Wt[p + i + c]``, then ``Wt[p + i + c] -= beta_i v_c s`` (vectors of length n).
+    After it, ``W[:, p:p+r]`` spans the projected level and ``W[:, p+r:]`` is
     ``Z_k``. Returns flops."""
-    n = W.shape[0]
+    n = Wt.shape[0]
     nf = n - p
     if r >= BLAS_MIN_REFLECTORS and n * nf * r >= BLAS_MIN_WORK:
-        return _apply_reflectors_wy(W, p, Mr, beta, r)
+        return _apply_reflectors_wy(Wt, p, Mr, beta, r)
+    sv = np.empty(n)
     for i in range(r):
-        bt = beta[i]
-        vi = Mr[i, i:nf]
-        for rr in range(n):
-            vreflect(bt, vi, W[rr, p + i:])
+        sv[:] = 0.0
+        for c in range(i, nf):
+            vaxpy(Mr[i, c], Wt[p + c], sv)
+        bt = -beta[i]
+        for c in range(i, nf):
+            vaxpy(bt * Mr[i, c], sv, Wt[p + c])
     return 2 * n * nf * r
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def _apply_reflectors_wy(W, p, Mr, beta, r):
+def _apply_reflectors_wy(Wt, p, Mr, beta, r):
     """:func:`apply_reflectors_to_basis` in compact WY form, with BLAS:
     ``H_0 ... H_{r-1} = I - V T V^T`` (V (nf, r) the reflector vectors, T (r, r)
     upper triangular: ``T[t, t] = beta_t``, ``T[:t, t] = -beta_t T[:t, :t]
-    V[:, :t]^T v_t``), then ``Z <- Z - ((Z V) T) V^T``. Returns flops."""
-    n = W.shape[0]
+    V[:, :t]^T v_t``), then ``Z^T <- Z^T - V T^T (V^T Z^T)`` on the rows
+    ``Wt[p:]``. Returns flops."""
+    n = Wt.shape[0]
     nf = n - p
     Vr = np.zeros((r, nf))
     for t in range(r):
@@ -312,18 +295,15 @@ def _apply_reflectors_wy(W, p, Mr, beta, r):
             for b in range(a, t):
                 s += T[a, b] * S[b, t]
             T[a, t] = -bt * s
-    Z = np.ascontiguousarray(W[:, p:])
-    X = Z @ Vr.T
-    Y = X @ T
-    Z -= Y @ Vr
-    for rr in range(n):
-        for c in range(nf):
-            W[rr, p + c] = Z[rr, c]
+    Zt = Wt[p:]
+    X = Vr @ Zt
+    Y = T.T @ X
+    Zt -= Vr.T @ Y
     return 2 * n * nf * r + r * r * nf + r * r * r // 6 + n * r * r
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def insert_row(A, i, bcol, bval, W, R, p, thr, q):
+def insert_row(A, i, bcol, bval, Wt, R, p, thr, q):
     """Add row ``a = A[i]`` to the working constraints by one Householder
     update of ``W`` (sec. IX: the decomposition is updated, not recomputed):
     ``q = W^T a``; the reflector that maps ``q[p:]`` to ``alpha e_1`` is
@@ -332,21 +312,18 @@ def insert_row(A, i, bcol, bval, W, R, p, thr, q):
     The row is refused (returns False) when ``||q[p:]|| <= thr``: it is a
     combination of the working rows (rank detection). On success the reflector
     vector stays in ``q[p:]``. Returns (ok, flops, beta)."""
-    n = W.shape[0]
+    n = Wt.shape[0]
     b = bcol[i]
     if b >= 0:
         v = bval[i]
         for c in range(n):
-            q[c] = v * W[b, c]
+            q[c] = v * Wt[c, b]
         fl = n
     else:
-        q[:] = 0.0
-        fl = 0
-        for rr in range(n):
-            a = A[i, rr]
-            if a != 0.0:
-                vaxpy(a, W[rr], q)
-                fl += n
+        ra = A[i]
+        for c in range(n):
+            q[c] = vdot(Wt[c], ra)
+        fl = n * n
     qz = q[p:]
     nrm = math.sqrt(vdot(qz, qz))
     if not nrm > thr:
@@ -355,8 +332,11 @@ def insert_row(A, i, bcol, bval, W, R, p, thr, q):
     alpha = -nrm if x0 >= 0.0 else nrm
     q[p] = x0 - alpha
     bt = 1.0 / (nrm * (nrm + abs(x0)))
-    for rr in range(n):
-        vreflect(bt, qz, W[rr, p:])
+    sv = np.zeros(n)
+    for c in range(n - p):
+        vaxpy(qz[c], Wt[p + c], sv)
+    for c in range(n - p):
+        vaxpy(-bt * qz[c], sv, Wt[p + c])
     fl += 2 * n * (n - p)
     for c in range(p):
         R[c, p] = q[c]
@@ -365,12 +345,66 @@ def insert_row(A, i, bcol, bval, W, R, p, thr, q):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def delete_row(j, W, R, p, widx, wside):
+def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok):
+    """Add the rows ``A[cand[:m]]`` to the working constraints, in order, as m
+    calls of :func:`insert_row` would (same rank test, same ``W`` and ``R``),
+    but blocked: ``Q = A_cand W`` at once, the Householder QR of ``Q[:, p:]``
+    row by row (row j meets the reflectors of the accepted rows before it),
+    then the t accepted reflectors applied to ``W[:, p:]`` together
+    (:func:`apply_reflectors_to_basis`). ``cok[j]`` = 1 when row j entered.
+    Shapes: Qb (>= m, n), bq (>= m). Returns (t, flops)."""
+    n = Wt.shape[0]
+    fl = 0
+    for j in range(m):
+        i = cand[j]
+        qj = Qb[j]
+        b = bcol[i]
+        if b >= 0:
+            v = bval[i]
+            for c in range(n):
+                qj[c] = v * Wt[c, b]
+            fl += n
+        else:
+            ra = A[i]
+            for c in range(n):
+                qj[c] = vdot(Wt[c], ra)
+            fl += n * n
+    t = 0
+    for j in range(m):
+        i = cand[j]
+        c0 = p + t
+        v = Qb[j, c0:]
+        nrm = math.sqrt(vdot(v, v))
+        if not nrm > rank_rtol * lnorm[rowlev[i]]:
+            cok[j] = 0
+            continue
+        cok[j] = 1
+        x0 = v[0]
+        alpha = -nrm if x0 >= 0.0 else nrm
+        v[0] = x0 - alpha
+        bt = 1.0 / (nrm * (nrm + abs(x0)))
+        for l in range(c0):
+            R[l, c0] = Qb[j, l]
+        R[c0, c0] = alpha
+        for l in range(j + 1, m):
+            vreflect(bt, v, Qb[l, c0:])
+        fl += 2 * (m - j - 1) * (n - c0)
+        if t < j:  # keep the reflectors packed: reflector t in Qb[t, p + t:]
+            Qb[t, c0:] = v
+        bq[t] = bt
+        t += 1
+    if t > 0:
+        fl += apply_reflectors_to_basis(Wt, p, Qb[:, p:], bq, t)
+    return t, fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def delete_row(j, Wt, R, p, widx, wside):
     """Remove working row j (0 <= j < p): drop column j of R (it becomes upper
     Hessenberg) and restore the triangle by Givens rotations applied to R's
-    rows and W's columns (``W R`` is unchanged). ``widx``/``wside`` shift.
-    Returns flops; the caller decrements p."""
-    n = W.shape[0]
+    rows and W's columns (``W R`` is unchanged; the columns of W are the rows
+    of ``Wt``). ``widx``/``wside`` shift. Returns flops; the caller decrements p."""
+    n = Wt.shape[0]
     fl = 0
     for col in range(j, p - 1):
         for rr in range(col + 2):
@@ -391,59 +425,55 @@ def delete_row(j, W, R, p, widx, wside):
             R[i, col] = c * r1 + s * r2
             R[i + 1, col] = -s * r1 + c * r2
         R[i + 1, i] = 0.0
+        w1 = Wt[i]
+        w2 = Wt[i + 1]
         for rr in range(n):
-            w1 = W[rr, i]
-            w2 = W[rr, i + 1]
-            W[rr, i] = c * w1 + s * w2
-            W[rr, i + 1] = -s * w1 + c * w2
+            a1 = w1[rr]
+            a2 = w2[rr]
+            w1[rr] = c * a1 + s * a2
+            w2[rr] = -s * a1 + c * a2
         fl += 4 * (p - 1 - i) + 4 * n
     return fl
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def multipliers(W, R, p, g, h, nu):
+def multipliers(Wt, R, p, g, h, nu):
     """Multipliers of the working constraints (eq. 39):
     ``C^T nu = -g`` solved as ``R nu = -W[:, :p]^T g``; g (n,) is the gradient
     ``J_k^T w_k`` of the level's objective. Returns flops."""
-    n = W.shape[0]
-    hp = h[:p]
-    hp[:] = 0.0
-    for rr in range(n):
-        gr = g[rr]
-        if gr != 0.0:
-            vaxpy(gr, W[rr, :p], hp)
+    n = Wt.shape[0]
+    for c in range(p):
+        h[c] = vdot(Wt[c], g)
     for c in range(p - 1, -1, -1):
         nu[c] = (-h[c] - vdot(R[c, c + 1:p], nu[c + 1:p])) / R[c, c]
     return n * p + p * p // 2
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def project_into(A, Olist, j0, j1, bcol, bval, W, p, Mf):
+def project_into(A, Olist, j0, j1, bcol, bval, Wt, p, Mf):
     """``Mf[j, p:] = A[Olist[j]] @ W[:, p:]`` for j0 <= j < j1: the objective rows
     projected on Z (eq. 19), kept up to date across iterations. Returns flops."""
-    n = W.shape[0]
+    n = Wt.shape[0]
     fl = 0
     ng = 0
     for j in range(j0, j1):
         if bcol[Olist[j]] < 0:
             ng += 1
-    if ng >= BLAS_MIN_REFLECTORS and ng * n * (n - p) >= BLAS_MIN_WORK:
+    blas = ng >= BLAS_MIN_REFLECTORS and ng * n * (n - p) >= BLAS_MIN_WORK
+    if blas:
         # the general rows by one BLAS product (A_O gathered) @ Z
         G = np.empty((ng, n))
         gi = 0
         for j in range(j0, j1):
             i = Olist[j]
             if bcol[i] < 0:
-                for c in range(n):
-                    G[gi, c] = A[i, c]
+                G[gi, :] = A[i, :]
                 gi += 1
-        P = G @ np.ascontiguousarray(W[:, p:])
+        P = G @ Wt[p:].T
         gi = 0
         for j in range(j0, j1):
-            i = Olist[j]
-            if bcol[i] < 0:
-                for c in range(p, n):
-                    Mf[j, c] = P[gi, c - p]
+            if bcol[Olist[j]] < 0:
+                Mf[j, p:] = P[gi]
                 gi += 1
         fl += ng * n * (n - p)
     for j in range(j0, j1):
@@ -452,19 +482,14 @@ def project_into(A, Olist, j0, j1, bcol, bval, W, p, Mf):
         mj = Mf[j, p:]
         if b >= 0:
             v = bval[i]
-            wb = W[b, p:]
             for c in range(n - p):
-                mj[c] = v * wb[c]
+                mj[c] = v * Wt[p + c, b]
             fl += n - p
-        elif ng >= BLAS_MIN_REFLECTORS and ng * n * (n - p) >= BLAS_MIN_WORK:
-            continue
-        else:
-            mj[:] = 0.0
-            for rr in range(n):
-                a = A[i, rr]
-                if a != 0.0:
-                    vaxpy(a, W[rr, p:], mj)
-                    fl += n - p
+        elif not blas:
+            ra = A[i]
+            for c in range(n - p):
+                mj[c] = vdot(Wt[p + c], ra)
+            fl += n * (n - p)
     return fl
 
 

@@ -14,9 +14,9 @@ from solvers.hcod._linalg import level_scale
 N_OUT = 9
 # float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n)
 F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
-            "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf")
+            "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf", "Qb", "bq")
 I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "itl", "hist_state",
-            "hist_side", "hist_valid", "out", "levid", "piv")
+            "hist_side", "hist_valid", "out", "levid", "piv", "cand", "cok")
 
 
 def layout(n: int, mt: int, D: int, mmax: int):
@@ -24,8 +24,8 @@ def layout(n: int, mt: int, D: int, mmax: int):
     F_BLOCKS / I_BLOCKS), int64 arrays of shape (len(blocks) + 1,)."""
     mm = max(mmax, 1)
     fsz = (n * n, n * n, n, n, n, n, n, n, n, n, n, mm * n, mm, mm, mm, mm * max(min(n, mm), 1), mt, mt, mt, D,
-           D * n, mm * n)
-    isz = (mt, mt, mt, mt, mt, n, n, mm, D, D * mt, D * mt, D, N_OUT, D, mm)
+           D * n, mm * n, n * n, n)
+    isz = (mt, mt, mt, mt, mt, n, n, mm, D, D * mt, D * mt, D, N_OUT, D, mm, n, n)
     return (np.array((0, *accumulate(fsz)), dtype=np.int64), np.array((0, *accumulate(isz)), dtype=np.int64))
 
 
