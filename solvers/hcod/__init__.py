@@ -19,8 +19,11 @@ Inequalities at any level (sec. VII-X, :mod:`._kernel`)
     ``Z``; step length to the first blocking row (higher levels' inactive rows
     and the level's own inactive rows); activation; deactivation by the sign
     of ``mu = w`` (38) and of ``lambda`` (39) from the triangular factor.
-    Working rows enter the explicit orthonormal basis ``W = [Y_bar, Z]`` by a
-    Householder update and leave it by Givens rotations (sec. IX); the
+    Working rows enter the explicit orthonormal basis ``W = [Y_bar, Z]`` (kept
+    by columns, ``W^T``, so that every update runs on contiguous vectors of
+    length n) by a Householder update and leave it by Givens rotations (sec.
+    IX); the rows a warm start re-activates enter together (one blocked
+    Householder QR, then its reflectors applied to ``W`` at once); the
     projected objective rows ``J_hat_k Z`` are carried along the same updates
     across iterations (a new column or a reflector, not a new projection); the
     level's COD (19) itself is recomputed each iteration. At the end of a
