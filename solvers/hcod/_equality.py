@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod._linalg import FASTMATH, level_scale, vaxpy, vdot, vreflect
+from solvers.hcod._linalg import FASTMATH, householder, level_scale, vdot, vreflect
 
 __all__ = ["eq_solve"]
 
@@ -151,11 +151,8 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
                 b[jb] = tmp
                 beta[jb] = beta[it]
             c0 = p + t
-            x0 = At[it, c0]
-            alpha = -nrm if x0 >= 0.0 else nrm
-            At[it, c0] = x0 - alpha
-            bt = 1.0 / (nrm * (nrm + abs(x0)))
             v = At[it, c0:]
+            alpha, bt = householder(v, nrm)
             j = it + 1
             while j + 2 <= s1:
                 _reflect2(bt, v, At[j, c0:], At[j + 1, c0:])

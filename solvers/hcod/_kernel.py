@@ -233,7 +233,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
                         cand[m_in] = i
                         m_in += 1
                 if m_in > 0:
-                    t_in, f = insert_rows(A, cand, m_in, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok)
+                    _, f = insert_rows(A, cand, m_in, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok)
                     fl += f
                     for j in range(m_in):
                         if cok[j]:

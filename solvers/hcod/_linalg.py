@@ -60,22 +60,52 @@ def vreflect(bt, v, y):
     s *= bt
     for c in range(v.shape[0]):
         y[c] -= s * v[c]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def householder(v, nrm):
+    """Turn ``v`` (norm ``nrm`` > 0) into the vector of the reflector
+    ``I - bt v v^T`` that maps it to ``alpha e_1`` (sign chosen against
+    cancellation): ``v[0] -= alpha``. Returns (alpha, bt)."""
+    x0 = v[0]
+    alpha = -nrm if x0 >= 0.0 else nrm
+    v[0] = x0 - alpha
+    return alpha, 1.0 / (nrm * (nrm + abs(x0)))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def wt_times_row(A, i, bcol, bval, Wt, out):
+    """``out = W^T a`` for the row ``a = A[i]`` (``out[c] = Wt[c] @ a``; a
+    gather of column ``bcol[i]`` of ``Wt`` for a bound row). Returns flops."""
+    n = Wt.shape[0]
+    b = bcol[i]
+    if b >= 0:
+        v = bval[i]
+        for c in range(n):
+            out[c] = v * Wt[c, b]
+        return n
+    ra = A[i]
+    for c in range(n):
+        out[c] = vdot(Wt[c], ra)
+    return n * n
 BLAS_MIN_WORK = 20_000
 
 __all__ = [
-    "level_scale",
     "apply_reflectors",
     "apply_reflectors_to_basis",
     "cod",
     "delete_row",
+    "householder",
     "insert_row",
     "insert_rows",
+    "level_scale",
     "mf_reflect",
     "multipliers",
     "project_into",
     "row_dot",
     "solve_lower",
     "step_from_z",
+    "wt_times_row",
 ]
 
 
@@ -162,10 +192,7 @@ def cod(Mr, nO, nf, thr, rows, bvec, diag, beta):
             bvec[i] = bvec[jb]
             bvec[jb] = tb
             beta[jb] = beta[i]
-        x0 = Mr[i, i]
-        alpha = -nrm if x0 >= 0.0 else nrm
-        Mr[i, i] = x0 - alpha
-        bt = 1.0 / (nrm * (nrm + abs(x0)))
+        alpha, bt = householder(Mr[i, i:nf], nrm)
         beta[i] = bt
         diag[i] = alpha
         vi = Mr[i, i:nf]
@@ -210,10 +237,7 @@ def solve_lower(Mr, diag, nO, r, bvec, Lb, y):
     for l in range(r):
         vl = Lb[l, l:nO]
         nrm = math.sqrt(vdot(vl, vl))
-        x0 = Lb[l, l]
-        alpha = -nrm if x0 >= 0.0 else nrm
-        Lb[l, l] = x0 - alpha
-        bt = 1.0 / (nrm * (nrm + abs(x0)))
+        alpha, bt = householder(vl, nrm)
         for l2 in range(l + 1, r):
             vreflect(bt, vl, Lb[l2, l:nO])
         vreflect(bt, vl, bvec[l:nO])
@@ -313,25 +337,12 @@ def insert_row(A, i, bcol, bval, Wt, R, p, thr, q):
     combination of the working rows (rank detection). On success the reflector
     vector stays in ``q[p:]``. Returns (ok, flops, beta)."""
     n = Wt.shape[0]
-    b = bcol[i]
-    if b >= 0:
-        v = bval[i]
-        for c in range(n):
-            q[c] = v * Wt[c, b]
-        fl = n
-    else:
-        ra = A[i]
-        for c in range(n):
-            q[c] = vdot(Wt[c], ra)
-        fl = n * n
+    fl = wt_times_row(A, i, bcol, bval, Wt, q)
     qz = q[p:]
     nrm = math.sqrt(vdot(qz, qz))
     if not nrm > thr:
         return False, fl, 0.0
-    x0 = q[p]
-    alpha = -nrm if x0 >= 0.0 else nrm
-    q[p] = x0 - alpha
-    bt = 1.0 / (nrm * (nrm + abs(x0)))
+    alpha, bt = householder(qz, nrm)
     sv = np.zeros(n)
     for c in range(n - p):
         vaxpy(qz[c], Wt[p + c], sv)
@@ -356,19 +367,7 @@ def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, 
     n = Wt.shape[0]
     fl = 0
     for j in range(m):
-        i = cand[j]
-        qj = Qb[j]
-        b = bcol[i]
-        if b >= 0:
-            v = bval[i]
-            for c in range(n):
-                qj[c] = v * Wt[c, b]
-            fl += n
-        else:
-            ra = A[i]
-            for c in range(n):
-                qj[c] = vdot(Wt[c], ra)
-            fl += n * n
+        fl += wt_times_row(A, cand[j], bcol, bval, Wt, Qb[j])
     t = 0
     for j in range(m):
         i = cand[j]
@@ -379,10 +378,7 @@ def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, 
             cok[j] = 0
             continue
         cok[j] = 1
-        x0 = v[0]
-        alpha = -nrm if x0 >= 0.0 else nrm
-        v[0] = x0 - alpha
-        bt = 1.0 / (nrm * (nrm + abs(x0)))
+        alpha, bt = householder(v, nrm)
         for l in range(c0):
             R[l, c0] = Qb[j, l]
         R[c0, c0] = alpha
