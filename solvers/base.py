@@ -10,6 +10,7 @@ failures come back as a status with a reason.
 from __future__ import annotations
 
 import abc
+import math
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
@@ -31,6 +32,15 @@ ERROR = "error"                          #: an exception escaped from a backend
 
 STATUSES = (OPTIMAL, MAX_ITERATIONS, INFEASIBLE_LEVEL, NUMERICAL_FAILURE, UNSUPPORTED, TIMEOUT,
             CRASHED, ERROR)
+
+
+def _all_finite(x) -> bool:
+    """``np.isfinite(x).all()``; for a 1-D float vector first by ``x @ x`` (the
+    sum of squares is finite iff every entry is, unless it overflows: then the
+    full test decides), about 3x cheaper on the solve path."""
+    if isinstance(x, np.ndarray) and x.ndim == 1 and x.dtype == np.float64 and math.isfinite(x.dot(x)):
+        return True
+    return bool(np.isfinite(x).all())
 
 
 @dataclass
@@ -78,7 +88,7 @@ class SolveResult:
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
             raise ValueError(f"status {self.status!r} is not one of {STATUSES}")
-        if self.x is not None and self.status == OPTIMAL and not np.isfinite(self.x).all():
+        if self.x is not None and self.status == OPTIMAL and not _all_finite(self.x):
             # never NaN silently: a non-finite x cannot be called optimal
             self.status = NUMERICAL_FAILURE
             self.reason = (self.reason + "; " if self.reason else "") + "x holds NaN or inf"

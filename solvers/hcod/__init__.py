@@ -204,42 +204,44 @@ class HcodSolver(Solver):
     # -- hierarchies with inequalities: the active set (_kernel.py) -------------------------------
     def _bind(self, h: Hierarchy):
         """Workspaces for h (kept when the shape is unchanged: the warm-start
-        record survives) and a closure running one solve on them."""
+        record survives; the scaled problem is written into them) and a
+        closure running one solve on them."""
         from solvers.hcod._kernel import O_PREPARED, hcod_solve
-        from solvers.hcod._setup import layout
+        from solvers.hcod._setup import N_OUT, workspaces
 
         prep = _Prepared(h, self.min_norm, True)
         old = self._prep
         if old is None or old.key != prep.key or self._ws is None:
             n = h.n
-            foff, ioff = layout(n, prep.mt, prep.D, prep.mmax)
-            fw = np.zeros(int(foff[-1]))
-            iw = np.zeros(int(ioff[-1]), dtype=np.int64)
+            fw, iw, foff, ioff = workspaces(n, prep.mt, prep.D, prep.mmax)
             cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (prep.mt + n)
             wm = WARM_STARTS.index(self.warm_start)
-            ip = np.array([n, prep.mt, prep.D, prep.mmax, cap, wm, 1], dtype=np.int64)
-            self._ws = (fw, iw, foff, ioff, ip)
+            iw[ioff[18]:ioff[19]] = (n, prep.mt, prep.D, prep.mmax, cap, wm, 1)
+            fw[foff[27]:foff[28]] = self._prm
+            self._ws = (fw, iw, foff, ioff)
         else:
-            fw, iw, foff, ioff, ip = self._ws
+            fw, iw, foff, ioff = self._ws
+        fw[foff[24]:foff[25]] = prep.A.ravel()
+        fw[foff[25]:foff[26]] = prep.lo
+        fw[foff[26]:foff[27]] = prep.up
+        iw[ioff[17]:ioff[18]] = prep.starts
         iw[ioff[12] + O_PREPARED] = 0
         self._prep = prep
-        args = (prep.A, prep.lo, prep.up, prep.starts, fw, iw, foff, ioff, self._prm, ip)
         xv = fw[foff[2]:foff[3]]
         outv = iw[ioff[12]:ioff[13]]
-        itlv = iw[ioff[8]:ioff[8] + prep.D]
         depth = prep.depth
         extra = prep.D > depth
-        cap = int(ip[4])
+        cap = int(iw[ioff[18] + 4])
+        it0, it1 = N_OUT, N_OUT + depth
 
         def run() -> SolveResult:
             try:
-                hcod_solve(*args)
+                hcod_solve(fw, iw)
             except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
                 return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
                                    iterations_per_level=(0,) * depth)
             o = outv.tolist()
-            it = itlv.tolist()
-            info = {"min_norm_iterations": it[depth]} if extra else {}
+            info = {"min_norm_iterations": o[it1]} if extra else {}
             if o[6]:
                 info["warm_fallback_levels"] = o[6]
             x = xv.copy()
@@ -253,7 +255,7 @@ class HcodSolver(Solver):
                           "could not enter the decomposition)")
                 x = None
             return SolveResult(x=x, status=status, reason=reason, iterations=o[1],
-                               iterations_per_level=tuple(it[:depth]), activations=o[2], deactivations=o[3],
+                               iterations_per_level=tuple(o[it0:it1]), activations=o[2], deactivations=o[3],
                                flops=o[4], info=info)
 
         self._run = run

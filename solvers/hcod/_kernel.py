@@ -52,7 +52,7 @@ from solvers.hcod._linalg import (
     vaxpy,
     vdot,
 )
-from solvers.hcod._setup import prepare
+from solvers.hcod._setup import F_BLOCKS, N_HEAD, N_OUT, prepare
 
 _FM = set(FASTMATH)
 
@@ -60,6 +60,7 @@ INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
 O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P, O_PREPARED = range(9)
+_NF1 = len(F_BLOCKS) + 1
 BLAND_AFTER = 8  #: consecutive degenerate steps before the anti-cycling rule takes over
 
 
@@ -69,12 +70,18 @@ def _norm(x):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
-    """Solve the hierarchy (A, lo, up, starts) in the workspaces fw/iw.
+def hcod_solve(fw, iw):
+    """Solve the hierarchy held in the workspaces fw/iw (:mod:`._setup`: the
+    int workspace starts with the offsets of the blocks of both; two array
+    arguments keep the call overhead down).
 
-    ip = (n, mt, D, mmax, max_iter, warm_mode 0 none | 1 stage | 2 time, has_ineq);
-    prm = (rank_rtol, feas_rtol, dual_rtol, freeze_rtol). The solution is ``u`` in fw,
-    counters in ``out`` (see O_* slots), iterations per level in ``itl``."""
+    Blocks read: A (mt, n), lo, up (mt,), starts (D+1,); ip = (n, mt, D, mmax,
+    max_iter, warm_mode 0 none | 1 stage | 2 time, has_ineq); prm = (rank_rtol,
+    feas_rtol, dual_rtol, freeze_rtol). The solution is ``u`` in fw, counters in
+    ``out`` (see O_* slots) followed by the iterations per level."""
+    foff = iw[:_NF1]
+    ioff = iw[_NF1:N_HEAD]
+    ip = iw[ioff[18]:ioff[19]]
     n = ip[0]
     mt = ip[1]
     D = ip[2]
@@ -82,6 +89,7 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     max_iter = ip[4]
     warm = ip[5]
     has_ineq = ip[6] != 0
+    prm = fw[foff[27]:foff[28]]
     rank_rtol = prm[0]
     feas_rtol = prm[1]
     dual_rtol = prm[2]
@@ -110,6 +118,10 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     Mf = fw[foff[21]:foff[22]].reshape((mmax, n))
     Qb = fw[foff[22]:foff[23]].reshape((n, n))
     bq = fw[foff[23]:foff[24]]
+    A = fw[foff[24]:foff[25]].reshape((mt, n))
+    lo = fw[foff[25]:foff[26]]
+    up = fw[foff[26]:foff[27]]
+    starts = iw[ioff[17]:ioff[18]]
     state = iw[ioff[0]:ioff[1]]
     side = iw[ioff[1]:ioff[2]]
     kind = iw[ioff[2]:ioff[3]]
@@ -616,4 +628,6 @@ def hcod_solve(A, lo, up, starts, fw, iw, foff, ioff, prm, ip):
     out[O_LEVEL] = fail_level
     out[O_WARMFAIL] = warm_failed
     out[O_P] = p
+    for k in range(D):
+        out[N_OUT + k] = itl[k]
 
