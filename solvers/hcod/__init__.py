@@ -184,7 +184,7 @@ class HcodSolver(Solver):
     def reset(self) -> None:
         """Forget the warm-start record (the next solve is cold)."""
         if self._ws is not None:
-            iw, ioff = self._ws[1], self._ws[3]
+            iw, ioff = self._ws[1], self._ws[4]
             iw[ioff[11]:ioff[12]] = 0
 
     # -- equality-only hierarchies: the implicit-basis recursion (_equality.py) -------------------
@@ -213,21 +213,21 @@ class HcodSolver(Solver):
         old = self._prep
         if old is None or old.key != prep.key or self._ws is None:
             n = h.n
-            fw, iw, foff, ioff = workspaces(n, prep.mt, prep.D, prep.mmax)
+            fw, iw, foff, fend, ioff = workspaces(n, prep.mt, prep.D, prep.mmax)
             cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (prep.mt + n)
             wm = WARM_STARTS.index(self.warm_start)
             iw[ioff[18]:ioff[19]] = (n, prep.mt, prep.D, prep.mmax, cap, wm, 1)
-            fw[foff[27]:foff[28]] = self._prm
-            self._ws = (fw, iw, foff, ioff)
+            fw[foff[27]:fend[27]] = self._prm
+            self._ws = (fw, iw, foff, fend, ioff)
         else:
-            fw, iw, foff, ioff = self._ws
-        fw[foff[24]:foff[25]] = prep.A.ravel()
-        fw[foff[25]:foff[26]] = prep.lo
-        fw[foff[26]:foff[27]] = prep.up
+            fw, iw, foff, fend, ioff = self._ws
+        fw[foff[24]:fend[24]] = prep.A.ravel()
+        fw[foff[25]:fend[25]] = prep.lo
+        fw[foff[26]:fend[26]] = prep.up
         iw[ioff[17]:ioff[18]] = prep.starts
         iw[ioff[12] + O_PREPARED] = 0
         self._prep = prep
-        xv = fw[foff[2]:foff[3]]
+        xv = fw[foff[2]:fend[2]]
         outv = iw[ioff[12]:ioff[13]]
         depth = prep.depth
         extra = prep.D > depth

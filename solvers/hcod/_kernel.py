@@ -60,7 +60,8 @@ INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
 O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P, O_PREPARED = range(9)
-_NF1 = len(F_BLOCKS) + 1
+_NF = len(F_BLOCKS)
+_NF1 = _NF + 1
 BLAND_AFTER = 8  #: consecutive degenerate steps before the anti-cycling rule takes over
 
 
@@ -72,7 +73,8 @@ def _norm(x):
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def hcod_solve(fw, iw):
     """Solve the hierarchy held in the workspaces fw/iw (:mod:`._setup`: the
-    int workspace starts with the offsets of the blocks of both; two array
+    int workspace starts with the offsets of the blocks of both, and the ends of
+    the float blocks, which start on 64-byte boundaries; two array
     arguments keep the call overhead down).
 
     Blocks read: A (mt, n), lo, up (mt,), starts (D+1,); ip = (n, mt, D, mmax,
@@ -80,7 +82,8 @@ def hcod_solve(fw, iw):
     feas_rtol, dual_rtol, freeze_rtol). The solution is ``u`` in fw, counters in
     ``out`` (see O_* slots) followed by the iterations per level."""
     foff = iw[:_NF1]
-    ioff = iw[_NF1:N_HEAD]
+    fend = iw[_NF1:_NF1 + _NF]
+    ioff = iw[_NF1 + _NF:N_HEAD]
     ip = iw[ioff[18]:ioff[19]]
     n = ip[0]
     mt = ip[1]
@@ -89,38 +92,38 @@ def hcod_solve(fw, iw):
     max_iter = ip[4]
     warm = ip[5]
     has_ineq = ip[6] != 0
-    prm = fw[foff[27]:foff[28]]
+    prm = fw[foff[27]:fend[27]]
     rank_rtol = prm[0]
     feas_rtol = prm[1]
     dual_rtol = prm[2]
     freeze_rtol = prm[3]
-    Wt = fw[foff[0]:foff[1]].reshape((n, n))  # W stored by columns: Wt = W^T
-    R = fw[foff[1]:foff[2]].reshape((n, n))
-    u = fw[foff[2]:foff[3]]
-    ps = fw[foff[3]:foff[4]]
-    z = fw[foff[4]:foff[5]]
-    g = fw[foff[5]:foff[6]]
-    hv = fw[foff[6]:foff[7]]
-    nu = fw[foff[7]:foff[8]]
-    q = fw[foff[8]:foff[9]]
-    uprev = fw[foff[9]:foff[10]]
-    y = fw[foff[10]:foff[11]]
-    Mr = fw[foff[11]:foff[12]].reshape((mmax, n))
-    bvec = fw[foff[12]:foff[13]]
-    diag = fw[foff[13]:foff[14]]
-    beta = fw[foff[14]:foff[15]]
-    Lb = fw[foff[15]:foff[16]].reshape((max(min(n, mmax), 1), mmax))
-    target = fw[foff[16]:foff[17]]
-    rnorm = fw[foff[17]:foff[18]]
-    bval = fw[foff[18]:foff[19]]
-    lnorm = fw[foff[19]:foff[20]]
-    hist_du = fw[foff[20]:foff[21]].reshape((D, n))
-    Mf = fw[foff[21]:foff[22]].reshape((mmax, n))
-    Qb = fw[foff[22]:foff[23]].reshape((n, n))
-    bq = fw[foff[23]:foff[24]]
-    A = fw[foff[24]:foff[25]].reshape((mt, n))
-    lo = fw[foff[25]:foff[26]]
-    up = fw[foff[26]:foff[27]]
+    Wt = fw[foff[0]:fend[0]].reshape((n, n))  # W stored by columns: Wt = W^T
+    R = fw[foff[1]:fend[1]].reshape((n, n))
+    u = fw[foff[2]:fend[2]]
+    ps = fw[foff[3]:fend[3]]
+    z = fw[foff[4]:fend[4]]
+    g = fw[foff[5]:fend[5]]
+    hv = fw[foff[6]:fend[6]]
+    nu = fw[foff[7]:fend[7]]
+    q = fw[foff[8]:fend[8]]
+    uprev = fw[foff[9]:fend[9]]
+    y = fw[foff[10]:fend[10]]
+    Mr = fw[foff[11]:fend[11]].reshape((mmax, n))
+    bvec = fw[foff[12]:fend[12]]
+    diag = fw[foff[13]:fend[13]]
+    beta = fw[foff[14]:fend[14]]
+    Lb = fw[foff[15]:fend[15]].reshape((max(min(n, mmax), 1), mmax))
+    target = fw[foff[16]:fend[16]]
+    rnorm = fw[foff[17]:fend[17]]
+    bval = fw[foff[18]:fend[18]]
+    lnorm = fw[foff[19]:fend[19]]
+    hist_du = fw[foff[20]:fend[20]].reshape((D, n))
+    Mf = fw[foff[21]:fend[21]].reshape((mmax, n))
+    Qb = fw[foff[22]:fend[22]].reshape((n, n))
+    bq = fw[foff[23]:fend[23]]
+    A = fw[foff[24]:fend[24]].reshape((mt, n))
+    lo = fw[foff[25]:fend[25]]
+    up = fw[foff[26]:fend[26]]
     starts = iw[ioff[17]:ioff[18]]
     state = iw[ioff[0]:ioff[1]]
     side = iw[ioff[1]:ioff[2]]

@@ -1,5 +1,6 @@
 """The registry: lookup, and option-name validation in create()."""
 
+import numpy as np
 import pytest
 
 from problems import SolverNotFoundError, SolverOptionError
@@ -70,3 +71,19 @@ def test_create_errors(fake_registry, name, options, error, message):
 def test_option_names(fake_registry):
     assert registry.option_names(fake_registry["test-opt"]) == ("tol", "max_iter")
     assert registry.option_names(fake_registry["test-kwargs"]) is None
+
+
+@pytest.mark.parametrize(("x", "status"), [
+    (np.array([1.0, -2.0, 3.0]), "optimal"),
+    (np.array([1e200, -1e200]), "optimal"),  # x @ x overflows, x is finite: the full test decides
+    (np.array([1.0, np.nan]), "numerical_failure"),
+    (np.array([np.inf, 1.0]), "numerical_failure"),
+    (np.array([-np.inf, np.inf]), "numerical_failure"),
+    (np.array([[1.0, np.nan]]), "numerical_failure"),  # not a vector: the full test
+    (np.array([1, 2], dtype=np.int64), "optimal"),
+    (np.zeros(0), "optimal"),
+], ids=["finite", "huge-finite", "nan", "inf", "inf-minus-inf", "2d-nan", "int", "empty"])
+def test_optimal_result_with_nonfinite_x_becomes_numerical_failure(x, status):
+    r = SolveResult(x=x, status="optimal")
+    assert r.status == status
+    assert ("NaN or inf" in r.reason) == (status == "numerical_failure")
