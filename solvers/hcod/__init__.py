@@ -184,8 +184,9 @@ class HcodSolver(Solver):
     def reset(self) -> None:
         """Forget the warm-start record (the next solve is cold)."""
         if self._ws is not None:
-            iw, ioff = self._ws[1], self._ws[4]
-            iw[ioff[11]:ioff[12]] = 0
+            from solvers.hcod._setup import iblock
+
+            iblock(self._ws[1], self._ws[4], "hist_valid")[:] = 0
 
     # -- equality-only hierarchies: the implicit-basis recursion (_equality.py) -------------------
     def _solve_equality(self, h: Hierarchy) -> SolveResult:
@@ -207,7 +208,7 @@ class HcodSolver(Solver):
         record survives; the scaled problem is written into them) and a
         closure running one solve on them."""
         from solvers.hcod._kernel import O_PREPARED, hcod_solve
-        from solvers.hcod._setup import N_OUT, workspaces
+        from solvers.hcod._setup import N_OUT, fblock, iblock, workspaces
 
         prep = _Prepared(h, self.min_norm, True)
         old = self._prep
@@ -216,22 +217,22 @@ class HcodSolver(Solver):
             fw, iw, foff, fend, ioff = workspaces(n, prep.mt, prep.D, prep.mmax)
             cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (prep.mt + n)
             wm = WARM_STARTS.index(self.warm_start)
-            iw[ioff[18]:ioff[19]] = (n, prep.mt, prep.D, prep.mmax, cap, wm, 1)
-            fw[foff[27]:fend[27]] = self._prm
+            iblock(iw, ioff, "ip")[:] = (n, prep.mt, prep.D, prep.mmax, cap, wm, 1)
+            fblock(fw, foff, fend, "prm")[:] = self._prm
             self._ws = (fw, iw, foff, fend, ioff)
         else:
             fw, iw, foff, fend, ioff = self._ws
-        fw[foff[24]:fend[24]] = prep.A.ravel()
-        fw[foff[25]:fend[25]] = prep.lo
-        fw[foff[26]:fend[26]] = prep.up
-        iw[ioff[17]:ioff[18]] = prep.starts
-        iw[ioff[12] + O_PREPARED] = 0
+        fblock(fw, foff, fend, "A")[:] = prep.A.ravel()
+        fblock(fw, foff, fend, "lo")[:] = prep.lo
+        fblock(fw, foff, fend, "up")[:] = prep.up
+        iblock(iw, ioff, "starts")[:] = prep.starts
+        outv = iblock(iw, ioff, "out")
+        outv[O_PREPARED] = 0
         self._prep = prep
-        xv = fw[foff[2]:fend[2]]
-        outv = iw[ioff[12]:ioff[13]]
+        xv = fblock(fw, foff, fend, "u")
         depth = prep.depth
         extra = prep.D > depth
-        cap = int(iw[ioff[18] + 4])
+        cap = int(iblock(iw, ioff, "ip")[4])
         it0, it1 = N_OUT, N_OUT + depth
 
         def run() -> SolveResult:

@@ -52,7 +52,7 @@ from solvers.hcod._linalg import (
     vaxpy,
     vdot,
 )
-from solvers.hcod._setup import F_BLOCKS, N_HEAD, N_OUT, prepare
+from solvers.hcod._setup import FEND0, IOFF0, N_HEAD, N_OUT, prepare
 
 _FM = set(FASTMATH)
 
@@ -60,8 +60,6 @@ INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
 O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P, O_PREPARED = range(9)
-_NF = len(F_BLOCKS)
-_NF1 = _NF + 1
 BLAND_AFTER = 8  #: consecutive degenerate steps before the anti-cycling rule takes over
 
 
@@ -81,10 +79,10 @@ def hcod_solve(fw, iw):
     max_iter, warm_mode 0 none | 1 stage | 2 time, has_ineq); prm = (rank_rtol,
     feas_rtol, dual_rtol, freeze_rtol). The solution is ``u`` in fw, counters in
     ``out`` (see O_* slots) followed by the iterations per level."""
-    foff = iw[:_NF1]
-    fend = iw[_NF1:_NF1 + _NF]
-    ioff = iw[_NF1 + _NF:N_HEAD]
-    ip = iw[ioff[18]:ioff[19]]
+    foff = iw[:FEND0]
+    fend = iw[FEND0:IOFF0]
+    ioff = iw[IOFF0:N_HEAD]
+    ip = iw[ioff[17]:ioff[18]]
     n = ip[0]
     mt = ip[1]
     D = ip[2]
@@ -124,7 +122,7 @@ def hcod_solve(fw, iw):
     A = fw[foff[24]:fend[24]].reshape((mt, n))
     lo = fw[foff[25]:fend[25]]
     up = fw[foff[26]:fend[26]]
-    starts = iw[ioff[17]:ioff[18]]
+    starts = iw[ioff[16]:ioff[17]]
     state = iw[ioff[0]:ioff[1]]
     side = iw[ioff[1]:ioff[2]]
     kind = iw[ioff[2]:ioff[3]]
@@ -133,15 +131,15 @@ def hcod_solve(fw, iw):
     widx = iw[ioff[5]:ioff[6]]
     wside = iw[ioff[6]:ioff[7]]
     Olist = iw[ioff[7]:ioff[8]]
-    itl = iw[ioff[8]:ioff[9]]
-    hist_state = iw[ioff[9]:ioff[10]].reshape((D, mt))
-    hist_side = iw[ioff[10]:ioff[11]].reshape((D, mt))
-    hist_valid = iw[ioff[11]:ioff[12]]
-    out = iw[ioff[12]:ioff[13]]
-    levid = iw[ioff[13]:ioff[14]]
-    piv = iw[ioff[14]:ioff[15]]
-    cand = iw[ioff[15]:ioff[16]]
-    cok = iw[ioff[16]:ioff[17]]
+    hist_state = iw[ioff[8]:ioff[9]].reshape((D, mt))
+    hist_side = iw[ioff[9]:ioff[10]].reshape((D, mt))
+    hist_valid = iw[ioff[10]:ioff[11]]
+    out = iw[ioff[11]:ioff[12]]
+    itl = out[N_OUT:N_OUT + D]  # iterations per level, read with the counters
+    levid = iw[ioff[12]:ioff[13]]
+    piv = iw[ioff[13]:ioff[14]]
+    cand = iw[ioff[14]:ioff[15]]
+    cok = iw[ioff[15]:ioff[16]]
 
     if out[O_PREPARED] == 0:
         prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, widx)
@@ -631,6 +629,4 @@ def hcod_solve(fw, iw):
     out[O_LEVEL] = fail_level
     out[O_WARMFAIL] = warm_failed
     out[O_P] = p
-    for k in range(D):
-        out[N_OUT + k] = itl[k]
 

@@ -19,11 +19,14 @@ ALIGN = 8  #: float blocks start on multiples of 8 doubles (64 bytes)
 # the last ones hold the (scaled) problem and the parameters, so the kernel takes two arrays
 F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
             "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf", "Qb", "bq", "A", "lo", "up", "prm")
-I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "itl", "hist_state",
+# int blocks; "out" holds the N_OUT counters, then the iterations per level
+I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "hist_state",
             "hist_side", "hist_valid", "out", "levid", "piv", "cand", "cok", "starts", "ip")
 #: the int workspace starts with the offsets themselves: foff (starts of the float blocks and
-#: the total, len(F_BLOCKS) + 1), fend (ends of the float blocks, len(F_BLOCKS)), then ioff
-N_HEAD = 2 * len(F_BLOCKS) + 1 + len(I_BLOCKS) + 1
+#: the total, iw[:FEND0]), fend (ends of the float blocks, iw[FEND0:IOFF0]), ioff (iw[IOFF0:N_HEAD])
+FEND0 = len(F_BLOCKS) + 1
+IOFF0 = FEND0 + len(F_BLOCKS)
+N_HEAD = IOFF0 + len(I_BLOCKS) + 1
 
 
 def layout(n: int, mt: int, D: int, mmax: int):
@@ -35,7 +38,7 @@ def layout(n: int, mt: int, D: int, mmax: int):
     mm = max(mmax, 1)
     fsz = (n * n, n * n, n, n, n, n, n, n, n, n, n, mm * n, mm, mm, mm, mm * max(min(n, mm), 1), mt, mt, mt, D,
            D * n, mm * n, n * n, n, mt * n, mt, mt, N_PRM)
-    isz = (mt, mt, mt, mt, mt, n, n, mm, D, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP)
+    isz = (mt, mt, mt, mt, mt, n, n, mm, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP)
     foff = np.array((0, *accumulate(-(-size // ALIGN) * ALIGN for size in fsz)), dtype=np.int64)
     fend = foff[:-1] + np.array(fsz, dtype=np.int64)
     return foff, fend, np.array((N_HEAD, *(N_HEAD + c for c in accumulate(isz))), dtype=np.int64)
@@ -53,11 +56,22 @@ def workspaces(n: int, mt: int, D: int, mmax: int):
     start = (-buf.ctypes.data % (8 * ALIGN)) // 8
     fw = buf[start:start + size]
     iw = np.zeros(int(ioff[-1]), dtype=np.int64)
-    nf = foff.shape[0]
-    iw[:nf] = foff
-    iw[nf:2 * nf - 1] = fend
-    iw[2 * nf - 1:N_HEAD] = ioff
+    iw[:FEND0] = foff
+    iw[FEND0:IOFF0] = fend
+    iw[IOFF0:N_HEAD] = ioff
     return fw, iw, foff, fend, ioff
+
+
+def fblock(fw, foff, fend, name: str):
+    """The float block ``name`` (one of F_BLOCKS) of fw, a view."""
+    b = F_BLOCKS.index(name)
+    return fw[foff[b]:fend[b]]
+
+
+def iblock(iw, ioff, name: str):
+    """The int block ``name`` (one of I_BLOCKS) of iw, a view."""
+    b = I_BLOCKS.index(name)
+    return iw[ioff[b]:ioff[b + 1]]
 
 
 @njit(cache=True, nogil=True, error_model="numpy")
