@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod._linalg import FASTMATH, householder, level_scale, vdot, vreflect
+from solvers.hcod._linalg import FASTMATH, householder, level_scale, unowned, vdot, vreflect
 
 __all__ = ["eq_solve"]
 
@@ -69,6 +69,13 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
 
     Returns the multiply-add count, or -1 when x is not finite (breakdown).
     """
+    # (unowned: no reference counting of the row views taken in the loops below)
+    A = unowned(A)
+    At = unowned(At)
+    beta = unowned(beta)
+    cn = unowned(cn)
+    xi = unowned(xi)
+    x = unowned(x)
     _m, n = A.shape
     D = starts.shape[0] - 1
     fl = 0

@@ -49,6 +49,7 @@ from solvers.hcod._linalg import (
     row_dot,
     solve_lower,
     step_from_z,
+    unowned,
     vaxpy,
     vdot,
 )
@@ -79,6 +80,8 @@ def hcod_solve(fw, iw):
     max_iter, warm_mode 0 none | 1 stage | 2 time, has_ineq); prm = (rank_rtol,
     feas_rtol, dual_rtol, freeze_rtol). The solution is ``u`` in fw, counters in
     ``out`` (see O_* slots) followed by the iterations per level."""
+    fw = unowned(fw)  # (no reference counting of the block views and helper calls)
+    iw = unowned(iw)
     foff = iw[:FEND0]
     fend = iw[FEND0:IOFF0]
     ioff = iw[IOFF0:N_HEAD]
@@ -90,7 +93,7 @@ def hcod_solve(fw, iw):
     max_iter = ip[4]
     warm = ip[5]
     has_ineq = ip[6] != 0
-    prm = fw[foff[27]:fend[27]]
+    prm = fw[foff[28]:fend[28]]
     rank_rtol = prm[0]
     feas_rtol = prm[1]
     dual_rtol = prm[2]
@@ -119,9 +122,10 @@ def hcod_solve(fw, iw):
     Mf = fw[foff[21]:fend[21]].reshape((mmax, n))
     Qb = fw[foff[22]:fend[22]].reshape((n, n))
     bq = fw[foff[23]:fend[23]]
-    A = fw[foff[24]:fend[24]].reshape((mt, n))
-    lo = fw[foff[25]:fend[25]]
-    up = fw[foff[26]:fend[26]]
+    sv = fw[foff[24]:fend[24]]
+    A = fw[foff[25]:fend[25]].reshape((mt, n))
+    lo = fw[foff[26]:fend[26]]
+    up = fw[foff[27]:fend[27]]
     starts = iw[ioff[16]:ioff[17]]
     state = iw[ioff[0]:ioff[1]]
     side = iw[ioff[1]:ioff[2]]
@@ -197,7 +201,7 @@ def hcod_solve(fw, iw):
                 if dropped:
                     for i in range(s0):
                         if state[i] == IMPLIED:
-                            ok, f, bt = insert_row(A, i, bcol, bval, Wt, R, p, rank_rtol * lnorm[rowlev[i]], q)
+                            ok, f, bt = insert_row(A, i, bcol, bval, Wt, R, p, rank_rtol * lnorm[rowlev[i]], q, sv)
                             fl += f
                             if ok:
                                 widx[p] = i
@@ -246,7 +250,7 @@ def hcod_solve(fw, iw):
                         cand[m_in] = i
                         m_in += 1
                 if m_in > 0:
-                    _, f = insert_rows(A, cand, m_in, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok)
+                    _, f = insert_rows(A, cand, m_in, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv)
                     fl += f
                     for j in range(m_in):
                         if cok[j]:
@@ -432,7 +436,7 @@ def hcod_solve(fw, iw):
                             fl += project_into(A, Olist, nO, nO + 1, bcol, bval, Wt, p, Mf)
                         nO += 1
                     else:
-                        ok, f, bt = insert_row(A, blk, bcol, bval, Wt, R, p, rank_rtol * lnorm[rowlev[blk]], q)
+                        ok, f, bt = insert_row(A, blk, bcol, bval, Wt, R, p, rank_rtol * lnorm[rowlev[blk]], q, sv)
                         fl += f
                         if not ok:
                             status = ST_NUMERICAL
@@ -536,7 +540,7 @@ def hcod_solve(fw, iw):
                             for i2 in range(s0):
                                 if state[i2] == IMPLIED:
                                     ok, f, bt = insert_row(A, i2, bcol, bval, Wt, R, p,
-                                                           rank_rtol * lnorm[rowlev[i2]], q)
+                                                           rank_rtol * lnorm[rowlev[i2]], q, sv)
                                     fl += f
                                     if ok and mf_valid:
                                         fl += mf_reflect(Mf, nO, p, q, bt)
@@ -567,7 +571,7 @@ def hcod_solve(fw, iw):
                 break
             elif not has_ineq:
                 if r > 0:
-                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r)
+                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv)
                 for j in range(nO):
                     state[Olist[piv[j]]] = WORK if j < r else IMPLIED
                 p += r
@@ -594,7 +598,7 @@ def hcod_solve(fw, iw):
                         for l in range(t):
                             R[p + l, p + t] = Mr[t, l]
                         R[p + t, p + t] = diag[t]
-                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r)
+                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv)
                 for j in range(nO):
                     i = Olist[piv[j]]
                     av = row_dot(A[i], bcol[i], bval[i], u)
@@ -606,7 +610,7 @@ def hcod_solve(fw, iw):
                     if cod_done:
                         ok = j < r
                     else:
-                        ok, f, bt = insert_row(A, i, bcol, bval, Wt, R, p, thr_k, q)
+                        ok, f, bt = insert_row(A, i, bcol, bval, Wt, R, p, thr_k, q, sv)
                         fl += f
                     side[i] = sd
                     if ok:

@@ -23,11 +23,14 @@ import math
 
 import numpy as np
 from numba import njit
+from numba.extending import intrinsic
+from numba.np.arrayobj import make_array, populate_array
 
 #: below these sizes the vectorised loops beat a BLAS call (its overhead ~1 us; measured on
 #: this machine: the loops win up to n = 48 at any reflector count, BLAS from n = 64 up)
 BLAS_MIN_REFLECTORS = 8
 BLAS_MIN_N = 64
+BLAS_MIN_WORK = 20_000
 #: fast-math flags of every kernel: reassociation (vectorised reductions) and FMA
 #: contraction; no "nnan"/"ninf" (the kernels test finiteness)
 FASTMATH = frozenset({"reassoc", "contract", "nsz", "arcp"})
@@ -90,7 +93,26 @@ def wt_times_row(A, i, bcol, bval, Wt, out):
     for c in range(n):
         out[c] = vdot(Wt[c], ra)
     return n * n
-BLAS_MIN_WORK = 20_000
+
+
+@intrinsic
+def unowned(typingctx, arr):
+    """The array ``arr`` (same data, shape, strides and type) with no owner
+    (null meminfo and parent). numba then skips the reference counting of
+    every view taken of it and of every call it is passed to: on an owned
+    array each costs two atomic operations, ~0.7 us per solve at the entry
+    of the kernel alone (its ~45 block views). Valid while the caller holds
+    ``arr`` (the kernels' workspaces, held by the solver object); the result
+    and its views must not outlive the call (the kernels return none)."""
+
+    def codegen(context, builder, sig, args):
+        src = make_array(sig.args[0])(context, builder, args[0])
+        dst = make_array(sig.return_type)(context, builder)
+        populate_array(dst, data=src.data, shape=src.shape, strides=src.strides,
+                       itemsize=src.itemsize, meminfo=None, parent=None)
+        return dst._getvalue()
+
+    return arr(arr), codegen
 
 __all__ = [
     "apply_reflectors",
@@ -107,6 +129,7 @@ __all__ = [
     "row_dot",
     "solve_lower",
     "step_from_z",
+    "unowned",
     "wt_times_row",
 ]
 
@@ -276,18 +299,17 @@ def step_from_z(Wt, p, z, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def apply_reflectors_to_basis(Wt, p, Mr, beta, r):
+def apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv):
     """``W[:, p:] <- W[:, p:] H`` (eq. 23: ``[Y_bar_k, Z_k] = Z_{k-1} H``) with
     ``H = H_0 ... H_{r-1}``, reflector i = ``I - beta[i] v v^T`` on the
     columns ``p + i:`` (``v = Mr[i, i:nf]``). On ``Wt = W^T``: ``s = sum_c v_c
     Wt[p + i + c]``, then ``Wt[p + i + c] -= beta_i v_c s`` (vectors of length n).
     After it, ``W[:, p:p+r]`` spans the projected level and ``W[:, p+r:]`` is
-    ``Z_k``. Returns flops."""
+    ``Z_k``. sv (n,) is scratch. Returns flops."""
     n = Wt.shape[0]
     nf = n - p
     if n >= BLAS_MIN_N and r >= BLAS_MIN_REFLECTORS and n * nf * r >= BLAS_MIN_WORK:
         return _apply_reflectors_wy(Wt, p, Mr, beta, r)
-    sv = np.empty(n)
     for i in range(r):
         sv[:] = 0.0
         for c in range(i, nf):
@@ -329,23 +351,26 @@ def _apply_reflectors_wy(Wt, p, Mr, beta, r):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def insert_row(A, i, bcol, bval, Wt, R, p, thr, q):
+def insert_row(A, i, bcol, bval, Wt, R, p, thr, q, sv):
     """Add row ``a = A[i]`` to the working constraints by one Householder
     update of ``W`` (sec. IX: the decomposition is updated, not recomputed):
     ``q = W^T a``; the reflector that maps ``q[p:]`` to ``alpha e_1`` is
     applied to ``W[:, p:]`` from the right; ``R[:, p] = (q[:p], alpha)``.
 
     The row is refused (returns False) when ``||q[p:]|| <= thr``: it is a
-    combination of the working rows (rank detection). On success the reflector
-    vector stays in ``q[p:]``. Returns (ok, flops, beta)."""
+    combination of the working rows (rank detection), and at once when ``p = n``
+    (no room left). On success the reflector vector stays in ``q[p:]``. sv (n,)
+    is scratch. Returns (ok, flops, beta)."""
     n = Wt.shape[0]
+    if p >= n:
+        return False, 0, 0.0
     fl = wt_times_row(A, i, bcol, bval, Wt, q)
     qz = q[p:]
     nrm = math.sqrt(vdot(qz, qz))
     if not nrm > thr:
         return False, fl, 0.0
     alpha, bt = householder(qz, nrm)
-    sv = np.zeros(n)
+    sv[:] = 0.0
     for c in range(n - p):
         vaxpy(qz[c], Wt[p + c], sv)
     for c in range(n - p):
@@ -358,14 +383,14 @@ def insert_row(A, i, bcol, bval, Wt, R, p, thr, q):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok):
+def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv):
     """Add the rows ``A[cand[:m]]`` to the working constraints, in order, as m
     calls of :func:`insert_row` would (same rank test, same ``W`` and ``R``),
     but blocked: ``Q = A_cand W`` at once, the Householder QR of ``Q[:, p:]``
     row by row (row j meets the reflectors of the accepted rows before it),
     then the t accepted reflectors applied to ``W[:, p:]`` together
     (:func:`apply_reflectors_to_basis`). ``cok[j]`` = 1 when row j entered.
-    Shapes: Qb (>= m, n), bq (>= m). Returns (t, flops)."""
+    Shapes: Qb (>= m, n), bq (>= m), sv (n,) scratch. Returns (t, flops)."""
     n = Wt.shape[0]
     fl = 0
     for j in range(m):
@@ -392,7 +417,7 @@ def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, 
         bq[t] = bt
         t += 1
     if t > 0:
-        fl += apply_reflectors_to_basis(Wt, p, Qb[:, p:], bq, t)
+        fl += apply_reflectors_to_basis(Wt, p, Qb[:, p:], bq, t, sv)
     return t, fl
 
 

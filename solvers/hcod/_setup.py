@@ -18,7 +18,8 @@ ALIGN = 8  #: float blocks start on multiples of 8 doubles (64 bytes)
 # float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n);
 # the last ones hold the (scaled) problem and the parameters, so the kernel takes two arrays
 F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
-            "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf", "Qb", "bq", "A", "lo", "up", "prm")
+            "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf", "Qb", "bq", "sv", "A", "lo", "up",
+            "prm")
 # int blocks; "out" holds the N_OUT counters, then the iterations per level
 I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "hist_state",
             "hist_side", "hist_valid", "out", "levid", "piv", "cand", "cok", "starts", "ip")
@@ -37,7 +38,7 @@ def layout(n: int, mt: int, D: int, mmax: int):
     entries that stores all three."""
     mm = max(mmax, 1)
     fsz = (n * n, n * n, n, n, n, n, n, n, n, n, n, mm * n, mm, mm, mm, mm * max(min(n, mm), 1), mt, mt, mt, D,
-           D * n, mm * n, n * n, n, mt * n, mt, mt, N_PRM)
+           D * n, mm * n, n * n, n, n, mt * n, mt, mt, N_PRM)
     isz = (mt, mt, mt, mt, mt, n, n, mm, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP)
     foff = np.array((0, *accumulate(-(-size // ALIGN) * ALIGN for size in fsz)), dtype=np.int64)
     fend = foff[:-1] + np.array(fsz, dtype=np.int64)

@@ -409,20 +409,20 @@ def test_blocked_insertion_matches_one_row_at_a_time(n, p, m):
     bval = np.zeros(p + m)
     bval[p + 2] = -1.5
     lnorm, rowlev = np.ones(1), np.zeros(p + m, dtype=np.int64)
-    Wt0, R0, q = np.eye(n), np.zeros((n, n)), np.zeros(n)
+    Wt0, R0, q, sv = np.eye(n), np.zeros((n, n)), np.zeros(n), np.zeros(n)
     for i in range(p):                         # p working rows first
-        ok, _, _ = insert_row(A, i, bcol, bval, Wt0, R0, i, 1e-10, q)
+        ok, _, _ = insert_row(A, i, bcol, bval, Wt0, R0, i, 1e-10, q, sv)
         assert ok
     cand = np.arange(p, p + m, dtype=np.int64)
 
     Wt1, R1, p1, ok1 = Wt0.copy(), R0.copy(), p, []
     for i in cand:
-        ok, _, _ = insert_row(A, i, bcol, bval, Wt1, R1, p1, 1e-10, q)
+        ok, _, _ = insert_row(A, i, bcol, bval, Wt1, R1, p1, 1e-10, q, sv)
         ok1.append(int(ok))
         p1 += ok
     Wt2, R2, cok = Wt0.copy(), R0.copy(), np.zeros(n, dtype=np.int64)
     t, _ = insert_rows(A, cand, m, bcol, bval, Wt2, R2, p, 1e-10, lnorm, rowlev,
-                       np.zeros((n, n)), np.zeros(n), cok)
+                       np.zeros((n, n)), np.zeros(n), cok, sv)
 
     assert cok[:m].tolist() == ok1 and ok1[1] == 0 and t == p1 - p
     np.testing.assert_allclose(R2[:p1, :p1], R1[:p1, :p1], rtol=0, atol=1e-10)
@@ -430,3 +430,40 @@ def test_blocked_insertion_matches_one_row_at_a_time(n, p, m):
     np.testing.assert_allclose(Wt2 @ Wt2.T, np.eye(n), rtol=0, atol=1e-12)
     rows = np.r_[np.arange(p), cand[cok[:m] == 1]]
     np.testing.assert_allclose(Wt2[:p1].T @ np.triu(R2[:p1, :p1]), A[rows].T, rtol=0, atol=1e-10)
+
+
+def test_insert_row_refuses_without_room():
+    """With p = n working rows there is no Z left: insert_row refuses the row
+    at once and leaves W and R as they were."""
+    from solvers.hcod._linalg import insert_row
+
+    n = 4
+    A = np.arange(1.0, n + 1.0)[None, :]
+    Wt, R, q, sv = np.eye(n), np.triu(np.ones((n, n))), np.zeros(n), np.zeros(n)
+    ok, flops, _ = insert_row(A, 0, np.array([-1]), np.zeros(1), Wt, R, n, 1e-10, q, sv)
+    assert not ok and flops == 0
+    np.testing.assert_array_equal(Wt, np.eye(n))
+    np.testing.assert_array_equal(R, np.triu(np.ones((n, n))))
+
+
+@pytest.mark.parametrize("shape", [(7,), (3, 5)], ids=["1d", "2d"])
+def test_unowned_array_is_the_same_data(shape):
+    """The kernels' workspaces enter as unowned arrays (no reference
+    counting): same shape, same memory; writes through a view land in the
+    caller's array."""
+    from numba import njit
+
+    from solvers.hcod._linalg import unowned
+
+    @njit
+    def fill(a):
+        u = unowned(a)
+        v = u.reshape(-1)
+        for c in range(v.shape[0]):
+            v[c] = c + 0.5
+        return u.shape, u.ctypes.data
+
+    a = np.zeros(shape)
+    got_shape, addr = fill(a)
+    assert got_shape == shape and addr == a.ctypes.data
+    np.testing.assert_array_equal(a.reshape(-1), np.arange(a.size) + 0.5)
