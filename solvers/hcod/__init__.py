@@ -255,9 +255,10 @@ class HcodSolver(Solver):
                 reason = (f"hcod: numerical breakdown at level {o[5]} (x not finite, or a blocking row "
                           "could not enter the decomposition)")
                 x = None
+            # (x_finite: the kernel tested every entry of u with isfinite, status 2 otherwise)
             return SolveResult(x=x, status=status, reason=reason, iterations=o[1],
                                iterations_per_level=tuple(o[it0:it1]), activations=o[2], deactivations=o[3],
-                               flops=o[4], info=info)
+                               flops=o[4], info=info, x_finite=True)
 
         self._run = run
         return run

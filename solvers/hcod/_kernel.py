@@ -43,6 +43,7 @@ from solvers.hcod._linalg import (
     delete_row,
     insert_row,
     insert_rows,
+    matrix_view,
     mf_reflect,
     multipliers,
     project_into,
@@ -98,8 +99,8 @@ def hcod_solve(fw, iw):
     feas_rtol = prm[1]
     dual_rtol = prm[2]
     freeze_rtol = prm[3]
-    Wt = fw[foff[0]:fend[0]].reshape((n, n))  # W stored by columns: Wt = W^T
-    R = fw[foff[1]:fend[1]].reshape((n, n))
+    Wt = matrix_view(fw[foff[0]:fend[0]], n, n)  # W stored by columns: Wt = W^T
+    R = matrix_view(fw[foff[1]:fend[1]], n, n)
     u = fw[foff[2]:fend[2]]
     ps = fw[foff[3]:fend[3]]
     z = fw[foff[4]:fend[4]]
@@ -109,21 +110,21 @@ def hcod_solve(fw, iw):
     q = fw[foff[8]:fend[8]]
     uprev = fw[foff[9]:fend[9]]
     y = fw[foff[10]:fend[10]]
-    Mr = fw[foff[11]:fend[11]].reshape((mmax, n))
+    Mr = matrix_view(fw[foff[11]:fend[11]], mmax, n)
     bvec = fw[foff[12]:fend[12]]
     diag = fw[foff[13]:fend[13]]
     beta = fw[foff[14]:fend[14]]
-    Lb = fw[foff[15]:fend[15]].reshape((max(min(n, mmax), 1), mmax))
+    Lb = matrix_view(fw[foff[15]:fend[15]], max(min(n, mmax), 1), mmax)
     target = fw[foff[16]:fend[16]]
     rnorm = fw[foff[17]:fend[17]]
     bval = fw[foff[18]:fend[18]]
     lnorm = fw[foff[19]:fend[19]]
-    hist_du = fw[foff[20]:fend[20]].reshape((D, n))
-    Mf = fw[foff[21]:fend[21]].reshape((mmax, n))
-    Qb = fw[foff[22]:fend[22]].reshape((n, n))
+    hist_du = matrix_view(fw[foff[20]:fend[20]], D, n)
+    Mf = matrix_view(fw[foff[21]:fend[21]], mmax, n)
+    Qb = matrix_view(fw[foff[22]:fend[22]], n, n)
     bq = fw[foff[23]:fend[23]]
     sv = fw[foff[24]:fend[24]]
-    A = fw[foff[25]:fend[25]].reshape((mt, n))
+    A = matrix_view(fw[foff[25]:fend[25]], mt, n)
     lo = fw[foff[26]:fend[26]]
     up = fw[foff[27]:fend[27]]
     starts = iw[ioff[16]:ioff[17]]
@@ -135,8 +136,8 @@ def hcod_solve(fw, iw):
     widx = iw[ioff[5]:ioff[6]]
     wside = iw[ioff[6]:ioff[7]]
     Olist = iw[ioff[7]:ioff[8]]
-    hist_state = iw[ioff[8]:ioff[9]].reshape((D, mt))
-    hist_side = iw[ioff[9]:ioff[10]].reshape((D, mt))
+    hist_state = matrix_view(iw[ioff[8]:ioff[9]], D, mt)
+    hist_side = matrix_view(iw[ioff[9]:ioff[10]], D, mt)
     hist_valid = iw[ioff[10]:ioff[11]]
     out = iw[ioff[11]:ioff[12]]
     itl = out[N_OUT:N_OUT + D]  # iterations per level, read with the counters
@@ -247,7 +248,19 @@ def hcod_solve(fw, iw):
                     sd = hist_side[k, i]
                     if (hist_state[k, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0
                             and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf) and m_in < n):  # (<= n: WORK rows)
-                        cand[m_in] = i
+                        # the level whose record drops the row (D: none); rows that leave
+                        # sooner enter later: a row deleted sits behind fewer rows (fewer
+                        # Givens rotations in delete_row). Insertion sort, descending.
+                        dl = k + 1
+                        while dl < D and hist_valid[dl] != 0 and hist_state[dl, i] == WORK:
+                            dl += 1
+                        j = m_in
+                        while j > 0 and cok[j - 1] < dl:
+                            cand[j] = cand[j - 1]
+                            cok[j] = cok[j - 1]
+                            j -= 1
+                        cand[j] = i
+                        cok[j] = dl
                         m_in += 1
                 if m_in > 0:
                     _, f = insert_rows(A, cand, m_in, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv)

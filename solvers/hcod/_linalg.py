@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
 
@@ -114,6 +114,29 @@ def unowned(typingctx, arr):
 
     return arr(arr), codegen
 
+
+@intrinsic
+def matrix_view(typingctx, vec, rows, cols):
+    """``vec.reshape((rows, cols))`` for a C-contiguous 1-D view of an
+    :func:`unowned` array, without reshape's checks (~20 ns each; the kernel
+    takes ten such views per call): the caller guarantees ``rows * cols <=
+    vec.size``. The result is unowned, like ``vec``."""
+    if not (isinstance(vec, types.Array) and vec.ndim == 1 and vec.layout == "C"):
+        return None
+    mat = types.Array(vec.dtype, 2, "C")
+
+    def codegen(context, builder, sig, args):
+        src = make_array(sig.args[0])(context, builder, args[0])
+        dst = make_array(mat)(context, builder)
+        nr = context.cast(builder, args[1], sig.args[1], types.intp)
+        nc = context.cast(builder, args[2], sig.args[2], types.intp)
+        row_bytes = builder.mul(nc, src.itemsize)
+        populate_array(dst, data=src.data, shape=[nr, nc], strides=[row_bytes, src.itemsize],
+                       itemsize=src.itemsize, meminfo=None, parent=None)
+        return dst._getvalue()
+
+    return mat(vec, rows, cols), codegen
+
 __all__ = [
     "apply_reflectors",
     "apply_reflectors_to_basis",
@@ -123,6 +146,7 @@ __all__ = [
     "insert_row",
     "insert_rows",
     "level_scale",
+    "matrix_view",
     "mf_reflect",
     "multipliers",
     "project_into",
@@ -426,28 +450,44 @@ def delete_row(j, Wt, R, p, widx, wside):
     """Remove working row j (0 <= j < p): drop column j of R (it becomes upper
     Hessenberg) and restore the triangle by Givens rotations applied to R's
     rows and W's columns (``W R`` is unchanged; the columns of W are the rows
-    of ``Wt``). ``widx``/``wside`` shift. Returns flops; the caller decrements p."""
+    of ``Wt``). ``widx``/``wside`` shift. Returns flops; the caller decrements p.
+
+    The rotation of ``(a, b) = (R[i, i], R[i + 1, i])`` takes ``sqrt(a^2 +
+    b^2)``, not hypot: R's columns are rows of a level scaled to norm 1
+    (entries <= 1 in magnitude) and ``b`` is a former diagonal entry, above
+    the rank threshold (1e-10 by default): far from under- and overflow."""
     n = Wt.shape[0]
     fl = 0
+    if j >= p - 1:
+        return 0
     for col in range(j, p - 1):
         for rr in range(col + 2):
             R[rr, col] = R[rr, col + 1]
         widx[col] = widx[col + 1]
         wside[col] = wside[col + 1]
+    # Givens rotations down the subdiagonal. The next pivot a = R[i + 1, i + 1] after
+    # rotation i is carried in a register (computed from the entries loaded before the row
+    # update): the chain from one rotation to the next is sqrt, division, one fma
+    a = R[j, j]
     for i in range(j, p - 1):
-        a = R[i, i]
         b = R[i + 1, i]
-        h = math.hypot(a, b)
+        h = math.sqrt(a * a + b * b)
         if h == 0.0:
+            a = R[i + 1, i + 1]
             continue
         c = a / h
         s = b / h
-        for col in range(i, p - 1):
-            r1 = R[i, col]
-            r2 = R[i + 1, col]
-            R[i, col] = c * r1 + s * r2
-            R[i + 1, col] = -s * r1 + c * r2
+        if i + 1 < p - 1:
+            a = -s * R[i, i + 1] + c * R[i + 1, i + 1]
+        R[i, i] = h
         R[i + 1, i] = 0.0
+        r1 = R[i, i + 1:p - 1]
+        r2 = R[i + 1, i + 1:p - 1]
+        for col in range(r1.shape[0]):
+            x1 = r1[col]
+            x2 = r2[col]
+            r1[col] = c * x1 + s * x2
+            r2[col] = -s * x1 + c * x2
         w1 = Wt[i]
         w2 = Wt[i + 1]
         for rr in range(n):

@@ -1,5 +1,7 @@
 """The registry: lookup, and option-name validation in create()."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -87,3 +89,11 @@ def test_optimal_result_with_nonfinite_x_becomes_numerical_failure(x, status):
     r = SolveResult(x=x, status="optimal")
     assert r.status == status
     assert ("NaN or inf" in r.reason) == (status == "numerical_failure")
+
+
+def test_x_finite_is_the_callers_word_and_not_a_field():
+    """x_finite=True (a solver whose compiled code tested every entry, as
+    hcod's kernel does) skips the repeat of the test; it is init-only."""
+    r = SolveResult(x=np.array([1.0, np.nan]), status="optimal", x_finite=True)
+    assert r.status == "optimal" and "x_finite" not in {f.name for f in dataclasses.fields(r)}
+    assert SolveResult(x=np.array([1.0, np.nan]), status="optimal").status == "numerical_failure"
