@@ -123,7 +123,8 @@ def hcod_solve(fw, iw):
     Mf = matrix_view(fw[foff[21]:fend[21]], mmax, n)
     Qb = matrix_view(fw[foff[22]:fend[22]], n, n)
     bq = fw[foff[23]:fend[23]]
-    sv = fw[foff[24]:fend[24]]
+    sv = fw[foff[24]:foff[24] + n]  # two scratch vectors (n,)
+    sv2 = fw[foff[24] + n:fend[24]]
     A = matrix_view(fw[foff[25]:fend[25]], mt, n)
     lo = fw[foff[26]:fend[26]]
     up = fw[foff[27]:fend[27]]
@@ -263,7 +264,7 @@ def hcod_solve(fw, iw):
                         cok[j] = dl
                         m_in += 1
                 if m_in > 0:
-                    _, f = insert_rows(A, cand, m_in, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv)
+                    _, f = insert_rows(A, cand, m_in, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2)
                     fl += f
                     for j in range(m_in):
                         if cok[j]:
@@ -584,7 +585,7 @@ def hcod_solve(fw, iw):
                 break
             elif not has_ineq:
                 if r > 0:
-                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv)
+                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv, sv2)
                 for j in range(nO):
                     state[Olist[piv[j]]] = WORK if j < r else IMPLIED
                 p += r
@@ -611,7 +612,7 @@ def hcod_solve(fw, iw):
                         for l in range(t):
                             R[p + l, p + t] = Mr[t, l]
                         R[p + t, p + t] = diag[t]
-                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv)
+                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv, sv2)
                 for j in range(nO):
                     i = Olist[piv[j]]
                     av = row_dot(A[i], bcol[i], bval[i], u)

@@ -38,7 +38,7 @@ def layout(n: int, mt: int, D: int, mmax: int):
     entries that stores all three."""
     mm = max(mmax, 1)
     fsz = (n * n, n * n, n, n, n, n, n, n, n, n, n, mm * n, mm, mm, mm, mm * max(min(n, mm), 1), mt, mt, mt, D,
-           D * n, mm * n, n * n, n, n, mt * n, mt, mt, N_PRM)
+           D * n, mm * n, n * n, n, 2 * n, mt * n, mt, mt, N_PRM)
     isz = (mt, mt, mt, mt, mt, n, n, mm, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP)
     foff = np.array((0, *accumulate(-(-size // ALIGN) * ALIGN for size in fsz)), dtype=np.int64)
     fend = foff[:-1] + np.array(fsz, dtype=np.int64)

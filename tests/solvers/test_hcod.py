@@ -321,7 +321,7 @@ def test_min_norm_x_matches_reference_with_inequalities(seed):
 
 
 def test_large_problems_blas_paths():
-    """n = 80: the projections and basis updates switch to BLAS (compact WY)."""
+    """n = 80: the projections of the objective rows on Z switch to BLAS."""
     from solvers.hcod import _linalg
 
     h = G.ik_like(80, 0)
@@ -392,7 +392,7 @@ def test_many_grid_hierarchies_cold_and_warm(h):
         assert v.equal or (h.has_inequalities and v.lower == "a"), v  # (see check())
 
 
-@pytest.mark.parametrize("n, p, m", [(12, 3, 5), (80, 10, 30)], ids=["loops", "blas-wy"])
+@pytest.mark.parametrize("n, p, m", [(12, 3, 5), (80, 10, 30)], ids=["small", "large"])
 def test_blocked_insertion_matches_one_row_at_a_time(n, p, m):
     """insert_rows (the warm start's Delta+ A) = m calls of insert_row: same
     refusals (a dependent row), same R, same basis; W stays orthonormal and
@@ -422,7 +422,7 @@ def test_blocked_insertion_matches_one_row_at_a_time(n, p, m):
         p1 += ok
     Wt2, R2, cok = Wt0.copy(), R0.copy(), np.zeros(n, dtype=np.int64)
     t, _ = insert_rows(A, cand, m, bcol, bval, Wt2, R2, p, 1e-10, lnorm, rowlev,
-                       np.zeros((n, n)), np.zeros(n), cok, sv)
+                       np.zeros((n, n)), np.zeros(n), cok, sv, np.zeros(n))
 
     assert cok[:m].tolist() == ok1 and ok1[1] == 0 and t == p1 - p
     np.testing.assert_allclose(R2[:p1, :p1], R1[:p1, :p1], rtol=0, atol=1e-10)
