@@ -70,6 +70,46 @@ def vreflect(bt, v, y):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def vreflect4(bt, v, y0, y1, y2, y3):
+    """:func:`vreflect` on four views at once (each load of v shared by four
+    rows: ~1.25 loads per multiply-add instead of 2)."""
+    s0 = 0.0
+    s1 = 0.0
+    s2 = 0.0
+    s3 = 0.0
+    for c in range(v.shape[0]):
+        e = v[c]
+        s0 += e * y0[c]
+        s1 += e * y1[c]
+        s2 += e * y2[c]
+        s3 += e * y3[c]
+    s0 *= bt
+    s1 *= bt
+    s2 *= bt
+    s3 *= bt
+    for c in range(v.shape[0]):
+        e = v[c]
+        y0[c] -= s0 * e
+        y1[c] -= s1 * e
+        y2[c] -= s2 * e
+        y3[c] -= s3 * e
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def reflect_rows(bt, v, M, j0, j1, c0):
+    """``M[j, c0:c0 + len(v)] <- (I - bt v v^T) M[j, c0:...]`` for the rows
+    j0 <= j < j1 of M, four at a time."""
+    c1 = c0 + v.shape[0]
+    j = j0
+    while j + 4 <= j1:
+        vreflect4(bt, v, M[j, c0:c1], M[j + 1, c0:c1], M[j + 2, c0:c1], M[j + 3, c0:c1])
+        j += 4
+    while j < j1:
+        vreflect(bt, v, M[j, c0:c1])
+        j += 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def householder(v, nrm):
     """Turn ``v`` (norm ``nrm`` > 0) into the vector of the reflector
     ``I - bt v v^T`` that maps it to ``alpha e_1`` (sign chosen against
@@ -152,6 +192,7 @@ __all__ = [
     "mf_reflect",
     "multipliers",
     "project_into",
+    "reflect_rows",
     "row_dot",
     "solve_lower",
     "step_from_z",
@@ -247,8 +288,8 @@ def cod(Mr, nO, nf, thr, rows, bvec, diag, beta):
         beta[i] = bt
         diag[i] = alpha
         vi = Mr[i, i:nf]
+        reflect_rows(bt, vi, Mr, i + 1, nO, i)
         for j in range(i + 1, nO):
-            vreflect(bt, vi, Mr[j, i:nf])
             v = beta[j] - Mr[j, i] * Mr[j, i]
             if v > 1e-3 * beta[j]:
                 beta[j] = v
@@ -436,8 +477,7 @@ def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, 
         for l in range(c0):
             R[l, c0] = Qb[j, l]
         R[c0, c0] = alpha
-        for l in range(j + 1, m):
-            vreflect(bt, v, Qb[l, c0:])
+        reflect_rows(bt, v, Qb, j + 1, m, c0)
         fl += 2 * (m - j - 1) * (n - c0)
         if t < j:  # keep the reflectors packed: reflector t in Qb[t, p + t:]
             Qb[t, c0:] = v
