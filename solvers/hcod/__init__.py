@@ -91,7 +91,9 @@ Result
 Compiled with numba (nopython, ``cache=True``); nothing compiles at import:
 the first solve (or :func:`warmup`) compiles or loads the cache. One
 compiled call per solve (plus one to scale a new hierarchy), on workspaces
-kept in the solver object.
+kept in the solver object; the kernels see them as unowned arrays (no
+reference counting of their views, :func:`._linalg.unowned`) and test every
+entry of ``x`` for finiteness themselves (``SolveResult(x_finite=True)``).
 """
 
 from __future__ import annotations
@@ -200,7 +202,9 @@ class HcodSolver(Solver):
         if fl < 0:
             return SolveResult(x=None, status=NUMERICAL_FAILURE, reason="hcod: x is not finite",
                                iterations=sum(it), iterations_per_level=tuple(it))
-        return SolveResult(x=x, status=OPTIMAL, iterations=sum(it), iterations_per_level=tuple(it), flops=fl)
+        # (x_finite: eq_solve tested every entry of x with isfinite, fl = -1 otherwise)
+        return SolveResult(x=x, status=OPTIMAL, iterations=sum(it), iterations_per_level=tuple(it), flops=fl,
+                           x_finite=True)
 
     # -- hierarchies with inequalities: the active set (_kernel.py) -------------------------------
     def _bind(self, h: Hierarchy):

@@ -231,8 +231,9 @@ def level_scale(A, s0, s1, n):
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def row_dot(a, b, bv, x):
     """``a @ x`` for the row ``a = A[i]`` with ``b = bcol[i]``, ``bv = bval[i]``
-    (O(1) for a bound row). Takes the row view and scalars: passing the whole
-    arrays into a helper costs ~35 ns of reference counting per call."""
+    (O(1) for a bound row). Takes the row view and scalars: on owned arrays,
+    passing the whole arrays into a helper costs ~35 ns of reference counting
+    per call (the kernels' own arrays are :func:`unowned`)."""
     if b >= 0:
         return bv * x[b]
     return vdot(a, x)
