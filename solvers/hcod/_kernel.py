@@ -251,7 +251,8 @@ def hcod_solve(fw, iw):
                             and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf) and m_in < n):  # (<= n: WORK rows)
                         # the level whose record drops the row (D: none); rows that leave
                         # sooner enter later: a row deleted sits behind fewer rows (fewer
-                        # Givens rotations in delete_row). Insertion sort, descending.
+                        # Givens rotations in delete_row). Insertion sort, descending, the keys
+                        # kept in cok until insert_rows overwrites it with its accept flags.
                         dl = k + 1
                         while dl < D and hist_valid[dl] != 0 and hist_state[dl, i] == WORK:
                             dl += 1
