@@ -30,28 +30,12 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod._linalg import FASTMATH, householder, level_scale, unowned, vdot, vreflect
+from solvers.hcod._linalg import FASTMATH, householder, level_scale, reflect_rows, unowned, vdot, vreflect
 
 __all__ = ["eq_solve"]
 
 
 _FM = set(FASTMATH)
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _reflect2(bt, v, ra, rb):
-    """Apply the reflector ``I - bt v v^T`` to the row views ``ra`` and ``rb``
-    together (shared loads of v; all three views of equal length)."""
-    sa = 0.0
-    sb = 0.0
-    for c in range(v.shape[0]):
-        sa += v[c] * ra[c]
-        sb += v[c] * rb[c]
-    sa *= bt
-    sb *= bt
-    for c in range(v.shape[0]):
-        ra[c] -= sa * v[c]
-        rb[c] -= sb * v[c]
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -76,35 +60,9 @@ def _reflect_pair(b1, v1, b2, v2, d12, x):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _reflect_pair2(b1, v1, b2, v2, d12, x, y):
-    """:func:`_reflect_pair` on the two row views x and y together (shared
-    loads of v1 and v2)."""
-    ax = v1[0] * x[0]
-    ay = v1[0] * y[0]
-    bx = 0.0
-    by = 0.0
-    v1s = v1[1:]
-    xs = x[1:]
-    ys = y[1:]
-    for c in range(v2.shape[0]):
-        ax += v1s[c] * xs[c]
-        bx += v2[c] * xs[c]
-        ay += v1s[c] * ys[c]
-        by += v2[c] * ys[c]
-    s1x = b1 * ax
-    s2x = b2 * (bx - s1x * d12)
-    s1y = b1 * ay
-    s2y = b2 * (by - s1y * d12)
-    x[0] -= s1x * v1[0]
-    y[0] -= s1y * v1[0]
-    for c in range(v2.shape[0]):
-        xs[c] -= s1x * v1s[c] + s2x * v2[c]
-        ys[c] -= s1y * v1s[c] + s2y * v2[c]
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def _reflect_pair4(b1, v1, b2, v2, d12, x, y, z, w):
-    """:func:`_reflect_pair` on four row views together."""
+    """:func:`_reflect_pair` on four row views together (shared loads of v1
+    and v2)."""
     ax = v1[0] * x[0]
     ay = v1[0] * y[0]
     az = v1[0] * z[0]
@@ -220,24 +178,15 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
                     _reflect_pair4(b1, v1, b2, v2, d12, At[i, c0:], At[i + 1, c0:], At[i + 2, c0:],
                                    At[i + 3, c0:])
                     i += 4
-                while i + 2 <= s1:
-                    _reflect_pair2(b1, v1, b2, v2, d12, At[i, c0:], At[i + 1, c0:])
-                    i += 2
-                if i < s1:
+                while i < s1:
                     _reflect_pair(b1, v1, b2, v2, d12, At[i, c0:])
+                    i += 1
                 fl += 2 * mk * (2 * (n - c0) - 1) + n - c0
                 t += 2
             if t < rj:
                 it = starts[j] + t
                 c0 = pj + t
-                v = At[it, c0:]
-                bt = beta[it]
-                i = s0
-                while i + 2 <= s1:
-                    _reflect2(bt, v, At[i, c0:], At[i + 1, c0:])
-                    i += 2
-                if i < s1:
-                    vreflect(bt, v, At[i, c0:])
+                reflect_rows(beta[it], At[it, c0:], At, s0, s1, c0)
                 fl += 2 * mk * (n - c0)
         # b = e_k - J_k Y_bar xi[:p]; column norms of the projected rows
         xp = xi[:p]
@@ -278,12 +227,7 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
             c0 = p + t
             v = At[it, c0:]
             alpha, bt = householder(v, nrm)
-            j = it + 1
-            while j + 2 <= s1:
-                _reflect2(bt, v, At[j, c0:], At[j + 1, c0:])
-                j += 2
-            if j < s1:
-                vreflect(bt, v, At[j, c0:])
+            reflect_rows(bt, v, At, it + 1, s1, c0)
             for j in range(it + 1, s1):
                 # downdate the remaining norm of row j
                 d = beta[j] - At[j, c0] * At[j, c0]
