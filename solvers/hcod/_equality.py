@@ -30,82 +30,22 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod._linalg import FASTMATH, householder, level_scale, reflect_rows, unowned, vdot, vreflect
+from solvers.hcod._linalg import (
+    FASTMATH,
+    householder,
+    level_scale,
+    reflect_pair,
+    reflect_pair4,
+    reflect_rows,
+    unowned,
+    vdot,
+    vreflect,
+)
 
 __all__ = ["eq_solve"]
 
 
 _FM = set(FASTMATH)
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _reflect_pair(b1, v1, b2, v2, d12, x):
-    """Apply two consecutive reflectors of a level, ``H1 = I - b1 v1 v1^T``
-    then ``H2 = I - b2 v2 v2^T`` acting on ``x[1:]`` (v2 starts one column
-    later), to the row view x in one pass for the dots and one for the
-    update: ``s1 = b1 v1.x``, ``s2 = b2 (v2.x[1:] - s1 d12)`` with ``d12 =
-    v2.v1[1:]``, ``x -= s1 v1 + s2 [0, v2]``. Shapes: v1, x (L,), v2 (L-1,)."""
-    a = v1[0] * x[0]
-    b = 0.0
-    v1s = v1[1:]
-    xs = x[1:]
-    for c in range(v2.shape[0]):
-        a += v1s[c] * xs[c]
-        b += v2[c] * xs[c]
-    s1 = b1 * a
-    s2 = b2 * (b - s1 * d12)
-    x[0] -= s1 * v1[0]
-    for c in range(v2.shape[0]):
-        xs[c] -= s1 * v1s[c] + s2 * v2[c]
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _reflect_pair4(b1, v1, b2, v2, d12, x, y, z, w):
-    """:func:`_reflect_pair` on four row views together (shared loads of v1
-    and v2)."""
-    ax = v1[0] * x[0]
-    ay = v1[0] * y[0]
-    az = v1[0] * z[0]
-    aw = v1[0] * w[0]
-    bx = 0.0
-    by = 0.0
-    bz = 0.0
-    bw = 0.0
-    v1s = v1[1:]
-    xs = x[1:]
-    ys = y[1:]
-    zs = z[1:]
-    ws = w[1:]
-    for c in range(v2.shape[0]):
-        e1 = v1s[c]
-        e2 = v2[c]
-        ax += e1 * xs[c]
-        bx += e2 * xs[c]
-        ay += e1 * ys[c]
-        by += e2 * ys[c]
-        az += e1 * zs[c]
-        bz += e2 * zs[c]
-        aw += e1 * ws[c]
-        bw += e2 * ws[c]
-    s1x = b1 * ax
-    s2x = b2 * (bx - s1x * d12)
-    s1y = b1 * ay
-    s2y = b2 * (by - s1y * d12)
-    s1z = b1 * az
-    s2z = b2 * (bz - s1z * d12)
-    s1w = b1 * aw
-    s2w = b2 * (bw - s1w * d12)
-    x[0] -= s1x * v1[0]
-    y[0] -= s1y * v1[0]
-    z[0] -= s1z * v1[0]
-    w[0] -= s1w * v1[0]
-    for c in range(v2.shape[0]):
-        e1 = v1s[c]
-        e2 = v2[c]
-        xs[c] -= s1x * e1 + s2x * e2
-        ys[c] -= s1y * e1 + s2y * e2
-        zs[c] -= s1z * e1 + s2z * e2
-        ws[c] -= s1w * e1 + s2w * e2
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -175,11 +115,11 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
                 d12 = vdot(v2, v1[1:])
                 i = s0
                 while i + 4 <= s1:
-                    _reflect_pair4(b1, v1, b2, v2, d12, At[i, c0:], At[i + 1, c0:], At[i + 2, c0:],
+                    reflect_pair4(b1, v1, b2, v2, d12, At[i, c0:], At[i + 1, c0:], At[i + 2, c0:],
                                    At[i + 3, c0:])
                     i += 4
                 while i < s1:
-                    _reflect_pair(b1, v1, b2, v2, d12, At[i, c0:])
+                    reflect_pair(b1, v1, b2, v2, d12, At[i, c0:])
                     i += 1
                 fl += 2 * mk * (2 * (n - c0) - 1) + n - c0
                 t += 2

@@ -35,21 +35,26 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod._linalg import (
-    FASTMATH,
-    apply_reflectors,
-    apply_reflectors_to_basis,
-    cod,
+from solvers.hcod._basis import (
+    basis_n,
+    basis_reset,
+    basis_rows,
+    basis_t,
     delete_row,
     insert_row,
     insert_rows,
+    multipliers,
+    push_reflector,
+    rotate_rows_last,
+)
+from solvers.hcod._linalg import (
+    FASTMATH,
+    apply_reflectors,
+    cod,
     matrix_view,
     mf_reflect,
-    multipliers,
-    project_into,
     row_dot,
     solve_lower,
-    step_from_z,
     unowned,
     vaxpy,
     vdot,
@@ -99,7 +104,9 @@ def hcod_solve(fw, iw):
     feas_rtol = prm[1]
     dual_rtol = prm[2]
     freeze_rtol = prm[3]
-    Wt = matrix_view(fw[foff[0]:fend[0]], n, n)  # W stored by columns: Wt = W^T
+    Wt = matrix_view(fw[foff[0]:fend[0]], n, n)  # W0 stored by columns (W = W0 E_1 ... E_m, ._basis)
+    qv = fw[foff[29]:fend[29]]  # the queue E_1 ... E_m
+    qi = iw[ioff[18]:ioff[19]]
     R = matrix_view(fw[foff[1]:fend[1]], n, n)
     u = fw[foff[2]:fend[2]]
     ps = fw[foff[3]:fend[3]]
@@ -122,7 +129,6 @@ def hcod_solve(fw, iw):
     hist_du = matrix_view(fw[foff[20]:fend[20]], D, n)
     Mf = matrix_view(fw[foff[21]:fend[21]], mmax, n)
     Qb = matrix_view(fw[foff[22]:fend[22]], n, n)
-    bq = fw[foff[23]:fend[23]]
     sv = fw[foff[24]:foff[24] + n]  # two scratch vectors (n,)
     sv2 = fw[foff[24] + n:fend[24]]
     A = matrix_view(fw[foff[25]:fend[25]], mt, n)
@@ -161,9 +167,7 @@ def hcod_solve(fw, iw):
         use_hist = warm == 2
         # cold initial state: u_0 = 0, W = I, nothing active
         u[:] = 0.0
-        Wt[:, :] = 0.0
-        for i in range(n):
-            Wt[i, i] = 1.0
+        basis_reset(qi)
         for i in range(mt):
             state[i] = INACTIVE
             side[i] = 0
@@ -196,14 +200,15 @@ def hcod_solve(fw, iw):
                 for j in range(p - 1, -1, -1):
                     i = widx[j]
                     if wside[j] != 0 and (warm == 0 or hist_state[k, i] != WORK):
-                        fl += delete_row(j, Wt, R, p, widx, wside)
+                        fl += delete_row(j, R, p, widx, wside, Wt, qv, qi, sv, sv2)
                         p -= 1
                         state[i] = INACTIVE
                         dropped = True
                 if dropped:
                     for i in range(s0):
                         if state[i] == IMPLIED:
-                            ok, f, bt = insert_row(A, i, bcol, bval, Wt, R, p, rank_rtol * lnorm[rowlev[i]], q, sv)
+                            ok, f, bt = insert_row(A, i, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i]], q,
+                                                   Wt, qv, qi, sv, sv2)
                             fl += f
                             if ok:
                                 widx[p] = i
@@ -219,11 +224,10 @@ def hcod_solve(fw, iw):
                 for c in range(n):
                     ps[c] = hist_du[k, c]
                     dun += abs(ps[c])
-                if p > 0 and dun > 0.0:  # (p = 0: Z spans everything)
-                    duk = hist_du[k]
-                    for c in range(nf):
-                        z[c] = vdot(Wt[p + c], duk)
-                    fl += n * nf + step_from_z(Wt, p, z, ps)
+                if p > 0 and dun > 0.0:  # (p = 0: Z spans everything): ps <- Z Z^T ps
+                    fl += basis_t(Wt, qv, qi, ps, sv, sv2)
+                    ps[:p] = 0.0
+                    fl += basis_n(Wt, qv, qi, ps, sv, sv2)
                 tau = 1.0
                 for i in range(s0):
                     if state[i] != INACTIVE or kind[i] != 1 or hist_state[k, i] == WORK:
@@ -265,7 +269,8 @@ def hcod_solve(fw, iw):
                         cok[j] = dl
                         m_in += 1
                 if m_in > 0:
-                    _, f = insert_rows(A, cand, m_in, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2)
+                    _, f = insert_rows(A, cand, m_in, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, cok,
+                                       Wt, qv, qi, sv, sv2)
                     fl += f
                     for j in range(m_in):
                         if cok[j]:
@@ -288,9 +293,10 @@ def hcod_solve(fw, iw):
                     for l in range(p):
                         nu[l] = hv[l] / R[l, l]
                         vaxpy(-nu[l], R[l, l + 1:p], hv[l + 1:p])
-                    for j in range(p):
-                        vaxpy(nu[j], Wt[j], u)
-                    fl += n * p + p * p // 2
+                    z[:] = 0.0
+                    z[:p] = nu[:p]
+                    fl += basis_n(Wt, qv, qi, z, sv, sv2) + p * p // 2
+                    vaxpy(1.0, z, u)
                 unorm = _norm(u)
                 feasible = True
                 for i in range(s0):
@@ -378,13 +384,14 @@ def hcod_solve(fw, iw):
                         i = Olist[j]
                         g[bcol[i]] += (target[i] - bval[i] * u[bcol[i]]) * bval[i]
                     d2 = bval[Olist[0]] * bval[Olist[0]]
-                    for c in range(nf):
-                        z[c] = vdot(Wt[p + c], g) / d2
-                    fl += n * nf + step_from_z(Wt, p, z, ps)
+                    fl += basis_t(Wt, qv, qi, g, sv, sv2)
+                    for c in range(p, n):
+                        ps[c] = g[c] / d2
+                    fl += basis_n(Wt, qv, qi, ps, sv, sv2)
                     r = nf
                 elif nf > 0 and nO > 0:
                     if not mf_valid:
-                        fl += project_into(A, Olist, 0, nO, bcol, bval, Wt, p, Mf)
+                        fl += basis_rows(A, Olist, 0, nO, bcol, bval, Wt, qv, qi, Mf, sv, sv2)
                         mf_valid = True
                     for j in range(nO):
                         i = Olist[j]
@@ -402,7 +409,8 @@ def hcod_solve(fw, iw):
                         for c in range(nf):
                             z[c] = y[c] if c < r else 0.0
                         fl += apply_reflectors(Mr, beta, r, nf, z)
-                        fl += step_from_z(Wt, p, z, ps)
+                        ps[p:] = z[:nf]
+                        fl += basis_n(Wt, qv, qi, ps, sv, sv2)
                 tau = 1.0
                 blk = -1
                 bsd = 0
@@ -448,10 +456,11 @@ def hcod_solve(fw, iw):
                         state[blk] = OBJECTIVE
                         Olist[nO] = blk
                         if mf_valid:
-                            fl += project_into(A, Olist, nO, nO + 1, bcol, bval, Wt, p, Mf)
+                            fl += basis_rows(A, Olist, nO, nO + 1, bcol, bval, Wt, qv, qi, Mf, sv, sv2)
                         nO += 1
                     else:
-                        ok, f, bt = insert_row(A, blk, bcol, bval, Wt, R, p, rank_rtol * lnorm[rowlev[blk]], q, sv)
+                        ok, f, bt = insert_row(A, blk, bcol, bval, R, p, rank_rtol * lnorm[rowlev[blk]], q,
+                                               Wt, qv, qi, sv, sv2)
                         fl += f
                         if not ok:
                             status = ST_NUMERICAL
@@ -498,9 +507,8 @@ def hcod_solve(fw, iw):
                         acts += 1
                         continue
                     Olist[jw] = Olist[nO - 1]
-                    if mf_valid:
-                        for c in range(p, n):
-                            Mf[jw, c] = Mf[nO - 1, c]
+                    if mf_valid:  # (whole rows: the freeze reads Mf[:, :p])
+                        Mf[jw, :] = Mf[nO - 1, :]
                     nO -= 1
                     state[i] = INACTIVE
                     continue
@@ -530,7 +538,7 @@ def hcod_solve(fw, iw):
                         gtol += rnorm[i] * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
                     gtol *= dual_rtol
                     if gn > gtol:
-                        fl += multipliers(Wt, R, p, g, hv, nu)  # eq. (39)
+                        fl += multipliers(R, p, g, nu, Wt, qv, qi, sv, sv2)  # eq. (39)
                         worst = 0.0
                         for j in range(p):
                             if wside[j] != 0:
@@ -541,21 +549,19 @@ def hcod_solve(fw, iw):
                                     jw = j
                         if jw >= 0:
                             i = widx[jw]
-                            fl += delete_row(jw, Wt, R, p, widx, wside)
+                            rotated = jw < p - 1
+                            fl += delete_row(jw, R, p, widx, wside, Wt, qv, qi, sv, sv2)
                             p -= 1
                             state[i] = INACTIVE
                             deacts += 1
-                            if mf_valid:
-                                # Z gained the column p: project the objective rows on it
-                                wp = Wt[p]
-                                for j in range(nO):
-                                    io = Olist[j]
-                                    Mf[j, p] = row_dot(A[io], bcol[io], bval[io], wp)
-                                fl += nO * n
+                            if mf_valid and rotated:
+                                # the rotations of W's columns, applied to the projected objective
+                                # rows (Mf[j] = W^T a_j: Z gained the column p)
+                                fl += rotate_rows_last(qv, qi, Mf, 0, nO)
                             for i2 in range(s0):
                                 if state[i2] == IMPLIED:
-                                    ok, f, bt = insert_row(A, i2, bcol, bval, Wt, R, p,
-                                                           rank_rtol * lnorm[rowlev[i2]], q, sv)
+                                    ok, f, bt = insert_row(A, i2, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i2]],
+                                                           q, Wt, qv, qi, sv, sv2)
                                     fl += f
                                     if ok and mf_valid:
                                         fl += mf_reflect(Mf, nO, p, q, bt)
@@ -585,8 +591,8 @@ def hcod_solve(fw, iw):
                         hist_valid[kk] = 0
                 break
             elif not has_ineq:
-                if r > 0:
-                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv, sv2)
+                for t in range(r):
+                    fl += push_reflector(Wt, qv, qi, p + t, Mr[t, t:nf], beta[t], sv, sv2)
                 for j in range(nO):
                     state[Olist[piv[j]]] = WORK if j < r else IMPLIED
                 p += r
@@ -594,26 +600,18 @@ def hcod_solve(fw, iw):
                 unorm = _norm(u)
                 if cod_done:
                     # the COD (19) of the last iteration is the update: its r pivot rows enter
-                    # W by its reflectors (W[:, p:] <- W[:, p:] H, eq. 23), their R columns are
-                    # (W[:, :p]^T a, R_cod[:, t]); the other rows are combinations of them
-                    hp = hv[:p]
+                    # W by its reflectors (W[:, p:] <- W[:, p:] H, eq. 23, pushed), their R columns
+                    # are (W[:, :p]^T a, R_cod[:, t]), the first from the projected rows kept in
+                    # Mf (Mf[j] = W^T a_j); the other rows are combinations of them
                     for t in range(r):
-                        i = Olist[piv[t]]
-                        b = bcol[i]
-                        if b >= 0:
-                            for l in range(p):
-                                hp[l] = bval[i] * Wt[l, b]
-                        else:
-                            ra = A[i]
-                            for l in range(p):
-                                hp[l] = vdot(Wt[l], ra)
-                            fl += n * p
+                        mt_ = Mf[piv[t]]
                         for l in range(p):
-                            R[l, p + t] = hp[l]
+                            R[l, p + t] = mt_[l]
                         for l in range(t):
                             R[p + l, p + t] = Mr[t, l]
                         R[p + t, p + t] = diag[t]
-                    fl += apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv, sv2)
+                    for t in range(r):
+                        fl += push_reflector(Wt, qv, qi, p + t, Mr[t, t:nf], beta[t], sv, sv2)
                 for j in range(nO):
                     i = Olist[piv[j]]
                     av = row_dot(A[i], bcol[i], bval[i], u)
@@ -625,7 +623,7 @@ def hcod_solve(fw, iw):
                     if cod_done:
                         ok = j < r
                     else:
-                        ok, f, bt = insert_row(A, i, bcol, bval, Wt, R, p, thr_k, q, sv)
+                        ok, f, bt = insert_row(A, i, bcol, bval, R, p, thr_k, q, Wt, qv, qi, sv, sv2)
                         fl += f
                     side[i] = sd
                     if ok:

@@ -1,20 +1,13 @@
-"""Numba kernels of the HCOD: projections, the rank-revealing COD of a
-projected level, and the updates of the constraint decomposition.
+"""Numba kernels of the HCOD: vector primitives (products, reflectors one,
+two or four rows at a time), the rank-revealing COD of a projected level and
+its least-squares solve, and the array helpers of the kernels (unowned
+workspaces, cheap 2-D views). The basis ``W`` and the updates of the
+constraint decomposition are in :mod:`._basis`.
 
-Notation (ICRA 2010, sec. V-VI). ``W`` (n, n) is orthonormal; its first ``p``
-columns span the rows of the working (active) constraints of the levels above,
-its last ``nf = n - p`` columns are ``Z`` (the null-space basis, eq. 16). It is
-stored by columns, as ``Wt = W^T`` (row c of ``Wt`` is column c of ``W``):
-the updates (reflectors from the right, Givens on two columns) and the products
-``W^T a`` then run on contiguous vectors of length n.
-``R`` (n, n) holds, column j, the coordinates of working row j in ``W``:
-``C^T = W[:, :p] R[:p, :p]`` with ``R[:p, :p]`` upper triangular (rows enter in
-order). Every routine returns the number of multiply-adds it did (the flop
-counter of :class:`~solvers.base.SolveResult`).
-
-Rows are read from ``A`` (m, n); a *bound row* (one nonzero, e.g. a box row
-``e_i``) has ``bcol[i] >= 0`` and coefficient ``bval[i]``: its products cost
-O(1) instead of O(n).
+Every routine that computes returns the number of multiply-adds it did (the
+flop counter of :class:`~solvers.base.SolveResult`). Rows are read from
+``A`` (m, n); a *bound row* (one nonzero, e.g. a box row ``e_i``) has
+``bcol[i] >= 0`` and coefficient ``bval[i]``: its products cost O(1).
 """
 
 from __future__ import annotations
@@ -26,13 +19,6 @@ from numba import njit, types
 from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
 
-#: the projection of the objective rows on Z (:func:`project_into`) calls BLAS from these
-#: sizes up; below, the vectorised loops beat a BLAS call (its overhead ~1 us). The basis
-#: updates never call it: the loops two reflectors at a time beat the compact WY form with
-#: BLAS at every size measured (IK-like warm n=80 137 -> 105 us, n=480 17.9 -> 15.8 ms)
-BLAS_MIN_ROWS = 8
-BLAS_MIN_N = 64
-BLAS_MIN_WORK = 20_000
 #: fast-math flags of every kernel: reassociation (vectorised reductions) and FMA
 #: contraction; no "nnan"/"ninf" (the kernels test finiteness)
 FASTMATH = frozenset({"reassoc", "contract", "nsz", "arcp"})
@@ -110,6 +96,77 @@ def reflect_rows(bt, v, M, j0, j1, c0):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def reflect_pair(b1, v1, b2, v2, d12, x):
+    """Apply two consecutive reflectors (of a level, or of the pending queue of
+    :mod:`._basis`), ``H1 = I - b1 v1 v1^T``
+    then ``H2 = I - b2 v2 v2^T`` acting on ``x[1:]`` (v2 starts one column
+    later), to the row view x in one pass for the dots and one for the
+    update: ``s1 = b1 v1.x``, ``s2 = b2 (v2.x[1:] - s1 d12)`` with ``d12 =
+    v2.v1[1:]``, ``x -= s1 v1 + s2 [0, v2]``. Shapes: v1, x (L,), v2 (L-1,)."""
+    a = v1[0] * x[0]
+    b = 0.0
+    v1s = v1[1:]
+    xs = x[1:]
+    for c in range(v2.shape[0]):
+        a += v1s[c] * xs[c]
+        b += v2[c] * xs[c]
+    s1 = b1 * a
+    s2 = b2 * (b - s1 * d12)
+    x[0] -= s1 * v1[0]
+    for c in range(v2.shape[0]):
+        xs[c] -= s1 * v1s[c] + s2 * v2[c]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def reflect_pair4(b1, v1, b2, v2, d12, x, y, z, w):
+    """:func:`reflect_pair` on four row views together (shared loads of v1
+    and v2)."""
+    ax = v1[0] * x[0]
+    ay = v1[0] * y[0]
+    az = v1[0] * z[0]
+    aw = v1[0] * w[0]
+    bx = 0.0
+    by = 0.0
+    bz = 0.0
+    bw = 0.0
+    v1s = v1[1:]
+    xs = x[1:]
+    ys = y[1:]
+    zs = z[1:]
+    ws = w[1:]
+    for c in range(v2.shape[0]):
+        e1 = v1s[c]
+        e2 = v2[c]
+        ax += e1 * xs[c]
+        bx += e2 * xs[c]
+        ay += e1 * ys[c]
+        by += e2 * ys[c]
+        az += e1 * zs[c]
+        bz += e2 * zs[c]
+        aw += e1 * ws[c]
+        bw += e2 * ws[c]
+    s1x = b1 * ax
+    s2x = b2 * (bx - s1x * d12)
+    s1y = b1 * ay
+    s2y = b2 * (by - s1y * d12)
+    s1z = b1 * az
+    s2z = b2 * (bz - s1z * d12)
+    s1w = b1 * aw
+    s2w = b2 * (bw - s1w * d12)
+    x[0] -= s1x * v1[0]
+    y[0] -= s1y * v1[0]
+    z[0] -= s1z * v1[0]
+    w[0] -= s1w * v1[0]
+    for c in range(v2.shape[0]):
+        e1 = v1s[c]
+        e2 = v2[c]
+        xs[c] -= s1x * e1 + s2x * e2
+        ys[c] -= s1y * e1 + s2y * e2
+        zs[c] -= s1z * e1 + s2z * e2
+        ws[c] -= s1w * e1 + s2w * e2
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def householder(v, nrm):
     """Turn ``v`` (norm ``nrm`` > 0) into the vector of the reflector
     ``I - bt v v^T`` that maps it to ``alpha e_1`` (sign chosen against
@@ -118,23 +175,6 @@ def householder(v, nrm):
     alpha = -nrm if x0 >= 0.0 else nrm
     v[0] = x0 - alpha
     return alpha, 1.0 / (nrm * (nrm + abs(x0)))
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def wt_times_row(A, i, bcol, bval, Wt, out):
-    """``out = W^T a`` for the row ``a = A[i]`` (``out[c] = Wt[c] @ a``; a
-    gather of column ``bcol[i]`` of ``Wt`` for a bound row). Returns flops."""
-    n = Wt.shape[0]
-    b = bcol[i]
-    if b >= 0:
-        v = bval[i]
-        for c in range(n):
-            out[c] = v * Wt[c, b]
-        return n
-    ra = A[i]
-    for c in range(n):
-        out[c] = vdot(Wt[c], ra)
-    return n * n
 
 
 @intrinsic
@@ -181,23 +221,17 @@ def matrix_view(typingctx, vec, rows, cols):
 
 __all__ = [
     "apply_reflectors",
-    "apply_reflectors_to_basis",
     "cod",
-    "delete_row",
     "householder",
-    "insert_row",
-    "insert_rows",
     "level_scale",
     "matrix_view",
     "mf_reflect",
-    "multipliers",
-    "project_into",
+    "reflect_pair",
+    "reflect_pair4",
     "reflect_rows",
     "row_dot",
     "solve_lower",
-    "step_from_z",
     "unowned",
-    "wt_times_row",
 ]
 
 
@@ -352,251 +386,6 @@ def apply_reflectors(Mr, beta, r, nf, z):
     for i in range(r - 1, -1, -1):
         vreflect(beta[i], Mr[i, i:nf], z[i:nf])
         fl += 2 * (nf - i)
-    return fl
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def step_from_z(Wt, p, z, out):
-    """``out = Z z`` with ``Z = W[:, p:]`` (n, nf), i.e. the rows ``Wt[p:]``
-    combined. Returns flops."""
-    n = Wt.shape[0]
-    out[:] = 0.0
-    for c in range(n - p):
-        vaxpy(z[c], Wt[p + c], out)
-    return n * (n - p)
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv, sv2):
-    """``W[:, p:] <- W[:, p:] H`` (eq. 23: ``[Y_bar_k, Z_k] = Z_{k-1} H``) with
-    ``H = H_0 ... H_{r-1}``, reflector i = ``I - beta[i] v v^T`` on the
-    columns ``p + i:`` (``v = Mr[i, i:nf]``). On ``Wt = W^T``: ``s = sum_c v_c
-    Wt[p + i + c]``, then ``Wt[p + i + c] -= beta_i v_c s`` (vectors of length n).
-    Two reflectors at a time: one pass over the rows of ``Wt`` for both sums,
-    ``s2 -= beta_i (v_{i+1} . v_i) s1`` (reflector i acts first), one pass for
-    the update. After it, ``W[:, p:p+r]`` spans the projected level and
-    ``W[:, p+r:]`` is ``Z_k``. sv, sv2 (n,) are scratch. Returns flops."""
-    n = Wt.shape[0]
-    nf = n - p
-    i = 0
-    while i + 2 <= r:
-        v1 = Mr[i]
-        v2 = Mr[i + 1]
-        b1 = beta[i]
-        b2 = beta[i + 1]
-        a = v1[i]
-        for e in range(n):
-            sv[e] = a * Wt[p + i, e]
-        sv2[:] = 0.0
-        d12 = 0.0
-        for c in range(i + 1, nf):
-            a = v1[c]
-            b = v2[c]
-            d12 += a * b
-            w = Wt[p + c]
-            for e in range(n):
-                x = w[e]
-                sv[e] += a * x
-                sv2[e] += b * x
-        g = b1 * d12
-        for e in range(n):
-            sv2[e] -= g * sv[e]
-        vaxpy(-b1 * v1[i], sv, Wt[p + i])
-        for c in range(i + 1, nf):
-            a = b1 * v1[c]
-            b = b2 * v2[c]
-            w = Wt[p + c]
-            for e in range(n):
-                w[e] -= a * sv[e] + b * sv2[e]
-        i += 2
-    if i < r:
-        sv[:] = 0.0
-        for c in range(i, nf):
-            vaxpy(Mr[i, c], Wt[p + c], sv)
-        bt = -beta[i]
-        for c in range(i, nf):
-            vaxpy(bt * Mr[i, c], sv, Wt[p + c])
-    return 2 * n * nf * r
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def insert_row(A, i, bcol, bval, Wt, R, p, thr, q, sv):
-    """Add row ``a = A[i]`` to the working constraints by one Householder
-    update of ``W`` (sec. IX: the decomposition is updated, not recomputed):
-    ``q = W^T a``; the reflector that maps ``q[p:]`` to ``alpha e_1`` is
-    applied to ``W[:, p:]`` from the right; ``R[:, p] = (q[:p], alpha)``.
-
-    The row is refused (returns False) when ``||q[p:]|| <= thr``: it is a
-    combination of the working rows (rank detection), and at once when ``p = n``
-    (no room left). On success the reflector vector stays in ``q[p:]``. sv (n,)
-    is scratch. Returns (ok, flops, beta)."""
-    n = Wt.shape[0]
-    if p >= n:
-        return False, 0, 0.0
-    fl = wt_times_row(A, i, bcol, bval, Wt, q)
-    qz = q[p:]
-    nrm = math.sqrt(vdot(qz, qz))
-    if not nrm > thr:
-        return False, fl, 0.0
-    alpha, bt = householder(qz, nrm)
-    sv[:] = 0.0
-    for c in range(n - p):
-        vaxpy(qz[c], Wt[p + c], sv)
-    for c in range(n - p):
-        vaxpy(-bt * qz[c], sv, Wt[p + c])
-    fl += 2 * n * (n - p)
-    for c in range(p):
-        R[c, p] = q[c]
-    R[p, p] = alpha
-    return True, fl, bt
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2):
-    """Add the rows ``A[cand[:m]]`` to the working constraints, in order, as m
-    calls of :func:`insert_row` would (same rank test, same ``W`` and ``R``),
-    but blocked: ``Q = A_cand W`` at once, the Householder QR of ``Q[:, p:]``
-    row by row (row j meets the reflectors of the accepted rows before it),
-    then the t accepted reflectors applied to ``W[:, p:]`` together
-    (:func:`apply_reflectors_to_basis`). ``cok[j]`` = 1 when row j entered.
-    Shapes: Qb (>= m, n), bq (>= m), sv, sv2 (n,) scratch. Returns (t, flops)."""
-    n = Wt.shape[0]
-    fl = 0
-    for j in range(m):
-        fl += wt_times_row(A, cand[j], bcol, bval, Wt, Qb[j])
-    t = 0
-    for j in range(m):
-        i = cand[j]
-        c0 = p + t
-        v = Qb[j, c0:]
-        nrm = math.sqrt(vdot(v, v))
-        if not nrm > rank_rtol * lnorm[rowlev[i]]:
-            cok[j] = 0
-            continue
-        cok[j] = 1
-        alpha, bt = householder(v, nrm)
-        for l in range(c0):
-            R[l, c0] = Qb[j, l]
-        R[c0, c0] = alpha
-        reflect_rows(bt, v, Qb, j + 1, m, c0)
-        fl += 2 * (m - j - 1) * (n - c0)
-        if t < j:  # keep the reflectors packed: reflector t in Qb[t, p + t:]
-            Qb[t, c0:] = v
-        bq[t] = bt
-        t += 1
-    if t > 0:
-        fl += apply_reflectors_to_basis(Wt, p, Qb[:, p:], bq, t, sv, sv2)
-    return t, fl
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def delete_row(j, Wt, R, p, widx, wside):
-    """Remove working row j (0 <= j < p): drop column j of R (it becomes upper
-    Hessenberg) and restore the triangle by Givens rotations applied to R's
-    rows and W's columns (``W R`` is unchanged; the columns of W are the rows
-    of ``Wt``). ``widx``/``wside`` shift. Returns flops; the caller decrements p.
-
-    The rotation of ``(a, b) = (R[i, i], R[i + 1, i])`` takes ``sqrt(a^2 +
-    b^2)``, not hypot: R's columns are rows of a level scaled to norm 1
-    (entries <= 1 in magnitude) and ``b`` is a former diagonal entry, above
-    the rank threshold (1e-10 by default): far from under- and overflow."""
-    n = Wt.shape[0]
-    fl = 0
-    if j >= p - 1:
-        return 0
-    for col in range(j, p - 1):
-        for rr in range(col + 2):
-            R[rr, col] = R[rr, col + 1]
-        widx[col] = widx[col + 1]
-        wside[col] = wside[col + 1]
-    # Givens rotations down the subdiagonal. The next pivot a = R[i + 1, i + 1] after
-    # rotation i is carried in a register (computed from the entries loaded before the row
-    # update): the chain from one rotation to the next is sqrt, division, one fma
-    a = R[j, j]
-    for i in range(j, p - 1):
-        b = R[i + 1, i]
-        h = math.sqrt(a * a + b * b)
-        if h == 0.0:
-            a = R[i + 1, i + 1]
-            continue
-        c = a / h
-        s = b / h
-        if i + 1 < p - 1:
-            a = -s * R[i, i + 1] + c * R[i + 1, i + 1]
-        R[i, i] = h
-        R[i + 1, i] = 0.0
-        r1 = R[i, i + 1:p - 1]
-        r2 = R[i + 1, i + 1:p - 1]
-        for col in range(r1.shape[0]):
-            x1 = r1[col]
-            x2 = r2[col]
-            r1[col] = c * x1 + s * x2
-            r2[col] = -s * x1 + c * x2
-        w1 = Wt[i]
-        w2 = Wt[i + 1]
-        for rr in range(n):
-            a1 = w1[rr]
-            a2 = w2[rr]
-            w1[rr] = c * a1 + s * a2
-            w2[rr] = -s * a1 + c * a2
-        fl += 4 * (p - 1 - i) + 4 * n
-    return fl
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def multipliers(Wt, R, p, g, h, nu):
-    """Multipliers of the working constraints (eq. 39):
-    ``C^T nu = -g`` solved as ``R nu = -W[:, :p]^T g``; g (n,) is the gradient
-    ``J_k^T w_k`` of the level's objective. Returns flops."""
-    n = Wt.shape[0]
-    for c in range(p):
-        h[c] = vdot(Wt[c], g)
-    for c in range(p - 1, -1, -1):
-        nu[c] = (-h[c] - vdot(R[c, c + 1:p], nu[c + 1:p])) / R[c, c]
-    return n * p + p * p // 2
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def project_into(A, Olist, j0, j1, bcol, bval, Wt, p, Mf):
-    """``Mf[j, p:] = A[Olist[j]] @ W[:, p:]`` for j0 <= j < j1: the objective rows
-    projected on Z (eq. 19), kept up to date across iterations. Returns flops."""
-    n = Wt.shape[0]
-    fl = 0
-    ng = 0
-    for j in range(j0, j1):
-        if bcol[Olist[j]] < 0:
-            ng += 1
-    blas = n >= BLAS_MIN_N and ng >= BLAS_MIN_ROWS and ng * n * (n - p) >= BLAS_MIN_WORK
-    if blas:
-        # the general rows by one BLAS product (A_O gathered) @ Z
-        G = np.empty((ng, n))
-        gi = 0
-        for j in range(j0, j1):
-            i = Olist[j]
-            if bcol[i] < 0:
-                G[gi, :] = A[i, :]
-                gi += 1
-        P = G @ Wt[p:].T
-        gi = 0
-        for j in range(j0, j1):
-            if bcol[Olist[j]] < 0:
-                Mf[j, p:] = P[gi]
-                gi += 1
-        fl += ng * n * (n - p)
-    for j in range(j0, j1):
-        i = Olist[j]
-        b = bcol[i]
-        mj = Mf[j, p:]
-        if b >= 0:
-            v = bval[i]
-            for c in range(n - p):
-                mj[c] = v * Wt[p + c, b]
-            fl += n - p
-        elif not blas:
-            ra = A[i]
-            for c in range(n - p):
-                mj[c] = vdot(Wt[p + c], ra)
-            fl += n * (n - p)
     return fl
 
 

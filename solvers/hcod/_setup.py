@@ -9,6 +9,7 @@ from itertools import accumulate
 import numpy as np
 from numba import njit
 
+from solvers.hcod._basis import queue_sizes
 from solvers.hcod._linalg import level_scale
 
 N_OUT = 9  #: counters at the head of the "out" block; the iterations per level follow them
@@ -16,13 +17,14 @@ N_IP = 7  #: integer parameters (n, mt, D, mmax, max_iter, warm_mode, has_ineq)
 N_PRM = 4  #: float parameters (rank_rtol, feas_rtol, dual_rtol, freeze_rtol)
 ALIGN = 8  #: float blocks start on multiples of 8 doubles (64 bytes)
 # float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n);
-# the last ones hold the (scaled) problem and the parameters, so the kernel takes two arrays
+# then the (scaled) problem and the parameters, so the kernel takes two arrays, and the queue of
+# the basis (._basis)
 F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
             "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf", "Qb", "bq", "sv", "A", "lo", "up",
-            "prm")
+            "prm", "Qv")
 # int blocks; "out" holds the N_OUT counters, then the iterations per level
 I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "hist_state",
-            "hist_side", "hist_valid", "out", "levid", "piv", "cand", "cok", "starts", "ip")
+            "hist_side", "hist_valid", "out", "levid", "piv", "cand", "cok", "starts", "ip", "qi")
 #: the int workspace starts with the offsets themselves: foff (starts of the float blocks and
 #: the total, iw[:FEND0]), fend (ends of the float blocks, iw[FEND0:IOFF0]), ioff (iw[IOFF0:N_HEAD])
 FEND0 = len(F_BLOCKS) + 1
@@ -38,8 +40,8 @@ def layout(n: int, mt: int, D: int, mmax: int):
     entries that stores all three."""
     mm = max(mmax, 1)
     fsz = (n * n, n * n, n, n, n, n, n, n, n, n, n, mm * n, mm, mm, mm, mm * max(min(n, mm), 1), mt, mt, mt, D,
-           D * n, mm * n, n * n, n, 2 * n, mt * n, mt, mt, N_PRM)
-    isz = (mt, mt, mt, mt, mt, n, n, mm, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP)
+           D * n, mm * n, n * n, n, 2 * n, mt * n, mt, mt, N_PRM, queue_sizes(n)[0])
+    isz = (mt, mt, mt, mt, mt, n, n, mm, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP, queue_sizes(n)[1])
     foff = np.array((0, *accumulate(-(-size // ALIGN) * ALIGN for size in fsz)), dtype=np.int64)
     fend = foff[:-1] + np.array(fsz, dtype=np.int64)
     return foff, fend, np.array((N_HEAD, *(N_HEAD + c for c in accumulate(isz))), dtype=np.int64)

@@ -320,12 +320,10 @@ def test_min_norm_x_matches_reference_with_inequalities(seed):
     np.testing.assert_allclose(res.x, x_ref, rtol=0, atol=1e-8 * (1 + np.linalg.norm(x_ref)))
 
 
-def test_large_problems_blas_paths():
-    """n = 80: the projections of the objective rows on Z switch to BLAS."""
-    from solvers.hcod import _linalg
-
+def test_large_problems():
+    """n = 80 (IK-like, cold then warm) and n = 60 with general rows at every
+    level: the queue of the basis grows long, and is flushed."""
     h = G.ik_like(80, 0)
-    assert 42 * 80 * 74 >= _linalg.BLAS_MIN_WORK  # level 2: ~42 violated rows, nf = 74
     s = HcodSolver()
     _, x_ref = check(h, solver=s)
     warm = s.solve(h)
@@ -390,60 +388,6 @@ def test_many_grid_hierarchies_cold_and_warm(h):
         assert res.status == OPTIMAL, res.reason
         v = verify(h, res.x, x_ref, rtol=1e-8)
         assert v.equal or (h.has_inequalities and v.lower == "a"), v  # (see check())
-
-
-@pytest.mark.parametrize("n, p, m", [(12, 3, 5), (80, 10, 30)], ids=["small", "large"])
-def test_blocked_insertion_matches_one_row_at_a_time(n, p, m):
-    """insert_rows (the warm start's Delta+ A) = m calls of insert_row: same
-    refusals (a dependent row), same R, same basis; W stays orthonormal and
-    W R reproduces the working rows."""
-    from solvers.hcod._linalg import insert_row, insert_rows
-
-    rng = np.random.default_rng(n)
-    A = rng.standard_normal((p + m, n))
-    A[p + 1] = 2.0 * A[p] - A[0]             # dependent on a working row and an earlier candidate
-    A[p + 2] = 0.0
-    A[p + 2, 3] = -1.5                         # a bound row
-    bcol = np.full(p + m, -1, dtype=np.int64)
-    bcol[p + 2] = 3
-    bval = np.zeros(p + m)
-    bval[p + 2] = -1.5
-    lnorm, rowlev = np.ones(1), np.zeros(p + m, dtype=np.int64)
-    Wt0, R0, q, sv = np.eye(n), np.zeros((n, n)), np.zeros(n), np.zeros(n)
-    for i in range(p):                         # p working rows first
-        ok, _, _ = insert_row(A, i, bcol, bval, Wt0, R0, i, 1e-10, q, sv)
-        assert ok
-    cand = np.arange(p, p + m, dtype=np.int64)
-
-    Wt1, R1, p1, ok1 = Wt0.copy(), R0.copy(), p, []
-    for i in cand:
-        ok, _, _ = insert_row(A, i, bcol, bval, Wt1, R1, p1, 1e-10, q, sv)
-        ok1.append(int(ok))
-        p1 += ok
-    Wt2, R2, cok = Wt0.copy(), R0.copy(), np.zeros(n, dtype=np.int64)
-    t, _ = insert_rows(A, cand, m, bcol, bval, Wt2, R2, p, 1e-10, lnorm, rowlev,
-                       np.zeros((n, n)), np.zeros(n), cok, sv, np.zeros(n))
-
-    assert cok[:m].tolist() == ok1 and ok1[1] == 0 and t == p1 - p
-    np.testing.assert_allclose(R2[:p1, :p1], R1[:p1, :p1], rtol=0, atol=1e-10)
-    np.testing.assert_allclose(Wt2, Wt1, rtol=0, atol=1e-10)
-    np.testing.assert_allclose(Wt2 @ Wt2.T, np.eye(n), rtol=0, atol=1e-12)
-    rows = np.r_[np.arange(p), cand[cok[:m] == 1]]
-    np.testing.assert_allclose(Wt2[:p1].T @ np.triu(R2[:p1, :p1]), A[rows].T, rtol=0, atol=1e-10)
-
-
-def test_insert_row_refuses_without_room():
-    """With p = n working rows there is no Z left: insert_row refuses the row
-    at once and leaves W and R as they were."""
-    from solvers.hcod._linalg import insert_row
-
-    n = 4
-    A = np.arange(1.0, n + 1.0)[None, :]
-    Wt, R, q, sv = np.eye(n), np.triu(np.ones((n, n))), np.zeros(n), np.zeros(n)
-    ok, flops, _ = insert_row(A, 0, np.array([-1]), np.zeros(1), Wt, R, n, 1e-10, q, sv)
-    assert not ok and flops == 0
-    np.testing.assert_array_equal(Wt, np.eye(n))
-    np.testing.assert_array_equal(R, np.triu(np.ones((n, n))))
 
 
 @pytest.mark.parametrize("shape", [(7,), (3, 5)], ids=["1d", "2d"])
