@@ -88,6 +88,11 @@ BLAS_MIN_WORK = 20_000
 #: flush the queue once the products have spent this fraction of a flush's cost more than an
 #: explicit W would have (the flush runs ~2x more multiply-adds per ns than single vectors)
 FLUSH_RATIO = 0.5
+#: below this many variables the queue is flushed before every product: on short vectors the
+#: products of an explicit W are cheap and the queue's per-entry overheads dominate
+LAZY_MIN_N = 48
+#: multiply-adds charged per queue entry on top of its length (loop and reduction overheads)
+Q_OVH = 0
 QH = 8  #: head of qi
 Q_M, Q_F, Q_ID, Q_COST, Q_SPENT = range(5)
 _FM = set(FASTMATH)
@@ -346,7 +351,7 @@ def flush(Wt, qv, qi, sv, sv2):
     return fl
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def _charge(Wt, qv, qi, nvec, sv, sv2):
     """Account for nvec products through the queue; flush first when they
     have spent, beyond an explicit W, FLUSH_RATIO times a flush (rent or buy).
@@ -355,6 +360,8 @@ def _charge(Wt, qv, qi, nvec, sv, sv2):
     if cost == 0:
         return 0
     n = Wt.shape[0]
+    if n < LAZY_MIN_N:
+        return flush(Wt, qv, qi, sv, sv2)
     gain = cost - (n * n if qi[Q_ID] != 0 else 0)
     if gain <= 0:
         return 0
@@ -389,17 +396,25 @@ def push_reflector(Wt, qv, qi, o, v, bt, sv, sv2):
         fl += L
     qi[Q_M] = m + 1
     qi[Q_F] = f + L + 2
-    qi[Q_COST] += 2 * L
+    qi[Q_COST] += 2 * L + Q_OVH
     return fl
 
 
 # -- products with W --------------------------------------------------------------------------------
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def basis_t(Wt, qv, qi, x, sv, sv2):
-    """``x <- W^T x`` (x (n,)). Returns flops."""
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def basis_t(Wt, qv, qi, x, c0, c1, sv, sv2):
+    """``x[c0:c1] <- (W^T x)[c0:c1]`` (x (n,); the other entries of x are
+    left undefined: only ``W[:, c0:c1]`` is read when the queue is empty).
+    Returns flops."""
     fl = _charge(Wt, qv, qi, 1, sv, sv2)
     n = Wt.shape[0]
     if qi[Q_ID] == 0:
+        if qi[Q_M] == 0:
+            for c in range(c0, c1):
+                sv[c] = vdot(Wt[c], x)
+            for c in range(c0, c1):
+                x[c] = sv[c]
+            return fl + n * (c1 - c0)
         for c in range(n):
             sv[c] = vdot(Wt[c], x)
         x[:] = sv
@@ -407,18 +422,22 @@ def basis_t(Wt, qv, qi, x, sv, sv2):
     return fl + queue_t(qv, qi, x, 0)
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def basis_n(Wt, qv, qi, x, sv, sv2):
-    """``x <- W x`` (x (n,)). Returns flops."""
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def basis_n(Wt, qv, qi, x, c0, c1, sv, sv2):
+    """``x <- W x`` for x (n,) zero outside ``c0:c1`` (only ``W[:, c0:c1]`` is
+    read when the queue is empty). Returns flops."""
     fl = _charge(Wt, qv, qi, 1, sv, sv2)
-    fl += queue_n(qv, qi, x)
     n = Wt.shape[0]
+    if qi[Q_M] > 0:
+        fl += queue_n(qv, qi, x)
+        c0 = 0
+        c1 = n
     if qi[Q_ID] == 0:
         sv[:] = 0.0
-        for c in range(n):
+        for c in range(c0, c1):
             vaxpy(x[c], Wt[c], sv)
         x[:] = sv
-        fl += n * n
+        fl += n * (c1 - c0)
     return fl
 
 
@@ -447,7 +466,7 @@ def _w0_row(A, i, bcol, bval, Wt, ident, out):
     return n * n
 
 
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def basis_row(A, i, bcol, bval, Wt, qv, qi, out, sv, sv2):
     """``out = W^T a`` for the row ``a = A[i]`` (out (n,)). Returns flops."""
     fl = _charge(Wt, qv, qi, 1, sv, sv2)
@@ -456,14 +475,31 @@ def basis_row(A, i, bcol, bval, Wt, qv, qi, out, sv, sv2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def basis_rows(A, rows, j0, j1, bcol, bval, Wt, qv, qi, M, sv, sv2):
+def basis_rows(A, rows, j0, j1, bcol, bval, Wt, qv, qi, M, c0, sv, sv2):
     """``M[j] = W^T A[rows[j]]`` for j0 <= j < j1 (M (>= j1, n)): the rows
     projected on the basis (eq. 19 takes ``M[j, p:]``, the projection on Z);
-    the general rows by one BLAS product with W0 when there are many. Returns
-    flops."""
+    the general rows by one BLAS product with W0 when there are many. Only
+    ``M[j, c0:]`` is computed when the queue is empty and W0 explicit (the
+    other entries are left as they were). Returns flops."""
     n = Wt.shape[0]
     fl = _charge(Wt, qv, qi, j1 - j0, sv, sv2)
     ident = qi[Q_ID] != 0
+    if not ident and qi[Q_M] == 0 and c0 > 0:
+        for j in range(j0, j1):
+            i = rows[j]
+            b = bcol[i]
+            mj = M[j, c0:]
+            if b >= 0:
+                v = bval[i]
+                for c in range(n - c0):
+                    mj[c] = v * Wt[c0 + c, b]
+                fl += n - c0
+            else:
+                ra = A[i]
+                for c in range(n - c0):
+                    mj[c] = vdot(Wt[c0 + c], ra)
+                fl += n * (n - c0)
+        return fl
     ng = 0
     if not ident:
         for j in range(j0, j1):
@@ -514,7 +550,13 @@ def insert_row(A, i, bcol, bval, R, p, thr, q, Wt, qv, qi, sv, sv2):
     if not nrm > thr:
         return False, fl, 0.0
     alpha, bt = householder(qz, nrm)
-    fl += push_reflector(Wt, qv, qi, p, qz, bt, sv, sv2)
+    if n < LAZY_MIN_N:  # W0 explicit (basis_row flushed a nonempty queue), the reflector applied
+        if qi[Q_ID] != 0 or qi[Q_M] > 0:
+            fl += flush(Wt, qv, qi, sv, sv2)
+        _flush_one(Wt, p, bt, qz, sv)
+        fl += 2 * n * (n - p)
+    else:
+        fl += push_reflector(Wt, qv, qi, p, qz, bt, sv, sv2)
     for c in range(p):
         R[c, p] = q[c]
     R[p, p] = alpha
@@ -530,7 +572,7 @@ def insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, cok,
     before it); the accepted reflectors are pushed in order. ``cok[j]`` = 1
     when row j entered. Qb (>= m, n) scratch. Returns (t, flops)."""
     n = Wt.shape[0]
-    fl = basis_rows(A, cand, 0, m, bcol, bval, Wt, qv, qi, Qb, sv, sv2)
+    fl = basis_rows(A, cand, 0, m, bcol, bval, Wt, qv, qi, Qb, 0, sv, sv2)
     t = 0
     for j in range(m):
         i = cand[j]
@@ -553,11 +595,13 @@ def insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, cok,
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def delete_row(j, R, p, widx, wside, Wt, qv, qi, sv, sv2):
+def delete_row(j, R, p, widx, wside, M, nM, Wt, qv, qi, sv, sv2):
     """Remove working row j (0 <= j < p): drop column j of R (it becomes upper
     Hessenberg) and restore the triangle by Givens rotations applied to R's
-    rows; the same rotations of W's columns ``(i, i + 1)``, i = j .. p - 2, are
-    pushed as one sequence (``W R`` is unchanged). ``widx``/``wside`` shift.
+    rows; the same rotations of W's columns ``(i, i + 1)``, i = j .. p - 2
+    (``W R`` is unchanged), are pushed as one sequence (applied to ``W0`` at
+    once below LAZY_MIN_N variables), and applied to the rows ``M[:nM]`` (kept
+    as ``W^T a``: the projected objective rows). ``widx``/``wside`` shift.
     Returns flops; the caller decrements p.
 
     The rotation of ``(a, b) = (R[i, i], R[i + 1, i])`` takes ``sqrt(a^2 +
@@ -567,18 +611,16 @@ def delete_row(j, R, p, widx, wside, Wt, qv, qi, sv, sv2):
     fl = 0
     if j >= p - 1:
         return 0
+    n = Wt.shape[0]
     t = p - 1 - j
-    if qi[Q_M] + 1 > (qi.shape[0] - QH) // 3 or qi[Q_F] + 2 * t > qv.shape[0]:
+    eager = n < LAZY_MIN_N
+    if eager:
+        if qi[Q_M] > 0 or qi[Q_ID] != 0:
+            fl += flush(Wt, qv, qi, sv, sv2)
+    elif qi[Q_M] + 1 > (qi.shape[0] - QH) // 3 or qi[Q_F] + 2 * t > qv.shape[0]:
         fl += flush(Wt, qv, qi, sv, sv2)
     m = qi[Q_M]
     f = qi[Q_F]
-    b = QH + 3 * m
-    qi[b] = j
-    qi[b + 1] = -t
-    qi[b + 2] = f
-    qi[Q_M] = m + 1
-    qi[Q_F] = f + 2 * t
-    qi[Q_COST] += 4 * t
     for col in range(j, p - 1):
         for rr in range(col + 2):
             R[rr, col] = R[rr, col + 1]
@@ -591,37 +633,53 @@ def delete_row(j, R, p, widx, wside, Wt, qv, qi, sv, sv2):
     for i in range(j, p - 1):
         b = R[i + 1, i]
         h = math.sqrt(a * a + b * b)
-        k = f + 2 * (i - j)
         if h == 0.0:
-            qv[k] = 1.0
-            qv[k + 1] = 0.0
+            c = 1.0
+            s = 0.0
             a = R[i + 1, i + 1]
-            continue
-        c = a / h
-        s = b / h
-        qv[k] = c
-        qv[k + 1] = s
-        if i + 1 < p - 1:
-            a = -s * R[i, i + 1] + c * R[i + 1, i + 1]
-        R[i, i] = h
-        R[i + 1, i] = 0.0
-        r1 = R[i, i + 1:p - 1]
-        r2 = R[i + 1, i + 1:p - 1]
-        for col in range(r1.shape[0]):
-            x1 = r1[col]
-            x2 = r2[col]
-            r1[col] = c * x1 + s * x2
-            r2[col] = -s * x1 + c * x2
-        fl += 4 * (p - 1 - i)
+        else:
+            c = a / h
+            s = b / h
+            if i + 1 < p - 1:
+                a = -s * R[i, i + 1] + c * R[i + 1, i + 1]
+            R[i, i] = h
+            R[i + 1, i] = 0.0
+            r1 = R[i, i + 1:p - 1]
+            r2 = R[i + 1, i + 1:p - 1]
+            for col in range(r1.shape[0]):
+                x1 = r1[col]
+                x2 = r2[col]
+                r1[col] = c * x1 + s * x2
+                r2[col] = -s * x1 + c * x2
+            fl += 4 * (p - 1 - i)
+        if eager:
+            w1 = Wt[i]
+            w2 = Wt[i + 1]
+            for rr in range(n):
+                a1 = w1[rr]
+                a2 = w2[rr]
+                w1[rr] = c * a1 + s * a2
+                w2[rr] = -s * a1 + c * a2
+            fl += 4 * n
+        else:
+            qv[f + 2 * (i - j)] = c
+            qv[f + 2 * (i - j) + 1] = s
+        for jm in range(nM):
+            mr = M[jm]
+            a1 = mr[i]
+            a2 = mr[i + 1]
+            mr[i] = c * a1 + s * a2
+            mr[i + 1] = -s * a1 + c * a2
+        fl += 4 * nM
+    if not eager:
+        b = QH + 3 * m
+        qi[b] = j
+        qi[b + 1] = -t
+        qi[b + 2] = f
+        qi[Q_M] = m + 1
+        qi[Q_F] = f + 2 * t
+        qi[Q_COST] += 4 * t + Q_OVH
     return fl
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def rotate_rows_last(qv, qi, M, j0, j1):
-    """Apply the last pushed entry (a deletion's rotations) to the rows
-    ``M[j0:j1]`` (kept as ``W^T a``, like the projected objective rows).
-    Returns flops."""
-    return queue_t_rows(qv, qi, M, j0, j1, qi[Q_M] - 1)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -630,7 +688,7 @@ def multipliers(R, p, g, nu, Wt, qv, qi, sv, sv2):
     ``C^T nu = -g`` solved as ``R nu = -W[:, :p]^T g``; g (n,) is the gradient
     ``J_k^T w_k`` of the level's objective (overwritten by ``W^T g``).
     Returns flops."""
-    fl = basis_t(Wt, qv, qi, g, sv, sv2)
+    fl = basis_t(Wt, qv, qi, g, 0, p, sv, sv2)
     for c in range(p - 1, -1, -1):
         nu[c] = (-g[c] - vdot(R[c, c + 1:p], nu[c + 1:p])) / R[c, c]
     return fl + p * p // 2

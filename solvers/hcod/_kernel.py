@@ -36,16 +36,17 @@ import numpy as np
 from numba import njit
 
 from solvers.hcod._basis import (
+    LAZY_MIN_N,
     basis_n,
     basis_reset,
     basis_rows,
     basis_t,
     delete_row,
+    flush,
     insert_row,
     insert_rows,
     multipliers,
     push_reflector,
-    rotate_rows_last,
 )
 from solvers.hcod._linalg import (
     FASTMATH,
@@ -153,6 +154,7 @@ def hcod_solve(fw, iw):
     cand = iw[ioff[14]:ioff[15]]
     cok = iw[ioff[15]:ioff[16]]
 
+    lazy = n >= LAZY_MIN_N  # the projected rows Mf are whole rows W^T a (see _basis)
     if out[O_PREPARED] == 0:
         prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, widx)
         out[O_PREPARED] = 1
@@ -200,7 +202,7 @@ def hcod_solve(fw, iw):
                 for j in range(p - 1, -1, -1):
                     i = widx[j]
                     if wside[j] != 0 and (warm == 0 or hist_state[k, i] != WORK):
-                        fl += delete_row(j, R, p, widx, wside, Wt, qv, qi, sv, sv2)
+                        fl += delete_row(j, R, p, widx, wside, Mf, 0, Wt, qv, qi, sv, sv2)
                         p -= 1
                         state[i] = INACTIVE
                         dropped = True
@@ -225,9 +227,9 @@ def hcod_solve(fw, iw):
                     ps[c] = hist_du[k, c]
                     dun += abs(ps[c])
                 if p > 0 and dun > 0.0:  # (p = 0: Z spans everything): ps <- Z Z^T ps
-                    fl += basis_t(Wt, qv, qi, ps, sv, sv2)
+                    fl += basis_t(Wt, qv, qi, ps, p, n, sv, sv2)
                     ps[:p] = 0.0
-                    fl += basis_n(Wt, qv, qi, ps, sv, sv2)
+                    fl += basis_n(Wt, qv, qi, ps, p, n, sv, sv2)
                 tau = 1.0
                 for i in range(s0):
                     if state[i] != INACTIVE or kind[i] != 1 or hist_state[k, i] == WORK:
@@ -295,7 +297,7 @@ def hcod_solve(fw, iw):
                         vaxpy(-nu[l], R[l, l + 1:p], hv[l + 1:p])
                     z[:] = 0.0
                     z[:p] = nu[:p]
-                    fl += basis_n(Wt, qv, qi, z, sv, sv2) + p * p // 2
+                    fl += basis_n(Wt, qv, qi, z, 0, p, sv, sv2) + p * p // 2
                     vaxpy(1.0, z, u)
                 unorm = _norm(u)
                 feasible = True
@@ -384,14 +386,14 @@ def hcod_solve(fw, iw):
                         i = Olist[j]
                         g[bcol[i]] += (target[i] - bval[i] * u[bcol[i]]) * bval[i]
                     d2 = bval[Olist[0]] * bval[Olist[0]]
-                    fl += basis_t(Wt, qv, qi, g, sv, sv2)
+                    fl += basis_t(Wt, qv, qi, g, p, n, sv, sv2)
                     for c in range(p, n):
                         ps[c] = g[c] / d2
-                    fl += basis_n(Wt, qv, qi, ps, sv, sv2)
+                    fl += basis_n(Wt, qv, qi, ps, p, n, sv, sv2)
                     r = nf
                 elif nf > 0 and nO > 0:
                     if not mf_valid:
-                        fl += basis_rows(A, Olist, 0, nO, bcol, bval, Wt, qv, qi, Mf, sv, sv2)
+                        fl += basis_rows(A, Olist, 0, nO, bcol, bval, Wt, qv, qi, Mf, 0 if lazy else p, sv, sv2)
                         mf_valid = True
                     for j in range(nO):
                         i = Olist[j]
@@ -410,7 +412,7 @@ def hcod_solve(fw, iw):
                             z[c] = y[c] if c < r else 0.0
                         fl += apply_reflectors(Mr, beta, r, nf, z)
                         ps[p:] = z[:nf]
-                        fl += basis_n(Wt, qv, qi, ps, sv, sv2)
+                        fl += basis_n(Wt, qv, qi, ps, p, n, sv, sv2)
                 tau = 1.0
                 blk = -1
                 bsd = 0
@@ -456,7 +458,8 @@ def hcod_solve(fw, iw):
                         state[blk] = OBJECTIVE
                         Olist[nO] = blk
                         if mf_valid:
-                            fl += basis_rows(A, Olist, nO, nO + 1, bcol, bval, Wt, qv, qi, Mf, sv, sv2)
+                            fl += basis_rows(A, Olist, nO, nO + 1, bcol, bval, Wt, qv, qi, Mf, 0 if lazy else p,
+                                             sv, sv2)
                         nO += 1
                     else:
                         ok, f, bt = insert_row(A, blk, bcol, bval, R, p, rank_rtol * lnorm[rowlev[blk]], q,
@@ -549,15 +552,20 @@ def hcod_solve(fw, iw):
                                     jw = j
                         if jw >= 0:
                             i = widx[jw]
-                            rotated = jw < p - 1
-                            fl += delete_row(jw, R, p, widx, wside, Wt, qv, qi, sv, sv2)
+                            # (lazy: the rotations of W's columns are applied to the projected
+                            # objective rows too, Mf[j] = W^T a_j; otherwise W is explicit and the
+                            # new column p of Z is projected)
+                            fl += delete_row(jw, R, p, widx, wside, Mf, nO if mf_valid and lazy else 0, Wt,
+                                             qv, qi, sv, sv2)
                             p -= 1
                             state[i] = INACTIVE
                             deacts += 1
-                            if mf_valid and rotated:
-                                # the rotations of W's columns, applied to the projected objective
-                                # rows (Mf[j] = W^T a_j: Z gained the column p)
-                                fl += rotate_rows_last(qv, qi, Mf, 0, nO)
+                            if mf_valid and not lazy:
+                                wp = Wt[p]
+                                for j in range(nO):
+                                    io = Olist[j]
+                                    Mf[j, p] = row_dot(A[io], bcol[io], bval[io], wp)
+                                fl += nO * n
                             for i2 in range(s0):
                                 if state[i2] == IMPLIED:
                                     ok, f, bt = insert_row(A, i2, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i2]],
@@ -603,8 +611,15 @@ def hcod_solve(fw, iw):
                     # W by its reflectors (W[:, p:] <- W[:, p:] H, eq. 23, pushed), their R columns
                     # are (W[:, :p]^T a, R_cod[:, t]), the first from the projected rows kept in
                     # Mf (Mf[j] = W^T a_j); the other rows are combinations of them
+                    if not lazy and qi[0] > 0:
+                        fl += flush(Wt, qv, qi, sv, sv2)
                     for t in range(r):
                         mt_ = Mf[piv[t]]
+                        if not lazy:  # (Mf holds the projection on Z only: W[:, :p]^T a)
+                            i = Olist[piv[t]]
+                            for l in range(p):
+                                mt_[l] = row_dot(A[i], bcol[i], bval[i], Wt[l])
+                            fl += n * p
                         for l in range(p):
                             R[l, p + t] = mt_[l]
                         for l in range(t):

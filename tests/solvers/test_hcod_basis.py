@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from solvers.hcod._basis import (
+    LAZY_MIN_N,
     Q_ID,
     Q_M,
     QH,
@@ -64,7 +65,7 @@ class Basis:
         return ok
 
     def delete(self, j):
-        delete_row(j, self.R, self.p, self.widx, self.wside, *self.args())
+        delete_row(j, self.R, self.p, self.widx, self.wside, np.zeros((1, self.n)), 0, *self.args())
         self.p -= 1
 
     def W(self) -> np.ndarray:
@@ -74,7 +75,7 @@ class Basis:
         for c in range(n):
             x = np.zeros(n)
             x[c] = 1.0
-            basis_n(*self.args()[:3], x, self.sv, self.sv2)
+            basis_n(*self.args()[:3], x, 0, n, self.sv, self.sv2)
             W[:, c] = x
         return W
 
@@ -86,11 +87,12 @@ class Basis:
         np.testing.assert_allclose(W[:, :p] @ np.triu(self.R[:p, :p]), C.T, rtol=0, atol=ATOL)
         x = np.arange(1.0, n + 1.0)
         y = x.copy()
-        basis_t(*self.args()[:3], y, self.sv, self.sv2)
+        basis_t(*self.args()[:3], y, 0, n, self.sv, self.sv2)
         np.testing.assert_allclose(y, W.T @ x, rtol=0, atol=ATOL * n)
         rows = np.arange(len(self.A), dtype=np.int64)
         M = np.zeros((len(self.A), n))
-        basis_rows(self.A, rows, 0, len(rows), self.bcol, self.bval, self.Wt, self.qv, self.qi, M, self.sv, self.sv2)
+        basis_rows(self.A, rows, 0, len(rows), self.bcol, self.bval, self.Wt, self.qv, self.qi, M, 0, self.sv,
+                   self.sv2)
         np.testing.assert_allclose(M, self.A @ W, rtol=0, atol=ATOL * n)
         out = np.zeros(n)
         basis_row(self.A, 0, self.bcol, self.bval, *self.args()[:3], out, self.sv, self.sv2)
@@ -136,18 +138,18 @@ def test_updates_keep_the_decomposition(n, explicit):
 def test_storage_full_flushes_and_keeps_w():
     """More entries than the queue holds: it is flushed on the way, W stays
     right."""
-    n = 6
+    n = LAZY_MIN_N
     rng = np.random.default_rng(3)
-    b = Basis(n, 400, rng)
+    b = Basis(n, 1200, rng)
     flushed = 0
     i = 0
-    for _ in range(150):
+    for _ in range(300):
         while b.p < n - 1 and i < len(b.A):
             b.insert(i)
             i += 1
         b.delete(0)
         flushed += b.qi[Q_ID] == 0
-    assert (len(b.qi) - QH) // 3 < 150 * 2
+    assert (len(b.qi) - QH) // 3 < 300 * 2
     assert flushed > 0
     b.check()
 
@@ -155,14 +157,14 @@ def test_storage_full_flushes_and_keeps_w():
 def test_products_flush_a_long_queue_only():
     """The rent-or-buy rule: products through a queue dearer than an explicit
     W end in a flush; through a cheap queue (a few reflectors) never."""
-    n = 20
+    n = LAZY_MIN_N
     rng = np.random.default_rng(5)
     b = Basis(n, 3 * n, rng)
     for i in range(3):
         b.insert(i + 1)
     x = rng.standard_normal(n)
     for _ in range(100):
-        basis_t(*b.args()[:3], x.copy(), b.sv, b.sv2)
+        basis_t(*b.args()[:3], x.copy(), 0, n, b.sv, b.sv2)
     assert b.qi[Q_ID] == 1 and b.qi[Q_M] == 3
     for k in range(40):  # a long queue: 40 deletions and insertions, dearer than n^2 per product
         b.delete(0)
@@ -185,7 +187,7 @@ def test_blocked_insertion_matches_one_row_at_a_time(n, p, m):
     b2 = Basis(n, p + m, rng)
     for name in ("A", "bcol", "bval", "R", "widx"):
         setattr(b2, name, getattr(b1, name).copy())
-    b2.qv, b2.qi, b2.p = b1.qv.copy(), b1.qi.copy(), b1.p
+    b2.Wt, b2.qv, b2.qi, b2.p = b1.Wt.copy(), b1.qv.copy(), b1.qi.copy(), b1.p
     ok1 = [int(b1.insert(i)) for i in range(p, p + m)]
     cand = np.arange(p, p + m, dtype=np.int64)
     cok = np.zeros(m, dtype=np.int64)
