@@ -42,11 +42,10 @@ from solvers.hcod._basis import (
     basis_rows,
     basis_t,
     delete_row,
-    flush,
     insert_row,
     insert_rows,
     multipliers,
-    push_reflector,
+    push_reflectors,
 )
 from solvers.hcod._linalg import (
     FASTMATH,
@@ -130,6 +129,7 @@ def hcod_solve(fw, iw):
     hist_du = matrix_view(fw[foff[20]:fend[20]], D, n)
     Mf = matrix_view(fw[foff[21]:fend[21]], mmax, n)
     Qb = matrix_view(fw[foff[22]:fend[22]], n, n)
+    bq = fw[foff[23]:fend[23]]
     sv = fw[foff[24]:foff[24] + n]  # two scratch vectors (n,)
     sv2 = fw[foff[24] + n:fend[24]]
     A = matrix_view(fw[foff[25]:fend[25]], mt, n)
@@ -169,7 +169,7 @@ def hcod_solve(fw, iw):
         use_hist = warm == 2
         # cold initial state: u_0 = 0, W = I, nothing active
         u[:] = 0.0
-        basis_reset(qi)
+        basis_reset(lazy, Wt, qi)
         for i in range(mt):
             state[i] = INACTIVE
             side[i] = 0
@@ -202,14 +202,14 @@ def hcod_solve(fw, iw):
                 for j in range(p - 1, -1, -1):
                     i = widx[j]
                     if wside[j] != 0 and (warm == 0 or hist_state[k, i] != WORK):
-                        fl += delete_row(j, R, p, widx, wside, Mf, 0, Wt, qv, qi, sv, sv2)
+                        fl += delete_row(lazy, j, R, p, widx, wside, Mf, 0, Wt, qv, qi, sv, sv2)
                         p -= 1
                         state[i] = INACTIVE
                         dropped = True
                 if dropped:
                     for i in range(s0):
                         if state[i] == IMPLIED:
-                            ok, f, bt = insert_row(A, i, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i]], q,
+                            ok, f, bt = insert_row(lazy, A, i, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i]], q,
                                                    Wt, qv, qi, sv, sv2)
                             fl += f
                             if ok:
@@ -227,9 +227,9 @@ def hcod_solve(fw, iw):
                     ps[c] = hist_du[k, c]
                     dun += abs(ps[c])
                 if p > 0 and dun > 0.0:  # (p = 0: Z spans everything): ps <- Z Z^T ps
-                    fl += basis_t(Wt, qv, qi, ps, p, n, sv, sv2)
+                    fl += basis_t(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
                     ps[:p] = 0.0
-                    fl += basis_n(Wt, qv, qi, ps, p, n, sv, sv2)
+                    fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
                 tau = 1.0
                 for i in range(s0):
                     if state[i] != INACTIVE or kind[i] != 1 or hist_state[k, i] == WORK:
@@ -271,7 +271,7 @@ def hcod_solve(fw, iw):
                         cok[j] = dl
                         m_in += 1
                 if m_in > 0:
-                    _, f = insert_rows(A, cand, m_in, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, cok,
+                    _, f = insert_rows(lazy, A, cand, m_in, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok,
                                        Wt, qv, qi, sv, sv2)
                     fl += f
                     for j in range(m_in):
@@ -297,7 +297,7 @@ def hcod_solve(fw, iw):
                         vaxpy(-nu[l], R[l, l + 1:p], hv[l + 1:p])
                     z[:] = 0.0
                     z[:p] = nu[:p]
-                    fl += basis_n(Wt, qv, qi, z, 0, p, sv, sv2) + p * p // 2
+                    fl += basis_n(lazy, Wt, qv, qi, z, 0, p, sv, sv2) + p * p // 2
                     vaxpy(1.0, z, u)
                 unorm = _norm(u)
                 feasible = True
@@ -386,14 +386,14 @@ def hcod_solve(fw, iw):
                         i = Olist[j]
                         g[bcol[i]] += (target[i] - bval[i] * u[bcol[i]]) * bval[i]
                     d2 = bval[Olist[0]] * bval[Olist[0]]
-                    fl += basis_t(Wt, qv, qi, g, p, n, sv, sv2)
+                    fl += basis_t(lazy, Wt, qv, qi, g, p, n, sv, sv2)
                     for c in range(p, n):
                         ps[c] = g[c] / d2
-                    fl += basis_n(Wt, qv, qi, ps, p, n, sv, sv2)
+                    fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
                     r = nf
                 elif nf > 0 and nO > 0:
                     if not mf_valid:
-                        fl += basis_rows(A, Olist, 0, nO, bcol, bval, Wt, qv, qi, Mf, 0 if lazy else p, sv, sv2)
+                        fl += basis_rows(lazy, A, Olist, 0, nO, bcol, bval, Wt, qv, qi, Mf, p, sv, sv2)
                         mf_valid = True
                     for j in range(nO):
                         i = Olist[j]
@@ -412,7 +412,7 @@ def hcod_solve(fw, iw):
                             z[c] = y[c] if c < r else 0.0
                         fl += apply_reflectors(Mr, beta, r, nf, z)
                         ps[p:] = z[:nf]
-                        fl += basis_n(Wt, qv, qi, ps, p, n, sv, sv2)
+                        fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
                 tau = 1.0
                 blk = -1
                 bsd = 0
@@ -458,11 +458,10 @@ def hcod_solve(fw, iw):
                         state[blk] = OBJECTIVE
                         Olist[nO] = blk
                         if mf_valid:
-                            fl += basis_rows(A, Olist, nO, nO + 1, bcol, bval, Wt, qv, qi, Mf, 0 if lazy else p,
-                                             sv, sv2)
+                            fl += basis_rows(lazy, A, Olist, nO, nO + 1, bcol, bval, Wt, qv, qi, Mf, p, sv, sv2)
                         nO += 1
                     else:
-                        ok, f, bt = insert_row(A, blk, bcol, bval, R, p, rank_rtol * lnorm[rowlev[blk]], q,
+                        ok, f, bt = insert_row(lazy, A, blk, bcol, bval, R, p, rank_rtol * lnorm[rowlev[blk]], q,
                                                Wt, qv, qi, sv, sv2)
                         fl += f
                         if not ok:
@@ -541,7 +540,7 @@ def hcod_solve(fw, iw):
                         gtol += rnorm[i] * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
                     gtol *= dual_rtol
                     if gn > gtol:
-                        fl += multipliers(R, p, g, nu, Wt, qv, qi, sv, sv2)  # eq. (39)
+                        fl += multipliers(lazy, R, p, g, nu, hv, Wt, qv, qi, sv, sv2)  # eq. (39)
                         worst = 0.0
                         for j in range(p):
                             if wside[j] != 0:
@@ -555,7 +554,7 @@ def hcod_solve(fw, iw):
                             # (lazy: the rotations of W's columns are applied to the projected
                             # objective rows too, Mf[j] = W^T a_j; otherwise W is explicit and the
                             # new column p of Z is projected)
-                            fl += delete_row(jw, R, p, widx, wside, Mf, nO if mf_valid and lazy else 0, Wt,
+                            fl += delete_row(lazy, jw, R, p, widx, wside, Mf, nO if mf_valid and lazy else 0, Wt,
                                              qv, qi, sv, sv2)
                             p -= 1
                             state[i] = INACTIVE
@@ -568,7 +567,7 @@ def hcod_solve(fw, iw):
                                 fl += nO * n
                             for i2 in range(s0):
                                 if state[i2] == IMPLIED:
-                                    ok, f, bt = insert_row(A, i2, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i2]],
+                                    ok, f, bt = insert_row(lazy, A, i2, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i2]],
                                                            q, Wt, qv, qi, sv, sv2)
                                     fl += f
                                     if ok and mf_valid:
@@ -599,8 +598,7 @@ def hcod_solve(fw, iw):
                         hist_valid[kk] = 0
                 break
             elif not has_ineq:
-                for t in range(r):
-                    fl += push_reflector(Wt, qv, qi, p + t, Mr[t, t:nf], beta[t], sv, sv2)
+                fl += push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, sv, sv2)
                 for j in range(nO):
                     state[Olist[piv[j]]] = WORK if j < r else IMPLIED
                 p += r
@@ -611,8 +609,6 @@ def hcod_solve(fw, iw):
                     # W by its reflectors (W[:, p:] <- W[:, p:] H, eq. 23, pushed), their R columns
                     # are (W[:, :p]^T a, R_cod[:, t]), the first from the projected rows kept in
                     # Mf (Mf[j] = W^T a_j); the other rows are combinations of them
-                    if not lazy and qi[0] > 0:
-                        fl += flush(Wt, qv, qi, sv, sv2)
                     for t in range(r):
                         mt_ = Mf[piv[t]]
                         if not lazy:  # (Mf holds the projection on Z only: W[:, :p]^T a)
@@ -625,8 +621,7 @@ def hcod_solve(fw, iw):
                         for l in range(t):
                             R[p + l, p + t] = Mr[t, l]
                         R[p + t, p + t] = diag[t]
-                    for t in range(r):
-                        fl += push_reflector(Wt, qv, qi, p + t, Mr[t, t:nf], beta[t], sv, sv2)
+                    fl += push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, sv, sv2)
                 for j in range(nO):
                     i = Olist[piv[j]]
                     av = row_dot(A[i], bcol[i], bval[i], u)
@@ -638,7 +633,7 @@ def hcod_solve(fw, iw):
                     if cod_done:
                         ok = j < r
                     else:
-                        ok, f, bt = insert_row(A, i, bcol, bval, R, p, thr_k, q, Wt, qv, qi, sv, sv2)
+                        ok, f, bt = insert_row(lazy, A, i, bcol, bval, R, p, thr_k, q, Wt, qv, qi, sv, sv2)
                         fl += f
                     side[i] = sd
                     if ok:

@@ -2,7 +2,8 @@
 two or four rows at a time), the rank-revealing COD of a projected level and
 its least-squares solve, and the array helpers of the kernels (unowned
 workspaces, cheap 2-D views). The basis ``W`` and the updates of the
-constraint decomposition are in :mod:`._basis`.
+constraint decomposition are in :mod:`._basis`; the orthogonal factors
+applied to the columns of a basis stored by columns are at the end.
 
 Every routine that computes returns the number of multiply-adds it did (the
 flop counter of :class:`~solvers.base.SolveResult`). Rows are read from
@@ -23,6 +24,13 @@ from numba.np.arrayobj import make_array, populate_array
 #: contraction; no "nnan"/"ninf" (the kernels test finiteness)
 FASTMATH = frozenset({"reassoc", "contract", "nsz", "arcp"})
 _FM = set(FASTMATH)
+#: the products of many general rows with an explicit basis (``_explicit.project_into``,
+#: ``_factored.basis_rows``) call BLAS from these sizes up; below, the vectorised loops beat a
+#: BLAS call (its overhead ~1 us). The basis updates never call it: the loops two reflectors
+#: at a time beat the compact WY form with BLAS at every size measured
+BLAS_MIN_ROWS = 8
+BLAS_MIN_N = 64
+BLAS_MIN_WORK = 20_000
 
 
 # -- vector primitives on 1-D views. Loops run over range(len) from 0: numba then knows the
@@ -398,3 +406,118 @@ def mf_reflect(Mf, nO, p, q, bt):
     for j in range(nO):
         vreflect(bt, qz, Mf[j, p:])
     return 2 * nO * (n - p)
+
+
+# -- orthogonal factors applied to the columns of a basis stored by columns (Wt = W^T: column c
+# of W is the row Wt[c], a contiguous vector of length n)
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def reflect_cols(Wt, o, bt, v, sv):
+    """``W[:, o:o+L] <- W[:, o:o+L] (I - bt v v^T)`` (v (L,)): ``s = sum_c
+    v_c Wt[o + c]``, then ``Wt[o + c] -= bt v_c s``. sv (n,) scratch. Returns
+    flops."""
+    sv[:] = 0.0
+    for c in range(v.shape[0]):
+        vaxpy(v[c], Wt[o + c], sv)
+    for c in range(v.shape[0]):
+        vaxpy(-bt * v[c], sv, Wt[o + c])
+    return 2 * Wt.shape[0] * v.shape[0]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def reflect_cols_pair(Wt, o, b1, v1, b2, v2, d, sv, sv2):
+    """Two reflectors, ``W[:, o:] <- W[:, o:] H1 H2`` with v1 (L,) on the
+    columns ``o:o+L`` and v2 (L-1,) one column to the right, ``d = v1[1:] .
+    v2``: one pass over the rows of Wt for both sums, ``s2 -= b1 d s1`` (H1
+    acts first), one pass for the update. sv, sv2 (n,) scratch. Returns flops."""
+    n = Wt.shape[0]
+    a = v1[0]
+    w = Wt[o]
+    for e in range(n):
+        sv[e] = a * w[e]
+    sv2[:] = 0.0
+    for c in range(v2.shape[0]):
+        a = v1[c + 1]
+        bb = v2[c]
+        w = Wt[o + 1 + c]
+        for e in range(n):
+            x = w[e]
+            sv[e] += a * x
+            sv2[e] += bb * x
+    g = b1 * d
+    for e in range(n):
+        sv2[e] -= g * sv[e]
+    vaxpy(-b1 * v1[0], sv, Wt[o])
+    for c in range(v2.shape[0]):
+        a = b1 * v1[c + 1]
+        bb = b2 * v2[c]
+        w = Wt[o + 1 + c]
+        for e in range(n):
+            w[e] -= a * sv[e] + bb * sv2[e]
+    return 4 * n * v1.shape[0]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def rotate_cols(c, s, w1, w2):
+    """``(w1, w2) <- (c w1 + s w2, -s w1 + c w2)``: a Givens rotation of two
+    columns of W (two rows of Wt, (n,) each)."""
+    for e in range(w1.shape[0]):
+        a1 = w1[e]
+        a2 = w2[e]
+        w1[e] = c * a1 + s * a2
+        w2[e] = -s * a1 + c * a2
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def retriangulate(j, R, p, widx, wside, cs, Wt, rotate_w):
+    """Remove working row j (0 <= j < p - 1) from ``R``: drop its column (R
+    becomes upper Hessenberg) and restore the triangle by the Givens rotations
+    ``G_i`` of the rows ``(i, i + 1)``, i = j .. p - 2, stored as ``cs[2 (i -
+    j)] = c``, ``cs[2 (i - j) + 1] = s`` (cs (>= 2 (p - 1 - j),); c = 1, s = 0
+    when the pair is already zero). ``W R`` stays unchanged when the same
+    rotations are applied to the columns ``(i, i + 1)`` of W: here, one
+    rotation after the other, when ``rotate_w`` (a constant of the caller: W
+    explicit, ``Wt = W^T``), else by the caller. ``widx``/``wside`` shift.
+    Returns flops; the caller decrements p.
+
+    The rotation of ``(a, b) = (R[i, i], R[i + 1, i])`` takes ``sqrt(a^2 +
+    b^2)``, not hypot: R's columns are rows of a level scaled to norm 1
+    (entries <= 1 in magnitude) and ``b`` is a former diagonal entry, above
+    the rank threshold (1e-10 by default): far from under- and overflow."""
+    fl = 0
+    for col in range(j, p - 1):
+        for rr in range(col + 2):
+            R[rr, col] = R[rr, col + 1]
+        widx[col] = widx[col + 1]
+        wside[col] = wside[col + 1]
+    # Givens rotations down the subdiagonal. The next pivot a = R[i + 1, i + 1] after
+    # rotation i is carried in a register (computed from the entries loaded before the row
+    # update): the chain from one rotation to the next is sqrt, division, one fma
+    a = R[j, j]
+    for i in range(j, p - 1):
+        b = R[i + 1, i]
+        h = math.sqrt(a * a + b * b)
+        if h == 0.0:
+            cs[2 * (i - j)] = 1.0
+            cs[2 * (i - j) + 1] = 0.0
+            a = R[i + 1, i + 1]
+            continue
+        c = a / h
+        s = b / h
+        cs[2 * (i - j)] = c
+        cs[2 * (i - j) + 1] = s
+        if i + 1 < p - 1:
+            a = -s * R[i, i + 1] + c * R[i + 1, i + 1]
+        R[i, i] = h
+        R[i + 1, i] = 0.0
+        r1 = R[i, i + 1:p - 1]
+        r2 = R[i + 1, i + 1:p - 1]
+        for col in range(r1.shape[0]):
+            x1 = r1[col]
+            x2 = r2[col]
+            r1[col] = c * x1 + s * x2
+            r2[col] = -s * x1 + c * x2
+        fl += 4 * (p - 1 - i)
+        if rotate_w:
+            rotate_cols(c, s, Wt[i], Wt[i + 1])
+            fl += 4 * Wt.shape[0]
+    return fl

@@ -9,7 +9,7 @@ from itertools import accumulate
 import numpy as np
 from numba import njit
 
-from solvers.hcod._basis import queue_sizes
+from solvers.hcod._factored import queue_sizes
 from solvers.hcod._linalg import level_scale
 
 N_OUT = 9  #: counters at the head of the "out" block; the iterations per level follow them
@@ -18,7 +18,7 @@ N_PRM = 4  #: float parameters (rank_rtol, feas_rtol, dual_rtol, freeze_rtol)
 ALIGN = 8  #: float blocks start on multiples of 8 doubles (64 bytes)
 # float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n);
 # then the (scaled) problem and the parameters, so the kernel takes two arrays, and the queue of
-# the basis (._basis)
+# the basis when factored (._factored)
 F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
             "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf", "Qb", "bq", "sv", "A", "lo", "up",
             "prm", "Qv")

@@ -1,8 +1,9 @@
-"""The basis W of the HCOD inequality kernel (solvers/hcod/_basis.py): an
-explicit W0 times a queue of pending reflectors and rotations. Each test
-checks the products through the queue against the invariants of the
-decomposition (W orthonormal, W[:, :p] R = C^T for the working rows C) and
-against the flushed, explicit W."""
+"""The basis W of the HCOD inequality kernel (solvers/hcod/_basis.py) in its
+two representations: explicit (_explicit.py), and factored (_factored.py: an
+explicit W0 times a queue of pending reflectors and rotations). Each test
+checks the products against the invariants of the decomposition (W
+orthonormal, W[:, :p] R = C^T for the working rows C) and, factored, against
+the flushed, explicit W0."""
 
 from __future__ import annotations
 
@@ -11,21 +12,16 @@ import pytest
 
 from solvers.hcod._basis import (
     LAZY_MIN_N,
-    Q_ID,
-    Q_M,
-    QH,
     basis_n,
     basis_reset,
-    basis_row,
     basis_rows,
     basis_t,
     delete_row,
-    flush,
     insert_row,
     insert_rows,
-    push_reflector,
-    queue_sizes,
+    push_reflectors,
 )
+from solvers.hcod._factored import Q_ID, Q_M, QH, basis_row, flush, queue_sizes
 
 ATOL = 1e-11
 
@@ -34,8 +30,9 @@ class Basis:
     """Arrays of one basis (W = I at the start) with the working rows kept
     beside it for the invariants."""
 
-    def __init__(self, n: int, m: int, rng):
+    def __init__(self, n: int, m: int, rng, lazy: bool = True):
         self.n = n
+        self.lazy = lazy
         self.A = rng.standard_normal((m, n))
         self.bcol = np.full(m, -1, dtype=np.int64)
         self.bval = np.zeros(m)
@@ -47,7 +44,7 @@ class Basis:
         self.Wt = np.full((n, n), np.nan)  # not read while W0 is flagged the identity
         nq, ni = queue_sizes(n)
         self.qv, self.qi = np.zeros(nq), np.zeros(ni, dtype=np.int64)
-        basis_reset(self.qi)
+        basis_reset(lazy, self.Wt, self.qi)
         self.R = np.zeros((n, n))
         self.q, self.sv, self.sv2 = np.zeros(n), np.zeros(n), np.zeros(n)
         self.widx = np.zeros(n, dtype=np.int64)
@@ -57,25 +54,33 @@ class Basis:
     def args(self):
         return self.Wt, self.qv, self.qi, self.sv, self.sv2
 
+    def wq(self):
+        return self.lazy, self.Wt, self.qv, self.qi
+
     def insert(self, i) -> bool:
-        ok, _, _ = insert_row(self.A, i, self.bcol, self.bval, self.R, self.p, 1e-10, self.q, *self.args())
+        ok, _, _ = insert_row(self.lazy, self.A, i, self.bcol, self.bval, self.R, self.p, 1e-10, self.q,
+                              *self.args())
         if ok:
             self.widx[self.p] = i
             self.p += 1
         return ok
 
     def delete(self, j):
-        delete_row(j, self.R, self.p, self.widx, self.wside, np.zeros((1, self.n)), 0, *self.args())
+        delete_row(self.lazy, j, self.R, self.p, self.widx, self.wside, np.zeros((1, self.n)), 0, *self.args())
         self.p -= 1
 
+    def push(self, Mr, beta, r):
+        """The reflectors of a COD on the free columns (eq. 23)."""
+        push_reflectors(*self.wq(), self.p, Mr, beta, r, self.sv, self.sv2)
+
     def W(self) -> np.ndarray:
-        """W column by column, by products through the queue (W e_c)."""
+        """W column by column, by products (W e_c; through the queue when factored)."""
         n = self.n
         W = np.empty((n, n))
         for c in range(n):
             x = np.zeros(n)
             x[c] = 1.0
-            basis_n(*self.args()[:3], x, 0, n, self.sv, self.sv2)
+            basis_n(*self.wq(), x, 0, n, self.sv, self.sv2)
             W[:, c] = x
         return W
 
@@ -87,31 +92,38 @@ class Basis:
         np.testing.assert_allclose(W[:, :p] @ np.triu(self.R[:p, :p]), C.T, rtol=0, atol=ATOL)
         x = np.arange(1.0, n + 1.0)
         y = x.copy()
-        basis_t(*self.args()[:3], y, 0, n, self.sv, self.sv2)
+        basis_t(*self.wq(), y, 0, n, self.sv, self.sv2)
         np.testing.assert_allclose(y, W.T @ x, rtol=0, atol=ATOL * n)
+        y = x.copy()
+        basis_t(*self.wq(), y, p, n, self.sv, self.sv2)  # Z^T x
+        np.testing.assert_allclose(y[p:], W[:, p:].T @ x, rtol=0, atol=ATOL * n)
         rows = np.arange(len(self.A), dtype=np.int64)
         M = np.zeros((len(self.A), n))
-        basis_rows(self.A, rows, 0, len(rows), self.bcol, self.bval, self.Wt, self.qv, self.qi, M, 0, self.sv,
+        basis_rows(*self.wq()[:1], self.A, rows, 0, len(rows), self.bcol, self.bval, *self.wq()[1:], M, p, self.sv,
                    self.sv2)
-        np.testing.assert_allclose(M, self.A @ W, rtol=0, atol=ATOL * n)
-        out = np.zeros(n)
-        basis_row(self.A, 0, self.bcol, self.bval, *self.args()[:3], out, self.sv, self.sv2)
-        np.testing.assert_allclose(out, self.A[0] @ W, rtol=0, atol=ATOL * n)
+        c0 = 0 if self.lazy else p  # (whole rows when factored, their projection on Z when explicit)
+        np.testing.assert_allclose(M[:, c0:], (self.A @ W)[:, c0:], rtol=0, atol=ATOL * n)
+        if self.lazy:
+            out = np.zeros(n)
+            basis_row(self.A, 0, self.bcol, self.bval, *self.args()[:3], out, self.sv, self.sv2)
+            np.testing.assert_allclose(out, self.A[0] @ W, rtol=0, atol=ATOL * n)
         return W
 
 
-@pytest.mark.parametrize("n, explicit", [(6, False), (6, True), (80, False), (80, True)],
-                         ids=["n6-identity", "n6-flushed", "n80-identity", "n80-flushed"])
-def test_updates_keep_the_decomposition(n, explicit):
+@pytest.mark.parametrize(
+    "n, lazy, flushed",
+    [(6, False, False), (6, True, False), (6, True, True), (80, False, False), (80, True, False), (80, True, True)],
+    ids=["n6-explicit", "n6-factored", "n6-flushed", "n80-explicit", "n80-factored", "n80-flushed"])
+def test_updates_keep_the_decomposition(n, lazy, flushed):
     """Rows enter (one Householder reflector each) and leave (a sequence of
     Givens rotations), a level's COD pushes consecutive reflectors (the pair
-    kernels): the products through the queue are W (orthonormal, W R = C^T),
-    before and after the flush into W0."""
+    kernels): the products are W (orthonormal, W R = C^T); factored, before
+    and after the flush into W0."""
     rng = np.random.default_rng(n)
-    b = Basis(n, 3 * n, rng)
+    b = Basis(n, 3 * n, rng, lazy)
     for i in range(n // 2):
         assert b.insert(i)
-    if explicit:
+    if flushed:
         flush(*b.args())
         assert b.qi[Q_ID] == 0 and b.qi[Q_M] == 0
     b.check()
@@ -121,16 +133,20 @@ def test_updates_keep_the_decomposition(n, explicit):
     # the reflectors of a COD on the free columns, consecutive (pairs), then one row more
     p, nf = b.p, n - b.p
     H = np.linalg.qr(rng.standard_normal((nf, nf)))[0]
-    for t in range(min(3, nf - 1)):
+    r = min(3, nf - 1)
+    Mr, beta = np.zeros((r, nf)), np.zeros(r)
+    for t in range(r):
         v = H[t:, t].copy()
         v[0] += 1.0
-        push_reflector(*b.args()[:3], p + t, v, 2.0 / (v @ v), b.sv, b.sv2)
+        Mr[t, t:], beta[t] = v, 2.0 / (v @ v)
+    b.push(Mr, beta, r)
     W_before = b.W()
     # (the columns p.. changed by an orthogonal factor: W R = C^T still holds on :p)
     np.testing.assert_allclose(W_before[:, :p] @ np.triu(b.R[:p, :p]), b.A[b.widx[:p]].T, rtol=0, atol=ATOL)
     assert b.insert(n // 2 + 1)
     W = b.check()
-    flush(*b.args())
+    if lazy:
+        flush(*b.args())
     np.testing.assert_allclose(b.Wt.T, W, rtol=0, atol=ATOL * n)
     b.check()
 
@@ -164,7 +180,7 @@ def test_products_flush_a_long_queue_only():
         b.insert(i + 1)
     x = rng.standard_normal(n)
     for _ in range(100):
-        basis_t(*b.args()[:3], x.copy(), 0, n, b.sv, b.sv2)
+        basis_t(*b.wq(), x.copy(), 0, n, b.sv, b.sv2)
     assert b.qi[Q_ID] == 1 and b.qi[Q_M] == 3
     for k in range(40):  # a long queue: 40 deletions and insertions, dearer than n^2 per product
         b.delete(0)
@@ -174,25 +190,26 @@ def test_products_flush_a_long_queue_only():
     b.check()
 
 
+@pytest.mark.parametrize("lazy", [False, True], ids=["explicit", "factored"])
 @pytest.mark.parametrize("n, p, m", [(12, 3, 5), (80, 10, 30)], ids=["small", "large"])
-def test_blocked_insertion_matches_one_row_at_a_time(n, p, m):
+def test_blocked_insertion_matches_one_row_at_a_time(n, p, m, lazy):
     """insert_rows (the warm start's Delta+ A) = m calls of insert_row: same
     refusals (a dependent row), same R, same basis."""
     rng = np.random.default_rng(n)
-    b1 = Basis(n, p + m, rng)
+    b1 = Basis(n, p + m, rng, lazy)
     b1.A[p + 1] = 2.0 * b1.A[p] - b1.A[1]  # dependent on a working row and an earlier candidate
     b1.bcol[p + 1] = -1
     for i in range(p):
         assert b1.insert(i)
-    b2 = Basis(n, p + m, rng)
+    b2 = Basis(n, p + m, rng, lazy)
     for name in ("A", "bcol", "bval", "R", "widx"):
         setattr(b2, name, getattr(b1, name).copy())
     b2.Wt, b2.qv, b2.qi, b2.p = b1.Wt.copy(), b1.qv.copy(), b1.qi.copy(), b1.p
     ok1 = [int(b1.insert(i)) for i in range(p, p + m)]
     cand = np.arange(p, p + m, dtype=np.int64)
     cok = np.zeros(m, dtype=np.int64)
-    t, _ = insert_rows(b2.A, cand, m, b2.bcol, b2.bval, b2.R, p, 1e-10, np.ones(1), np.zeros(p + m, dtype=np.int64),
-                       np.zeros((m, n)), cok, *b2.args())
+    t, _ = insert_rows(lazy, b2.A, cand, m, b2.bcol, b2.bval, b2.R, p, 1e-10, np.ones(1),
+                       np.zeros(p + m, dtype=np.int64), np.zeros((m, n)), np.zeros(m), cok, *b2.args())
     assert cok.tolist() == ok1 and ok1[1] == 0 and t == b1.p - p
     b2.widx[p:p + t] = cand[cok == 1]
     b2.p = p + t
@@ -200,14 +217,16 @@ def test_blocked_insertion_matches_one_row_at_a_time(n, p, m):
     np.testing.assert_allclose(b2.check(), b1.check(), rtol=0, atol=1e-10)
 
 
-def test_insert_row_refuses_without_room():
+@pytest.mark.parametrize("lazy", [False, True], ids=["explicit", "factored"])
+def test_insert_row_refuses_without_room(lazy):
     """With p = n working rows there is no Z left: insert_row refuses the row
-    at once and leaves the queue and R as they were."""
+    at once and leaves the basis, the queue and R as they were."""
     n = 4
-    b = Basis(n, 1, np.random.default_rng(0))
+    b = Basis(n, 1, np.random.default_rng(0), lazy)
     b.R[:] = np.triu(np.ones((n, n)))
-    qi0 = b.qi.copy()
-    ok, flops, _ = insert_row(b.A, 0, b.bcol, b.bval, b.R, n, 1e-10, b.q, *b.args())
+    qi0, Wt0 = b.qi.copy(), b.Wt.copy()
+    ok, flops, _ = insert_row(lazy, b.A, 0, b.bcol, b.bval, b.R, n, 1e-10, b.q, *b.args())
     assert not ok and flops == 0
     np.testing.assert_array_equal(b.qi, qi0)
+    np.testing.assert_array_equal(b.Wt, Wt0)
     np.testing.assert_array_equal(b.R, np.triu(np.ones((n, n))))
