@@ -1,5 +1,7 @@
-"""The basis ``W`` of the inequality kernel, kept partly implicit, and the
-updates of the constraint decomposition (ICRA 2010, sec. VI and IX).
+"""The basis ``W`` of the inequality kernel kept factored, partly implicit,
+and the updates of the constraint decomposition on it (ICRA 2010, sec. VI
+and IX): the representation of warm re-solves of large problems (see
+:mod:`._basis`).
 
 ``W`` (n, n) is orthonormal; its first ``p`` columns span the rows of the
 working (active) constraints of the levels above, its last ``nf = n - p``
@@ -25,7 +27,7 @@ to update an explicit ``W``. The queue is *flushed* into ``W0`` (n times the
 cost of one product) by a ski-rental rule: once the products have spent,
 beyond what they would cost with an explicit ``W``, ``FLUSH_RATIO`` times the
 cost of a flush, or when its storage is full. A warm re-solve of IK-like
-n=80 never flushes: the 42 reflectors of its level 2 and the rotations of
+n=80 (seeds 0-4) never flushes: the reflectors of its levels and the rotations of
 its deletions are applied to ~60 vectors instead of the 80 columns of W.
 
 Storage: ``qv`` (floats): per reflector ``[beta, d, v_0 .. v_{L-1}]`` (``d =

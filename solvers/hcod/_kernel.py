@@ -25,7 +25,9 @@ Level k (``starts[k] <= i < starts[k+1]``):
    their achieved value (bounds propagated by eq. 36), zero-slack inequality
    rows become working inequality constraints.
 
-Flops are multiply-adds counted in the kernels of :mod:`._linalg`.
+The basis ``W`` and the updates of the decomposition are behind :mod:`._basis`
+(explicit, or factored as ``W0`` times a queue of reflectors and rotations).
+Flops are multiply-adds counted in the kernels.
 """
 
 from __future__ import annotations
@@ -104,7 +106,7 @@ def hcod_solve(fw, iw):
     feas_rtol = prm[1]
     dual_rtol = prm[2]
     freeze_rtol = prm[3]
-    Wt = matrix_view(fw[foff[0]:fend[0]], n, n)  # W0 stored by columns (W = W0 E_1 ... E_m, ._basis)
+    Wt = matrix_view(fw[foff[0]:fend[0]], n, n)  # W (factored: W0) stored by columns (._basis)
     qv = fw[foff[29]:fend[29]]  # the queue E_1 ... E_m
     qi = iw[ioff[18]:ioff[19]]
     R = matrix_view(fw[foff[1]:fend[1]], n, n)
@@ -154,7 +156,6 @@ def hcod_solve(fw, iw):
     cand = iw[ioff[14]:ioff[15]]
     cok = iw[ioff[15]:ioff[16]]
 
-    lazy = n >= LAZY_MIN_N  # the projected rows Mf are whole rows W^T a (see _basis)
     if out[O_PREPARED] == 0:
         prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, widx)
         out[O_PREPARED] = 1
@@ -167,6 +168,13 @@ def hcod_solve(fw, iw):
     warm_failed = 0
     for _once in range(1):  # (a block, left by break on failure)
         use_hist = warm == 2
+        # the representation of W (._basis): factored for a warm re-solve of a large problem
+        # (few iterations per level: the queue is short), explicit otherwise (a cold solve
+        # iterates: products through a long queue or a dense W0 cost more than Z's columns)
+        lazy = False
+        if use_hist and n >= LAZY_MIN_N:
+            for kk in range(D):
+                lazy = lazy or hist_valid[kk] != 0
         # cold initial state: u_0 = 0, W = I, nothing active
         u[:] = 0.0
         basis_reset(lazy, Wt, qi)

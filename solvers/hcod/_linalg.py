@@ -106,7 +106,7 @@ def reflect_rows(bt, v, M, j0, j1, c0):
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def reflect_pair(b1, v1, b2, v2, d12, x):
     """Apply two consecutive reflectors (of a level, or of the pending queue of
-    :mod:`._basis`), ``H1 = I - b1 v1 v1^T``
+    :mod:`._factored`), ``H1 = I - b1 v1 v1^T``
     then ``H2 = I - b2 v2 v2^T`` acting on ``x[1:]`` (v2 starts one column
     later), to the row view x in one pass for the dots and one for the
     update: ``s1 = b1 v1.x``, ``s2 = b2 (v2.x[1:] - s1 d12)`` with ``d12 =

@@ -178,10 +178,14 @@ def test_warm_start_modes_agree(mode):
 
 
 @pytest.mark.parametrize("make", [lambda: G.random_hierarchy(10, 4, 4, inequality="mixed", box=True, seed=11),
-                                  lambda: G.ik_like(15, 4)], ids=["random", "ik-like"])
+                                  lambda: G.ik_like(15, 4),
+                                  lambda: G.random_hierarchy(60, 4, 15, inequality="mixed", box=True, seed=2),
+                                  lambda: G.ik_like(64, 1)],
+                         ids=["random", "ik-like", "random-n60-factored", "ik-like-n64-factored"])
 def test_warm_start_along_a_trajectory(make):
     """sec. XI: one solver object along a trajectory (A and bounds drift); every
-    step must match a cold solve lexicographically."""
+    step must match a cold solve lexicographically. From n = LAZY_MIN_N on, the
+    warm re-solves keep W factored and the cold ones explicit (._basis)."""
     h = make()
     s = HcodSolver(warm_start="time")
     rng = np.random.default_rng(0)
@@ -321,8 +325,8 @@ def test_min_norm_x_matches_reference_with_inequalities(seed):
 
 
 def test_large_problems():
-    """n = 80 (IK-like, cold then warm) and n = 60 with general rows at every
-    level: the queue of the basis grows long, and is flushed."""
+    """n = 80 (IK-like, cold then warm: W explicit, then factored) and n = 60
+    with general rows at every level."""
     h = G.ik_like(80, 0)
     s = HcodSolver()
     _, x_ref = check(h, solver=s)
