@@ -1,14 +1,16 @@
 """The basis ``W`` of the inequality kernel and the updates of the constraint
 decomposition (ICRA 2010, sec. VI and IX), in one of two representations
-chosen per problem by its size:
+chosen by the kernel at the start of each solve:
 
-- *explicit* (:mod:`._explicit`, ``n < LAZY_MIN_N``): every orthogonal factor
-  is applied to ``W`` at once (``2 n L`` multiply-adds per reflector of
-  length L); the products read only the columns they need (``Z`` for the
-  projections of eq. 19, held in ``Mf[:, p:]``);
-- *factored* (:mod:`._factored`, ``n >= LAZY_MIN_N``): ``W = W0 E_1 ... E_m``
-  with the factors queued and applied to the vectors that need them (``2 L``
-  per reflector and vector), flushed into ``W0`` when that is cheaper; the
+- *explicit* (:mod:`._explicit`: cold solves, and every solve of fewer than
+  ``LAZY_MIN_N`` variables): every orthogonal factor is applied to ``W`` at
+  once (``2 n L`` multiply-adds per reflector of length L); the products read
+  only the columns they need (``Z`` for the projections of eq. 19, held in
+  ``Mf[:, p:]``);
+- *factored* (:mod:`._factored`: warm re-solves from a recorded active set,
+  sec. XI, from ``LAZY_MIN_N`` variables on): ``W = W0 E_1 ... E_m`` with the
+  factors queued and applied to the vectors that need them (``2 L`` per
+  reflector and vector), flushed into ``W0`` when that is cheaper; the
   projected objective rows are whole rows ``Mf[j] = W^T a_j``.
 
 The functions below take the representation (``lazy``) first and forward to
@@ -42,9 +44,11 @@ __all__ = [
     "push_reflectors",
 ]
 
-#: variables from which W is kept factored. Below, the products of an explicit W are cheap
-#: (short vectors) and the queue's per-entry overheads dominate: IK-like warm n=20 ~11 us
-#: explicit, ~13 us factored; n=80 ~95 us explicit, ~60 us factored (in-process, this VM)
+#: variables from which a warm re-solve keeps W factored. Below, the products of an explicit W
+#: are cheap (short vectors) and the queue's per-entry overheads dominate: IK-like warm n=20
+#: ~11 us explicit, ~13 us factored; n=80 ~95 us explicit, ~60 us factored (in-process, this
+#: VM). A cold solve iterates more: a long queue, or a dense W0 after a flush, costs more per
+#: product than Z's columns of an explicit W (cold n=80 seed 2: ~1.3 ms factored, ~0.75 explicit)
 LAZY_MIN_N = 48
 _FM = set(FASTMATH)
 

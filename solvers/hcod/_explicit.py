@@ -1,6 +1,6 @@
 """The basis ``W`` of the inequality kernel kept explicit, and the updates of
 the constraint decomposition on it (ICRA 2010, sec. VI and IX): the
-representation of small problems (``n < LAZY_MIN_N``, see :mod:`._basis`).
+representation of cold solves and of small problems (see :mod:`._basis`).
 
 ``W`` (n, n) is orthonormal; its first ``p`` columns span the rows of the
 working (active) constraints of the levels above, its last ``nf = n - p``
