@@ -118,7 +118,7 @@ def insert_rows(lazy, A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb
     """The rows ``A[cand[:m]]`` enter in order, blocked (``cok[j]`` = 1 when
     row j entered). Qb (>= m, n), bq (>= m) scratch. Returns (t, flops)."""
     if lazy:
-        return _factored.insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, cok,
+        return _factored.insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok,
                                      Wt, qv, qi, sv, sv2)
     return _explicit.insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2)
 

@@ -34,8 +34,8 @@ from solvers.hcod._linalg import (
     BLAS_MIN_WORK,
     FASTMATH,
     householder,
+    qr_rows,
     reflect_cols,
-    reflect_rows,
     retriangulate,
     vaxpy,
     vdot,
@@ -176,35 +176,15 @@ def insert_row(A, i, bcol, bval, Wt, R, p, thr, q, sv):
 def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2):
     """Add the rows ``A[cand[:m]]`` to the working constraints, in order, as m
     calls of :func:`insert_row` would (same rank test, same ``W`` and ``R``),
-    but blocked: ``Q = A_cand W`` at once, the Householder QR of ``Q[:, p:]``
-    row by row (row j meets the reflectors of the accepted rows before it),
-    then the t accepted reflectors applied to ``W[:, p:]`` together
-    (:func:`apply_reflectors_to_basis`). ``cok[j]`` = 1 when row j entered.
+    but blocked: ``Q = A_cand W`` at once, the QR of ``Q[:, p:]``
+    (:func:`._linalg.qr_rows`), then the t accepted reflectors applied to
+    ``W[:, p:]`` together (:func:`apply_reflectors_to_basis`). ``cok[j]`` = 1 when row j entered.
     Shapes: Qb (>= m, n), bq (>= m), sv, sv2 (n,) scratch. Returns (t, flops)."""
-    n = Wt.shape[0]
     fl = 0
     for j in range(m):
         fl += wt_times_row(A, cand[j], bcol, bval, Wt, Qb[j])
-    t = 0
-    for j in range(m):
-        i = cand[j]
-        c0 = p + t
-        v = Qb[j, c0:]
-        nrm = math.sqrt(vdot(v, v))
-        if not nrm > rank_rtol * lnorm[rowlev[i]]:
-            cok[j] = 0
-            continue
-        cok[j] = 1
-        alpha, bt = householder(v, nrm)
-        for l in range(c0):
-            R[l, c0] = Qb[j, l]
-        R[c0, c0] = alpha
-        reflect_rows(bt, v, Qb, j + 1, m, c0)
-        fl += 2 * (m - j - 1) * (n - c0)
-        if t < j:  # keep the reflectors packed: reflector t in Qb[t, p + t:]
-            Qb[t, c0:] = v
-        bq[t] = bt
-        t += 1
+    t, f = qr_rows(Qb, cand, m, p, rank_rtol, lnorm, rowlev, R, bq, cok)
+    fl += f
     if t > 0:
         fl += apply_reflectors_to_basis(Wt, p, Qb[:, p:], bq, t, sv, sv2)
     return t, fl

@@ -57,6 +57,7 @@ from solvers.hcod._linalg import (
     BLAS_MIN_WORK,
     FASTMATH,
     householder,
+    qr_rows,
     reflect_cols,
     reflect_cols_pair,
     reflect_pair,
@@ -485,33 +486,19 @@ def insert_row(A, i, bcol, bval, R, p, thr, q, Wt, qv, qi, sv, sv2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, cok, Wt, qv, qi, sv, sv2):
+def insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, Wt, qv, qi, sv, sv2):
     """Add the rows ``A[cand[:m]]`` to the working constraints, in order, as m
     calls of :func:`insert_row` would (same rank test, same ``W`` and ``R``),
-    but blocked: ``Q = A_cand W`` at once, then the Householder QR of
-    ``Q[:, p:]`` row by row (row j meets the reflectors of the accepted rows
-    before it); the accepted reflectors are pushed in order. ``cok[j]`` = 1
-    when row j entered. Qb (>= m, n) scratch. Returns (t, flops)."""
+    but blocked: ``Q = A_cand W`` at once, then the QR of ``Q[:, p:]``
+    (:func:`._linalg.qr_rows`); the accepted reflectors are pushed in order.
+    ``cok[j]`` = 1 when row j entered. Qb (>= m, n), bq (>= m) scratch.
+    Returns (t, flops)."""
     n = Wt.shape[0]
     fl = basis_rows(A, cand, 0, m, bcol, bval, Wt, qv, qi, Qb, sv, sv2)
-    t = 0
-    for j in range(m):
-        i = cand[j]
-        c0 = p + t
-        v = Qb[j, c0:]
-        nrm = math.sqrt(vdot(v, v))
-        if not nrm > rank_rtol * lnorm[rowlev[i]]:
-            cok[j] = 0
-            continue
-        cok[j] = 1
-        alpha, bt = householder(v, nrm)
-        for l in range(c0):
-            R[l, c0] = Qb[j, l]
-        R[c0, c0] = alpha
-        reflect_rows(bt, v, Qb, j + 1, m, c0)
-        fl += 2 * (m - j - 1) * (n - c0)
-        fl += push_reflector(Wt, qv, qi, c0, v, bt, sv, sv2)
-        t += 1
+    t, f = qr_rows(Qb, cand, m, p, rank_rtol, lnorm, rowlev, R, bq, cok)
+    fl += f
+    for s in range(t):
+        fl += push_reflector(Wt, qv, qi, p + s, Qb[s, p + s:n], bq[s], sv, sv2)
     return t, fl
 
 

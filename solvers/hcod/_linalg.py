@@ -387,6 +387,40 @@ def solve_lower(Mr, diag, nO, r, bvec, Lb, y):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def qr_rows(Qb, cand, m, p, rank_rtol, lnorm, rowlev, R, bq, cok):
+    """The Householder QR, row by row, of ``Qb[:m, p:]`` (the candidate rows
+    ``A[cand[:m]]`` projected on the basis, ``Qb[j] = W^T a_j``): row j meets
+    the reflectors of the accepted rows before it, and enters (``cok[j]`` = 1)
+    when what is left of it on the free columns has norm above
+    ``rank_rtol * lnorm[rowlev[cand[j]]]`` (the rank test of a single
+    insertion). The accepted row t gets ``R[:, p + t] = (Qb[j, :p + t],
+    alpha)``; its reflector ``I - bq[t] v v^T`` on the columns ``p + t:`` is
+    left packed in ``Qb[t, p + t:]``. Returns (t, flops)."""
+    n = Qb.shape[1]
+    fl = 0
+    t = 0
+    for j in range(m):
+        c0 = p + t
+        v = Qb[j, c0:]
+        nrm = math.sqrt(vdot(v, v))
+        if not nrm > rank_rtol * lnorm[rowlev[cand[j]]]:
+            cok[j] = 0
+            continue
+        cok[j] = 1
+        alpha, bt = householder(v, nrm)
+        for l in range(c0):
+            R[l, c0] = Qb[j, l]
+        R[c0, c0] = alpha
+        reflect_rows(bt, v, Qb, j + 1, m, c0)
+        fl += 2 * (m - j - 1) * (n - c0)
+        if t < j:
+            Qb[t, c0:] = v
+        bq[t] = bt
+        t += 1
+    return t, fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def apply_reflectors(Mr, beta, r, nf, z):
     """``z <- H z`` with ``H = H_0 ... H_{r-1}`` from :func:`cod`; z (nf,).
     Used for ``Z_{k-1} Y_k y`` in eq. (31). Returns flops."""
