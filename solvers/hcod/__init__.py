@@ -112,27 +112,8 @@ __all__ = ["SOLVERS", "WARM_STARTS", "HcodSolver", "warmup"]
 WARM_STARTS = ("none", "stage", "time")
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
 _eq_run = None  # solvers.hcod._equality.eq_run, imported on the first solve (numba compiles then)
+_ineq = None  # (._kernel.hcod_solve, ._setup), imported on the first solve with inequalities
 _last_kind = (None, False)  # (last hierarchy seen, its has_inequalities)
-
-
-class _Prepared:
-    """Arrays of one hierarchy as the kernel reads them (min-norm level appended)."""
-
-    __slots__ = ("A", "D", "depth", "h", "has_ineq", "key", "lo", "mmax", "mt", "starts", "up")
-
-    def __init__(self, h: Hierarchy, min_norm: bool, has_ineq: bool):
-        self.h = h
-        n = h.n
-        self.depth = h.depth
-        self.has_ineq = has_ineq
-        from solvers.hcod._setup import scaled_problem
-
-        self.A, self.lo, self.up, self.starts = scaled_problem(h.A, h.lower, h.upper, h.starts, min_norm and n > 0)
-        st = self.starts.tolist()
-        self.D = len(st) - 1
-        self.mt = self.A.shape[0]
-        self.mmax = max((b - a for a, b in pairwise(st)), default=0)
-        self.key = (n, self.mt, self.D, self.mmax, tuple(st))
 
 
 class HcodSolver(Solver):
@@ -178,7 +159,8 @@ class HcodSolver(Solver):
         self.min_norm = min_norm
         # rank, feasibility (warm start), multiplier noise floor, zero slack at freeze
         self._prm = np.array([self.rank_rtol, 1e-9, 1e-13, 1e-11])
-        self._prep: _Prepared | None = None
+        self._h = None  # the hierarchy bound to the workspaces (see _bind)
+        self._key = None  # its shape: the warm-start record is kept while it stays the same
         self._ws = None
         self._eq_h = None  # last equality-only hierarchy (skips the checks on a re-solve)
         self._run = None  # closure solving the bound hierarchy (see _bind)
@@ -188,7 +170,7 @@ class HcodSolver(Solver):
         if self._ws is not None:
             from solvers.hcod._setup import iblock
 
-            iblock(self._ws[1], self._ws[4], "hist_valid")[:] = 0
+            iblock(self._ws[1], "hist_valid")[:] = 0
 
     # -- equality-only hierarchies: the implicit-basis recursion (_equality.py) -------------------
     def _solve_equality(self, h: Hierarchy) -> SolveResult:
@@ -209,35 +191,32 @@ class HcodSolver(Solver):
     # -- hierarchies with inequalities: the active set (_kernel.py) -------------------------------
     def _bind(self, h: Hierarchy):
         """Workspaces for h (kept when the shape is unchanged: the warm-start
-        record survives; the scaled problem is written into them) and a
-        closure running one solve on them."""
-        from solvers.hcod._kernel import O_PREPARED, hcod_solve
-        from solvers.hcod._setup import N_OUT, fblock, iblock, workspaces
-
-        prep = _Prepared(h, self.min_norm, True)
-        old = self._prep
-        if old is None or old.key != prep.key or self._ws is None:
-            n = h.n
-            fw, iw, foff, fend, ioff = workspaces(n, prep.mt, prep.D, prep.mmax)
-            cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (prep.mt + n)
-            wm = WARM_STARTS.index(self.warm_start)
-            iblock(iw, ioff, "ip")[:] = (n, prep.mt, prep.D, prep.mmax, cap, wm, 1)
-            fblock(fw, foff, fend, "prm")[:] = self._prm
-            self._ws = (fw, iw, foff, fend, ioff)
-        else:
-            fw, iw, foff, fend, ioff = self._ws
-        fblock(fw, foff, fend, "A")[:] = prep.A.ravel()
-        fblock(fw, foff, fend, "lo")[:] = prep.lo
-        fblock(fw, foff, fend, "up")[:] = prep.up
-        iblock(iw, ioff, "starts")[:] = prep.starts
-        outv = iblock(iw, ioff, "out")
-        outv[O_PREPARED] = 0
-        self._prep = prep
-        xv = fblock(fw, foff, fend, "u")
-        depth = prep.depth
-        extra = prep.D > depth
-        cap = int(iblock(iw, ioff, "ip")[4])
-        it0, it1 = N_OUT, N_OUT + depth
+        record survives), h written into them scaled (:func:`._setup.load`),
+        and a closure running one solve on them."""
+        global _ineq
+        if _ineq is None:
+            from solvers.hcod import _setup
+            from solvers.hcod._kernel import hcod_solve
+            _ineq = (hcod_solve, _setup)
+        hcod_solve, setup = _ineq
+        n = h.n
+        st = h.starts.tolist()
+        mn = self.min_norm  # (n > 0 here)
+        depth = len(st) - 1
+        D = depth + mn
+        mt = st[-1] + n * mn
+        mmax = max(max(b - a for a, b in pairwise(st)), n * mn)
+        key = (n, mt, D, mmax, tuple(st))
+        if key != self._key or self._ws is None:
+            cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (mt + n)
+            ip = (n, mt, D, mmax, cap, WARM_STARTS.index(self.warm_start), 1)
+            self._ws = (*setup.workspaces(ip, self._prm), cap)
+            self._key = key
+        fw, iw, xv, outv, cap = self._ws
+        setup.load(fw, iw, h.A, h.lower, h.upper, h.starts, mn)
+        self._h = h
+        extra = D > depth
+        it0, it1 = setup.N_OUT, setup.N_OUT + depth
 
         def run() -> SolveResult:
             try:
@@ -268,8 +247,7 @@ class HcodSolver(Solver):
         return run
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
-        prep = self._prep
-        if prep is not None and prep.h is hierarchy:
+        if hierarchy is self._h:
             return self._run()
         if hierarchy is self._eq_h:
             return self._solve_equality(hierarchy)

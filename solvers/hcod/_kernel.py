@@ -61,14 +61,14 @@ from solvers.hcod._linalg import (
     vaxpy,
     vdot,
 )
-from solvers.hcod._setup import FEND0, IOFF0, N_HEAD, N_OUT, prepare
+from solvers.hcod._setup import FEND0, IOFF0, N_HEAD, N_OUT
 
 _FM = set(FASTMATH)
 
 INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
-O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P, O_PREPARED = range(9)
+O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P = range(8)
 BLAND_AFTER = 8  #: consecutive degenerate steps before the anti-cycling rule takes over
 
 
@@ -84,7 +84,8 @@ def hcod_solve(fw, iw):
     the float blocks, which start on 64-byte boundaries; two array
     arguments keep the call overhead down).
 
-    Blocks read: A (mt, n), lo, up (mt,), starts (D+1,); ip = (n, mt, D, mmax,
+    Blocks read: A (mt, n), lo, up (mt,), starts (D+1,) and the per-row data,
+    written by :func:`._setup.load`; ip = (n, mt, D, mmax,
     max_iter, warm_mode 0 none | 1 stage | 2 time, has_ineq); prm = (rank_rtol,
     feas_rtol, dual_rtol, freeze_rtol). The solution is ``u`` in fw, counters in
     ``out`` (see O_* slots) followed by the iterations per level."""
@@ -156,9 +157,6 @@ def hcod_solve(fw, iw):
     cand = iw[ioff[14]:ioff[15]]
     cok = iw[ioff[15]:ioff[16]]
 
-    if out[O_PREPARED] == 0:
-        prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, widx)
-        out[O_PREPARED] = 1
     fl = 0
     acts = 0
     deacts = 0

@@ -4,15 +4,18 @@ and the per-row / per-level data computed once per hierarchy."""
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from itertools import accumulate
 
 import numpy as np
 from numba import njit
 
 from solvers.hcod._factored import queue_sizes
-from solvers.hcod._linalg import level_scale
+from solvers.hcod._linalg import FASTMATH, level_scale, vdot
 
-N_OUT = 9  #: counters at the head of the "out" block; the iterations per level follow them
+_FM = set(FASTMATH)
+
+N_OUT = 8  #: counters at the head of the "out" block; the iterations per level follow them
 N_IP = 7  #: integer parameters (n, mt, D, mmax, max_iter, warm_mode, has_ineq)
 N_PRM = 4  #: float parameters (rank_rtol, feas_rtol, dual_rtol, freeze_rtol)
 ALIGN = 8  #: float blocks start on multiples of 8 doubles (64 bytes)
@@ -30,6 +33,11 @@ I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist",
 FEND0 = len(F_BLOCKS) + 1
 IOFF0 = FEND0 + len(F_BLOCKS)
 N_HEAD = IOFF0 + len(I_BLOCKS) + 1
+# the blocks :func:`workspaces` and :func:`load` write or return
+F_A, F_LO, F_UP, F_BVAL, F_RNORM, F_LNORM, F_PRM, F_U = (
+    F_BLOCKS.index(b) for b in ("A", "lo", "up", "bval", "rnorm", "lnorm", "prm", "u"))
+I_STARTS, I_KIND, I_BCOL, I_ROWLEV, I_LEVID, I_WIDX, I_IP, I_OUT = (
+    I_BLOCKS.index(b) for b in ("starts", "kind", "bcol", "rowlev", "levid", "widx", "ip", "out"))
 
 
 def layout(n: int, mt: int, D: int, mmax: int):
@@ -47,37 +55,47 @@ def layout(n: int, mt: int, D: int, mmax: int):
     return foff, fend, np.array((N_HEAD, *(N_HEAD + c for c in accumulate(isz))), dtype=np.int64)
 
 
-def workspaces(n: int, mt: int, D: int, mmax: int):
-    """The float and int workspaces of the kernel, the int one headed by the
-    offsets (see :func:`layout`). Returns (fw, iw, foff, fend, ioff)."""
+@lru_cache(maxsize=64)
+def _header(n: int, mt: int, D: int, mmax: int):
+    """The sizes of the workspaces, the int workspace's header (the offsets of
+    :func:`layout`, read-only) and the slices of the blocks
+    :func:`workspaces` writes or returns (prm, ip, u, out): computed once per
+    shape (a cold solve on a fresh solver allocates its workspaces)."""
     foff, fend, ioff = layout(n, mt, D, mmax)
+    head = np.concatenate((foff, fend, ioff))
+    head.setflags(write=False)
+    fo, fe, io = foff.tolist(), fend.tolist(), ioff.tolist()
+    return (fo[-1], io[-1], head, slice(fo[F_PRM], fe[F_PRM]), slice(io[I_IP], io[I_IP + 1]),
+            slice(fo[F_U], fe[F_U]), slice(io[I_OUT], io[I_OUT + 1]))
+
+
+def workspaces(ip, prm):
+    """The float and int workspaces of the kernel for ``ip = (n, mt, D, mmax,
+    max_iter, warm_mode, has_ineq)`` (the "ip" block) and ``prm`` (the "prm"
+    block), the int one headed by the offsets (see :func:`layout`). Returns
+    (fw, iw, u, out): the workspaces and views of the blocks the caller reads."""
+    size, isize, head, s_prm, s_ip, s_u, s_out = _header(*ip[:4])
     # the float workspace starts on a 64-byte boundary (a cache line, an AVX-512 vector): the
     # rows of W and R then are aligned whenever 8 divides n (measured: IK-like warm n=40
     # 35 us aligned, 39 us not; numpy only guarantees 16 bytes)
-    size = int(foff[-1])
     buf = np.zeros(size + ALIGN)
     start = (-buf.ctypes.data % (8 * ALIGN)) // 8
     fw = buf[start:start + size]
-    iw = np.zeros(int(ioff[-1]), dtype=np.int64)
-    iw[:FEND0] = foff
-    iw[FEND0:IOFF0] = fend
-    iw[IOFF0:N_HEAD] = ioff
-    return fw, iw, foff, fend, ioff
+    iw = np.zeros(isize, dtype=np.int64)
+    iw[:N_HEAD] = head
+    fw[s_prm] = prm
+    iw[s_ip] = ip
+    return fw, iw, fw[s_u], iw[s_out]
 
 
-def fblock(fw, foff, fend, name: str):
-    """The float block ``name`` (one of F_BLOCKS) of fw, a view."""
-    b = F_BLOCKS.index(name)
-    return fw[foff[b]:fend[b]]
-
-
-def iblock(iw, ioff, name: str):
-    """The int block ``name`` (one of I_BLOCKS) of iw, a view."""
+def iblock(iw, name: str):
+    """The int block ``name`` (one of I_BLOCKS) of iw, a view (the offsets
+    are read from iw's header)."""
     b = I_BLOCKS.index(name)
-    return iw[ioff[b]:ioff[b + 1]]
+    return iw[iw[IOFF0 + b]:iw[IOFF0 + b + 1]]
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, seen):
     """Row kinds (0 equality, 1 inequality, 2 free), bound rows (one nonzero),
     row norms, the Frobenius norm of each level ``||A_k||_F`` (the scale of
@@ -90,20 +108,19 @@ def prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, se
         s = 0.0
         for i in range(starts[k], starts[k + 1]):
             rowlev[i] = k
+            ra = A[i]
+            ss = vdot(ra, ra)  # (vectorised: a loop testing each entry would carry ss serially)
             nz = 0
-            col = -1
-            ss = 0.0
             for c in range(n):
-                a = A[i, c]
-                if a != 0.0:
-                    nz += 1
-                    col = c
-                    ss += a * a
+                nz += ra[c] != 0.0
             rnorm[i] = math.sqrt(ss)
             s += ss
             if nz == 1:
+                col = 0
+                while ra[col] == 0.0:
+                    col += 1
                 bcol[i] = col
-                bval[i] = A[i, col]
+                bval[i] = ra[col]
             else:
                 bcol[i] = -1
                 bval[i] = 0.0
@@ -134,30 +151,43 @@ def prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, se
                     levid[k] = 2  # identity-like equality level: strictly convex, x unique after it
 
 
-@njit(cache=True, nogil=True, error_model="numpy")
-def scaled_problem(A, lo, up, starts, min_norm):
-    """The arrays the kernel solves: each level scaled by ``1 / ||A_k||_F``
-    (computed without overflow; same minimisers, O(1) numbers in the
-    reflectors) and, when ``min_norm``, the level ``I x = 0`` appended.
-    Returns (A (m', n), lo, up, starts (D'+1,))."""
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def load(fw, iw, A, lo, up, starts, min_norm):
+    """Write a hierarchy (A (m, n), lo, up (m,), starts (D+1,)) into the
+    workspaces of :func:`workspaces` as the kernel reads it: each level scaled
+    by ``1 / ||A_k||_F`` (computed without overflow; same minimisers, O(1)
+    numbers in the reflectors), the level ``I x = 0`` appended when
+    ``min_norm``, then the per-row data of :func:`prepare`. The workspaces
+    must have been made for (n, m + n min_norm, D + min_norm, ...)."""
+    foff = iw[:FEND0]
+    fend = iw[FEND0:IOFF0]
+    ioff = iw[IOFF0:N_HEAD]
     m, n = A.shape
     D = starts.shape[0] - 1
-    extra = n if min_norm else 0
-    A2 = np.zeros((m + extra, n))
-    lo2 = np.zeros(m + extra)
-    up2 = np.zeros(m + extra)
-    st2 = np.empty(D + 1 + (1 if min_norm else 0), np.int64)
+    mt = m + (n if min_norm else 0)
+    A2 = fw[foff[F_A]:foff[F_A] + mt * n].reshape((mt, n))
+    lo2 = fw[foff[F_LO]:fend[F_LO]]
+    up2 = fw[foff[F_UP]:fend[F_UP]]
+    st2 = iw[ioff[I_STARTS]:ioff[I_STARTS + 1]]
     for k in range(D + 1):
         st2[k] = starts[k]
-    if min_norm:
-        st2[D + 1] = m + n
-        for c in range(n):
-            A2[m + c, c] = 1.0
     for k in range(D):
         sc = level_scale(A, starts[k], starts[k + 1], n)
         for i in range(starts[k], starts[k + 1]):
+            a2 = A2[i]
+            a = A[i]
             for c in range(n):
-                A2[i, c] = A[i, c] * sc
+                a2[c] = a[c] * sc
             lo2[i] = lo[i] * sc
             up2[i] = up[i] * sc
-    return A2, lo2, up2, st2
+    if min_norm:
+        st2[D + 1] = mt
+        for i in range(m, mt):
+            A2[i, :] = 0.0
+            A2[i, i - m] = 1.0
+            lo2[i] = 0.0
+            up2[i] = 0.0
+    prepare(A2, lo2, up2, st2, iw[ioff[I_KIND]:ioff[I_KIND + 1]], iw[ioff[I_BCOL]:ioff[I_BCOL + 1]],
+            fw[foff[F_BVAL]:fend[F_BVAL]], fw[foff[F_RNORM]:fend[F_RNORM]],
+            iw[ioff[I_ROWLEV]:ioff[I_ROWLEV + 1]], fw[foff[F_LNORM]:fend[F_LNORM]],
+            iw[ioff[I_LEVID]:ioff[I_LEVID + 1]], iw[ioff[I_WIDX]:ioff[I_WIDX + 1]])
