@@ -8,7 +8,9 @@ chosen by the kernel at the start of each solve:
   only the columns they need (``Z`` for the projections of eq. 19, held in
   ``Mf[:, p:]``);
 - *factored* (:mod:`._factored`: warm re-solves from a recorded active set,
-  sec. XI, from ``LAZY_MIN_N`` variables on): ``W = W0 E_1 ... E_m`` with the
+  sec. XI, from ``LAZY_MIN_N`` variables on, until a level iterates more than
+  ``LAZY_MAX_ITER`` times: then the queue is flushed and ``W`` stays explicit
+  to the end of the solve): ``W = W0 E_1 ... E_m`` with the
   factors queued and applied to the vectors that need them (``2 L`` per
   reflector and vector), flushed into ``W0`` when that is cheaper; the
   projected objective rows are whole rows ``Mf[j] = W^T a_j``.
@@ -32,7 +34,9 @@ from solvers.hcod import _explicit, _factored
 from solvers.hcod._linalg import FASTMATH
 
 __all__ = [
+    "LAZY_MAX_ITER",
     "LAZY_MIN_N",
+    "basis_explicit",
     "basis_n",
     "basis_reset",
     "basis_rows",
@@ -50,6 +54,11 @@ __all__ = [
 #: VM). A cold solve iterates more: a long queue, or a dense W0 after a flush, costs more per
 #: product than Z's columns of an explicit W (cold n=80 seed 2: ~1.3 ms factored, ~0.75 explicit)
 LAZY_MIN_N = 48
+#: iterations of one level after which a factored W goes explicit for the rest of the solve: a
+#: warm re-solve iterates once per level, a step of a drifting trajectory like a cold solve
+#: (40-step trajectories, drift 0.01, in-process: random n=60 12.3 -> 8.3 ms, IK-like n=48
+#: 4.2 -> 3.4 ms, n=64 5.2 -> 4.5 ms; IK-like n=120 8.4 -> 9.1 ms; 2 and 5 measured alike)
+LAZY_MAX_ITER = 3
 _FM = set(FASTMATH)
 
 
@@ -62,6 +71,14 @@ def basis_reset(lazy, Wt, qi):
         Wt[:, :] = 0.0
         for i in range(Wt.shape[0]):
             Wt[i, i] = 1.0
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def basis_explicit(Wt, qv, qi, sv, sv2):
+    """The factored ``W`` made explicit (the queue flushed into ``W0``, which
+    then is ``W``: the storage of both representations is the same).
+    Returns flops."""
+    return _factored.flush(Wt, qv, qi, sv, sv2)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")

@@ -38,7 +38,9 @@ import numpy as np
 from numba import njit
 
 from solvers.hcod._basis import (
+    LAZY_MAX_ITER,
     LAZY_MIN_N,
+    basis_explicit,
     basis_n,
     basis_reset,
     basis_rows,
@@ -376,6 +378,11 @@ def hcod_solve(fw, iw):
                     break
                 total += 1
                 itl[k] += 1
+                if lazy and itl[k] > LAZY_MAX_ITER:
+                    # a level iterating like a cold one (a trajectory that drifted): W goes
+                    # explicit for the rest of the solve (see ._basis)
+                    fl += basis_explicit(Wt, qv, qi, sv, sv2)
+                    lazy = False
                 nf = n - p
                 r = 0
                 for c in range(n):

@@ -177,23 +177,29 @@ def test_warm_start_modes_agree(mode):
         assert res.activations == res.deactivations == 0
 
 
-@pytest.mark.parametrize("make", [lambda: G.random_hierarchy(10, 4, 4, inequality="mixed", box=True, seed=11),
-                                  lambda: G.ik_like(15, 4),
-                                  lambda: G.random_hierarchy(60, 4, 15, inequality="mixed", box=True, seed=2),
-                                  lambda: G.ik_like(64, 1)],
-                         ids=["random", "ik-like", "random-n60-factored", "ik-like-n64-factored"])
-def test_warm_start_along_a_trajectory(make):
+@pytest.mark.parametrize("make, drift",
+                         [(lambda: G.random_hierarchy(10, 4, 4, inequality="mixed", box=True, seed=11), 0.01),
+                          (lambda: G.ik_like(15, 4), 0.01),
+                          (lambda: G.random_hierarchy(60, 4, 15, inequality="mixed", box=True, seed=2), 0.01),
+                          (lambda: G.ik_like(64, 1), 0.01),
+                          (lambda: G.ik_like(64, 1), 1e-4)],
+                         ids=["random", "ik-like", "random-n60-factored-then-explicit",
+                              "ik-like-n64-factored-then-explicit", "ik-like-n64-factored-small-drift"])
+def test_warm_start_along_a_trajectory(make, drift):
     """sec. XI: one solver object along a trajectory (A and bounds drift); every
     step must match a cold solve lexicographically. From n = LAZY_MIN_N on, the
-    warm re-solves keep W factored and the cold ones explicit (._basis)."""
+    warm re-solves start with W factored and the cold ones explicit (._basis);
+    a level iterating more than LAZY_MAX_ITER times (drift 0.01) turns W
+    explicit mid-solve, a small drift keeps it factored (one iteration per
+    level after the first steps)."""
     h = make()
     s = HcodSolver(warm_start="time")
     rng = np.random.default_rng(0)
     A, lo, up = h.A.copy(), h.lower.copy(), h.upper.copy()
     warm_iters = cold_iters = 0
     for t in range(8):
-        A = A + 0.01 * rng.standard_normal(A.shape) * (A != 0)
-        d = 0.01 * rng.standard_normal(h.rows)
+        A = A + drift * rng.standard_normal(A.shape) * (A != 0)
+        d = drift * rng.standard_normal(h.rows)
         lo2 = np.where(np.isfinite(lo), lo + d, lo)
         up2 = np.where(np.isfinite(up), up + d, up)
         up = np.where(lo == up, lo2, np.maximum(up2, lo2))
