@@ -175,9 +175,8 @@ class IsolatedWorker:
             try:
                 code = proc.wait(timeout=5)
             except subprocess.TimeoutExpired:
-                self.kill()
                 code = None
-            self.proc = None
+            self.kill()  # (closes its pipes, and ends it if it still runs)
             return {**meta, "status": CRASHED, "x": None, "samples_ns": [], "reason": _describe_exit(code)}
         out.setdefault("calib_ns", meta["calib_ns"])
         return out

@@ -90,6 +90,25 @@ def test_hang_and_segfault_become_rows(tmp_path):
     assert df.loc["sleep", "status"] == "optimal" and df.loc["sleep", "verified"]
 
 
+def test_a_crashed_worker_leaves_no_open_pipe():
+    """The crash path closes the dead worker's pipes (not left to the garbage
+    collector, which warns about unclosed files)."""
+    from doubles import tiny
+
+    from bench.isolation import IsolatedWorker
+
+    w = IsolatedWorker()
+    try:
+        w.start()
+        proc = w.proc
+        res = w.run({"kind": "solve", "hierarchy": tiny(), "solver": spec("SegfaultSolver"), "options": {},
+                     "mode": "cold", "repeat": 1, "warmup": 1}, timeout=30)
+        assert res["status"] == "crashed"
+        assert w.proc is None and proc.stdin.closed and proc.stdout.closed
+    finally:
+        w.close()
+
+
 def test_limit_then_resume_no_duplicate_no_loss(tmp_path):
     suite = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver")])
     out = tmp_path / "out"
@@ -194,11 +213,10 @@ def test_worker_dies_with_a_killed_run(tmp_path):
             "w.run({'kind': 'solve', 'hierarchy': tiny(), 'solver': spec('HangSolver'), 'options': {},"
             " 'mode': 'cold', 'repeat': 1, 'warmup': 1}, timeout=60)\n") % str(Path(__file__).parent)
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
-    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=env)
-    child = int(proc.stdout.readline())
-    time.sleep(0.5)
-    proc.kill()
-    proc.wait()
+    with subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=env) as proc:
+        child = int(proc.stdout.readline())
+        time.sleep(0.5)
+        proc.kill()
     for _ in range(50):
         try:
             os.kill(child, 0)
