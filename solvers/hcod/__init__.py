@@ -207,7 +207,7 @@ class HcodSolver(Solver):
         mt = st[-1] + n * mn
         mmax = max(max(b - a for a, b in pairwise(st)), n * mn)
         key = (n, mt, D, mmax, tuple(st))
-        if key != self._key or self._ws is None:
+        if key != self._key:  # (None before the first bind)
             cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (mt + n)
             ip = (n, mt, D, mmax, cap, WARM_STARTS.index(self.warm_start), 1)
             self._ws = (*setup.workspaces(ip, self._prm), cap)
