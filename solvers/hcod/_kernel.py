@@ -71,7 +71,7 @@ INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
 O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P = range(8)
-BLAND_AFTER = 8  #: consecutive degenerate steps before the anti-cycling rule takes over
+BLAND_AFTER = 32  #: consecutive iterations that leave u where it is before the anti-cycling rule takes over
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -429,11 +429,13 @@ def hcod_solve(fw, iw):
                 tau = 1.0
                 blk = -1
                 bsd = 0
+                moved = False
                 if has_ineq:
                     pn = _norm(ps)
                     # a step at rounding level (a warm re-solve: the recorded optimum) moves
                     # no row by more than the feasibility tolerance: no scan
-                    if pn > 1e-15 * (1.0 + _norm(u)):
+                    moved = pn > 1e-15 * (1.0 + _norm(u))
+                    if moved:
                         for i in range(s1):
                             if state[i] != INACTIVE or kind[i] != 1:
                                 continue
@@ -449,6 +451,8 @@ def hcod_solve(fw, iw):
                                 sd = -1
                             else:
                                 continue
+                            if rt < 0.0 and degen >= BLAND_AFTER:
+                                rt = 0.0  # (Bland: of the rows at ratio 0, the first)
                             if rt < tau:
                                 tau = max(rt, 0.0)
                                 blk = i
@@ -456,13 +460,14 @@ def hcod_solve(fw, iw):
                         fl += 2 * n * (s1 - s0)
                 for c in range(n):
                     u[c] += tau * ps[c]
-                # anti-cycling: after a run of degenerate steps (tau = 0), Bland's rule --
-                # the blocking row of smallest index (the scan keeps the first of equal
-                # ratios) and the deactivation of the smallest row index
-                if blk >= 0 and tau == 0.0:
-                    degen += 1
-                else:
+                # anti-cycling: after a run of iterations that leave u where it is (degenerate
+                # steps, tau = 0, and deactivations at a vertex, where the step is zero),
+                # Bland's rule -- the blocking row of smallest index and the deactivation of
+                # the smallest row index
+                if moved and tau > 0.0:
                     degen = 0
+                else:
+                    degen += 1
                 if blk >= 0:
                     acts += 1
                     side[blk] = bsd
