@@ -17,6 +17,8 @@ disagree, and the hypothesis tests draw from a grid that avoids them.
 
 from __future__ import annotations
 
+import os
+from collections import Counter
 from pathlib import Path
 
 import hik_strategies
@@ -449,9 +451,6 @@ def test_conditioning_sweep(capsys):
     lexicographically lower, a reference that missed the optimum); ill-conditioned ones never
     worse than the reference at the top level beyond 1e-7 (lower levels may differ either way:
     README, "Limitations"). The tally is printed (``-s``)."""
-    import os
-    from collections import Counter
-
     tally = Counter()
     for trial in range(int(os.environ.get("HIKBENCH_SWEEP", "300"))):
         h, perturbed, kw = _sweep_problem(trial)
@@ -463,7 +462,7 @@ def test_conditioning_sweep(capsys):
                 " perturbed" if prob is perturbed else "")
             res = s.solve(prob)
             if res.status == NUMERICAL_FAILURE and not well:
-                tally[group, "hcod failure"] += 1  # (said, never a wrong x)
+                tally[group, "hcod failure"] += 1  # (a stated failure: x is None, not a wrong x)
                 continue
             assert res.status == OPTIMAL and np.all(np.isfinite(res.x)), (trial, kw, res.reason)
             try:
