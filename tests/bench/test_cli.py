@@ -153,6 +153,7 @@ def test_inspect_table(capsys, problem):
 
 def test_inspect_json(capsys, problem):
     code, out, _ = run(capsys, "inspect", problem[1], "--json")
+    assert code == 0
     res = json.loads(out)
     assert (res["n"], res["depth"], res["rows"]) == (2, 2, 3)
     assert [L["conflicts"] for L in res["levels"]] == [0, 1]
