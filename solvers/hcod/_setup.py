@@ -11,7 +11,7 @@ import numpy as np
 from numba import njit
 
 from solvers.hcod._factored import queue_sizes
-from solvers.hcod._linalg import FASTMATH, level_scale, vdot
+from solvers.hcod._linalg import FASTMATH, level_scale
 
 _FM = set(FASTMATH)
 
@@ -109,18 +109,22 @@ def prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, se
         for i in range(starts[k], starts[k + 1]):
             rowlev[i] = k
             ra = A[i]
-            ss = vdot(ra, ra)  # (vectorised: a loop testing each entry would carry ss serially)
+            # one vectorised pass: the squared norm, the nonzeros and the sum of their column
+            # indices (a bound row's column; a search loop for it cost 5 us of 9 at n=80)
+            ss = 0.0
             nz = 0
+            cs = 0
             for c in range(n):
-                nz += ra[c] != 0.0
+                v = ra[c]
+                ss += v * v
+                t = v != 0.0
+                nz += t
+                cs += c * t
             rnorm[i] = math.sqrt(ss)
             s += ss
             if nz == 1:
-                col = 0
-                while ra[col] == 0.0:
-                    col += 1
-                bcol[i] = col
-                bval[i] = ra[col]
+                bcol[i] = cs
+                bval[i] = ra[cs]
             else:
                 bcol[i] = -1
                 bval[i] = 0.0
