@@ -434,13 +434,21 @@ def hcod_solve(fw, iw):
                     pn = _norm(ps)
                     # a step at rounding level (a warm re-solve: the recorded optimum) moves
                     # no row by more than the feasibility tolerance: no scan
-                    moved = pn > 1e-15 * (1.0 + _norm(u))
+                    un = _norm(u)
+                    moved = pn > 1e-15 * (1.0 + un)
                     if moved:
                         for i in range(s1):
                             if state[i] != INACTIVE or kind[i] != 1:
                                 continue
                             ap = row_dot(A[i], bcol[i], bval[i], ps)
-                            if abs(ap) <= 1e-13 * rnorm[i] * pn:
+                            # rows the step leaves in place: the step is orthogonal to them, or they
+                            # lie in the span of the working rows to the rank threshold and the step
+                            # moves them by less than 1e-3 of the feasibility tolerance (a row held
+                            # at its bound by the working rows, rounding aside, must not block: it
+                            # could not enter W)
+                            if abs(ap) <= 1e-13 * rnorm[i] * pn or (
+                                    abs(ap) <= rank_rtol * lnorm[rowlev[i]] * pn
+                                    and abs(ap) <= 1e-3 * feas_rtol * (rnorm[i] * (1.0 + un) + 1.0)):
                                 continue
                             av = row_dot(A[i], bcol[i], bval[i], u)
                             if ap > 0.0 and up[i] < np.inf:

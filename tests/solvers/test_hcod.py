@@ -343,6 +343,17 @@ def test_no_cycling_at_a_degenerate_vertex():
     assert res.iterations < 500
 
 
+@pytest.mark.parametrize("warm_start", ["none", "stage", "time"])
+def test_row_held_at_its_bound_by_the_working_rows_does_not_block(warm_start):
+    """Romeo reaching, step 0 (``hikbench scenario reach --robot romeo``; n = 61, joint
+    limits, CoM, feet, hand, velocity). At the velocity level a joint-limit row sits at its
+    bound, a combination of the working rows to the rank threshold, and the LSE step at the
+    level's optimum is rounding (1e-14 .. 1e-11). The row's rounding violation made it block
+    at tau = 0, and it could not enter W: numerical_failure with warm start stage / time."""
+    h = load_npz(DATA / "romeo_reach_step0.npz")
+    check(h, RTOL, solver=HcodSolver(warm_start=warm_start))
+
+
 @pytest.mark.parametrize("seed", range(4))
 def test_min_norm_x_matches_reference_with_inequalities(seed):
     """Levels that leave freedom (12 DOF, 2 levels of 3 rows, under a box): x is
