@@ -50,7 +50,8 @@ def _result_dict(res: SolveResult, samples_ns) -> dict:
 def execute(job: dict, notify=None) -> dict:
     """Run one job; never raises for a solver failure (the reason is returned).
 
-    A solve job starts with one untimed solve on a fresh solver (it counts as
+    A solve job starts with the solver's ``warmup()`` (if it has one: all its
+    kernels compiled) and one untimed solve on a fresh solver (it counts as
     the first warm-up solve: JIT compilation, caches), then calls
     ``notify()`` so that the isolated worker's caller can switch from the
     first-solve allowance to the job timeout (bench/isolation.py)."""
@@ -63,7 +64,10 @@ def execute(job: dict, notify=None) -> dict:
             return {**base, "status": "optimal", "reason": "", "x": np.asarray(x, dtype=float)}
         from bench.timing import time_solves
         make = solver_factory(job["solver"], job.get("options", {}))
-        make().solve(h)
+        first = make()
+        if callable(getattr(first, "warmup", None)):  # (module:Class solvers need not derive from Solver)
+            first.warmup()
+        first.solve(h)
         if notify is not None:
             notify()
         calib = []

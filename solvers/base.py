@@ -121,6 +121,14 @@ class Solver(abc.ABC):
     def reset(self) -> None:
         """Forget warm-start state (the next solve is cold)."""
 
+    def warmup(self) -> None:
+        """Compile or load everything any later solve of this process may need
+        (JIT kernels, caches); cheap once done. The benchmark's worker calls it
+        before each job's untimed first solve, within the first-solve
+        allowance: a solver whose kernels depend on the problem (hcod:
+        equality-only or with inequalities) would otherwise compile inside a
+        later job's timeout. Default: nothing."""
+
     def unsupported(self, hierarchy: Hierarchy, why: str) -> SolveResult:
         return SolveResult(x=None, status=UNSUPPORTED, reason=f"{self.name}: {why}",
                            iterations_per_level=(0,) * hierarchy.depth)

@@ -246,6 +246,10 @@ class HcodSolver(Solver):
         self._run = run
         return run
 
+    def warmup(self) -> None:
+        """Compile or load both kernels (:func:`warmup`)."""
+        warmup()
+
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
         if hierarchy is self._h:
             return self._run()
