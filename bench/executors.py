@@ -15,6 +15,7 @@ import socket
 import time
 
 from bench.isolation import IsolatedWorker
+from problems.errors import HikbenchError
 
 __all__ = ["SerialExecutor", "DaskExecutor", "run_job"]
 
@@ -59,13 +60,45 @@ def _dask_task(job: dict, timeout: float) -> dict:
     return res
 
 
+_CONNECT_TIMEOUT = 10.0  # seconds to reach a --scheduler
+
+
+def _check_scheduler_address(address: str) -> tuple[str, int] | None:
+    """Reject a malformed --scheduler address (HikbenchError naming the
+    option); returns (host, port) for a tcp/tls address, else None."""
+    from distributed.comm import parse_address
+    from distributed.comm.addressing import parse_host_port
+    from distributed.comm.registry import get_backend
+
+    try:
+        scheme, loc = parse_address(address)
+        get_backend(scheme)
+        if scheme not in ("tcp", "tls"):
+            return None
+        host, port = parse_host_port(loc)
+    except ValueError as err:
+        raise HikbenchError(f"--scheduler {address!r}: expected a Dask scheduler address like "
+                            f"tcp://HOST:PORT ({err})") from err
+    if not host or not 0 < int(port) < 65536:
+        raise HikbenchError(f"--scheduler {address!r}: expected a Dask scheduler address like tcp://HOST:PORT "
+                            f"with a host and a port in 1..65535")
+    return host, int(port)
+
+
 class DaskExecutor:
     def __init__(self, workers: int | None = None, scheduler: str | None = None):
         from distributed import Client, LocalCluster
 
         self.cluster = None
         if scheduler:
-            self.client = Client(scheduler)
+            host_port = _check_scheduler_address(scheduler)
+            try:
+                if host_port is not None:  # fail at once on a refused connection (Client retries for 30 s)
+                    socket.create_connection(host_port, timeout=_CONNECT_TIMEOUT).close()
+                self.client = Client(scheduler, timeout=_CONNECT_TIMEOUT)
+            except OSError as err:  # refused, unreachable, unknown host, timed out
+                raise HikbenchError(f"could not connect to scheduler {scheduler}: "
+                                    f"{err.strerror or err or type(err).__name__}") from err
             self.name = f"dask:{scheduler}"
         else:
             self.cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,

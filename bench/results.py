@@ -3,8 +3,14 @@ back for resuming, reporting and comparing.
 
 A run killed in the middle of writing a row leaves at most one partial last
 line; :class:`ResultsWriter` cuts it off before appending (that row was not
-finished, so it is run again). Finished rows are never rewritten, except by
-``--rerun``, which first copies the file to ``results.csv.bak``.
+finished, so it is run again).
+
+Finished rows are never rewritten, except when a row is run again (``--rerun``,
+or its settings' options changed): the old file is first copied to a new
+backup (``results.csv.bak``, then ``results.csv.bak.1``, ``.bak.2``, ...; an
+existing backup is never overwritten), the new row is appended, and the old
+row of the same key is removed by :func:`compact` once the run stops (the last
+row of a key wins, also for readers of a file left with both by a kill).
 """
 
 from __future__ import annotations
@@ -21,7 +27,8 @@ import pandas as pd
 from bench.columns import JSON_COLUMNS, KEY, names
 from problems.errors import HikbenchError
 
-__all__ = ["ResultsWriter", "read_results", "finished_keys", "RESULTS", "parse_json_column"]
+__all__ = ["ResultsWriter", "read_results", "finished_keys", "finished_rows", "backup", "compact",
+           "RESULTS", "parse_json_column"]
 
 RESULTS = "results.csv"
 
@@ -77,32 +84,71 @@ class ResultsWriter:
         self.close()
 
 
-def finished_keys(out_dir) -> set[tuple]:
-    """Keys (bench.columns.KEY) of the complete rows of OUT/results.csv."""
-    path = Path(out_dir) / RESULTS
-    if not path.exists():
-        return set()
+def _complete_text(path: Path) -> str:
+    """The text of ``path`` without a partial last line."""
     text = path.read_text()
     if text and not text.endswith("\n"):
         text = text[: text.rfind("\n") + 1]
-    return {tuple(r[k] for k in KEY) for r in csv.DictReader(io.StringIO(text))}
+    return text
 
 
-def drop_keys(out_dir, keys: set[tuple]) -> int:
-    """--rerun: back up results.csv to results.csv.bak, then remove the rows of
-    ``keys`` (atomically); returns how many were removed."""
+def finished_keys(out_dir) -> set[tuple]:
+    """Keys (bench.columns.KEY) of the complete rows of OUT/results.csv."""
+    return set(finished_rows(out_dir))
+
+
+def finished_rows(out_dir) -> dict[tuple, str]:
+    """Key (bench.columns.KEY) -> ``options`` JSON of the complete rows of
+    OUT/results.csv (the last row of a key wins)."""
     path = Path(out_dir) / RESULTS
-    if not path.exists() or not keys:
+    if not path.exists():
+        return {}
+    return {tuple(r[k] for k in KEY): r.get("options") or "{}"
+            for r in csv.DictReader(io.StringIO(_complete_text(path)))}
+
+
+def backup(out_dir) -> Path | None:
+    """Copy OUT/results.csv to the first free name of ``results.csv.bak``,
+    ``results.csv.bak.1``, ``results.csv.bak.2``, ... (an existing backup is
+    never overwritten); returns the backup's path (None: no results.csv)."""
+    path = Path(out_dir) / RESULTS
+    if not path.exists():
+        return None
+    i = 0
+    while True:
+        dest = path.with_name(RESULTS + ".bak" + (f".{i}" if i else ""))
+        try:
+            with open(path, "rb") as src, open(dest, "xb") as dst:  # "x": fails rather than overwrite
+                shutil.copyfileobj(src, dst)
+                dst.flush()
+                os.fsync(dst.fileno())
+        except FileExistsError:
+            i += 1
+            continue
+        shutil.copystat(path, dest)
+        return dest
+
+
+def compact(out_dir) -> int:
+    """Remove every row of OUT/results.csv that a later row of the same key
+    replaces (a row run again), atomically; returns how many were removed.
+    The file is left untouched when no key repeats."""
+    path = Path(out_dir) / RESULTS
+    if not path.exists() or not path.stat().st_size:
         return 0
-    shutil.copy2(path, path.with_suffix(".csv.bak"))
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(f))
-    keep = [r for r in rows if tuple(r[k] for k in KEY) not in keys]
+    _check_header(path)
+    rows = list(csv.DictReader(io.StringIO(_complete_text(path))))
+    last = {tuple(r[k] for k in KEY): i for i, r in enumerate(rows)}
+    if len(last) == len(rows):
+        return 0
+    keep = [r for i, r in enumerate(rows) if last[tuple(r[k] for k in KEY)] == i]
     tmp = path.with_suffix(".csv.tmp")
     with open(tmp, "w", newline="") as f:
         w = csv.DictWriter(f, fieldnames=names())
         w.writeheader()
         w.writerows(keep)
+        f.flush()
+        os.fsync(f.fileno())
     os.replace(tmp, path)
     return len(rows) - len(keep)
 
@@ -124,4 +170,6 @@ def read_results(run_dir) -> pd.DataFrame:
             df[c] = df[c].fillna("")
     df["reason"] = df["reason"].fillna("")
     df["verified"] = df["verified"].map({True: True, False: False, "True": True, "False": False})
+    # a run killed while replacing rows can leave an old row before its replacement
+    df = df.drop_duplicates(subset=list(KEY), keep="last", ignore_index=True)
     return df

@@ -26,8 +26,9 @@ from bench.calibration import KERNEL, calibrate
 from bench.columns import KEY
 from bench.environment import environment, read_run_json, utc_now, write_run_json
 from bench.problemset import file_stem, generate, problem_columns, save_problem
-from bench.results import ResultsWriter, drop_keys, finished_keys
-from bench.suites import ACCURACY, Suite, Task, expand
+from bench.results import ResultsWriter, backup, compact, finished_rows
+from bench.suites import ACCURACY, Suite, SuiteError, Task, expand
+from problems.errors import HikbenchError
 from problems.verify import level_norms, verify
 
 __all__ = ["run_suite", "RunSummary"]
@@ -150,39 +151,58 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
 
     ``solvers`` (patterns) replaces the suite's solver lists; ``repeat`` and
     ``timeout`` override the suite's; ``limit`` stops after that many new rows
-    (the run resumes later). ``executor`` defaults to a SerialExecutor."""
+    (the run resumes later). ``rerun`` runs finished rows again: each new row
+    replaces its old one, the other rows are kept, and results.csv is first
+    backed up without overwriting an older backup (bench.results.backup); a
+    finished row whose settings' options changed is run again the same way.
+    A suite that selects no job raises SuiteError. ``executor`` defaults to a
+    SerialExecutor."""
     from bench.executors import SerialExecutor
 
     out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
     repeat = int(repeat or suite.repeat)
     timeout = float(timeout or suite.timeout)
     rtol, atol = ACCURACY[suite.accuracy]
-    tasks, skipped = expand(suite, solvers)
+    tasks, skipped = expand(suite, solvers)  # checks solvers and settings before anything is written
     summary = RunSummary(total=len(tasks), skipped_solvers=skipped)
+    problems, pcols = {}, {}
+    for spec in [t.problem for t in tasks] if tasks else [sp for sp, _ in suite.problems()]:
+        if spec.id not in problems:  # every problem is generated (and checked) before anything is written
+            problems[spec.id] = _generate(suite, spec)
+            pcols[spec.id] = problem_columns(spec, problems[spec.id])
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise HikbenchError(f"--out {out}: cannot create the output directory: {err.strerror or err}") from err
     export, export_skipped = _export_formats(suite.export)
     for name, why in skipped.items():
         print(f"hikbench run: skipping solver {name}: {why}", file=sys.stderr)
+    for pid, h in problems.items():
+        save_problem(h, out / "problems", pid, export)
+    if not tasks:  # e.g. every solver's backend missing: the problems are still exported, then fail
+        why = "; ".join(f"skipped solver {k}: {v}" for k, v in skipped.items()) or (
+            f"none of its solvers runs in its modes {list(suite.modes)}: warm needs supports_warm_start")
+        raise SuiteError(f"suite {suite.source or suite.name} selects no job to run ({why}); "
+                         f"its problems were written to {out / 'problems'}")
 
-    problems, pcols = {}, {}
-    for task in tasks:
-        pid = task.problem.id
-        if pid not in problems:
-            h = generate(task.problem)
-            problems[pid] = h
-            pcols[pid] = problem_columns(task.problem, h)
-            save_problem(h, out / "problems", pid, export)
-    if not tasks:  # still export the problems (e.g. a peers suite with no solver installed)
-        for spec, _ in suite.problems():
-            save_problem(generate(spec), out / "problems", spec.id, export)
-
+    compact(out)  # a run killed while replacing rows left old rows behind
+    done = finished_rows(out)
     if rerun:
-        drop_keys(out, {t.key for t in tasks})
-    done = finished_keys(out)
-    todo = [t for t in tasks if t.key not in done]
+        todo = list(tasks)
+    else:  # a finished key whose settings' options changed runs again
+        todo = [t for t in tasks if done.get(t.key) != t.entry.options_json()]
+        changed = sum(t.key in done for t in todo)
+        if changed:
+            print(f"hikbench run: {changed} finished row(s) run again: their settings' options changed",
+                  file=sys.stderr)
     summary.skipped_finished = len(tasks) - len(todo)
     if limit is not None:
         todo = todo[: max(int(limit), 0)]
+    replaced = sum(t.key in done for t in todo)
+    if replaced:
+        bak = backup(out)
+        print(f"hikbench run: {replaced} finished row(s) will be replaced as they are run again; "
+              f"the previous results.csv is kept as {bak}", file=sys.stderr)
 
     meta = read_run_json(out)
     session = {"started": utc_now(), "calibration_start_ns": calibrate(), "todo": len(todo),
@@ -220,6 +240,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     finally:
         if own_executor:
             executor.close()
+        if replaced:
+            compact(out)  # drop the old rows of the keys that were run again
         session["finished"] = utc_now()
         session["calibration_end_ns"] = calibrate()
         session["written"] = summary.written
@@ -228,6 +250,14 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         meta["calibration_ns"] = int(np.median(cal))
         write_run_json(out, meta)
     return summary
+
+
+def _generate(suite: Suite, spec):
+    """generate(spec), a bad family or parameter reported with the suite file and the problem."""
+    try:
+        return generate(spec)
+    except HikbenchError as err:
+        raise SuiteError(f"suite {suite.source or suite.name}: problem {spec.id}: {err}") from err
 
 
 def _export_formats(formats) -> tuple[tuple, dict]:

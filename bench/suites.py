@@ -17,8 +17,8 @@ path. Schema (every key optional except ``problems``)::
 
     [[settings]]            # extra settings of a solver (every solver also runs "default")
     solver = "cascade-osqp"
-    name = "tight"
-    options = { eps_abs = 1e-9 }
+    name = "low"
+    options = { accuracy = "low" }   # checked against the solver before anything runs
 
     [[problems]]
     family = "equality"          # FAMILIES name or module:function
@@ -31,9 +31,16 @@ Decisions (README, "Suites"):
 
 * ``warm`` mode runs only for solvers with ``supports_warm_start`` (for the
   others it would time the same cold solve twice); external solvers run cold.
-* A solver named explicitly but not installed is reported on stderr and in
-  run.json (``skipped_solvers``) with its install hint, and gets no rows; a
-  glob pattern matches installed solvers only.
+* A solver named explicitly but not installed (a known optional backend) is
+  reported on stderr and in run.json (``skipped_solvers``) with its install
+  hint, and gets no rows; a glob pattern matches installed solvers only. A
+  name the registry does not know at all is an error (SolverNotFoundError,
+  listing the known solvers), as is a suite that selects no job.
+* Every value is type-checked when the suite is loaded (SuiteError naming the
+  file, the key and what was expected); the options of each ``[[settings]]``
+  are checked against their solver before the run starts.
+* The settings' options are part of a row's identity for resuming: after a
+  ``[[settings]]`` changes, its rows run again and replace the old ones.
 * ``grid = { case = "*" }`` expands to every ``problems.generators.DEGENERATE_CASES``.
 """
 
@@ -42,12 +49,13 @@ from __future__ import annotations
 import fnmatch
 import itertools
 import json
+import math
 import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from bench.problemset import ProblemSpec, load_object
-from problems.errors import HikbenchError
+from problems.errors import HikbenchError, SolverNotFoundError
 
 __all__ = ["Suite", "SolverEntry", "Task", "load_suite", "builtin_suites", "resolve_solvers", "ACCURACY"]
 
@@ -62,6 +70,8 @@ ACCURACY: dict[str, tuple[float, float]] = {
 _TOP_KEYS = {"description", "repeat", "warmup", "timeout", "first_solve_timeout", "calibrate_each_job", "modes",
              "accuracy", "export", "solvers", "settings", "problems"}
 _GROUP_KEYS = {"family", "params", "grid", "seeds", "solvers"}
+_SETTINGS_KEYS = {"solver", "name", "options"}
+_EXPORTS = ("npz", "soth")
 
 
 class SuiteError(HikbenchError):
@@ -164,7 +174,8 @@ def load_suite(name_or_path: str) -> Suite:
 
 def _resolve_paths(data: dict, base: Path) -> None:
     """``file.py:attr`` families and solvers given relative to the suite file
-    are found next to it (when the file exists there)."""
+    are found next to it (when the file exists there). Values of the wrong
+    type are left alone for :func:`suite_from_dict` to reject."""
     def fix(spec):
         if not isinstance(spec, str) or spec.startswith("external:"):
             return spec
@@ -173,43 +184,145 @@ def _resolve_paths(data: dict, base: Path) -> None:
             return f"{(base / mod).resolve()}:{attr}"
         return spec
 
-    data["solvers"] = [fix(s) for s in data.get("solvers", ["*"])]
-    for g in data.get("problems", []):
-        g["family"] = fix(g.get("family"))
-        if "solvers" in g:
+    if isinstance(data.get("solvers"), list):
+        data["solvers"] = [fix(s) for s in data["solvers"]]
+    groups = data.get("problems")
+    for g in groups if isinstance(groups, list) else ():
+        if not isinstance(g, dict):
+            continue
+        if "family" in g:
+            g["family"] = fix(g["family"])
+        if isinstance(g.get("solvers"), list):
             g["solvers"] = [fix(s) for s in g["solvers"]]
 
 
+def _is_int(v) -> bool:
+    return isinstance(v, int) and not isinstance(v, bool)
+
+
+def _is_number(v) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+
+class _Checker:
+    """Type checks of suite values; errors name the suite file and the key."""
+
+    def __init__(self, where: str):
+        self.where = where
+
+    def fail(self, msg: str):
+        raise SuiteError(f"suite {self.where}: {msg}")
+
+    def integer(self, d: dict, key: str, default: int, minimum: int, ctx: str = "") -> int:
+        v = d.get(key, default)
+        if not _is_int(v) or v < minimum:
+            self.fail(f"{ctx}{key} = {v!r}: expected an integer >= {minimum}")
+        return v
+
+    def positive(self, d: dict, key: str, default: float, ctx: str = "") -> float:
+        v = d.get(key, default)
+        if not _is_number(v) or v <= 0:
+            self.fail(f"{ctx}{key} = {v!r}: expected a number of seconds > 0")
+        return float(v)
+
+    def boolean(self, d: dict, key: str, default: bool) -> bool:
+        v = d.get(key, default)
+        if not isinstance(v, bool):
+            self.fail(f"{key} = {v!r}: expected true or false")
+        return v
+
+    def string(self, d: dict, key: str, default, ctx: str = "", choices=None) -> str:
+        """A string; ``default`` None means required and non-empty."""
+        v = d.get(key, default)
+        if choices is not None:
+            if not isinstance(v, str) or v not in choices:
+                self.fail(f"{ctx}{key} {v!r}: expected one of {', '.join(map(repr, choices))}")
+        elif not isinstance(v, str) or (default is None and not v):
+            self.fail(f"{ctx}{key} = {v!r}: expected a {'non-empty ' if default is None else ''}string")
+        return v
+
+    def strings(self, d: dict, key: str, default, ctx: str = "", choices=None, example="") -> list[str]:
+        v = d.get(key, default)
+        if not isinstance(v, list) or not v or not all(isinstance(x, str) and x for x in v):
+            hint = f", e.g. {key} = {example}" if example else ""
+            self.fail(f"{ctx}{key} = {v!r}: expected a non-empty list of strings{hint}")
+        for x in v:
+            if choices is not None and x not in choices:
+                self.fail(f"{ctx}{key.removesuffix('s')} {x!r}: "
+                          f"expected {' or '.join(map(repr, choices))}")
+        return v
+
+    def table(self, d: dict, key: str, ctx: str = "") -> dict:
+        v = d.get(key, {})
+        if not isinstance(v, dict):
+            self.fail(f"{ctx}{key} = {v!r}: expected a table, e.g. {key} = {{ n = 6 }}")
+        return v
+
+    def tables(self, d: dict, key: str, header: str) -> list[dict]:
+        v = d.get(key, [])
+        if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
+            self.fail(f"{key} = {v!r}: expected {header} tables")
+        return v
+
+
 def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
+    """A :class:`Suite` from parsed TOML; every value is checked (SuiteError
+    naming the suite file, the key and what was expected)."""
+    c = _Checker(source or name)
     bad = set(data) - _TOP_KEYS
     if bad:
-        raise SuiteError(f"suite {name}: unknown key(s) {sorted(bad)}; expected some of {sorted(_TOP_KEYS)}")
-    groups = data.get("problems", [])
+        c.fail(f"unknown key(s) {sorted(bad)}; expected some of {sorted(_TOP_KEYS)}")
+    groups = c.tables(data, "problems", "[[problems]]")
     if not groups:
-        raise SuiteError(f"suite {name}: no [[problems]] group")
+        c.fail("no [[problems]] group")
     for i, g in enumerate(groups):
+        ctx = f"problems group {i}: "
         if "family" not in g:
-            raise SuiteError(f"suite {name}: problems group {i} has no 'family'")
+            c.fail(f"problems group {i} has no 'family'")
         badg = set(g) - _GROUP_KEYS
         if badg:
-            raise SuiteError(f"suite {name}: problems group {i}: unknown key(s) {sorted(badg)}; "
-                             f"expected some of {sorted(_GROUP_KEYS)}")
-    modes = tuple(data.get("modes", ["cold"]))
-    for m in modes:
-        if m not in ("cold", "warm"):
-            raise SuiteError(f"suite {name}: mode {m!r}: expected 'cold' or 'warm'")
-    acc = data.get("accuracy", "default")
-    if acc not in ACCURACY:
-        raise SuiteError(f"suite {name}: accuracy {acc!r}: expected one of {', '.join(ACCURACY)}")
-    suite = Suite(name=name, description=data.get("description", ""), repeat=int(data.get("repeat", 5)),
-                  warmup=int(data.get("warmup", 1)), timeout=float(data.get("timeout", 60.0)),
-                  first_solve_timeout=float(data.get("first_solve_timeout", 60.0)),
-                  calibrate_each_job=bool(data.get("calibrate_each_job", False)), modes=modes,
-                  accuracy=acc, export=tuple(data.get("export", ["npz"])),
-                  solvers=tuple(data.get("solvers", ["*"])), settings=list(data.get("settings", [])),
-                  groups=groups, source=source)
-    if suite.repeat < 1:
-        raise SuiteError(f"suite {name}: repeat must be >= 1; got {suite.repeat}")
+            c.fail(f"{ctx}unknown key(s) {sorted(badg)}; expected some of {sorted(_GROUP_KEYS)}")
+        c.string(g, "family", None, ctx)
+        c.table(g, "params", ctx)
+        for k, v in c.table(g, "grid", ctx).items():
+            if isinstance(v, list) and not v:
+                c.fail(f"{ctx}grid key {k!r} is an empty list: expected at least one value")
+            if isinstance(v, dict):
+                c.fail(f"{ctx}grid key {k!r} = {v!r}: expected a list of values")
+        seeds = g.get("seeds", [0])
+        if not isinstance(seeds, list) or not seeds or not all(_is_int(x) for x in seeds):
+            c.fail(f"{ctx}seeds = {seeds!r}: expected a non-empty list of integers, e.g. seeds = [0, 1]")
+        if "solvers" in g:
+            c.strings(g, "solvers", None, ctx, example='["hcod"]')
+    settings = c.tables(data, "settings", "[[settings]]")
+    seen = set()
+    for i, st in enumerate(settings):
+        ctx = f"settings {i}: "
+        bads = set(st) - _SETTINGS_KEYS
+        if bads:
+            c.fail(f"{ctx}unknown key(s) {sorted(bads)}; expected some of {sorted(_SETTINGS_KEYS)}")
+        for k in ("solver", "name"):
+            if k not in st:
+                c.fail(f"{ctx}missing key {k!r} (a [[settings]] needs solver, name and options)")
+        c.string(st, "solver", None, ctx)
+        sname = c.string(st, "name", None, ctx)
+        if sname == "default":
+            c.fail(f"{ctx}name 'default' is reserved for the solver's own defaults: choose another name")
+        c.table(st, "options", ctx)
+        if (st["solver"], sname) in seen:
+            c.fail(f"{ctx}settings {sname!r} of solver {st['solver']!r} is defined twice")
+        seen.add((st["solver"], sname))
+    modes = tuple(c.strings(data, "modes", ["cold"], choices=("cold", "warm"), example='["cold", "warm"]'))
+    acc = c.string(data, "accuracy", "default", choices=tuple(ACCURACY))
+    suite = Suite(name=name, description=c.string(data, "description", ""),
+                  repeat=c.integer(data, "repeat", 5, 1), warmup=c.integer(data, "warmup", 1, 0),
+                  timeout=c.positive(data, "timeout", 60.0),
+                  first_solve_timeout=c.positive(data, "first_solve_timeout", 60.0),
+                  calibrate_each_job=c.boolean(data, "calibrate_each_job", False), modes=modes,
+                  accuracy=acc, export=tuple(c.strings(data, "export", ["npz"], choices=_EXPORTS,
+                                                       example='["npz"]')),
+                  solvers=tuple(c.strings(data, "solvers", ["*"], example='["hcod", "cascade-*"]')),
+                  settings=list(settings), groups=groups, source=source)
     return suite
 
 
@@ -221,12 +334,42 @@ def _entry_for_object(spec: str) -> SolverEntry:
                        warm=bool(getattr(obj, "supports_warm_start", False)))
 
 
-def resolve_solvers(patterns, settings=()) -> tuple[list[SolverEntry], dict[str, str]]:
-    """Solver entries for ``patterns`` (+ extra settings), and the skipped ones
-    (name -> why). Order: as the patterns list them, registry order within a glob."""
+def _check_options(entry: SolverEntry, settings_name: str, options: dict, suite_file: str) -> None:
+    """Reject settings options the solver would refuse (before anything runs)."""
+    from solvers import registry
+
+    ctx = f"suite {suite_file}: [[settings]] {settings_name!r}"
+    if entry.spec.startswith("external:"):
+        if options:
+            raise SuiteError(f"{ctx}: solver {entry.solver!r} is external and takes no options; "
+                             f"got {sorted(options)}")
+        return
+    if ":" in entry.spec:  # module:Class or any factory: check the names against its signature
+        info = registry.SolverInfo(entry.solver, "", load_object(entry.spec))
+        allowed = registry.option_names(info)
+        unknown = [k for k in options if allowed is not None and k not in allowed]
+        if unknown:
+            raise SuiteError(f"{ctx}: solver {entry.solver!r}: unknown option(s) {', '.join(map(repr, unknown))}; "
+                             f"allowed options: {', '.join(allowed) or 'none'}")
+        return
+    try:
+        registry.create(entry.spec, **options)  # validates names and values, as `hikbench solve --option`
+    except HikbenchError as err:
+        raise SuiteError(f"{ctx}: {err}") from err
+
+
+def resolve_solvers(patterns, settings=(), where: str = "the suite",
+                    suite_file: str = "") -> tuple[list[SolverEntry], dict[str, str]]:
+    """Solver entries for ``patterns`` (+ extra settings, whose options are
+    checked against their solver), and the skipped ones (name -> why: a known
+    solver whose optional backend is not installed, or a glob matching no
+    installed solver). A name the registry does not know raises
+    SolverNotFoundError. Order: as the patterns list them, registry order
+    within a glob."""
     from solvers import registry
 
     avail = registry.available()
+    missing = registry.missing()
     entries: list[SolverEntry] = []
     skipped: dict[str, str] = {}
     seen = set()
@@ -252,13 +395,18 @@ def resolve_solvers(patterns, settings=()) -> tuple[list[SolverEntry], dict[str,
         elif pat in avail:
             info = avail[pat]
             add(SolverEntry(pat, pat, strict=info.strict, warm=info.supports_warm_start))
+        elif pat in missing:
+            skipped[pat] = f"not installed: {missing[pat]}"
         else:
-            hint = registry.missing().get(pat, "")
-            skipped[pat] = f"not installed: {hint}" if hint else "unknown solver (see `hikbench list solvers`)"
+            known = list(avail) + [m for m in missing if m not in avail and "." not in m]
+            raise SolverNotFoundError(f"unknown solver {pat!r} (in {where}); known solvers: {', '.join(known)} "
+                                      f"(or a glob pattern, module:Class, external:NAME=CMD)")
     for s in settings:
         base = [e for e in entries if e.solver == s.get("solver") and e.settings == "default"]
         for e in base:
-            add(SolverEntry(e.solver, e.spec, settings=str(s["name"]), options=dict(s.get("options", {})),
+            options = dict(s.get("options", {}))
+            _check_options(e, str(s["name"]), options, suite_file or where)
+            add(SolverEntry(e.solver, e.spec, settings=str(s["name"]), options=options,
                             strict=e.strict, warm=e.warm))
     return entries, skipped
 
@@ -266,17 +414,29 @@ def resolve_solvers(patterns, settings=()) -> tuple[list[SolverEntry], dict[str,
 def expand(suite: Suite, solver_patterns=None) -> tuple[list[Task], dict[str, str]]:
     """Every task of the suite; ``solver_patterns`` (from --solvers) replaces
     the suite's and the groups' solver lists."""
+    from solvers import registry
+
     tasks: list[Task] = []
     skipped: dict[str, str] = {}
     cache: dict[tuple, list[SolverEntry]] = {}
+    suite_file = suite.source or suite.name
+    where = "--solvers" if solver_patterns else f"suite {suite_file}"
     for spec, group_pats in suite.problems():
         pats = tuple(solver_patterns) if solver_patterns else (group_pats or suite.solvers)
         if pats not in cache:
-            cache[pats], sk = resolve_solvers(pats, suite.settings)
+            cache[pats], sk = resolve_solvers(pats, suite.settings, where, suite_file)
             skipped.update(sk)
         for entry in cache[pats]:
             for mode in suite.modes:
                 if mode == "warm" and not entry.warm:
                     continue
                 tasks.append(Task(spec, entry, mode))
+    if not solver_patterns:  # a [[settings]] for a solver that is nowhere: most likely a typo
+        names = {e.solver for entries in cache.values() for e in entries}
+        known = set(registry.available()) | set(registry.missing()) | set(skipped)
+        for i, st in enumerate(suite.settings):
+            if st["solver"] not in names and st["solver"] not in known:
+                raise SuiteError(f"suite {suite_file}: [[settings]] {st['name']!r}: solver "
+                                 f"{st['solver']!r} is not one of the suite's solvers "
+                                 f"({', '.join(sorted(names)) or 'none'})")
     return tasks, skipped

@@ -26,9 +26,38 @@ def add_arguments(p) -> None:
     g.add_argument("--scheduler", default=None, metavar="ADDR",
                    help="run on an existing Dask cluster, e.g. tcp://host:8786")
     p.add_argument("--rerun", action="store_true",
-                   help="run finished rows again (the old results.csv is kept as results.csv.bak)")
-    p.add_argument("--limit", type=int, default=None, help="stop after N new rows (resume later)")
+                   help="run finished rows again; each re-run row replaces its old one, the others are "
+                        "kept, and the previous results.csv is first copied to a new backup "
+                        "(results.csv.bak, results.csv.bak.1, ...)")
+    p.add_argument("--limit", type=int, default=None, help="stop after N new rows (N >= 0; resume later)")
     p.add_argument("--quiet", action="store_true", help="no progress bar (CI)")
+
+
+def _check_args(args) -> None:
+    """Bad option values: one-line HikbenchError naming the option (exit 2)."""
+    import math
+
+    if args.repeat is not None and args.repeat < 1:
+        raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
+    if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
+        raise HikbenchError(f"--timeout must be a number of seconds > 0; got {args.timeout}")
+    if args.workers is not None and args.workers < 1:
+        raise HikbenchError(f"--workers must be >= 1; got {args.workers}")
+    if args.limit is not None and args.limit < 0:
+        raise HikbenchError(f"--limit must be >= 0 (new rows to write before stopping); got {args.limit}")
+    if args.scheduler is not None:
+        from bench.executors import _check_scheduler_address
+        _check_scheduler_address(args.scheduler)
+
+
+def _check_out(out) -> None:
+    """--out must be (or be creatable as) a directory; it is created by the run."""
+    for d in (out, *out.parents):
+        if d.exists():
+            if not d.is_dir():
+                what = "exists" if d == out else f"is under {d}, which exists"
+                raise HikbenchError(f"--out {out}: {what} and is not a directory; expected an output directory")
+            return
 
 
 def run(args) -> int:
@@ -37,14 +66,10 @@ def run(args) -> int:
     from bench.runner import run_suite
     from bench.suites import load_suite
 
+    _check_args(args)
     suite = load_suite(args.suite)
-    if args.repeat is not None and args.repeat < 1:
-        raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
-    if args.timeout is not None and args.timeout <= 0:
-        raise HikbenchError(f"--timeout must be > 0; got {args.timeout}")
-    if args.workers is not None and args.workers < 1:
-        raise HikbenchError(f"--workers must be >= 1; got {args.workers}")
     out = Path(args.out or f"results/{suite.name}")
+    _check_out(out)
     executor = None
     if args.workers or args.scheduler:
         from bench.executors import DaskExecutor

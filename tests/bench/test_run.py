@@ -32,7 +32,7 @@ def tiny_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("tiny")
     suite = write_suite(d / "s.toml", ["reference", spec("SleepSolver"), spec("WrongSolver"),
                                        spec("RaisingSolver"),
-                                       "not-a-solver"])
+                                       "not-a-solver-*"])
     assert _run("--suite", suite, "--out", d / "out") == 0
     return d / "out"
 
@@ -63,7 +63,7 @@ def test_outputs_beside_results(tiny_run):
     meta = json.loads((tiny_run / "run.json").read_text())
     assert meta["suite"]["name"] == "s"
     assert meta["calibration_ns"] > 0
-    assert "not-a-solver" in meta["skipped_solvers"]
+    assert meta["skipped_solvers"] == {"not-a-solver-*": "pattern matches no installed solver"}
     env = meta["environment"]
     assert env["versions"]["numpy"] and env["cpu"] and "threadpools" in env["blas"]
     assert len(list((tiny_run / "problems").glob("*.npz"))) == 4
@@ -140,6 +140,7 @@ def test_rerun_replaces_rows_and_keeps_backup(tmp_path):
     assert _run("--suite", suite, "--out", out, "--rerun") == 0
     assert len(read_results(out)) == 4
     assert (out / "results.csv.bak").exists()
+    assert len((out / "results.csv").read_text().splitlines()) == 5  # the old rows are gone
 
 
 def test_killed_run_restarts_and_finishes(tmp_path):

@@ -40,15 +40,14 @@ def test_generation_is_deterministic():
 
 
 def test_expand_modes_settings_and_skips(tmp_path):
-    path = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), "nomatch-*", "no-such-solver"],
-                       grid={"n": [4]})
+    path = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), "nomatch-*"], grid={"n": [4]})
     path.write_text(path.read_text() + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.1 }\n')
     tasks, skipped = expand(load_suite(str(path)))
     got = sorted((t.entry.solver, t.entry.settings, t.mode) for t in tasks)
     assert got == [("reference", "default", "cold"),  # no warm start: no warm row
                    ("sleep", "default", "cold"), ("sleep", "default", "warm"),
                    ("sleep", "slow", "cold"), ("sleep", "slow", "warm")]
-    assert set(skipped) == {"nomatch-*", "no-such-solver"}
+    assert skipped == {"nomatch-*": "pattern matches no installed solver"}
     tasks, _ = expand(load_suite(str(path)), solver_patterns=["reference"])
     assert {t.entry.solver for t in tasks} == {"reference"}
 
@@ -60,10 +59,21 @@ def test_expand_modes_settings_and_skips(tmp_path):
     ({"modes": ["hot"], "problems": [{"family": "equality"}]}, "mode 'hot'"),
     ({"accuracy": "ultra", "problems": [{"family": "equality"}]}, "accuracy 'ultra'"),
     ({"repeats": 3, "problems": [{"family": "equality"}]}, "unknown key"),
-], ids=["no-problems", "no-family", "group-key", "mode", "accuracy", "top-key"])
+    ({"repeat": "abc", "problems": [{"family": "equality"}]}, "repeat = 'abc': expected an integer >= 1"),
+    ({"problems": [{"family": "equality", "seeds": 3}]}, "seeds = 3: expected a non-empty list of integers"),
+], ids=["no-problems", "no-family", "group-key", "mode", "accuracy", "top-key", "repeat", "seeds"])
 def test_bad_suites(data, match):
     with pytest.raises(SuiteError, match=match):
         suite_from_dict(data, "bad")
+
+
+def test_unknown_solver_is_an_error_listing_the_known_ones():
+    from bench.suites import resolve_solvers
+    from problems.errors import SolverNotFoundError
+
+    with pytest.raises(SolverNotFoundError, match=r"unknown solver 'no-such-solver' \(in the suite\); "
+                                                  r"known solvers: .*hcod.*reference"):
+        resolve_solvers(["reference", "no-such-solver"])
 
 
 def test_unknown_family_names_the_known_ones():
