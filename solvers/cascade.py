@@ -56,7 +56,7 @@ from problems.hierarchy import Hierarchy
 from solvers import _qp_backends as tables
 from solvers.base import (ERROR, INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL,
                           SolveResult, Solver)
-from solvers.registry import SolverInfo
+from solvers.registry import SolverInfo, check_choice, check_int, check_number
 
 __all__ = ["CascadeBase", "QPSolversCascade", "FREEZE_MODES", "freeze_level", "level_qp"]
 
@@ -109,29 +109,25 @@ class CascadeBase(Solver):
     def __init__(self, freeze: str = "shift", accuracy: str = "high", regularization: float | None = None,
                  max_iter: int | None = None, relax_delta: float | None = None,
                  slack_tol: float | None = None):
-        if freeze not in FREEZE_MODES:
-            raise SolverOptionError(f"{self.name}: option freeze={freeze!r}: expected one of {FREEZE_MODES}")
-        if accuracy not in tables.PROFILES:
-            raise SolverOptionError(f"{self.name}: option accuracy={accuracy!r}: expected one of "
-                                    f"{tables.PROFILES}")
-        for opt, val in (("regularization", regularization), ("relax_delta", relax_delta),
-                         ("slack_tol", slack_tol)):
-            if val is not None and not (np.isfinite(val) and val >= 0):
-                raise SolverOptionError(f"{self.name}: option {opt}={val!r}: expected a finite number >= 0")
-        if max_iter is not None and (not isinstance(max_iter, (int, np.integer)) or max_iter < 1):
-            raise SolverOptionError(f"{self.name}: option max_iter={max_iter!r}: expected an int >= 1")
+        freeze = check_choice(self.name, "freeze", freeze, FREEZE_MODES)
+        accuracy = check_choice(self.name, "accuracy", accuracy, tables.PROFILES)
+        regularization, relax_delta, slack_tol = (
+            check_number(self.name, opt, val, low=0, none_ok=True)
+            for opt, val in (("regularization", regularization), ("relax_delta", relax_delta),
+                             ("slack_tol", slack_tol)))
+        max_iter = check_int(self.name, "max_iter", max_iter, none_ok=True)
         if max_iter is not None and self.backend in tables.MAX_ITER_NAME and \
                 tables.MAX_ITER_NAME[self.backend] is None:
             raise SolverOptionError(f"{self.name}: option max_iter: backend {self.backend} has no "
                                     "iteration limit")
         self.freeze = freeze
         self.accuracy = accuracy
-        self.eps = tables.REGULARIZATION.get(self.backend, 1e-12) if regularization is None else float(
-            regularization)
+        self.eps = (tables.REGULARIZATION.get(self.backend, 1e-12) if regularization is None
+                    else regularization)
         self.max_iter = max_iter
         tol = tables.NOMINAL_TOL[accuracy]
-        self.delta = tol if relax_delta is None else float(relax_delta)
-        self.slack_tol = tol if slack_tol is None else float(slack_tol)
+        self.delta = tol if relax_delta is None else relax_delta
+        self.slack_tol = tol if slack_tol is None else slack_tol
         self._last_z: dict[int, np.ndarray] = {}
 
     def reset(self) -> None:

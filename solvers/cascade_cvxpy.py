@@ -26,7 +26,7 @@ import numpy as np
 from problems.errors import SolverOptionError
 from solvers import _qp_backends as tables
 from solvers.cascade import CascadeBase
-from solvers.registry import SolverInfo
+from solvers.registry import SolverInfo, check_choice
 
 __all__ = ["CvxpyCascade"]
 
@@ -44,10 +44,7 @@ class CvxpyCascade(CascadeBase):
                  relax_delta: float | None = None, slack_tol: float | None = None):
         import cvxpy as cp
 
-        if solver not in tables.CVXPY_ACCURACY:
-            raise SolverOptionError(f"{self.name}: option solver={solver!r}: expected one of "
-                                    f"{sorted(tables.CVXPY_ACCURACY)} "
-                                    "(the cvxpy solvers with an accuracy table)")
+        check_choice(self.name, "solver", solver, sorted(tables.CVXPY_ACCURACY))
         if solver not in cp.installed_solvers():
             raise SolverOptionError(f"{self.name}: option solver={solver!r}: not installed in cvxpy "
                                     f"(installed: {cp.installed_solvers()})")

@@ -38,7 +38,13 @@ harness reports how far the result lands from the lexicographic optimum.
   from the first **box level** of the hierarchy — a level whose rows are
   +-unit vectors on distinct variables — and that level is not part of the
   task. Variables without two finite, distinct limits get a zero gradient. A
-  hierarchy without a box level gets status ``unsupported``.
+  hierarchy without a box level gets status ``unsupported``. The method keeps
+  x inside the box only through that gradient, which acts in the null space
+  of the task rows: task rows that pull x out of the box win. So ``optimal``
+  means converged *and* inside the box (to ``BOX_RTOL (1 + |limit|)``); a
+  converged x outside it gets status ``infeasible_level``, and the reason
+  names the box level, the worst variable and the excess (a ``max_iterations``
+  reason says so too when the last iterate is outside).
 
 Inequality rows (all three solvers): a free row is ignored; an inequality
 row is a target only where it is violated — the first solve uses the
@@ -56,24 +62,13 @@ import scipy.linalg
 
 from problems.errors import SolverOptionError
 from problems.hierarchy import Hierarchy
-from solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, SolveResult, Solver
-from solvers.registry import SolverInfo
+from solvers.base import INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, SolveResult, Solver
+from solvers.registry import SolverInfo, check_int, check_number, check_numbers
 
-__all__ = ["Weighted", "DLS", "DLSLiegeois", "liegeois_gradient", "box_limits"]
+__all__ = ["Weighted", "DLS", "DLSLiegeois", "liegeois_gradient", "box_limits", "box_excess", "BOX_RTOL"]
 
-
-def _check_pos(name: str, opt: str, value, strict: bool = False) -> float:
-    ok = value is not None and np.isfinite(value) and (value > 0 if strict else value >= 0)
-    if not ok:
-        raise SolverOptionError(f"{name}: option {opt}={value!r}: expected a finite number "
-                                f"{'> 0' if strict else '>= 0'}")
-    return float(value)
-
-
-def _check_int(name: str, opt: str, value) -> int:
-    if not isinstance(value, (int, np.integer)) or value < 1:
-        raise SolverOptionError(f"{name}: option {opt}={value!r}: expected an int >= 1")
-    return int(value)
+#: dls-liegeois: x may leave a limit by ``BOX_RTOL (1 + |limit|)`` and still be ``optimal``
+BOX_RTOL = 1e-9
 
 
 def _mark_violated(h: Hierarchy, rows: np.ndarray, x: np.ndarray, side: np.ndarray) -> int:
@@ -121,6 +116,23 @@ def box_limits(h: Hierarchy):
         qmax[cols] = np.where(vals > 0, up, -lo)
         return k, qmin, qmax
     return None
+
+
+def box_excess(x: np.ndarray, qmin: np.ndarray, qmax: np.ndarray, k: int, rtol: float = BOX_RTOL) -> str:
+    """Where x (n,) leaves [qmin, qmax] by more than ``rtol (1 + |limit|)``:
+    a sentence naming box level k, how many variables, the worst one and by
+    how much; "" when x is inside (to that tolerance)."""
+    with np.errstate(invalid="ignore"):
+        below, above = qmin - x, x - qmax  # > 0 outside; -inf for a missing limit
+        excess = np.maximum(below, above)
+        limit = np.where(below >= above, qmin, qmax)
+        out = excess > rtol * (1 + np.abs(limit))
+    if not out.any():
+        return ""
+    i = int(np.argmax(np.where(out, excess, -np.inf)))
+    return (f"level {k} (box level) violated: {int(out.sum())} of {x.size} variables outside their limits, "
+            f"worst x[{i}] = {x[i]:.6g} outside [{qmin[i]:.6g}, {qmax[i]:.6g}] by {excess[i]:.3g} "
+            f"(norm of the excess {np.linalg.norm(excess[out]):.3g})")
 
 
 def liegeois_gradient(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray) -> np.ndarray:
@@ -176,16 +188,11 @@ class Weighted(_Stacked):
     description = "one weighted regularised least-squares step J# = (J^T C J + W)^-1 J^T C, per-level weights"
 
     def __init__(self, weights=None, ratio: float = 1e-2, regularization: float = 1e-9, passes: int = 3):
-        self.ratio = _check_pos(self.name, "ratio", ratio, strict=True)
-        self.regularization = _check_pos(self.name, "regularization", regularization)
-        self.passes = _check_int(self.name, "passes", passes)
-        if weights is not None:
-            w = np.asarray(weights, dtype=float)
-            if w.ndim != 1 or not np.all(np.isfinite(w)) or np.any(w < 0):
-                raise SolverOptionError(f"{self.name}: option weights={weights!r}: expected one finite "
-                                        "weight >= 0 per level")
-            weights = w
-        self.weights = weights
+        self.ratio = check_number(self.name, "ratio", ratio, low=0, low_open=True)
+        self.regularization = check_number(self.name, "regularization", regularization, low=0)
+        self.passes = check_int(self.name, "passes", passes)
+        self.weights = None if weights is None else check_numbers(self.name, "weights", weights, low=0,
+                                                                  what="one weight per level")
 
     def _row_weights(self, h: Hierarchy) -> np.ndarray:
         if self.weights is None:
@@ -216,8 +223,8 @@ class DLS(_Stacked):
     description = "one damped least-squares step J^T (J J^T + lambda^2 I)^-1 e, all levels stacked"
 
     def __init__(self, damping: float = 1e-3, passes: int = 3):
-        self.damping = _check_pos(self.name, "damping", damping)
-        self.passes = _check_int(self.name, "passes", passes)
+        self.damping = check_number(self.name, "damping", damping, low=0)
+        self.passes = check_int(self.name, "passes", passes)
 
     def _step(self, J, e, c):
         G = J @ J.T + self.damping ** 2 * np.eye(J.shape[0])
@@ -234,10 +241,10 @@ class DLSLiegeois(Solver):
 
     def __init__(self, damping: float = 1e-3, alpha: float | None = None, max_iter: int = 1000,
                  tol: float = 1e-10):
-        self.damping = _check_pos(self.name, "damping", damping)
-        self.alpha = None if alpha is None else _check_pos(self.name, "alpha", alpha)
-        self.max_iter = _check_int(self.name, "max_iter", max_iter)
-        self.tol = _check_pos(self.name, "tol", tol, strict=True)
+        self.damping = check_number(self.name, "damping", damping, low=0)
+        self.alpha = check_number(self.name, "alpha", alpha, low=0, none_ok=True)
+        self.max_iter = check_int(self.name, "max_iter", max_iter)
+        self.tol = check_number(self.name, "tol", tol, low=0, low_open=True)
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
         h = hierarchy
@@ -285,12 +292,22 @@ class DLSLiegeois(Solver):
                                               "(an iterate on a limit?)")
                 x = x + dx
                 if np.linalg.norm(dx) <= self.tol * (1 + np.linalg.norm(x)):
-                    return SolveResult(x=x, status=OPTIMAL, iterations=it,
-                                       info={"box_level": kbox, "alpha": alpha})
-        return SolveResult(x=x, status=MAX_ITERATIONS, iterations=it,
-                           info={"box_level": kbox, "alpha": alpha},
-                           reason=f"{self.name}: no convergence in {self.max_iter} iterations "
-                                  f"(last ||dx|| = {np.linalg.norm(dx):.3g})")
+                    break
+            else:
+                outside = box_excess(x, qmin, qmax, kbox)
+                return SolveResult(x=x, status=MAX_ITERATIONS, iterations=it,
+                                   info={"box_level": kbox, "alpha": alpha},
+                                   reason=f"{self.name}: no convergence in {self.max_iter} iterations "
+                                          f"(last ||dx|| = {np.linalg.norm(dx):.3g})"
+                                          + (f"; {outside}" if outside else ""))
+        outside = box_excess(x, qmin, qmax, kbox)
+        if outside:  # converged, but not to what the method is for: x within the limits
+            return SolveResult(x=x, status=INFEASIBLE_LEVEL, iterations=it,
+                               info={"box_level": kbox, "alpha": alpha},
+                               reason=f"{self.name}: converged in {it} iterations outside the limits: "
+                                      f"{outside} (the joint-limit gradient acts only in the null space "
+                                      "of the task rows: it cannot hold x inside the box against them)")
+        return SolveResult(x=x, status=OPTIMAL, iterations=it, info={"box_level": kbox, "alpha": alpha})
 
 
 SOLVERS = [

@@ -50,10 +50,9 @@ from typing import Sequence
 import numpy as np
 import scipy.linalg
 
-from problems.errors import SolverOptionError
 from problems.hierarchy import Hierarchy
 from solvers.base import NUMERICAL_FAILURE, OPTIMAL, SolveResult, Solver
-from solvers.registry import SolverInfo
+from solvers.registry import SolverInfo, check_number
 
 __all__ = ["NullspaceSVD", "NullspaceCOD", "PinvAll", "flops_svd_recursion", "flops_cod_recursion",
            "flops_svd_all_at_once", "flops_cod_all_at_once", "RANK_RTOL"]
@@ -133,10 +132,7 @@ class _EqualityOnly(Solver):
     supports_warm_start = False
 
     def __init__(self, rank_rtol: float = RANK_RTOL):
-        if not (np.isfinite(rank_rtol) and 0 <= rank_rtol < 1):
-            raise SolverOptionError(f"{self.name}: option rank_rtol={rank_rtol!r}: "
-                                    "expected a number in [0, 1)")
-        self.rank_rtol = float(rank_rtol)
+        self.rank_rtol = check_number(self.name, "rank_rtol", rank_rtol, low=0, high=1, high_open=True)
 
     def _check(self, h: Hierarchy) -> SolveResult | None:
         if h.has_inequalities:

@@ -15,14 +15,17 @@ from __future__ import annotations
 
 import importlib
 import inspect
+import math
 from dataclasses import dataclass, field
 from importlib import metadata
+from numbers import Integral, Real
 from typing import Callable
 
 from problems.errors import SolverNotFoundError, SolverOptionError
 from solvers.base import Solver
 
-__all__ = ["SolverInfo", "available", "get", "create", "missing", "option_names"]
+__all__ = ["SolverInfo", "available", "get", "create", "missing", "option_names", "check_number",
+           "check_int", "check_numbers", "check_choice"]
 
 _BUILTIN_MODULES: tuple[str, ...] = (
     "solvers.reference",
@@ -159,3 +162,81 @@ def create(name: str, **options) -> Solver:
                 f"solver {name!r}: unknown option(s) {', '.join(map(repr, unknown))}; "
                 f"allowed options: {listed}")
     return info.factory(**opts)
+
+
+# ------------------------------------------------------------ option values
+# Shared checks for solver constructors: a wrong value raises SolverOptionError
+# "<solver>: option <opt>=<value> is not allowed; expected <what>" (the form
+# hcod uses). bool is rejected wherever a number is expected (``true`` on the
+# command line is JSON for True, which Python would take as 1).
+
+def _reject(solver: str, opt: str, value, expected: str):
+    raise SolverOptionError(f"{solver}: option {opt}={value!r} is not allowed; expected {expected}")
+
+
+def _is_real(v) -> bool:
+    return isinstance(v, Real) and not isinstance(v, bool)
+
+
+def _range_text(low, high, low_open: bool, high_open: bool) -> str:
+    if high is None:
+        return f"{'>' if low_open else '>='} {low:g}" if low is not None else ""
+    if low is None:
+        return f"{'<' if high_open else '<='} {high:g}"
+    return f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+
+
+def _in_range(v: float, low, high, low_open: bool, high_open: bool) -> bool:
+    return ((low is None or (v > low if low_open else v >= low))
+            and (high is None or (v < high if high_open else v <= high)))
+
+
+def check_number(solver: str, opt: str, value, *, low: float | None = None, high: float | None = None,
+                 low_open: bool = False, high_open: bool = False, none_ok: bool = False) -> float | None:
+    """``float(value)`` when value is a finite real number (not a bool) in the
+    range given by low / high (open ends with low_open / high_open); None when
+    value is None and none_ok; else SolverOptionError naming solver, option,
+    value and the expected type and range."""
+    if value is None and none_ok:
+        return None
+    if _is_real(value) and math.isfinite(value) and _in_range(float(value), low, high, low_open, high_open):
+        return float(value)
+    rng = _range_text(low, high, low_open, high_open)
+    _reject(solver, opt, value, f"a finite number{' ' + rng if rng else ''}{' or None' if none_ok else ''}")
+
+
+def check_int(solver: str, opt: str, value, *, low: int = 1, none_ok: bool = False) -> int | None:
+    """``int(value)`` when value is an integer (not a bool) >= low; None when
+    value is None and none_ok; else SolverOptionError."""
+    if value is None and none_ok:
+        return None
+    if isinstance(value, Integral) and not isinstance(value, bool) and value >= low:
+        return int(value)
+    _reject(solver, opt, value, f"an integer >= {low}{' or None' if none_ok else ''}")
+
+
+def check_choice(solver: str, opt: str, value, choices):
+    """value when it is a string among ``choices``; else SolverOptionError
+    listing them."""
+    if isinstance(value, str) and value in choices:
+        return value
+    _reject(solver, opt, value, f"one of {', '.join(map(str, choices))}")
+
+
+def check_numbers(solver: str, opt: str, value, *, low: float | None = None, what: str = ""):
+    """A non-empty list (or tuple, or 1-D array) of finite real numbers >= low
+    as a float ndarray, shape (len,); else SolverOptionError. ``what`` is
+    appended to the expectation (e.g. "one per level")."""
+    import numpy as np
+
+    ok = isinstance(value, (list, tuple, np.ndarray)) and len(value) > 0
+    if ok:
+        items = np.asarray(value, dtype=object)
+        ok = items.ndim == 1 and all(_is_real(v) and math.isfinite(v) and _in_range(float(v), low, None,
+                                                                                  False, False)
+                                     for v in items)
+    if not ok:
+        rng = _range_text(low, None, False, False)
+        _reject(solver, opt, value, f"a non-empty list of finite numbers{' ' + rng if rng else ''}"
+                                    f"{', ' + what if what else ''}")
+    return np.asarray(value, dtype=float)

@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 from baseline_cases import CASES, case
 
 from problems import generators as g
 from problems.errors import SolverOptionError
+from problems.files import load
 from problems.hierarchy import Hierarchy, Level
 from problems.verify import level_norms, verify
 from solvers import registry
-from solvers.base import OPTIMAL, UNSUPPORTED
-from solvers.damped import box_limits, liegeois_gradient
+from solvers.base import INFEASIBLE_LEVEL, MAX_ITERATIONS, OPTIMAL, UNSUPPORTED
+from solvers.damped import BOX_RTOL, box_limits, liegeois_gradient
 
+DATA = Path(__file__).parent / "data"
 NON_STRICT = ("weighted", "dls", "dls-liegeois")
 #: verify() rtol on a consistent single-level problem: the regularisation /
 #: damping biases the answer by about (lambda / sigma_min)^2
@@ -46,16 +51,26 @@ def test_consistent_single_level_is_solved(name):
 @pytest.mark.parametrize("name", NON_STRICT)
 @pytest.mark.parametrize("case_name", CASES)
 def test_runs_on_every_case_and_is_judged_by_verification(name, case_name):
-    """Status is optimal (or unsupported for dls-liegeois without a box level);
-    how far x is from the lexicographic optimum is the verification's job,
-    so here only: x finite and level norms computable."""
+    """Status is optimal (or unsupported for dls-liegeois without a box level,
+    or infeasible_level when it converged outside its box); how far x is from
+    the lexicographic optimum is the verification's job, so here only: x
+    finite, level norms computable, and dls-liegeois optimal only inside its box."""
     h = case(case_name)
     res = registry.create(name).solve(h)
     if name == "dls-liegeois" and box_limits(h) is None:
         assert res.status == UNSUPPORTED and "box level" in res.reason
         return
-    assert res.status in (OPTIMAL, "max_iterations"), res.reason
+    allowed = (OPTIMAL, MAX_ITERATIONS) + ((INFEASIBLE_LEVEL,) if name == "dls-liegeois" else ())
+    assert res.status in allowed, res.reason
     assert np.all(np.isfinite(level_norms(h, res.x)))
+    if name == "dls-liegeois":
+        _, qmin, qmax = box_limits(h)
+        tol = BOX_RTOL * (1 + np.maximum(np.abs(np.where(np.isfinite(qmin), qmin, 0)),
+                                         np.abs(np.where(np.isfinite(qmax), qmax, 0))))
+        inside = bool(np.all((res.x >= qmin - tol) & (res.x <= qmax + tol)))
+        assert (res.status == INFEASIBLE_LEVEL) == (not inside and res.status != MAX_ITERATIONS), res.reason
+        if res.status == INFEASIBLE_LEVEL:
+            assert "(box level) violated" in res.reason
 
 
 def test_weighted_formula():
@@ -140,6 +155,30 @@ def test_weighted_without_regularisation_on_rank_deficient_task_fails_cleanly():
     h = Hierarchy.from_levels([Level.equality(np.array([[1.0, 1.0]]), [2.0])])
     res = registry.create("weighted", regularization=0.0).solve(h)
     assert res.status == "numerical_failure" and "factorisation failed" in res.reason
+
+
+@pytest.mark.parametrize("seed, status, reason", [
+    # converges (||dx|| -> 0) in 5 iterations to max|x| = 6065 on the box [-1, 1]: not optimal
+    (1, INFEASIBLE_LEVEL, (r"^dls-liegeois: converged in 5 iterations outside the limits: "
+                           r"level 0 \(box level\) violated: 30 of 30 variables outside their limits, "
+                           r"worst x\[1\] = 6065\.46 outside "
+                           r"\[-1, 1\] by 6\.06e\+03 \(norm of the excess 1\.09e\+04\) \(the joint-limit "
+                           r"gradient acts only in the null space of the task rows")),
+    # no convergence, and the last iterate is outside the box too: the reason says both
+    (0, MAX_ITERATIONS, (r"^dls-liegeois: no convergence in 1000 iterations \(last \|\|dx\|\| = .*\); "
+                         r"level 0 \(box level\) violated: 30 of 30 variables outside their limits, "
+                         r"worst x\[15\] = 420\.301 outside \[-1, 1\] by 419 ")),
+], ids=["converged-outside-box", "max-iterations-outside-box"])
+def test_dls_liegeois_outside_its_box_is_not_optimal(seed, status, reason):
+    """The audit's problems (`hikbench generate random --param n=30 --param depth=5
+    --param inequality=mixed`, seeds 0 and 1, saved in tests/solvers/data): the
+    25 task rows push x far out of the level-0 box [-1, 1]^30, which the
+    joint-limit gradient (null space only) cannot hold."""
+    h = load(DATA / f"liegeois_outside_box_seed{seed}.npz")
+    res = registry.create("dls-liegeois").solve(h)
+    assert res.status == status
+    assert re.match(reason, res.reason), res.reason
+    assert level_norms(h, res.x)[0] > 1.0  # the box level really is violated
 
 
 def test_dls_liegeois_without_box_is_unsupported():
