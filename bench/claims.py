@@ -37,6 +37,7 @@ import pandas as pd
 from scipy import stats
 
 from bench.results import read_results
+from problems.errors import HikbenchError
 
 __all__ = ["Claim", "check_claims", "find_scenario_csvs", "load_scenario", "paper_flops_formula"]
 
@@ -70,7 +71,9 @@ def _ok(df: pd.DataFrame, mode: str = "cold") -> pd.DataFrame:
 
 def slope_interval(x, y, level: float = 0.95) -> tuple[float, float, float]:
     """Slope of log y vs log x with its ``level`` confidence interval."""
-    lx, ly = np.log(np.asarray(x, float)), np.log(np.asarray(y, float))
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    keep = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)  # no log of 0 or of a negative
+    lx, ly = np.log(x[keep]), np.log(y[keep])
     if lx.size < 3 or np.ptp(lx) == 0:
         return float("nan"), float("nan"), float("nan")
     res = stats.linregress(lx, ly)
@@ -143,7 +146,16 @@ def find_scenario_csvs(run_dir, explicit=None) -> list[Path]:
     results/scenarios/reach/ -- the first of those holding reach*.csv files."""
     if explicit:
         p = Path(explicit)
-        return sorted(p.glob("*.csv")) if p.is_dir() else [p]
+        if not p.exists():
+            raise HikbenchError(f"--scenario {p}: no such file or directory; expected a scenario CSV "
+                                "or a directory of them (`hikbench scenario reach` writes them)")
+        if p.is_dir():
+            hits = sorted(p.glob("*.csv"))
+            if not hits:
+                raise HikbenchError(f"--scenario {p}: no *.csv file in this directory; expected the "
+                                    "per-step CSVs of `hikbench scenario reach`")
+            return hits
+        return [p]
     run_dir = Path(run_dir)
     for d in (run_dir / "scenarios" / "reach", run_dir / "scenarios", run_dir,
               Path("results/scenarios/reach")):
@@ -153,9 +165,28 @@ def find_scenario_csvs(run_dir, explicit=None) -> list[Path]:
     return []
 
 
+SCENARIO_NEEDS = ("solver", "solve_time_s")  # columns without which a CSV is no scenario CSV
+
+
 def load_scenario(run_dir, explicit=None) -> pd.DataFrame | None:
+    """The scenario CSVs concatenated, or None when there are none; a file that
+    is not a per-step scenario CSV is a HikbenchError naming it."""
     paths = [p for p in find_scenario_csvs(run_dir, explicit) if p.exists()]
-    return pd.concat([pd.read_csv(p) for p in paths], ignore_index=True) if paths else None
+    return pd.concat([_read_scenario_csv(p) for p in paths], ignore_index=True) if paths else None
+
+
+def _read_scenario_csv(path: Path) -> pd.DataFrame:
+    expected = "expected a per-step CSV of `hikbench scenario` (columns " + ", ".join(SCENARIO_NEEDS) + ", ...)"
+    try:
+        df = pd.read_csv(path)
+    except UnicodeDecodeError as err:
+        raise HikbenchError(f"{path}: not a text CSV file (byte {err.start} is not UTF-8); {expected}") from err
+    except (OSError, ValueError) as err:  # pandas' ParserError and EmptyDataError are ValueErrors
+        raise HikbenchError(f"{path}: cannot read as CSV ({' '.join(str(err).split())}); {expected}") from err
+    missing = [c for c in SCENARIO_NEEDS if c not in df.columns]
+    if missing:
+        raise HikbenchError(f"{path}: missing column(s) {', '.join(missing)}; {expected}")
+    return df
 
 
 def claim_d(sc: pd.DataFrame | None) -> Claim:

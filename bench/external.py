@@ -9,12 +9,16 @@ no shell) after replacing the placeholders
 * ``{out}``           path where the program must write its answer,
 
 and reads ``{out}``: a JSON object ``{"x": [...], "solve_time_s": t,
-"status": "optimal", "iterations": k}`` where only ``x`` is required. The row's
+"status": "optimal", "iterations": k}`` where only ``x`` is required (it may
+be ``null`` with a status other than ``optimal``). The row's
 time samples are the ``solve_time_s`` the program reports when every
 repetition reports one (its own timer, without process start-up), else the wall
 time of the whole process. A non-zero exit code gives status ``error`` with the
-end of stderr; exceeding the job timeout gives ``timeout``. Each repetition is
-a fresh process, so external solvers run in ``cold`` mode only.
+end of stderr; exceeding the job timeout gives ``timeout``; an output that
+breaks the protocol (no ``x`` or a wrong shape, ``solve_time_s`` not a finite
+number >= 0, ``iterations`` not an integer >= 0, an unknown ``status``) gives
+``error`` with a reason naming the field. Each repetition is a fresh process,
+so external solvers run in ``cold`` mode only.
 """
 
 from __future__ import annotations
@@ -31,7 +35,7 @@ import time
 import numpy as np
 
 from problems.errors import HikbenchError
-from solvers.base import ERROR, OPTIMAL, STATUSES, TIMEOUT
+from solvers.base import CRASHED, ERROR, OPTIMAL, STATUSES, TIMEOUT
 
 __all__ = ["parse_external", "run_external"]
 
@@ -94,25 +98,59 @@ def run_external(job: dict, timeout: float) -> dict:
             try:
                 with open(paths["{out}"]) as f:
                     last = json.load(f)
-                x = np.asarray(last["x"], dtype=float)
-            except (OSError, ValueError, KeyError, TypeError) as err:
+            except (OSError, ValueError) as err:
                 return {**base, "status": ERROR, "x": None, "samples_ns": [],
-                        "reason": f"cannot read x from the program's output file: {err}"}
+                        "reason": f"cannot read the program's output file: {err}"}
+            parsed, problem = _check_output(last, h.n)
+            if problem:
+                return {**base, "status": ERROR, "x": None, "samples_ns": [],
+                        "reason": f"bad output of the external program: {problem}"}
             if i >= total - int(job["repeat"]):
                 wall.append(dt)
-                t = last.get("solve_time_s")
-                reported.append(float(t) if isinstance(t, (int, float)) and math.isfinite(t) else None)
+                reported.append(parsed["solve_time_s"])
     use_reported = all(r is not None for r in reported)
     samples = [int(r * 1e9) for r in reported] if use_reported else wall
-    status = last.get("status", OPTIMAL)
-    if status not in STATUSES:
-        status, reason = ERROR, f"unknown status {last.get('status')!r} from the external program"
-    else:
-        reason = str(last.get("reason", ""))
-    if x.shape != (h.n,):
-        return {**base, "status": ERROR, "x": None, "samples_ns": [],
-                "reason": f"x has shape {x.shape}: expected ({h.n},)"}
-    return {**base, "status": status, "reason": reason, "x": x, "samples_ns": samples,
-            "iterations": int(last.get("iterations", 0) or 0), "iterations_per_level": [],
+    return {**base, "status": parsed["status"], "reason": parsed["reason"], "x": parsed["x"],
+            "samples_ns": samples, "iterations": parsed["iterations"], "iterations_per_level": [],
             "activations": 0, "deactivations": 0, "flops": None, "build_time_s": float("nan"),
             "solve_time_s": float(np.median(reported)) if use_reported else float("nan")}
+
+
+# statuses a program may report; timeout and crashed are the harness's own
+_PROGRAM_STATUSES = tuple(s for s in STATUSES if s not in (TIMEOUT, CRASHED))
+
+
+def _check_output(out, n: int) -> tuple[dict, str]:
+    """Validate the JSON object a program wrote: ``(fields, "")`` or
+    ``({}, what is wrong)``, naming the field and what was expected."""
+    if not isinstance(out, dict):
+        return {}, f"expected a JSON object, got {type(out).__name__}"
+    status = out.get("status", OPTIMAL)
+    if not isinstance(status, str) or status not in _PROGRAM_STATUSES:
+        return {}, f'"status" must be one of {", ".join(_PROGRAM_STATUSES)}; got {status!r}'
+    if "x" not in out:
+        return {}, f'"x" is missing (a list of {n} numbers is required)'
+    if out["x"] is None and status != OPTIMAL:
+        x = None  # no solution, and the program says why
+    elif out["x"] is None:
+        return {}, f'"x" is null with status optimal: expected a list of {n} numbers'
+    else:
+        try:
+            x = np.asarray(out["x"], dtype=float)
+        except (ValueError, TypeError):
+            return {}, f'"x" must be a list of {n} numbers'
+        if x.shape != (n,):
+            return {}, f'"x" has shape {x.shape}: expected ({n},)'
+    t = out.get("solve_time_s")
+    if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float))
+                          or not math.isfinite(t) or t < 0):
+        return {}, f'"solve_time_s" must be a finite number >= 0 (seconds) or absent; got {t!r}'
+    it = out.get("iterations")
+    if it is None:
+        it = 0
+    elif (isinstance(it, bool) or not isinstance(it, (int, float)) or not math.isfinite(it)
+          or it != int(it) or it < 0):
+        return {}, f'"iterations" must be an integer >= 0 or absent; got {it!r}'
+    reason = out.get("reason", "")
+    return {"x": x, "solve_time_s": None if t is None else float(t), "iterations": int(it),
+            "status": status, "reason": "" if reason is None else str(reason)}, ""

@@ -24,8 +24,11 @@ _STYLE = {"figsize": (9.5, 5.0), "dpi": 110}
 
 
 def loglog_slope(x, y) -> tuple[float, float]:
-    """Least-squares slope of log y vs log x and its standard error."""
-    lx, ly = np.log(np.asarray(x, float)), np.log(np.asarray(y, float))
+    """Least-squares slope of log y vs log x and its standard error, over the
+    points where both are finite and > 0 (no log of 0 or of a negative)."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    keep = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
+    lx, ly = np.log(x[keep]), np.log(y[keep])
     if lx.size < 2 or np.ptp(lx) == 0:
         return float("nan"), float("nan")
     A = np.vstack([lx, np.ones_like(lx)]).T
@@ -98,7 +101,7 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
                vline: tuple[float, str] | None = None) -> tuple[Path | None, dict]:
     """Median time vs ``var`` per solver, log-log, fitted slopes in the legend;
     ``vline = (x, label)`` marks e.g. the depth where the DOF are saturated."""
-    g = g[(g["mode"] == mode) & g["verified"].eq(True) & g["time_median_s"].notna()]
+    g = g[(g["mode"] == mode) & g["verified"].eq(True) & (g["time_median_s"] > 0) & (g[var] > 0)]
     if g.empty:
         return None, {}
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
@@ -126,6 +129,9 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
 def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
     if df.empty:
         return None
+    df = df[df["status"] != "unsupported"]  # as in report.md: success among the rows a solver supports
+    if df.empty:
+        return None
     label = df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
     tab = df.assign(_ok=df["verified"].eq(True).astype(float), _s=label).pivot_table(
         index="_s", columns="family", values="_ok", aggfunc="mean")
@@ -140,7 +146,7 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
             if np.isfinite(v):
                 ax.text(j, i, f"{100 * v:.0f}%", ha="center", va="center", fontsize=7)
     fig.colorbar(im, ax=ax, label="success [%]")
-    ax.set_title("Verified success rate per solver and family", fontsize=11)
+    ax.set_title("Verified success rate per solver and family (unsupported rows left out)", fontsize=11)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
@@ -151,12 +157,14 @@ def plot_profiles(times: pd.DataFrame, path: Path, title: str) -> Path | None:
     """Dolan-More performance profiles of a problems x solvers table (NaN = failure)."""
     if times.empty or times.shape[1] == 0:
         return None
-    finite = times.to_numpy(dtype=float)
-    finite = finite[np.isfinite(finite)]
-    if finite.size == 0:
+    arr = times.to_numpy(dtype=float)
+    good = np.isfinite(arr) & (arr > 0)  # a time <= 0 is no time: counted as a failure
+    if not good.any():
         return None
-    best = np.nanmin(np.where(np.isfinite(times.to_numpy(float)), times.to_numpy(float), np.nan), axis=1)
-    worst = np.nanmax(times.to_numpy(float) / best[:, None]) if np.isfinite(best).any() else 10.0
+    times = times.where(good)
+    solved = good.any(axis=1)  # problems no solver solved have no best time (and no ratio)
+    best = np.where(good, arr, np.inf).min(axis=1)[solved]
+    worst = float((np.where(good, arr, 0.0)[solved] / best[:, None]).max())
     taus = np.logspace(0, np.log10(max(10.0, 2.0 * worst)), 300)
     prof = performance_profile(times, taus)
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
@@ -196,7 +204,7 @@ def plot_accuracy(df: pd.DataFrame, path: Path) -> Path | None:
 
 def plot_cold_warm(df: pd.DataFrame, path: Path) -> Path | None:
     keys = ["problem", "solver", "settings"]
-    ok = df[df["verified"].eq(True) & df["time_median_s"].notna()]
+    ok = df[df["verified"].eq(True) & (df["time_median_s"] > 0)]  # log axes
     cold = ok[ok["mode"] == "cold"].set_index(keys)["time_median_s"]
     warm = ok[ok["mode"] == "warm"].set_index(keys)["time_median_s"]
     both = pd.concat([cold.rename("cold"), warm.rename("warm")], axis=1, join="inner")

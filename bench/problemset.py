@@ -75,9 +75,10 @@ class ProblemSpec:
 
     @property
     def id(self) -> str:
-        """``family/k=v,k=v/seed=S`` with the parameters sorted by name."""
+        """``family/k=v,k=v/seed=S`` with the parameters sorted by name;
+        ``family/seed=S`` without parameters (the family's defaults)."""
         p = ",".join(f"{k}={_fmt(self.params[k])}" for k in sorted(self.params))
-        return f"{self.family_name}/{p}/seed={self.seed}"
+        return f"{self.family_name}/{p}/seed={self.seed}" if p else f"{self.family_name}/seed={self.seed}"
 
     def params_json(self) -> str:
         return json.dumps(self.params, sort_keys=True)

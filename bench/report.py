@@ -36,9 +36,33 @@ def _us(t: float) -> str:
     return "-" if not np.isfinite(t) else f"{t * 1e6:.1f}"
 
 
+def _positive(v) -> float | None:
+    """v as a finite float > 0, else None (a missing or bogus timeout in run.json)."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
+        return None
+    return float(v)
+
+
 def _penalty(meta: dict) -> float:
+    """The charge of an unverified row: the largest job timeout of the run's
+    sessions (the suite's when a session did not record one; 60 s at worst)."""
     sessions = meta.get("sessions") or [{}]
-    return float(max(s.get("timeout", meta.get("suite", {}).get("timeout", 60.0)) for s in sessions))
+    suite_timeout = (meta.get("suite") or {}).get("timeout", 60.0)
+    vals = [_positive(s.get("timeout", suite_timeout)) for s in sessions]
+    vals = [v for v in vals if v is not None]
+    return max(vals) if vals else 60.0
+
+
+def _aggregate(g: pd.DataFrame, penalty: float) -> float:
+    """Shifted geometric mean of the charged times; a time that is not a
+    finite number >= 0 (a bogus row) is charged like a failure."""
+    t = charged_times(g, penalty)
+    return shifted_geometric_mean(t.where(np.isfinite(t) & (t >= 0), penalty))
+
+
+def _percent(ok: pd.Series) -> str:
+    """Share of True in ``ok`` (a boolean Series), '-' for no rows."""
+    return f"{100 * ok.mean():.0f}%" if len(ok) else "-"
 
 
 TIME_COLUMNS = ("time_median_s", "time_min_s", "time_p95_s")
@@ -108,23 +132,23 @@ def write_report(run_dir) -> Path:
     for label, g in sorted(df.groupby("label")):
         strict = "yes" if g["strict"].astype(str).eq("True").all() else "no"
         sup = g[g["status"] != "unsupported"]
-        r = [label, strict, str(len(g)), str(len(g) - len(sup)),
-             f"{100 * g['verified'].eq(True).mean():.0f}%"]
+        r = [label, strict, str(len(g)), str(len(g) - len(sup)), _percent(sup["verified"].eq(True))]
         for mode in ("cold", "warm"):
             gm = sup[sup["mode"] == mode]
-            r.append(_us(shifted_geometric_mean(charged_times(gm, penalty))) if len(gm) else "-")
+            r.append(_us(_aggregate(gm, penalty)) if len(gm) else "-")
         rows.append(r)
     L += _table("Solvers: verified success and shifted geometric mean time (us; unverified rows charged, "
                 "unsupported rows left out)",
                 ["solver", "strict", "rows", "unsupported", "verified", "sgm cold [us]",
                  "sgm warm [us]"], rows)
 
-    fam = df.assign(ok=df["verified"].eq(True)).pivot_table(index="label", columns="family", values="ok",
-                                                             aggfunc="mean")
-    L += _table("Verified success rate per solver and family", ["solver", *fam.columns],
-                [[i,
-                  *[("-" if not np.isfinite(v) else f"{100 * v:.0f}%") for v in fam.loc[i]]]
-                 for i in fam.index])
+    # success among the rows a solver supports: a family it declines entirely shows '-'
+    supported = df[df["status"] != "unsupported"]
+    labels, families = sorted(df["label"].unique()), sorted(df["family"].unique())
+    by = {k: g["verified"].eq(True) for k, g in supported.groupby(["label", "family"])}
+    L += _table("Verified success rate per solver and family (unsupported rows left out; "
+                "- = the solver declined every problem of the family)", ["solver", *families],
+                [[i, *[_percent(by.get((i, f), pd.Series(dtype=bool))) for f in families]] for i in labels])
 
     for mode in ("cold", "warm"):
         d = df[(df["mode"] == mode) & df["verified"].eq(True)]

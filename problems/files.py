@@ -17,6 +17,16 @@ from problems.hierarchy import Hierarchy
 __all__ = ["save_npz", "load_npz", "load", "save"]
 
 _REQUIRED = ("A", "lower", "upper", "level", "n")
+_NUMERIC = ("A", "lower", "upper", "x0")  # real numbers (level and n: integers, checked below)
+
+
+def _array(z, key: str, path) -> np.ndarray:
+    """One array of an open npz; an object (pickled) array is refused by name."""
+    try:
+        return z[key]
+    except ValueError as err:  # allow_pickle=False: the array holds Python objects
+        raise ProblemFileError(f"{path}: {key} must be a numeric array; it holds Python objects "
+                               f"(not read, for safety)") from err
 
 
 def save_npz(h: Hierarchy, path: str | os.PathLike) -> None:
@@ -37,13 +47,24 @@ def load_npz(path: str | os.PathLike) -> Hierarchy:
     file cannot be read or a key is missing, InvalidHierarchyError when its
     content is not a valid hierarchy."""
     try:
+        with open(path, "rb") as f:
+            is_zip = zipfile.is_zipfile(f)
+    except OSError as err:
+        raise ProblemFileError(f"{path}: cannot read ({err.strerror or err})") from err
+    if not is_zip:  # also: an .npy or a text file named .npz
+        raise ProblemFileError(f"{path}: not a valid .npz file (expected a zip archive of arrays, "
+                               "as numpy.savez writes)")
+    try:
         with np.load(path, allow_pickle=False) as z:
             missing = [k for k in _REQUIRED if k not in z.files]
             if missing:
                 raise ProblemFileError(f"{path}: missing array(s) {missing}; expected {list(_REQUIRED)}")
-            data = {k: z[k] for k in z.files}
+            data = {k: _array(z, k, path) for k in z.files}
     except (OSError, EOFError, ValueError, zipfile.BadZipFile) as err:  # EOFError: an empty file
-        raise ProblemFileError(f"{path}: cannot read as .npz problem file ({err})") from err
+        raise ProblemFileError(f"{path}: not a valid .npz file ({err})") from err
+    for k in _NUMERIC:
+        if k in data and data[k].dtype.kind not in "iuf":
+            raise ProblemFileError(f"{path}: {k} must be a numeric array (float64); got dtype {data[k].dtype}")
     names = [str(s) for s in data["names"]] if "names" in data else None
     if np.ndim(data["n"]) != 0 or data["n"].dtype.kind not in "iu":
         raise ProblemFileError(f"{path}: n must be a scalar integer; got {data['n']!r}")

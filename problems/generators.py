@@ -43,6 +43,23 @@ def _integer(v, label: str) -> int:
     return int(v)
 
 
+def _number(v, label: str, low: float, what: str = "") -> float:
+    """v as a finite float >= low; HikbenchError naming ``label`` otherwise
+    (a string, True, NaN, inf, or a value below ``low``)."""
+    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer, float, np.floating)) \
+            or not np.isfinite(v) or v < low:
+        raise HikbenchError(f"{label} must be a finite number >= {low:g}{what}; got {v!r}")
+    return float(v)
+
+
+def _seed(seed) -> int:
+    """A seed of numpy.random.default_rng: an integer >= 0."""
+    seed = _integer(seed, "seed")
+    if seed < 0:
+        raise HikbenchError(f"seed must be an integer >= 0; got {seed}")
+    return seed
+
+
 def _per_level(value, depth: int, label: str) -> list[int]:
     if value is None:
         return [None] * depth
@@ -135,12 +152,15 @@ def random_hierarchy(n: int, depth: int, rows: int | Sequence[int], *, rank=None
         raise HikbenchError(f"need n >= 1 and depth >= 0; got n={n}, depth={depth}")
     if inequality not in INEQUALITY_MIXES:
         raise HikbenchError(f"inequality must be one of {INEQUALITY_MIXES}; got {inequality!r}")
-    if cond < 1 or row_scale < 1:
-        raise HikbenchError(f"cond and row_scale must be >= 1; got cond={cond}, row_scale={row_scale}")
-    if not 0 <= equality_fraction <= 1:
-        raise HikbenchError(f"equality_fraction must be in [0, 1]; got {equality_fraction}")
-    rng = np.random.default_rng(seed)
+    cond = _number(cond, "cond", 1, " (largest / smallest singular value of a level)")
+    row_scale = _number(row_scale, "row_scale", 1, " (largest / smallest row norm)")
+    box_bound = _number(box_bound, "box_bound", 0, " (the box is -box_bound <= x_i <= box_bound)")
+    if _number(equality_fraction, "equality_fraction", 0, " and <= 1") > 1:
+        raise HikbenchError(f"equality_fraction must be a finite number >= 0 and <= 1; got {equality_fraction!r}")
+    rng = np.random.default_rng(_seed(seed))
     m = _per_level(rows, depth, "rows")
+    if any(mk < 0 for mk in m):
+        raise HikbenchError(f"rows must be >= 0 (per level); got {rows!r}")
     r = [min(mk, n) if rk is None else rk for mk, rk in zip(m, _per_level(rank, depth, "rank"))]
     sh = _per_level(shared_rank, depth, "shared_rank")
     levels = []
@@ -182,7 +202,7 @@ def equality_stack(n: int, depth: int, rows: int, seed: int = 0, rank: int | Non
         raise HikbenchError(f"need n >= 1, depth >= 0, rows >= 0; got n={n}, depth={depth}, rows={rows}")
     if rank is not None:
         rank = _integer(rank, "rank")
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(_seed(seed))
     levels = []
     for k in range(depth):
         if rank is None:
@@ -204,9 +224,10 @@ def ik_like(n: int, seed: int = 0) -> Hierarchy:
     ``3 N(0,1)`` (they conflict with the box); level 4: posture
     ``x = 0.1 N(0,1)`` (n rows, A = I).
     """
+    n = _integer(n, "n")
     if n < 1:
         raise HikbenchError(f"ik_like needs n >= 1; got {n}")
-    rng = np.random.default_rng(seed)
+    rng = np.random.default_rng(_seed(seed))
     m2 = 2 * n // 3
     A1, b1 = rng.standard_normal((6, n)), rng.standard_normal(6)
     A2, u2 = rng.standard_normal((m2, n)), rng.standard_normal(m2) - 0.5
@@ -242,7 +263,10 @@ def degenerate(case: str, n: int = 12, seed: int = 0) -> Hierarchy:
     * ``equalities_in_inequality_levels``: mixed levels where 40 % of the rows
       are equalities.
     """
-    rng = np.random.default_rng(seed)
+    n = _integer(n, "n")
+    if n < 1:
+        raise HikbenchError(f"degenerate needs n >= 1; got {n}")
+    rng = np.random.default_rng(_seed(seed))
     if case == "duplicate_rows":
         h = random_hierarchy(n, 3, 4, inequality="mixed", seed=seed)
         lv = list(h)

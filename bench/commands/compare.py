@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 HELP = ("compare a run (or several: a case must fail in all) with a baseline run; exit 1 on a significant "
         "slowdown or a newly failing case")
 
@@ -22,8 +24,11 @@ def run(args) -> int:
     from bench.compare import compare_runs, confirmed, format_table
     from problems.errors import HikbenchError
 
-    if args.threshold <= 1.0:
-        raise HikbenchError(f"--threshold must be > 1; got {args.threshold}")
+    if not (1.0 < args.threshold < math.inf):  # also refuses nan
+        raise HikbenchError(f"--threshold must be a finite number > 1 (a time ratio); got {args.threshold:g}")
+    if not 0.0 < args.alpha < 1.0:
+        raise HikbenchError(f"--alpha must be a significance level with 0 < alpha < 1 (e.g. 0.01); "
+                            f"got {args.alpha:g}")
     c = confirmed([compare_runs(args.base, r, threshold=args.threshold, alpha=args.alpha) for r in args.run])
     print(format_table(c, show_all=args.all))
     print(f"\ncompared {len(c.table)} cases (times normalised by the calibration kernel of each host): "

@@ -88,6 +88,8 @@ def file_name(family: str, params: dict, seed: int, fmt: str) -> str:
 def run(args) -> int:
     if args.family not in FAMILIES:
         raise UnknownFamilyError(f"unknown family {args.family!r}; expected one of {', '.join(FAMILIES)}")
+    if args.seed < 0:
+        raise HikbenchError(f"--seed must be an integer >= 0; got {args.seed}")
     if args.seeds < 1:
         raise HikbenchError(f"--seeds must be >= 1; got {args.seeds}")
     params = parse_params(args.param, FAMILIES[args.family].defaults, args.family)

@@ -23,8 +23,9 @@ WARM_MODES = ("none", "stage", "time")
 
 
 def add_arguments(p) -> None:
-    p.add_argument("name", help="scenario name (reach, step, ...) or path of a scenario .toml; "
-                                "`hikbench scenario --list x` lists them")
+    p.add_argument("name", nargs="?", default=None,
+                   help="scenario name (reach, step, ...) or path of a scenario .toml; "
+                        "`hikbench scenario --list` lists them")
     p.add_argument("--robot", default=None, help="run on another robot (default: the scenario's)")
     p.add_argument("--solver", action="append", default=None,
                    help="solver name (repeatable; default: reference)")
@@ -53,6 +54,11 @@ def run(args) -> int:
         print("scenarios: " + ", ".join(scenario_names()))
         print("stacks:    " + ", ".join(stack_names()))
         return 0
+    if args.name is None:
+        raise HikbenchError("give a scenario NAME (reach, step, ...) or the path of a scenario .toml; "
+                            "`hikbench scenario --list` lists them")
+    if args.steps is not None and args.steps < 1:
+        raise HikbenchError(f"--steps must be >= 1; got {args.steps}")
     scenario = load_scenario(args.name, robot=args.robot)
     solvers = args.solver or ["reference"]
     options = parse_options(args.option)
@@ -60,7 +66,12 @@ def run(args) -> int:
         raise HikbenchError("give the warm-start mode either with --warm-start or --option warm_start=..., "
                             "not both")
     out = Path(args.out or Path("results") / "scenarios" / _slug(scenario.name))
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise HikbenchError(f"--out {out}: is a file; expected a directory (created if missing)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise HikbenchError(f"--out {out}: cannot create the directory: {err.strerror or err}") from err
     runs, failed = [], False
     for solver in solvers:
         info = registry.get(solver)

@@ -60,7 +60,9 @@ def run(args) -> int:
         "reason": res.reason,
         "x": None if res.x is None else [_finite_or_none(float(v)) for v in res.x],
         "level_norms": None if norms is None else [_finite_or_none(v) for v in norms],
-        "iterations": int(res.iterations),
+        # SolveResult.iterations is 0 when the solver does not report iterations
+        # (reference, cascades over backends that count none): null / '-', not a count of 0
+        "iterations": int(res.iterations) or None,
         "time_s": {"median": timing.median_s, "min": timing.min_s},
     }
     if args.json:
@@ -69,7 +71,7 @@ def run(args) -> int:
         print(f"solver      {out['solver']}")
         print(f"status      {out['status']}" + (f" ({res.reason})" if res.reason else ""))
         print(f"level norms {norms}")
-        print(f"iterations  {out['iterations']}")
+        print(f"iterations  {'-' if out['iterations'] is None else out['iterations']}")
         print(f"time        median {timing.median_s * 1e6:.1f} us, min {timing.min_s * 1e6:.1f} us "
               f"over {args.repeat} {'warm' if args.warm else 'cold'} solve(s)")
     return 0

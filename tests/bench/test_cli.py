@@ -80,7 +80,7 @@ def test_solve_soth_file(capsys, problem, tmp_path):
     (["solve", "{path}", "--option", "tol=1"], ["unknown option(s) 'tol'"]),
     (["solve", "{path}", "--option", "novalue"], ["--option 'novalue': expected KEY=VALUE"]),
     (["solve", "{path}", "--repeat", "0"], ["--repeat must be >= 1; got 0"]),
-    (["solve", "{garbage}"], ["cannot read as .npz problem file"]),
+    (["solve", "{garbage}"], ["g.npz: not a valid .npz file"]),
     (["solve", "{badsoth}"], ["line 1: expected 'size', got 'sizes'"]),
 ], ids=["missing file", "unknown solver", "unknown option", "option syntax", "repeat", "bad npz", "bad soth"])
 def test_solve_user_errors(capsys, problem, tmp_path, argv, fragments):

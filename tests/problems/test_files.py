@@ -86,8 +86,8 @@ def test_npz_bad_files(tmp_path, arrays, error, message):
 
 
 @pytest.mark.parametrize("content, message", [
-    (b"not a zip file", r"cannot read as \.npz problem file"),
-    (b"", r"cannot read as \.npz problem file"),
+    (b"not a zip file", r"p\.npz: not a valid \.npz file \(expected a zip archive"),
+    (b"", r"p\.npz: not a valid \.npz file \(expected a zip archive"),
 ], ids=["garbage", "empty"])
 def test_npz_unreadable(tmp_path, content, message):
     path = tmp_path / "p.npz"

@@ -202,7 +202,7 @@ def test_degenerate_cases_have_their_property():
     (lambda: random_hierarchy(5, 2, [3]), HikbenchError, r"rows has 1 entries: expected one per level \(2\)"),
     (lambda: random_hierarchy(5, 2, 3, rank=2.5), HikbenchError, r"rank must be an integer; got 2.5"),
     (lambda: random_hierarchy(5, 2, 3, inequality="some"), HikbenchError, r"inequality must be one of"),
-    (lambda: random_hierarchy(5, 2, 3, cond=0.5), HikbenchError, r"cond and row_scale must be >= 1"),
+    (lambda: random_hierarchy(5, 2, 3, cond=0.5), HikbenchError, r"cond must be a finite number >= 1"),
     (lambda: equality_stack(0, 2, 3), HikbenchError, r"need n >= 1, depth >= 0, rows >= 0; got n=0"),
     (lambda: ik_like(0), HikbenchError, r"ik_like needs n >= 1; got 0"),
 ], ids=["family", "parameter", "case", "rank", "shared", "rows count", "rank not integer", "mix", "cond",

@@ -1,0 +1,180 @@
+"""User mistakes found by the CLI audit: one line on stderr naming the option,
+file or key, exit code 2, no traceback; and the small output fixes."""
+
+import json
+
+import numpy as np
+import pytest
+
+from bench.cli import main
+from problems import Hierarchy, Level
+from problems.files import save_npz
+
+INF = np.inf
+
+
+def run(capsys, *argv):
+    code = main([str(a) for a in argv])
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def assert_user_error(code, err, *fragments):
+    assert code == 2, err
+    assert len(err.strip().splitlines()) == 1, err
+    assert "Traceback" not in err and "Warning" not in err
+    for f in fragments:
+        assert f in err, err
+
+
+@pytest.fixture
+def problem(tmp_path):
+    h = Hierarchy.from_levels([Level([[1.0, 1.0], [0.0, 1.0]], [2.0, -INF], [2.0, 0.5], "reach"),
+                               Level.equality([[1.0, 0.0]], [3.0], "posture")])
+    path = tmp_path / "p.npz"
+    save_npz(h, path)
+    return h, path
+
+
+# ---------------------------------------------------------------- scenario
+def test_scenario_out_is_a_file(capsys, tmp_path):
+    f = tmp_path / "afile"
+    f.write_text("")
+    code, _, err = run(capsys, "scenario", "reach", "--out", f)
+    assert_user_error(code, err, "hikbench scenario: error:", f"--out {f}: is a file; expected a directory")
+
+
+def test_scenario_list_needs_no_name(capsys):
+    code, out, err = run(capsys, "scenario", "--list")
+    assert code == 0, err
+    assert out.startswith("scenarios: ") and "reach" in out and "stacks:" in out
+
+
+def test_scenario_without_name(capsys):
+    code, _, err = run(capsys, "scenario")
+    assert_user_error(code, err, "give a scenario NAME", "`hikbench scenario --list`")
+
+
+# ---------------------------------------------------------------- generate
+@pytest.mark.parametrize("argv, fragment", [
+    (["--seed", "-1"], "--seed must be an integer >= 0; got -1"),
+    (["--param", "cond=1e400"], "cond must be a finite number >= 1"),
+    (["--param", "cond=0.5"], "cond must be a finite number >= 1"),
+    (["--param", "row_scale=NaN"], "row_scale must be a finite number >= 1"),
+    (["--param", "box_bound=-1"], "box_bound must be a finite number >= 0"),
+    (["--param", "equality_fraction=2"], "equality_fraction must be a finite number >= 0 and <= 1; got 2.0"),
+    (["--param", "rows=-1"], "rows must be >= 0"),
+], ids=["negative seed", "cond overflow", "cond below 1", "row_scale nan", "box_bound negative",
+        "equality_fraction", "rows negative"])
+def test_generate_parameter_errors(capsys, tmp_path, argv, fragment):
+    code, _, err = run(capsys, "generate", "random", *argv, "--out", tmp_path / "g")
+    assert_user_error(code, err, "hikbench generate: error:", fragment)
+
+
+# ------------------------------------------------------ malformed .npz files
+def _bad_npz(path, problem, **changes):
+    h, _ = problem
+    arrays = {"A": h.A, "lower": h.lower, "upper": h.upper, "level": h.level, "n": np.int64(h.n),
+                  "names": np.array(h.names, dtype=str)}
+    arrays.update(changes)
+    with open(path, "wb") as f:
+        np.savez(f, **arrays)
+    return path
+
+
+@pytest.mark.parametrize("command", [["inspect"], ["solve"], ["export", "--format", "soth", "--out", "-"]],
+                         ids=["inspect", "solve", "export"])
+@pytest.mark.parametrize("kind, fragment", [
+    ("A strings", "A must be a numeric array (float64); got dtype <U"),
+    ("lower strings", "lower must be a numeric array (float64); got dtype <U"),
+    ("A complex", "A must be a numeric array (float64); got dtype complex128"),
+    ("A objects", "A must be a numeric array; it holds Python objects"),
+    ("not a zip", "not a valid .npz file (expected a zip archive of arrays"),
+    (".npy", "not a valid .npz file (expected a zip archive of arrays"),
+], ids=["A strings", "lower strings", "A complex", "A objects", "not a zip", "npy"])
+def test_malformed_npz(capsys, tmp_path, problem, command, kind, fragment):
+    path = tmp_path / "bad.npz"
+    h = problem[0]
+    if kind == "A strings":
+        _bad_npz(path, problem, A=np.full(h.A.shape, "abc"))
+    elif kind == "lower strings":
+        _bad_npz(path, problem, lower=np.full(h.rows, "low"))
+    elif kind == "A complex":
+        _bad_npz(path, problem, A=h.A.astype(complex))
+    elif kind == "A objects":
+        _bad_npz(path, problem, A=h.A.astype(object))
+    elif kind == "not a zip":
+        path.write_text("hello")
+    else:
+        with open(path, "wb") as f:
+            np.save(f, h.A)
+    code, _, err = run(capsys, command[0], path, *command[1:])
+    assert_user_error(code, err, f"{path}: {fragment}")
+    assert "allow_pickle" not in err
+
+
+# ------------------------------------------------------------------ claims
+@pytest.fixture
+def empty_run(tmp_path):
+    """A run directory with a results.csv (claims reads it before the scenario)."""
+    from bench.columns import names
+    d = tmp_path / "run"
+    d.mkdir()
+    (d / "results.csv").write_text(",".join(names()) + "\n")
+    return d
+
+
+@pytest.mark.parametrize("make, fragment", [
+    (lambda d: d / "nosuch.csv", "--scenario {p}: no such file or directory"),
+    (lambda d: _write(d / "ik12.npz", b"PK\x03\x04\xff\xfe binary"), "{p}: not a text CSV file"),
+    (lambda d: _write(d / "x.csv", b"a,b\n1,2\n"), "{p}: missing column(s) solver, solve_time_s"),
+    (lambda d: _write(d / "e.csv", b""), "{p}: cannot read as CSV"),
+    (lambda d: _mkdir(d / "empty"), "--scenario {p}: no *.csv file in this directory"),
+], ids=["missing", "binary", "wrong columns", "empty file", "empty directory"])
+def test_claims_bad_scenario(capsys, tmp_path, empty_run, make, fragment):
+    p = make(tmp_path)
+    code, _, err = run(capsys, "claims", empty_run, "--scenario", p)
+    assert_user_error(code, err, "hikbench claims: error:", fragment.format(p=p))
+
+
+def _write(path, data: bytes):
+    path.write_bytes(data)
+    return path
+
+
+def _mkdir(path):
+    path.mkdir()
+    return path
+
+
+# ----------------------------------------------------------------- compare
+@pytest.mark.parametrize("argv, fragment", [
+    (["--alpha", "5"], "--alpha must be a significance level with 0 < alpha < 1 (e.g. 0.01); got 5"),
+    (["--alpha", "0"], "--alpha must be a significance level with 0 < alpha < 1"),
+    (["--alpha", "nan"], "--alpha must be a significance level with 0 < alpha < 1"),
+    (["--threshold", "1"], "--threshold must be a finite number > 1"),
+    (["--threshold", "nan"], "--threshold must be a finite number > 1"),
+], ids=["alpha 5", "alpha 0", "alpha nan", "threshold 1", "threshold nan"])
+def test_compare_option_errors(capsys, empty_run, argv, fragment):
+    code, _, err = run(capsys, "compare", empty_run, empty_run, *argv)
+    assert_user_error(code, err, "hikbench compare: error:", fragment)
+
+
+# ------------------------------------------------------------------- solve
+@pytest.mark.parametrize("solver, text, value", [
+    ("reference", "iterations  -", None),
+    ("cascade-clarabel", "iterations  -", None),
+    ("hcod", "iterations  ", 2),
+], ids=["reference", "cascade", "hcod"])
+def test_solve_iterations_not_reported(capsys, problem, solver, text, value):
+    from solvers import registry
+    if solver not in registry.available():
+        pytest.skip(f"{solver} not installed")
+    path = problem[1]
+    code, out, err = run(capsys, "solve", path, "--solver", solver)
+    assert code == 0, err
+    line = next(ln for ln in out.splitlines() if ln.startswith("iterations"))
+    assert line.startswith(text) and (value is None) == line.endswith("-"), line
+    code, out, err = run(capsys, "solve", path, "--solver", solver, "--json")
+    it = json.loads(out)["iterations"]
+    assert it is None if value is None else it >= 1

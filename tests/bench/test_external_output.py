@@ -1,0 +1,89 @@
+"""External programs that break the output protocol cost one error row (with
+a reason naming the field), never the run (bench/external.py)."""
+
+import json
+import sys
+
+import numpy as np
+import pytest
+from doubles import tiny, write_suite
+
+from bench.cli import main
+from bench.external import run_external
+from bench.results import read_results
+
+# writes argv[3] (a JSON object; "X" stands for a correct-length zero x) to {out}
+PROG = """
+import json, sys
+import numpy as np
+n = int(np.load(sys.argv[1])["n"])
+out = json.loads(sys.argv[3])
+if out.get("x") == "X":
+    out["x"] = [0.0] * n
+with open(sys.argv[2], "w") as f:
+    f.write(json.dumps(out))
+"""
+
+
+@pytest.fixture(scope="module")
+def prog(tmp_path_factory):
+    p = tmp_path_factory.mktemp("ext") / "prog.py"
+    p.write_text(PROG)
+    return p
+
+
+def _job(prog, payload: dict) -> dict:
+    arg = json.dumps(payload).replace("'", "")
+    return {"solver": f"external:p={sys.executable} {prog} {{problem}} {{out}} '{arg}'",
+            "hierarchy": tiny(n=4), "repeat": 1, "warmup": 0}
+
+
+@pytest.mark.parametrize("payload, fragment", [
+    ({"x": "X", "iterations": "many"}, '"iterations" must be an integer >= 0 or absent; got \'many\''),
+    ({"x": "X", "iterations": -2}, '"iterations" must be an integer >= 0'),
+    ({"x": "X", "iterations": 2.5}, '"iterations" must be an integer >= 0'),
+    ({"x": "X", "solve_time_s": -1}, '"solve_time_s" must be a finite number >= 0 (seconds) or absent; got -1'),
+    ({"x": "X", "solve_time_s": "fast"}, '"solve_time_s" must be a finite number >= 0'),
+    ({"x": "X", "status": "great"}, '"status" must be one of optimal'),
+    ({"x": "X", "status": "timeout"}, '"status" must be one of'),
+    ({"x": [1, 2]}, '"x" has shape (2,): expected (4,)'),
+    ({"x": ["a", "b", "c", "d"]}, '"x" must be a list of 4 numbers'),
+    ({"y": 1}, '"x" is missing'),
+    ({"x": None}, '"x" is null with status optimal: expected a list of 4 numbers'),
+], ids=["iterations string", "iterations negative", "iterations fraction", "time negative", "time string",
+        "status unknown", "status harness", "x short", "x strings", "x missing", "x null optimal"])
+def test_bad_output_is_an_error_row(prog, payload, fragment):
+    res = run_external(_job(prog, payload), timeout=30)
+    assert res["status"] == "error" and res["x"] is None and res["samples_ns"] == []
+    assert res["reason"].startswith("bad output of the external program: ")
+    assert fragment in res["reason"], res["reason"]
+
+
+@pytest.mark.parametrize("payload, status, iterations, reported", [
+    ({"x": "X", "iterations": 3, "solve_time_s": 2e-4}, "optimal", 3, 2e-4),
+    ({"x": "X", "iterations": 3.0, "solve_time_s": 0}, "optimal", 3, 0.0),
+    ({"x": "X", "iterations": None, "solve_time_s": None}, "optimal", 0, None),
+    ({"x": None, "status": "unsupported", "reason": "no inequalities"}, "unsupported", 0, None),
+], ids=["full", "integral float, zero time", "nulls", "no x with a status"])
+def test_good_output(prog, payload, status, iterations, reported):
+    res = run_external(_job(prog, payload), timeout=30)
+    assert res["status"] == status and res["iterations"] == iterations
+    if reported is None:
+        assert np.isnan(res["solve_time_s"])
+    else:
+        assert res["solve_time_s"] == reported and res["samples_ns"] == [int(reported * 1e9)]
+
+
+def test_run_goes_on_after_a_bad_output(prog, tmp_path, capsys):
+    """The audit's case: "iterations": "many" aborted the whole run with a traceback."""
+    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4, 6], "depth": [2]}, repeat=1,
+                        modes=("cold",))
+    bad = f"external:bad={sys.executable} {prog} {{problem}} {{out}} '{{\"x\": \"X\", \"iterations\": \"many\"}}'"
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "o"),
+                 "--solvers", "reference", bad]) == 0
+    assert "Traceback" not in capsys.readouterr().err
+    df = read_results(tmp_path / "o")
+    rows = df[df["solver"] == "external:bad"]
+    assert len(rows) == 2 and set(rows["status"]) == {"error"}
+    assert rows["reason"].str.contains('"iterations" must be an integer').all()
+    assert set(df[df["solver"] == "reference"]["status"]) == {"optimal"}

@@ -1,0 +1,109 @@
+"""report.md's verified % matches its title (unsupported rows left out), and
+report prints no numpy warnings on all-failed problems or bogus times."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.claims import slope_interval
+from bench.cli import main
+from bench.plots import loglog_slope, plot_profiles
+from bench.problemset import ProblemSpec
+
+SUITE = """repeat = 1
+warmup = 0
+timeout = 20.0
+modes = ["cold"]
+solvers = ["nullspace-svd", "reference"]
+[[problems]]
+family = "equality"
+grid = { n = [6, 8], depth = [2] }
+[[problems]]
+family = "ik-like"
+grid = { n = [6] }
+"""
+
+
+@pytest.fixture(scope="module")
+def declining_run(tmp_path_factory):
+    """nullspace-svd declines ik-like (inequalities), solves the equality rows."""
+    d = tmp_path_factory.mktemp("decl")
+    (d / "s.toml").write_text(SUITE)
+    assert main(["run", "--quiet", "--suite", str(d / "s.toml"), "--out", str(d / "out")]) == 0
+    return d / "out"
+
+
+def _table(md: str, title: str) -> dict:
+    lines = md.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.startswith(f"### {title}"))
+    head = [c.strip() for c in lines[i + 2].strip("|").split("|")]
+    out = {}
+    for ln in lines[i + 4:]:
+        if not ln.startswith("|"):
+            break
+        cells = [c.strip() for c in ln.strip("|").split("|")]
+        out[cells[0]] = dict(zip(head, cells))
+    return out
+
+
+@pytest.mark.filterwarnings("error")
+def test_verified_percent_leaves_unsupported_rows_out(declining_run, capsys):
+    assert main(["report", str(declining_run)]) == 0
+    err = capsys.readouterr().err
+    assert "Warning" not in err, err
+    md = (declining_run / "report.md").read_text()
+    solvers = _table(md, "Solvers: verified success")
+    assert solvers["nullspace-svd"]["unsupported"] == "1"
+    assert solvers["nullspace-svd"]["verified"] == "100%"  # 2 of the 2 rows it supports
+    fam = _table(md, "Verified success rate per solver and family")
+    assert fam["nullspace-svd"]["equality"] == "100%"
+    assert fam["nullspace-svd"]["ik-like"] == "-"  # declined entirely: no rate, not 0%
+    assert fam["reference"]["ik-like"] == "100%"
+
+
+@pytest.mark.filterwarnings("error")
+def test_report_with_bogus_times_and_timeouts(declining_run, tmp_path, capsys):
+    """Negative times (an external program's -1) and all-failed problems: no RuntimeWarning."""
+    import shutil
+    run = tmp_path / "run"
+    shutil.copytree(declining_run, run)
+    df = pd.read_csv(run / "results.csv", keep_default_na=False)
+    df.loc[df["solver"] == "reference", "time_median_s"] = -1.0
+    df.loc[df["family"] == "ik-like", "status"] = "timeout"
+    df["verified"] = df["verified"].astype(str)
+    df.loc[df["family"] == "ik-like", "verified"] = "False"
+    df.to_csv(run / "results.csv", index=False)
+    meta = json.loads((run / "run.json").read_text())
+    for s in meta["sessions"]:
+        s["timeout"] = 0  # a bogus recorded timeout: the penalty falls back, no log of <= 0
+    (run / "run.json").write_text(json.dumps(meta))
+    assert main(["report", str(run)]) == 0
+    assert "Warning" not in capsys.readouterr().err
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("times", [
+    [[np.nan, np.nan], [1e-4, 2e-4]],
+    [[0.0, -1.0], [1e-4, np.inf]],
+], ids=["all-NaN problem", "nonpositive times"])
+def test_profiles_without_warnings(tmp_path, times):
+    t = pd.DataFrame(times, columns=["a", "b"], index=["p1", "p2"])
+    assert plot_profiles(t, tmp_path / "p.png", "t") == tmp_path / "p.png"
+
+
+@pytest.mark.filterwarnings("error")
+@pytest.mark.parametrize("fit", [loglog_slope, slope_interval], ids=["plots", "claims"])
+def test_slopes_skip_nonpositive(fit):
+    x = np.array([0, 1, 2, 4, 8, 16.0])
+    y = np.array([-1.0, 1e-4, 2e-4, 4e-4, 8e-4, 1.6e-3])
+    assert fit(x, y)[0] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("params, pid", [
+    ({}, "equality/seed=3"),
+    ({"n": 8, "depth": 2}, "equality/depth=2,n=8/seed=3"),
+], ids=["no params", "params"])
+def test_problem_id_has_no_empty_segment(params, pid):
+    assert ProblemSpec("equality", params, 3).id == pid

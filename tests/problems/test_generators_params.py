@@ -1,0 +1,54 @@
+"""Generator parameters are checked where they enter, with messages naming them
+(no numpy traceback or warning, no 'level 1, row 0: A holds NaN')."""
+
+import warnings
+
+import pytest
+
+from problems.errors import HikbenchError
+from problems.generators import degenerate, equality_stack, generate, ik_like, random_hierarchy
+
+
+@pytest.mark.parametrize("params, message", [
+    ({"cond": float("inf")}, r"cond must be a finite number >= 1 .*; got inf"),
+    ({"cond": 0.5}, r"cond must be a finite number >= 1"),
+    ({"cond": float("nan")}, r"cond must be a finite number >= 1"),
+    ({"cond": "big"}, r"cond must be a finite number >= 1 .*; got 'big'"),
+    ({"row_scale": float("inf")}, r"row_scale must be a finite number >= 1"),
+    ({"box_bound": -1.0}, r"box_bound must be a finite number >= 0 .*; got -1.0"),
+    ({"box_bound": float("inf")}, r"box_bound must be a finite number >= 0"),
+    ({"equality_fraction": 1.5}, r"equality_fraction must be a finite number >= 0 and <= 1; got 1.5"),
+    ({"equality_fraction": float("nan")}, r"equality_fraction must be a finite number >= 0 and <= 1"),
+    ({"rows": -1}, r"rows must be >= 0 \(per level\); got -1"),
+    ({"seed": -1}, r"seed must be an integer >= 0; got -1"),
+    ({"seed": 1.5}, r"seed must be an integer; got 1.5"),
+], ids=["cond inf", "cond < 1", "cond nan", "cond string", "row_scale inf", "box_bound negative",
+        "box_bound inf", "equality_fraction > 1", "equality_fraction nan", "rows negative", "seed negative",
+        "seed fraction"])
+def test_random_hierarchy_parameters(params, message):
+    base = {"n": 6, "depth": 2, "rows": 3, "box": True}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(HikbenchError, match=message):
+            random_hierarchy(**{**base, **params})
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: equality_stack(6, 2, 3, seed=-1), "seed must be an integer >= 0; got -1"),
+    (lambda: ik_like(6, seed=-2), "seed must be an integer >= 0; got -2"),
+    (lambda: ik_like(2.5), "n must be an integer; got 2.5"),
+    (lambda: degenerate("saturated", seed=-1), "seed must be an integer >= 0; got -1"),
+    (lambda: degenerate("saturated", n=0), "degenerate needs n >= 1; got 0"),
+    (lambda: generate("random", seed=-1), "seed must be an integer >= 0; got -1"),
+], ids=["equality", "ik-like seed", "ik-like n", "degenerate seed", "degenerate n", "generate"])
+def test_family_seeds_and_sizes(make, message):
+    with pytest.raises(HikbenchError, match=message):
+        make()
+
+
+@pytest.mark.parametrize("params", [{"box_bound": 0.0}, {"cond": 1e12, "row_scale": 1e6},
+                                    {"equality_fraction": 1.0, "inequality": "mixed"}],
+                         ids=["zero box", "large cond", "all equalities"])
+def test_edge_values_still_generate(params):
+    h = random_hierarchy(6, 2, 3, box=True, **params)
+    assert h.n == 6 and h.depth == 3
