@@ -114,6 +114,7 @@ _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
 _eq_run = None  # solvers.hcod._equality.eq_run, imported on the first solve (numba compiles then)
 _ineq = None  # (._kernel.hcod_solve, ._setup), imported on the first solve with inequalities
 _last_kind = (None, False)  # (last hierarchy seen, its has_inequalities)
+_warmed = False  # warmup() done in this process
 
 
 class HcodSolver(Solver):
@@ -275,7 +276,11 @@ class HcodSolver(Solver):
 
 def warmup() -> None:
     """Compile (or load from the numba cache) the kernels by solving two tiny
-    problems, one equality-only and one with inequalities."""
+    problems, one equality-only and one with inequalities; once per process
+    (the benchmark's worker calls it before every job)."""
+    global _warmed
+    if _warmed:
+        return
     from problems.hierarchy import Level
 
     h_eq = Hierarchy.from_levels([Level.equality(np.eye(2), np.ones(2))], n=2)
@@ -284,6 +289,7 @@ def warmup() -> None:
     s = HcodSolver()
     s.solve(h_eq)
     s.solve(h_in)
+    _warmed = True
 
 
 SOLVERS = [SolverInfo("hcod", HcodSolver.description, HcodSolver, supports_inequalities=True,

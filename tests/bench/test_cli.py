@@ -6,8 +6,9 @@ import os
 
 import numpy as np
 import pytest
+from clitools import assert_user_error, run
 
-from bench.cli import COMMANDS, main
+from bench.cli import COMMANDS
 from problems import Hierarchy, Level
 from problems.files import load, save_npz
 from problems.generators import FAMILIES, generate
@@ -15,30 +16,6 @@ from problems.soth import save_soth, soth_order
 from problems.verify import level_norms
 
 INF = np.inf
-
-
-@pytest.fixture
-def problem(tmp_path):
-    """level 0: x0 + x1 = 2 and x1 <= 0.5 (named 'reach'); level 1: x0 = 3 (conflicts with level 0)."""
-    h = Hierarchy.from_levels([Level([[1.0, 1.0], [0.0, 1.0]], [2.0, -INF], [2.0, 0.5], "reach"),
-                               Level.equality([[1.0, 0.0]], [3.0], "posture")])
-    path = tmp_path / "p.npz"
-    save_npz(h, path)
-    return h, str(path)
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def assert_user_error(code, err, *fragments):
-    assert code == 2
-    assert len(err.strip().splitlines()) == 1, err
-    assert "Traceback" not in err
-    for f in fragments:
-        assert f in err, err
 
 
 # ------------------------------------------------------------------- solve

@@ -5,35 +5,9 @@ import json
 
 import numpy as np
 import pytest
-
-from bench.cli import main
-from problems import Hierarchy, Level
-from problems.files import save_npz
+from clitools import assert_user_error, run
 
 INF = np.inf
-
-
-def run(capsys, *argv):
-    code = main([str(a) for a in argv])
-    out, err = capsys.readouterr()
-    return code, out, err
-
-
-def assert_user_error(code, err, *fragments):
-    assert code == 2, err
-    assert len(err.strip().splitlines()) == 1, err
-    assert "Traceback" not in err and "Warning" not in err
-    for f in fragments:
-        assert f in err, err
-
-
-@pytest.fixture
-def problem(tmp_path):
-    h = Hierarchy.from_levels([Level([[1.0, 1.0], [0.0, 1.0]], [2.0, -INF], [2.0, 0.5], "reach"),
-                               Level.equality([[1.0, 0.0]], [3.0], "posture")])
-    path = tmp_path / "p.npz"
-    save_npz(h, path)
-    return h, path
 
 
 # ---------------------------------------------------------------- scenario
