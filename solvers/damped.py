@@ -51,7 +51,10 @@ row is a target only where it is violated — the first solve uses the
 equality rows only, then it is repeated (``passes`` solves at most, default 3)
 adding the rows violated by the current x as equality targets at their
 violated bound (rows once added stay,
-at the bound first violated). dls-liegeois does the same at every iteration
+at the bound first violated). The status is ``optimal`` when a pass adds no
+row (the selection converged) and ``max_iterations`` when the last pass still
+leaves violated rows that are not targets (the reason counts them).
+dls-liegeois does the same at every iteration
 (re-selecting from scratch makes the iteration chatter between two row sets).
 """
 
@@ -177,8 +180,14 @@ class _Stacked(Solver):
                 if not np.all(np.isfinite(x)):
                     return SolveResult(x=x, status=NUMERICAL_FAILURE, reason=f"{self.name}: NaN/inf in x",
                                        iterations=passes)
-        return SolveResult(x=x, status=OPTIMAL, iterations=passes,
-                           info={"target_rows": int((side != 0).sum())})
+        info = {"target_rows": int((side != 0).sum())}
+        if passes == self.passes:
+            left = _mark_violated(h, rows, x, side.copy())
+            if left:
+                return SolveResult(x=x, status=MAX_ITERATIONS, iterations=passes, info=info,
+                                   reason=f"{self.name}: pass limit {self.passes} reached with {left} inequality "
+                                          f"row(s) violated at x that are not targets yet (option passes)")
+        return SolveResult(x=x, status=OPTIMAL, iterations=passes, info=info)
 
 
 class Weighted(_Stacked):

@@ -24,7 +24,7 @@ from typing import Callable
 from problems.errors import SolverNotFoundError, SolverOptionError
 from solvers.base import Solver
 
-__all__ = ["SolverInfo", "available", "get", "create", "missing", "option_names", "check_number",
+__all__ = ["SolverInfo", "available", "get", "create", "missing", "option_names", "check_number", "check_bool",
            "check_int", "check_numbers", "check_choice"]
 
 _BUILTIN_MODULES: tuple[str, ...] = (
@@ -221,6 +221,16 @@ def check_choice(solver: str, opt: str, value, choices):
     if isinstance(value, str) and value in choices:
         return value
     _reject(solver, opt, value, f"one of {', '.join(map(str, choices))}")
+
+
+def check_bool(solver: str, opt: str, value) -> bool:
+    """value when it is True or False (not 0 / 1, not a string); else
+    SolverOptionError."""
+    import numpy as np
+
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    _reject(solver, opt, value, "True or False")
 
 
 def check_numbers(solver: str, opt: str, value, *, low: float | None = None, what: str = ""):

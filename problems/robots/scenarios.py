@@ -237,9 +237,11 @@ def scenario_names() -> list[str]:
 
 
 def load_scenario(name_or_path: str | os.PathLike, robot: str | None = None) -> Scenario:
-    """A shipped scenario by name, or a scenario TOML file by path."""
+    """A shipped scenario by name, or a scenario TOML file by path (a name
+    ending in ``.toml`` or an existing file; a directory named like a shipped
+    scenario does not hide it)."""
     p = Path(name_or_path)
-    if not (p.suffix == ".toml" or p.exists()):
+    if not (p.suffix == ".toml" or p.is_file()):
         p = SCENARIO_DIR / f"{name_or_path}.toml"
         if not p.exists():
             raise ScenarioError(f"unknown scenario {str(name_or_path)!r} (shipped: "

@@ -102,10 +102,9 @@ from itertools import pairwise
 
 import numpy as np
 
-from problems.errors import SolverOptionError
 from problems.hierarchy import Hierarchy
 from solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
-from solvers.registry import SolverInfo
+from solvers.registry import SolverInfo, check_bool, check_choice, check_int, check_number
 
 __all__ = ["SOLVERS", "WARM_STARTS", "HcodSolver", "warmup"]
 
@@ -141,19 +140,10 @@ class HcodSolver(Solver):
 
     def __init__(self, warm_start: str = "time", max_iterations: int | None = None,
                  rank_rtol: float = 1e-10, min_norm: bool = True):
-        if warm_start not in WARM_STARTS:
-            raise SolverOptionError(f"hcod: option warm_start={warm_start!r} is not allowed; "
-                                    f"expected one of {', '.join(WARM_STARTS)}")
-        if max_iterations is not None and (isinstance(max_iterations, bool)
-                                           or not isinstance(max_iterations, (int, np.integer))
-                                           or max_iterations < 1):
-            raise SolverOptionError(f"hcod: option max_iterations={max_iterations!r} is not allowed; "
-                                    "expected a positive integer or None")
-        if isinstance(rank_rtol, bool) or not isinstance(rank_rtol, (int, float)) or not 0 < rank_rtol < 1:
-            raise SolverOptionError(f"hcod: option rank_rtol={rank_rtol!r} is not allowed; "
-                                    "expected a float in (0, 1)")
-        if not isinstance(min_norm, bool):
-            raise SolverOptionError(f"hcod: option min_norm={min_norm!r} is not allowed; expected True or False")
+        warm_start = check_choice("hcod", "warm_start", warm_start, WARM_STARTS)
+        max_iterations = check_int("hcod", "max_iterations", max_iterations, none_ok=True)
+        rank_rtol = check_number("hcod", "rank_rtol", rank_rtol, low=0, high=1, low_open=True, high_open=True)
+        min_norm = check_bool("hcod", "min_norm", min_norm)
         self.warm_start = warm_start
         self.max_iterations = max_iterations
         self.rank_rtol = float(rank_rtol)

@@ -56,6 +56,15 @@ def test_scenario_file_errors(tmp_path):
         load_scenario("dance")
 
 
+def test_a_directory_named_like_a_shipped_scenario_does_not_hide_it(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "reach").mkdir()  # e.g. the output directory of an earlier `hikbench scenario reach`
+    (tmp_path / "dance").mkdir()
+    assert load_scenario("reach").name == "reach"
+    with pytest.raises(ScenarioError, match="unknown scenario 'dance'"):
+        load_scenario("dance")
+
+
 def test_user_scenario_on_an_arm(tmp_path):
     """A user TOML: panda end effector moved by a polynomial; tracked within 5 mm."""
     f = tmp_path / "arm.toml"

@@ -113,6 +113,24 @@ def test_inequality_rows_are_targets_only_when_violated():
     assert res.iterations == 1
 
 
+@pytest.mark.parametrize("name", ["weighted", "dls"])
+@pytest.mark.parametrize("passes,status", [(1, MAX_ITERATIONS), (2, OPTIMAL)], ids=["limit-hit", "converged"])
+def test_pass_limit_with_violated_rows_is_not_optimal(name, passes, status):
+    """x0 + x1 = 2 violates x0 <= 0.5: one pass (equalities only) stops with
+    that row violated (max_iterations, the reason counts it); a second pass
+    targets it and converges (optimal)."""
+    h = Hierarchy.from_levels([Level.equality(np.array([[1.0, 1.0]]), [2.0]),
+                               Level(np.array([[1.0, 0.0]]), np.array([-np.inf]), np.array([0.5]))])
+    res = registry.create(name, passes=passes).solve(h)
+    assert res.status == status, res.reason
+    assert res.iterations == passes
+    if status == MAX_ITERATIONS:
+        assert res.reason == (f"{name}: pass limit 1 reached with 1 inequality row(s) violated at x that are "
+                              "not targets yet (option passes)")
+        np.testing.assert_allclose(res.x[0], 1.0, atol=1e-3)  # the last iterate, the row violated
+    else:
+        np.testing.assert_allclose(res.x[0], 0.5, atol=1e-3)
+
 # ------------------------------------------------------------ dls-liegeois
 
 def test_liegeois_gradient_points_to_the_middle():

@@ -18,6 +18,7 @@ disagree, and the hypothesis tests draw from a grid that avoids them.
 from __future__ import annotations
 
 import os
+import re
 from collections import Counter
 from pathlib import Path
 
@@ -76,15 +77,22 @@ def test_registered():
     assert isinstance(registry.create("hcod"), HcodSolver)
 
 
-@pytest.mark.parametrize("opts, match", [
-    ({"warm_start": "always"}, "warm_start.*none, stage, time"),
-    ({"max_iterations": 0}, "max_iterations"),
-    ({"rank_rtol": 2.0}, "rank_rtol"),
-    ({"min_norm": "yes"}, "min_norm"),
-], ids=["warm_start", "max_iterations", "rank_rtol", "min_norm"])
-def test_bad_options(opts, match):
-    with pytest.raises(SolverOptionError, match=match):
-        HcodSolver(**opts)
+@pytest.mark.parametrize("option, value, expected", [
+    ("warm_start", "always", "one of none, stage, time"),
+    ("max_iterations", 0, "an integer >= 1 or None"),
+    ("max_iterations", 2.5, "an integer >= 1 or None"),
+    ("max_iterations", True, "an integer >= 1 or None"),
+    ("rank_rtol", 2.0, "a finite number in (0, 1)"),
+    ("rank_rtol", 0.0, "a finite number in (0, 1)"),
+    ("rank_rtol", "1e-8", "a finite number in (0, 1)"),
+    ("min_norm", "yes", "True or False"),
+    ("min_norm", 1, "True or False"),
+], ids=["warm_start", "max_iterations-zero", "max_iterations-float", "max_iterations-bool", "rank_rtol-two",
+        "rank_rtol-zero", "rank_rtol-str", "min_norm-str", "min_norm-int"])
+def test_bad_options(option, value, expected):
+    message = f"hcod: option {option}={value!r} is not allowed; expected {expected}"
+    with pytest.raises(SolverOptionError, match="^" + re.escape(message) + "$"):
+        HcodSolver(**{option: value})
 
 
 # -- equality hierarchies: exact match with the minimum-norm null-space reference ---------------
