@@ -25,11 +25,13 @@ _STYLE = {"figsize": (9.5, 5.0), "dpi": 110}
 
 def loglog_slope(x, y) -> tuple[float, float]:
     """Least-squares slope of log y vs log x and its standard error, over the
-    points where both are finite and > 0 (no log of 0 or of a negative)."""
+    points where both are finite and > 0 (no log of 0 or of a negative); NaN
+    with fewer than 3 distinct x (two sizes give a line through two points,
+    no fitted slope, as in bench.claims.slope_interval)."""
     x, y = np.asarray(x, float), np.asarray(y, float)
     keep = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
     lx, ly = np.log(x[keep]), np.log(y[keep])
-    if lx.size < 2 or np.ptp(lx) == 0:
+    if np.unique(lx).size < 3:
         return float("nan"), float("nan")
     A = np.vstack([lx, np.ones_like(lx)]).T
     coef, res, *_ = np.linalg.lstsq(A, ly, rcond=None)
@@ -79,13 +81,21 @@ def _legend(ax) -> None:
 
 
 def _readable_log_ticks(ax) -> None:
-    """Plain numbers on log axes (1, 2, 5, 10, 20, ...) instead of 2 x 10^1."""
+    """Plain numbers on log axes (1, 2, 5, 10, 20, ...) instead of 2 x 10^1; the
+    minor ticks (2, 5) are labelled only on an axis spanning at most 2 decades
+    (over more, their labels run into each other: 200000500000)."""
     fmt = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")
     for axis in (ax.xaxis, ax.yaxis):
         axis.set_major_formatter(fmt)
         axis.set_minor_locator(matplotlib.ticker.LogLocator(subs=(2.0, 5.0)))
-        axis.set_minor_formatter(fmt)
+        axis.set_minor_formatter(matplotlib.ticker.FuncFormatter(
+            lambda v, _, axis=axis: f"{v:g}" if _decades(axis) <= 2 else ""))
         axis.set_tick_params(which="minor", labelsize=7)
+
+
+def _decades(axis) -> float:
+    lo, hi = sorted(axis.get_view_interval())
+    return float(np.log10(hi / lo)) if lo > 0 else float("inf")
 
 
 def _finish(fig, ax, path: Path, title: str) -> Path:
@@ -99,27 +109,34 @@ def _finish(fig, ax, path: Path, title: str) -> Path:
 
 def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "cold",
                vline: tuple[float, str] | None = None) -> tuple[Path | None, dict]:
-    """Median time vs ``var`` per solver, log-log, fitted slopes in the legend;
-    ``vline = (x, label)`` marks e.g. the depth where the DOF are saturated."""
-    g = g[(g["mode"] == mode) & g["verified"].eq(True) & (g["time_median_s"] > 0) & (g[var] > 0)]
-    if g.empty:
+    """Median time vs ``var`` per solver, log-log, from the verified rows only,
+    fitted slopes in the legend; a size where a solver was not verified has no
+    point, and the legend says how many sizes were verified of those it
+    attempted (unsupported rows left out). ``vline = (x, label)`` marks e.g.
+    the depth where the DOF are saturated. Returns (path, {solver label:
+    (slope, std. err., sizes verified, sizes attempted)})."""
+    g = g[(g["mode"] == mode) & (g["status"] != "unsupported")]
+    ok = g["verified"].eq(True) & (g["time_median_s"] > 0) & (g[var] > 0)
+    if not ok.any():
         return None, {}
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
     slopes = {}
     for i, ((solver, settings), s) in enumerate(g.groupby(["solver", "settings"])):
-        med = s.groupby(var)["time_median_s"].median().sort_index()
-        if med.empty:
-            continue
-        slope, se = loglog_slope(s[var], s["time_median_s"])
+        v = s[ok.loc[s.index]]
+        med = v.groupby(var)["time_median_s"].median().sort_index()
+        slope, se = loglog_slope(v[var], v["time_median_s"])
         label = solver if settings == "default" else f"{solver} [{settings}]"
-        slopes[label] = (slope, se)
-        ax.plot(med.index, med.to_numpy() * 1e6, **_style(i),
-                label=f"{label} (slope {slope:.2f})" if np.isfinite(slope) else label)
+        sizes, tried = len(med), s[var].nunique()
+        slopes[label] = (slope, se, sizes, tried)
+        note = f"slope {slope:.2f}" if np.isfinite(slope) else "no slope: < 3 sizes"
+        if sizes < tried:
+            note += f", {sizes}/{tried} sizes verified"
+        ax.plot(med.index, med.to_numpy() * 1e6, **_style(i), label=f"{label} ({note})")
     ax.set_xscale("log")
     ax.set_yscale("log")
     _readable_log_ticks(ax)
     ax.set_xlabel({"n": "DOF n (number of variables)", "depth": "number of levels (depth)"}.get(var, var))
-    ax.set_ylabel(f"median solve time ({mode}) [us]")
+    ax.set_ylabel(f"median solve time ({mode}, verified rows) [us]")
     if vline is not None:
         ax.axvline(vline[0], color="0.4", linestyle=":", linewidth=1.2, label=vline[1])
     _legend(ax)

@@ -36,6 +36,10 @@ def _us(t: float) -> str:
     return "-" if not np.isfinite(t) else f"{t * 1e6:.1f}"
 
 
+def _num(v: float) -> str:
+    return f"{v:.2f}" if np.isfinite(v) else "-"
+
+
 def _positive(v) -> float | None:
     """v as a finite float > 0, else None (a missing or bogus timeout in run.json)."""
     if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
@@ -194,9 +198,10 @@ def write_report(run_dir) -> Path:
                                          f"({fixed.strip('{}') or 'defaults'}), cold", vline=sat)
             if p:
                 figures.append((f"Time vs {what}: {family} {fixed}", p))
-                L += _table(f"Log-log slope of time vs {what}: {family} {fixed}", ["solver", "slope",
-                                                                                   "std. err."],
-                            [[s, f"{a:.2f}", f"{b:.2f}"] for s, (a, b) in sorted(slopes.items())])
+                L += _table(f"Log-log slope of cold time vs {what}: {family} {fixed} (verified rows; "
+                            "- = fewer than 3 verified sizes)",
+                            ["solver", "slope", "std. err.", "sizes verified / attempted"],
+                            [[s, _num(a), _num(b), f"{k}/{m}"] for s, (a, b, k, m) in sorted(slopes.items())])
     p = plots.plot_success(df, plot_dir / "success_rate.png")
     if p:
         figures.append(("Verified success rate", p))

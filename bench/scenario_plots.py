@@ -33,6 +33,12 @@ def _slug(text: str) -> str:
     return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_")
 
 
+def _events_within(scenario, t_end: float) -> list[float]:
+    """The scenario's event times up to ``t_end`` (a run cut short by --steps
+    ends before later events: a line there would stretch the time axis past the data)."""
+    return [te for te in scenario.event_times() if te <= t_end]
+
+
 def normalised_joints(run) -> tuple[np.ndarray, list[str]]:
     """(steps + 1, nb) joint trajectory mapped to [-1, 1] by the limits, and joint names."""
     robot = run.scenario.robot
@@ -107,7 +113,7 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
             ax.plot(t, z[:, i], lw=1.0, label=names[i])
         ax.axhline(1.0, color="k", ls="--", lw=0.8)
         ax.axhline(-1.0, color="k", ls="--", lw=0.8)
-        for te in run.scenario.event_times():
+        for te in _events_within(run.scenario, t[-1]):
             ax.axvline(te, color="grey", ls=":", lw=0.8)
         ax.set_ylim(-1.1, 1.1)
         ax.set_xlabel("time (s)")
@@ -131,7 +137,7 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
             df = run.records
             ax.semilogy(df["time_s"], np.maximum(df[f"err_{task.name}"], 1e-16), lw=1.0, color=f"C{i}",
                         label=run.label)
-        for te in runs[0].scenario.event_times():
+        for te in _events_within(runs[0].scenario, max(float(r.records["time_s"].max()) for r in runs)):
             ax.axvline(te, color="grey", ls=":", lw=0.8)
         unit = {"PoseTask": "log6 error (m, rad)", "OrientationTask": "rad", "PostureTask": "rad",
                 "DirectionTask": "unit vector", "AlignmentTask": "1 - cos"}.get(type(task).__name__, "m")

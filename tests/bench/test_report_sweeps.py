@@ -1,0 +1,70 @@
+"""Time-vs-size sweeps in report.md and plots: a slope is fitted only on 3 or
+more verified sizes, and sizes where a solver was not verified are counted,
+not silently dropped."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from bench.columns import names
+from bench.plots import loglog_slope, plot_sweep
+from bench.report import write_report
+
+SIZES = (6, 12, 24, 48)
+
+
+def _row(solver, n, t, verified=True, status="optimal"):
+    r = {c: None for c in names()}
+    r.update(problem=f"equality/depth=3,n={n},rows=4/seed=0", family="equality",
+             params=json.dumps({"depth": 3, "n": n, "rows": 4}), seed=0, n=n, depth=3, solver=solver,
+             settings="default", options="{}", strict=True, mode="cold", repeat=1, status=status,
+             verified=verified, time_median_s=t, time_min_s=t, time_p95_s=t, host="h", calib_ns=1e6)
+    return r
+
+
+def _rows():
+    rows = [_row("all", n, 1e-5 * n) for n in SIZES]                      # slope 1 on 4 sizes
+    rows += [_row("half", n, 1e-4, verified=n <= 12) for n in SIZES]      # verified on 2 sizes only
+    rows += [_row("declines", n, np.nan, verified=False, status="unsupported") for n in SIZES]
+    return rows
+
+
+def test_sweep_slopes_need_three_verified_sizes(tmp_path):
+    df = pd.DataFrame(_rows())
+    path, slopes = plot_sweep(df, "n", tmp_path / "s.png", "t")
+    assert path == tmp_path / "s.png" and path.exists()
+    assert slopes["all"][0] == pytest.approx(1.0) and slopes["all"][2:] == (4, 4)
+    assert np.isnan(slopes["half"][0]) and slopes["half"][2:] == (2, 4)  # 2 points: no fitted slope
+    assert "declines" not in slopes  # unsupported everywhere: not a solver of this sweep
+    assert np.isnan(loglog_slope([1, 2], [1, 2])[0])
+
+
+def test_report_slope_table_counts_verified_sizes(tmp_path):
+    pd.DataFrame(_rows(), columns=names()).to_csv(tmp_path / "results.csv", index=False)
+    md = write_report(tmp_path).read_text().splitlines()
+    i = next(k for k, ln in enumerate(md) if ln.startswith("### Log-log slope of cold time vs DOF"))
+    assert "verified rows" in md[i]
+    table = {ln.split("|")[1].strip(): [c.strip() for c in ln.strip("|").split("|")] for ln in md[i + 4:i + 6]}
+    assert table["all"] == ["all", "1.00", "0.00", "4/4"]
+    assert table["half"] == ["half", "-", "-", "2/4"]
+
+
+@pytest.mark.parametrize("hi, labelled", [(50.0, True), (1e5, False)], ids=["2 decades", "5 decades"])
+def test_minor_tick_labels_only_on_narrow_log_axes(hi, labelled):
+    """Over many decades the labels of the 2 and 5 minor ticks ran into each other (200000500000)."""
+    import matplotlib.pyplot as plt
+
+    from bench.plots import _readable_log_ticks
+
+    fig, ax = plt.subplots()
+    ax.plot([1.0, hi], [1.0, hi])
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlim(1.0, hi)
+    _readable_log_ticks(ax)
+    fig.canvas.draw()
+    texts = [t.get_text() for t in ax.xaxis.get_minorticklabels() if t.get_text()]
+    plt.close(fig)
+    assert bool(texts) == labelled, texts
