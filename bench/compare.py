@@ -33,6 +33,7 @@ from scipy.stats import mannwhitneyu
 from bench.columns import KEY
 from bench.environment import read_run_json
 from bench.results import read_results
+from problems.errors import HikbenchError
 
 __all__ = ["compare_runs", "Comparison", "normalised_samples", "confirmed"]
 
@@ -114,8 +115,15 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
 
 
 def compare_runs(base_dir, new_dir, threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
-    return compare_frames(read_results(base_dir), read_results(new_dir), read_run_json(base_dir),
-                          read_run_json(new_dir), threshold, alpha)
+    """compare_frames on two run directories; HikbenchError when they have no case in common
+    (nothing compared is not a pass)."""
+    c = compare_frames(read_results(base_dir), read_results(new_dir), read_run_json(base_dir),
+                       read_run_json(new_dir), threshold, alpha)
+    if c.table.empty:
+        raise HikbenchError(f"{base_dir} ({len(c.only_base)} cases) and {new_dir} ({len(c.only_new)} cases) have "
+                            f"no case (problem, solver, settings, mode) in common: expected two runs of the "
+                            f"same suite")
+    return c
 
 
 def confirmed(comparisons: list[Comparison]) -> Comparison:
@@ -147,4 +155,11 @@ def format_table(c: Comparison, show_all: bool = False) -> str:
         lines.append(f"{r.verdict:<13} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.p_value:>7.4f} "
                      f"{r.base_median_s * 1e6:>9.1f} "
                      f"{r.new_median_s * 1e6:>9.1f}  {r.solver} / {r.settings} / {r.mode} / {r.problem}")
+    for what, keys in (("only in base", c.only_base), ("only in new", c.only_new)):  # listed, not judged
+        keys = sorted(keys)
+        shown = keys if show_all else keys[:10]
+        lines += [f"{what:<13} {'':>31}  {solver} / {settings} / {mode} / {problem}"
+                  for problem, solver, settings, mode in shown]
+        if len(shown) < len(keys):
+            lines.append(f"{what:<13} {'':>31}  ... and {len(keys) - len(shown)} more (--all lists them)")
     return "\n".join(lines)

@@ -89,8 +89,21 @@ def environment() -> dict:
 
 
 def read_run_json(run_dir) -> dict:
+    """OUT/run.json as a dict ({} when there is none); HikbenchError when it is not a JSON object."""
+    from problems.errors import HikbenchError
+
     p = Path(run_dir) / RUN_JSON
-    return json.loads(p.read_text()) if p.exists() else {}
+    if not p.exists():
+        return {}
+    try:
+        data = json.loads(p.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise HikbenchError(f"{p}: not valid JSON ({err}); expected the run.json written by hikbench run "
+                            f"(restore it, or write to a new --out directory)") from err
+    if not isinstance(data, dict):
+        raise HikbenchError(f"{p}: expected a JSON object (the run.json written by hikbench run); "
+                            f"got a {type(data).__name__}")
+    return data
 
 
 def write_run_json(run_dir, data: dict) -> None:

@@ -27,6 +27,7 @@ import json
 import math
 import os
 import shlex
+import signal
 import socket
 import subprocess
 import tempfile
@@ -58,6 +59,24 @@ def _command(spec: str) -> str:
     return spec[len("external:"):].partition("=")[2]
 
 
+def _run(argv: list[str], timeout: float) -> subprocess.CompletedProcess:
+    """subprocess.run(argv) in a session of its own; past ``timeout`` the whole
+    session is killed (a shell's background children too, not only the direct
+    child: orphans would burn CPU through later timings) and TimeoutExpired raised."""
+    with subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                          start_new_session=True) as proc:
+        try:
+            out, err = proc.communicate(timeout=timeout)
+        except subprocess.TimeoutExpired:
+            try:
+                os.killpg(proc.pid, signal.SIGKILL)
+            except ProcessLookupError:  # the whole group ended at the deadline: nothing left to kill
+                proc.kill()
+            proc.communicate()
+            raise
+    return subprocess.CompletedProcess(argv, proc.returncode, out, err)
+
+
 def run_external(job: dict, timeout: float) -> dict:
     """Run the external program ``warmup + repeat`` times on job['hierarchy']."""
     from problems.files import save_npz
@@ -83,8 +102,7 @@ def run_external(job: dict, timeout: float) -> dict:
                 os.remove(paths["{out}"])
             t0 = time.perf_counter_ns()
             try:
-                proc = subprocess.run(argv, capture_output=True, text=True,
-                                      timeout=max(deadline - time.monotonic(), 0.001))
+                proc = _run(argv, max(deadline - time.monotonic(), 0.001))
             except subprocess.TimeoutExpired:
                 return {**base, "status": TIMEOUT, "x": None, "samples_ns": [],
                         "reason": f"external program exceeded the {timeout:g} s timeout"}

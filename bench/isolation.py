@@ -90,6 +90,16 @@ def _describe_exit(code: int | None) -> str:
     return f"worker process exited with code {code}"
 
 
+def _kill_session(pid: int) -> bool:
+    """SIGKILL the process group of the worker ``pid`` (it leads its own session, so the
+    group holds the worker and the processes its solvers started); False when none is left."""
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        return False
+    return True
+
+
 class IsolatedWorker:
     """One worker process, restarted after a timeout or a crash.
 
@@ -164,8 +174,9 @@ class IsolatedWorker:
                 if not (isinstance(out, str) and out == _FIRST_SOLVE_DONE):
                     break
                 self._warmed.add(spec)
-                first = False
-                deadline = time.monotonic() + timeout
+                if first:  # the allowance covered the first solve; the job timeout applies after it
+                    first = False
+                    deadline = time.monotonic() + timeout
         except _Timeout:
             self.kill()
             limit = f"{first_timeout:g} s allowed for the first solve" if first else f"{timeout:g} s timeout"
@@ -182,9 +193,10 @@ class IsolatedWorker:
         return out
 
     def kill(self) -> None:
+        """End the worker and every process a solver started in its session (a helper
+        left running would burn CPU through the timings of every later job)."""
         if self.proc is not None:
-            if self.proc.poll() is None:
-                self.proc.kill()
+            _kill_session(self.proc.pid)
             self.proc.wait()
             for f in (self.proc.stdin, self.proc.stdout):
                 try:
@@ -228,13 +240,15 @@ def _child_main() -> None:
     _die_with_parent()
     channel = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # anything a solver prints goes to stderr, not into the channel
-    inp = sys.stdin.buffer
+    fd = os.dup(0)  # the jobs; a solver reading stdin reads /dev/null (not the job channel: it waited there)
+    null = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(null, 0)
+    os.close(null)
     from bench.calibration import calibrate
     from bench.worker import execute
 
     calib = calibrate()
     _write_frame(channel, {"host": socket.gethostname(), "pid": os.getpid(), "calib_ns": calib})
-    fd = inp.fileno()
     while True:
         try:
             job = _read_frame(fd, None)

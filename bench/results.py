@@ -40,12 +40,19 @@ def _cut_partial_line(path: Path) -> None:
             f.truncate(data.rfind(b"\n") + 1)
 
 
-def _check_header(path: Path) -> None:
-    with open(path, newline="") as f:
-        header = next(csv.reader(f), None)
+def _check_header(path: Path) -> list | None:
+    """The header of ``path`` (None: an empty file); HikbenchError unless it holds this version's columns."""
+    try:
+        with open(path, newline="") as f:
+            header = next(csv.reader(f), None)
+    except UnicodeDecodeError as err:
+        raise HikbenchError(f"{path}: not a text file ({err.reason} at byte {err.start}); expected the "
+                            f"results.csv written by hikbench run") from err
     if header is not None and header != names():
         raise HikbenchError(f"{path}: its columns differ from this version's ({len(header)} vs {len(names())} "
-                            f"columns); write to a new --out directory")
+                            f"columns); expected a results.csv written by this version of hikbench run "
+                            f"(write to a new --out directory)")
+    return header
 
 
 class ResultsWriter:
@@ -54,12 +61,11 @@ class ResultsWriter:
     def __init__(self, out_dir: str | os.PathLike):
         self.path = Path(out_dir) / RESULTS
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        if self.path.exists() and self.path.stat().st_size:
-            _cut_partial_line(self.path)
+        if self.path.exists():
+            _cut_partial_line(self.path)  # (a header cut off by a kill leaves an empty file: new)
+        new = not (self.path.exists() and self.path.stat().st_size)
+        if not new:
             _check_header(self.path)
-            new = False
-        else:
-            new = True
         self._f = open(self.path, "a", newline="")
         self._w = csv.DictWriter(self._f, fieldnames=names(), extrasaction="raise")
         if new:
@@ -158,13 +164,17 @@ def parse_json_column(series: pd.Series) -> pd.Series:
 
 
 def read_results(run_dir) -> pd.DataFrame:
-    """OUT/results.csv as a DataFrame (JSON columns left as strings)."""
+    """OUT/results.csv as a DataFrame (JSON columns left as strings), its
+    complete rows only (a row being written is not read half)."""
     path = Path(run_dir) / RESULTS
     if not path.exists():
         raise HikbenchError(f"{run_dir}: no {RESULTS} (run `hikbench run --out {run_dir}` first)")
+    if _check_header(path) is None:  # killed before its header was written: no rows
+        return pd.DataFrame(columns=names())
     dtype = {"problem": str, "solver": str, "settings": str, "mode": str, "reason": str, "verdict_side": str,
              "family": str, "host": str, "worker": str, **{c: str for c in JSON_COLUMNS}}
-    df = pd.read_csv(path, dtype=dtype, keep_default_na=True)
+    # complete lines only: a run still writing (or killed mid-row) leaves a partial last row
+    df = pd.read_csv(io.StringIO(_complete_text(path)), dtype=dtype, keep_default_na=True)
     for c in JSON_COLUMNS:
         if c in df:
             df[c] = df[c].fillna("")

@@ -30,6 +30,7 @@ from bench.results import ResultsWriter, backup, compact, finished_rows
 from bench.suites import ACCURACY, Suite, SuiteError, Task, expand
 from problems.errors import HikbenchError
 from problems.verify import level_norms, verify
+from solvers.base import CRASHED, TIMEOUT
 
 __all__ = ["run_suite", "RunSummary"]
 
@@ -294,7 +295,9 @@ def _references(todo, problems, out: Path, executor, timeout, progress) -> dict:
         for pid, res in executor.map(items):
             x = res.get("x") if res["status"] == "optimal" else None
             refs[pid] = (x, res["status"], res.get("reason", ""))
-            _save_reference(out / "reference" / (file_stem(pid) + ".npz"), x, res["status"],
-                            res.get("reason", ""))
+            # a killed or lost worker is no answer of the reference: not cached, the next run tries again
+            if res["status"] not in (TIMEOUT, CRASHED):
+                _save_reference(out / "reference" / (file_stem(pid) + ".npz"), x, res["status"],
+                                res.get("reason", ""))
             progress.advance(tid)
     return refs

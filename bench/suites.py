@@ -162,12 +162,17 @@ def load_suite(name_or_path: str) -> Suite:
     builtins = builtin_suites()
     if name_or_path in builtins:
         p = builtins[name_or_path]
-    elif not p.exists():
+    elif not p.is_file():
         raise SuiteError(f"unknown suite {name_or_path!r}: not a file and not one of {', '.join(builtins)}")
     try:
         data = tomllib.loads(p.read_text())
     except tomllib.TOMLDecodeError as err:
         raise SuiteError(f"{p}: invalid TOML ({err})") from err
+    except UnicodeDecodeError as err:
+        raise SuiteError(f"{p}: not a text file ({err.reason} at byte {err.start}); expected a suite TOML file") \
+            from err
+    except OSError as err:
+        raise SuiteError(f"{p}: cannot read the suite file: {err.strerror or err}") from err
     _resolve_paths(data, p.parent)
     return suite_from_dict(data, name=p.stem, source=str(p))
 
@@ -328,6 +333,9 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
 
 def _entry_for_object(spec: str) -> SolverEntry:
     obj = load_object(spec)
+    mod, _, attr = spec.rpartition(":")
+    if mod.endswith(".py") and not Path(mod).is_absolute():  # the workers (Dask) may run in another directory
+        spec = f"{Path(mod).resolve()}:{attr}"
     name = getattr(obj, "name", "") or spec.rpartition(":")[2]
     return SolverEntry(solver=name if isinstance(name, str) else spec, spec=spec, strict=bool(getattr(obj,
                                                                                                       "strict", True)),

@@ -87,3 +87,27 @@ def test_run_goes_on_after_a_bad_output(prog, tmp_path, capsys):
     assert len(rows) == 2 and set(rows["status"]) == {"error"}
     assert rows["reason"].str.contains('"iterations" must be an integer').all()
     assert set(df[df["solver"] == "reference"]["status"]) == {"optimal"}
+
+
+def test_a_timed_out_program_leaves_no_background_child(tmp_path):
+    """On a timeout only the direct child was killed: a shell's background child kept running
+    (and burning CPU through the timings of later jobs)."""
+    import os
+    import time
+
+    pidfile = tmp_path / "bg.pid"
+    job = {"solver": f"external:p=sh -c 'sleep 30 & echo $! > {pidfile}; wait'", "hierarchy": tiny(n=4),
+           "repeat": 1, "warmup": 0}
+    t0 = time.monotonic()
+    res = run_external(job, timeout=0.5)
+    assert res["status"] == "timeout" and "0.5 s timeout" in res["reason"]
+    assert time.monotonic() - t0 < 10
+    pid = int(pidfile.read_text())
+    for _ in range(100):  # SIGKILL is delivered at once; the orphan is reaped by init soon after
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            break
+        time.sleep(0.05)
+    else:
+        raise AssertionError(f"background child {pid} still running after the timeout")

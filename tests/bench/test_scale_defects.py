@@ -1,0 +1,442 @@
+"""Runs at scale: Dask executors and the robustness of a run (user-audit defects)."""
+
+from __future__ import annotations
+
+import pandas as pd
+import pytest
+from doubles import spec, tiny
+
+from bench.executors import DaskExecutor
+
+NO_DASHBOARD = {"dashboard_address": "127.0.0.1:0", "scheduler_kwargs": {"dashboard": False}}  # no port warning
+
+
+@pytest.fixture(scope="module")
+def cluster():
+    """A long-lived Dask cluster (in-process, one single-threaded worker) that several runs share."""
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, **NO_DASHBOARD) as c:
+        yield c
+
+
+def _solve_job(solver: str, repeat: int = 1) -> dict:
+    return {"kind": "solve", "hierarchy": tiny(), "solver": solver, "options": {}, "mode": "cold",
+            "repeat": repeat, "warmup": 1}
+
+
+def _run_on(cluster, items) -> list:
+    ex = DaskExecutor(scheduler=cluster.scheduler_address)
+    try:
+        return [res for _, res in ex.map(items)]
+    finally:
+        ex.close()
+
+
+def test_a_second_run_on_the_same_cluster_solves_with_the_edited_solver_file(cluster, tmp_path):
+    """Each Dask worker kept one isolated process for its whole life: a second run on a
+    long-lived cluster solved with the module of the first run, after the user edited it."""
+    path = tmp_path / "mysolver.py"
+    text = ("from solvers.base import Solver, SolveResult\n"
+            "class Versioned(Solver):\n"
+            "    name = 'versioned'\n"
+            "    def solve(self, h):\n"
+            "        return SolveResult(None, 'numerical_failure', reason='version {v}')\n")
+    reasons = []
+    for version in (1, 2):
+        path.write_text(text.format(v=version))
+        (res,) = _run_on(cluster, [(0, _solve_job(f"{path}:Versioned"), 10.0)])
+        reasons.append(res["reason"])
+    assert reasons == ["version 1", "version 2"]
+
+
+class KillParentSolver:
+    """Kills the process that started the isolated worker (here: the Dask worker), like an
+    OOM kill of the worker: the job takes its Dask worker down every time it runs."""
+
+    def solve(self, h):
+        import os
+        import signal
+        import time
+
+        os.kill(os.getppid(), signal.SIGKILL)
+        time.sleep(30)
+
+
+@pytest.mark.slow
+def test_a_job_that_kills_its_dask_worker_costs_its_row_only(tmp_path):
+    """KilledWorker escaped from DaskExecutor.map: a traceback, and the rest of the run was lost."""
+    import dask
+    from distributed import LocalCluster
+
+    items = [(0, _solve_job(f"{__file__}:KillParentSolver"), 10.0),
+             (1, _solve_job(spec("SleepSolver")), 10.0)]
+    # no retry; two workers: one job each (a job queued on the dying worker would die with it)
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}), \
+            LocalCluster(n_workers=2, threads_per_worker=1, processes=True, **NO_DASHBOARD) as c:
+        res = dict(_run_on_tags(c, items))
+    assert res[0]["status"] == "crashed", res[0]
+    assert "Dask worker process died while this job was running" in res[0]["reason"], res[0]
+    assert "KilledWorker" in res[0]["reason"], res[0]
+    assert res[1]["status"] == "optimal", res[1]
+
+
+def _run_on_tags(cluster, items) -> list:
+    ex = DaskExecutor(scheduler=cluster.scheduler_address)
+    try:
+        return list(ex.map(items))
+    finally:
+        ex.close()
+
+
+class SpawnThenHangSolver:
+    """Starts a helper process (its pid written to the file named by the option), then hangs."""
+
+    def __init__(self, pidfile: str):
+        self.pidfile = pidfile
+
+    def solve(self, h):
+        import subprocess
+        import sys
+        import time
+
+        helper = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(60)"])
+        with open(self.pidfile, "w") as f:
+            f.write(str(helper.pid))
+        while True:
+            time.sleep(0.05)
+
+
+def _gone(pid: int, within: float = 5.0) -> bool:
+    """The process ``pid`` is dead (or a zombie) within ``within`` seconds."""
+    import os
+    import time
+    from pathlib import Path
+
+    end = time.monotonic() + within
+    while time.monotonic() < end:
+        stat = Path(f"/proc/{pid}/stat")
+        if not stat.exists() or stat.read_text().rsplit(")", 1)[1].split()[0] == "Z":
+            return True
+        time.sleep(0.05)
+    os.kill(pid, 9)  # (the test's own helper: do not leave it behind)
+    return False
+
+
+def test_a_timed_out_solve_leaves_no_helper_process_behind(tmp_path):
+    """Only the worker was killed on a timeout: a process the solver started kept running
+    (and burning CPU through the timings of the rest of the run, and after it)."""
+    from bench.isolation import IsolatedWorker
+
+    pidfile = tmp_path / "helper.pid"
+    job = {**_solve_job(f"{__file__}:SpawnThenHangSolver"), "options": {"pidfile": str(pidfile)}}
+    with IsolatedWorker() as w:
+        res = w.run(job, timeout=1.0)
+    assert res["status"] == "timeout", res
+    assert _gone(int(pidfile.read_text())), "the solver's helper process outlived the timed-out worker"
+
+
+class _ReferenceCrashes:
+    """An executor whose reference jobs come back ``crashed`` (a killed worker, a lost Dask
+    worker); the solves run for real."""
+
+    name = "reference-crashes"
+
+    def __init__(self, log):
+        from bench.executors import SerialExecutor
+
+        self.inner = SerialExecutor(log=log)
+
+    def map(self, items):
+        for tag, job, timeout in items:
+            if job["kind"] == "reference":
+                yield tag, {"status": "crashed", "reason": "worker process killed by signal SIGKILL",
+                            "x": None, "samples_ns": []}
+            else:
+                yield from self.inner.map([(tag, job, timeout)])
+
+    def close(self):
+        self.inner.close()
+
+
+def test_a_crashed_reference_is_computed_again_by_the_next_run(tmp_path):
+    """A reference that timed out or crashed was cached in OUT/reference/: every later run
+    of that --out reused the failure, and none of its rows could be verified."""
+    from doubles import write_suite
+
+    from bench.results import read_results
+    from bench.runner import run_suite
+    from bench.suites import load_suite
+
+    suite = load_suite(str(write_suite(tmp_path / "s.toml", [spec("SleepSolver")],
+                                       grid={"n": [4], "depth": [1]})))
+    out = tmp_path / "out"
+    first = _ReferenceCrashes(out / "worker.log")
+    try:
+        run_suite(suite, out, executor=first, quiet=True, limit=1)  # the cold row; its reference crashed
+    finally:
+        first.close()
+    run_suite(suite, out, quiet=True)  # the warm row
+    df = read_results(out).set_index("mode")
+    assert "reference crashed" in df.loc["cold", "reason"] and pd.isna(df.loc["cold", "verified"])
+    assert df.loc["warm", "verified"] is True, df.loc["warm", "reason"]
+
+
+def test_a_scheduler_without_workers_is_a_one_line_error(tmp_path, capsys, monkeypatch):
+    """The run waited forever, silently, for a worker that never came."""
+    from clitools import assert_user_error, run
+    from distributed import LocalCluster
+    from doubles import write_suite
+
+    import bench.executors
+
+    monkeypatch.setattr(bench.executors, "_CONNECT_TIMEOUT", 1.0)
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], grid={"n": [4], "depth": [1]})
+    with LocalCluster(n_workers=0, processes=False, **NO_DASHBOARD) as c:
+        code, _, err = run(capsys, "run", "--quiet", "--suite", suite, "--out", tmp_path / "out",
+                           "--scheduler", c.scheduler_address)
+    assert_user_error(code, err, f"scheduler {c.scheduler_address} has no worker", "dask worker")
+    assert not (tmp_path / "out" / "results.csv").exists()
+
+
+def test_workers_run_next_to_another_cluster_gives_no_port_warning(tmp_path):
+    """--workers N bound the scheduler's HTTP server to port 8787: next to any other Dask
+    cluster every run warned "Port 8787 is already in use. Perhaps you already have a
+    cluster running?"."""
+    import socket
+    import warnings
+
+    taken = socket.socket()
+    try:
+        taken.bind(("127.0.0.1", 8787))
+        taken.listen()
+    except OSError:  # already taken by another cluster: the case of the defect anyway
+        taken.close()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ex = DaskExecutor(workers=1)
+        ex.close()
+    taken.close()
+    assert not [w for w in caught if "8787" in str(w.message)], [str(w.message) for w in caught]
+
+
+def _write_run(out, problems, solver="s") -> str:
+    """A run directory whose results.csv holds one verified cold row per problem id."""
+    import json
+
+    from bench.results import ResultsWriter
+
+    with ResultsWriter(out) as w:
+        for p in problems:
+            w.write({"problem": p, "solver": solver, "settings": "default", "mode": "cold", "status": "optimal",
+                     "verified": True, "samples_ns": json.dumps([1000, 1010, 1020]), "time_median_s": 1.01e-6,
+                     "calib_ns": 1_000_000, "host": "h"})
+    return str(out)
+
+
+def test_compare_with_no_case_in_common_is_an_error_not_a_pass(tmp_path, capsys):
+    """compare exited 0 ("0 slower") after comparing nothing: a CI gate that passes on an
+    empty or unrelated run."""
+    from clitools import assert_user_error, run
+
+    base = _write_run(tmp_path / "base", ["p0", "p1"])
+    for new in (_write_run(tmp_path / "other", ["q0"]), _write_run(tmp_path / "empty", [])):
+        code, _, err = run(capsys, "compare", base, new)
+        assert_user_error(code, err, f"{base} (2 cases) and {new}", "no case", "in common")
+
+
+def test_compare_lists_the_cases_only_in_one_run(tmp_path, capsys):
+    """The cases in only one run were only counted ("3 only in base"), not listed as documented."""
+    from clitools import run
+
+    base = _write_run(tmp_path / "base", ["p0", "p1", "p2", "p3"])
+    new = _write_run(tmp_path / "new", ["p0", "p4"])
+    code, out, _ = run(capsys, "compare", base, new)
+    assert code == 0
+    listed = [line.split() for line in out.splitlines() if line.startswith("only in")]
+    assert [(words[2], words[-1]) for words in listed] == [
+        ("base", "p1"), ("base", "p2"), ("base", "p3"), ("new", "p4")]
+
+
+def test_a_header_cut_off_by_a_kill_is_written_again(tmp_path):
+    """A run killed while writing the header left a partial line; it was cut off, and the rows
+    were then appended to the empty file without a header (the first row read as the header)."""
+    from bench.columns import names
+    from bench.results import RESULTS, ResultsWriter, read_results
+
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / RESULTS).write_text(",".join(names())[:25])  # no newline: the header was not finished
+    with ResultsWriter(out) as w:
+        w.write({"problem": "p0", "solver": "s", "settings": "default", "mode": "cold", "status": "optimal"})
+    df = read_results(out)
+    assert list(df.columns) == names() and list(df["problem"]) == ["p0"]
+
+
+
+def test_a_row_still_being_written_is_not_read(tmp_path):
+    """report / claims on a run in progress read the half-written last row as a row with
+    status, mode and verified all NaN (charged as a failure in the report)."""
+    from bench.results import RESULTS, read_results
+
+    out = tmp_path / "out"
+    _write_run(out, ["p0", "p1"])
+    path = out / RESULTS
+    text = path.read_text()
+    path.write_text(text[:text.rstrip("\n").rfind("\n") + 12])  # the second row cut after 11 characters
+    df = read_results(out)
+    assert list(df["problem"]) == ["p0"] and list(df["status"]) == ["optimal"]
+
+@pytest.mark.parametrize("text, message", [('{"suite": ', "not valid JSON"), ("[1, 2]", "got a list")],
+                         ids=["truncated", "not-an-object"])
+def test_a_damaged_run_json_is_a_one_line_error(tmp_path, capsys, text, message):
+    """A truncated or hand-damaged run.json gave a JSONDecodeError traceback (compare, run)."""
+    from clitools import assert_user_error, run
+
+    base = _write_run(tmp_path / "base", ["p0"])
+    new = _write_run(tmp_path / "new", ["p0"])
+    (tmp_path / "new" / "run.json").write_text(text)
+    code, _, err = run(capsys, "compare", base, new)
+    assert_user_error(code, err, f"{new}/run.json", message, "expected")
+
+
+def test_a_relative_solver_file_is_found_by_workers_running_elsewhere(tmp_path, monkeypatch):
+    """--solvers mysolver.py:Class was passed as is to the workers: a Dask worker started in
+    another directory found no such file, and every row was an `error` (finished: never run
+    again on resume)."""
+    from distributed import LocalCluster
+    from doubles import write_suite
+
+    from bench.cli import main
+    from bench.results import read_results
+
+    (tmp_path / "workers").mkdir()
+    (tmp_path / "user").mkdir()
+    (tmp_path / "user" / "mysolver.py").write_text(
+        "from solvers.base import OPTIMAL, Solver, SolveResult\n"
+        "from solvers.reference import nullspace_reference\n"
+        "class Mine(Solver):\n"
+        "    name = 'mine'\n"
+        "    def solve(self, h):\n"
+        "        return SolveResult(nullspace_reference(h), OPTIMAL)\n")
+    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4], "depth": [1]}, modes=("cold",))
+    monkeypatch.chdir(tmp_path / "workers")
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, **NO_DASHBOARD) as c:
+        monkeypatch.chdir(tmp_path / "user")
+        assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "out"),
+                     "--scheduler", c.scheduler_address, "--solvers", "mysolver.py:Mine"]) == 0
+    row = read_results(tmp_path / "out").iloc[0]
+    assert (row["solver"], row["status"], row["verified"]) == ("mine", "optimal", True), row["reason"]
+
+
+def test_a_lost_scheduler_is_an_error_that_says_how_to_resume(cluster, tmp_path):
+    """A scheduler that went away mid-run (its futures cancelled) ended the run with a
+    FutureCancelledError traceback."""
+    import threading
+
+    from distributed import Future
+
+    from problems.errors import HikbenchError
+
+    ex = DaskExecutor(scheduler=cluster.scheduler_address)
+    items = [(0, _solve_job(spec("SleepSolver")), 10.0),
+             (1, {**_solve_job(spec("SleepSolver")), "options": {"delay": 1.0}}, 10.0)]
+    got = []
+    try:
+        def cancel_all():  # what the client does to every future when it loses its scheduler
+            ex.client.cancel([Future(k, ex.client) for k in list(ex.client.futures)])
+
+        with pytest.raises(HikbenchError, match="a job was cancelled .*run the same command again to resume"):
+            for tag, res in ex.map(items):
+                got.append(tag)
+                threading.Timer(0.2, cancel_all).start()
+    finally:
+        ex.close()
+    assert got == [0]
+
+
+@pytest.mark.parametrize("first_timeout", [None, 1.0], ids=["no-allowance", "allowance-not-larger"])
+def test_the_job_timeout_includes_the_first_solve_when_there_is_no_larger_allowance(first_timeout):
+    """The deadline was restarted after the job's first (untimed) solve even when no larger
+    first-solve allowance applied: a job of 2 x 0.6 s passed a 1 s hard limit as `optimal`."""
+    from bench.isolation import IsolatedWorker
+
+    job = {**_solve_job(spec("SleepSolver")), "options": {"delay": 0.6}}  # first solve + 1 repetition
+    with IsolatedWorker() as w:
+        res = w.run(job, timeout=1.0, first_timeout=first_timeout)
+    assert res["status"] == "timeout", res
+    assert "1 s timeout" in res["reason"]
+
+
+def test_a_dask_worker_with_several_threads_keeps_each_result_with_its_job():
+    """Every thread of a Dask worker shared one isolated process: with `dask worker ADDR`
+    (one thread per core by default) two jobs wrote to the same channel at once and read
+    each other's answers (KeyError 'status' traceback, or a row given another job's x)."""
+    from distributed import LocalCluster
+
+    sizes = [4, 5, 6, 7, 8, 9]
+    items = [(n, {**_solve_job(spec("SleepSolver")), "hierarchy": tiny(n=n), "options": {"delay": 0.02}}, 20.0)
+             for n in sizes]
+    with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, **NO_DASHBOARD) as c:
+        got = dict(_run_on_tags(c, items))
+    assert sorted(got) == sizes
+    assert {n: (res["status"], len(res["x"])) for n, res in got.items()} == {n: ("optimal", n) for n in sizes}
+    assert len({res["pid"] for res in got.values()}) == 2  # one isolated process per thread
+
+
+class ReadsStdinSolver:
+    """Reads its standard input (a prompt, a library probing stdin), then solves."""
+
+    def solve(self, h):
+        import sys
+
+        from solvers.base import OPTIMAL, SolveResult
+        from solvers.reference import nullspace_reference
+
+        data = sys.stdin.buffer.read(4)
+        return SolveResult(nullspace_reference(h), OPTIMAL, reason=f"stdin gave {data!r}")
+
+
+def test_a_solver_reading_stdin_reads_nothing_instead_of_the_job_channel():
+    """The worker's stdin was the job channel: a solver reading it waited there until the
+    job timeout (a `timeout` row whose reason blamed the solver's speed)."""
+    from bench.isolation import IsolatedWorker
+
+    with IsolatedWorker() as w:
+        res = w.run(_solve_job(f"{__file__}:ReadsStdinSolver"), timeout=3.0)
+        again = w.run(_solve_job(spec("SleepSolver")), timeout=3.0)  # the channel still works
+    assert (res["status"], res["reason"]) == ("optimal", "stdin gave b''"), res
+    assert again["status"] == "optimal", again
+
+
+@pytest.mark.parametrize("kind, message", [("directory", "not a file"), ("binary", "not a text file")],
+                         ids=["directory", "binary"])
+def test_a_suite_path_that_is_no_toml_text_is_a_one_line_error(tmp_path, capsys, kind, message):
+    """--suite DIR gave an IsADirectoryError traceback; a binary file a UnicodeDecodeError one."""
+    from clitools import assert_user_error, run
+
+    path = tmp_path / "suite"
+    if kind == "directory":
+        path.mkdir()
+    else:
+        path.write_bytes(b"\xff\xfe\x00binary")
+    code, _, err = run(capsys, "run", "--quiet", "--suite", path, "--out", tmp_path / "out")
+    assert_user_error(code, err, str(path), message)
+
+
+@pytest.mark.parametrize("content, message", [
+    (b"problem,solver,settings,mode,status\np,s,default,cold,optimal\n", "columns differ from this version's"),
+    (b"\xff\xfe\x00\x01", "not a text file"),
+    (b"", "no case (problem, solver, settings, mode) in common"),  # no header: no rows
+], ids=["other-columns", "binary", "empty"])
+def test_compare_on_a_foreign_or_damaged_results_csv_is_a_one_line_error(tmp_path, capsys, content, message):
+    """read_results trusted any results.csv: KeyError 'reason', UnicodeDecodeError or
+    EmptyDataError tracebacks."""
+    from clitools import assert_user_error, run
+
+    base = tmp_path / "base"
+    base.mkdir()
+    (base / "results.csv").write_bytes(content)
+    new = _write_run(tmp_path / "new", ["p0"])
+    code, _, err = run(capsys, "compare", base, new)
+    assert_user_error(code, err, str(base), message)
