@@ -336,7 +336,7 @@ def _entry_for_object(spec: str) -> SolverEntry:
     mod, _, attr = spec.rpartition(":")
     if mod.endswith(".py") and not Path(mod).is_absolute():  # the workers (Dask) may run in another directory
         spec = f"{Path(mod).resolve()}:{attr}"
-    name = getattr(obj, "name", "") or spec.rpartition(":")[2]
+    name = getattr(obj, "name", "") or attr
     return SolverEntry(solver=name if isinstance(name, str) else spec, spec=spec, strict=bool(getattr(obj,
                                                                                                       "strict", True)),
                        warm=bool(getattr(obj, "supports_warm_start", False)))

@@ -140,14 +140,11 @@ class HcodSolver(Solver):
 
     def __init__(self, warm_start: str = "time", max_iterations: int | None = None,
                  rank_rtol: float = 1e-10, min_norm: bool = True):
-        warm_start = check_choice("hcod", "warm_start", warm_start, WARM_STARTS)
-        max_iterations = check_int("hcod", "max_iterations", max_iterations, none_ok=True)
-        rank_rtol = check_number("hcod", "rank_rtol", rank_rtol, low=0, high=1, low_open=True, high_open=True)
-        min_norm = check_bool("hcod", "min_norm", min_norm)
-        self.warm_start = warm_start
-        self.max_iterations = max_iterations
-        self.rank_rtol = float(rank_rtol)
-        self.min_norm = min_norm
+        self.warm_start = check_choice("hcod", "warm_start", warm_start, WARM_STARTS)
+        self.max_iterations = check_int("hcod", "max_iterations", max_iterations, none_ok=True)
+        self.rank_rtol = check_number("hcod", "rank_rtol", rank_rtol, low=0, high=1, low_open=True,
+                                      high_open=True)
+        self.min_norm = check_bool("hcod", "min_norm", min_norm)
         # rank, feasibility (warm start), multiplier noise floor, zero slack at freeze
         self._prm = np.array([self.rank_rtol, 1e-9, 1e-13, 1e-11])
         self._h = None  # the hierarchy bound to the workspaces (see _bind)
