@@ -28,9 +28,11 @@ by one of three modes (option ``freeze``):
 No final minimum-norm stage is run (the regularisation plays that role).
 
 Failures come back as statuses naming the level: ``infeasible_level`` (the
-QP of level k has no solution once levels 0..k-1 are frozen — as reported by
-the backend, or presumed when k > 0 and the backend's status is not passed
-on by qpsolvers), ``error`` (the backend raised; the reason carries the
+backend found no solution of the QP of level k > 0 once levels 0..k-1 are
+frozen: reported infeasible, or its status is not passed on by qpsolvers;
+the reason says whether the QP is really infeasible or whether ``x`` of
+level k-1 certifies it feasible and the backend failed, e.g. at a degenerate
+vertex with more frozen rows active than variables), ``error`` (the backend raised; the reason carries the
 exception), ``numerical_failure`` (NaN in the backend's x, a numerical-error
 status, or no solution at level 0 without a status), ``max_iterations`` (the
 backend's iteration cap). A backend that stops "inaccurate" (OSQP solved
@@ -97,6 +99,36 @@ def level_qp(A_f, lower_f, upper_f, A_k, lower_k, upper_k, eps: float):
     h = np.concatenate([up[fu], -lo[fl]])
     return (P, G if G.shape[0] else None, h if h.shape[0] else None,
             C[eq] if eq.any() else None, lo[eq] if eq.any() else None)
+
+
+def _no_solution(backend: str, text: str, k: int, A_f, lower_f, upper_f, x_prev) -> str:
+    """Reason of a level k > 0 without a solution from the backend. The
+    level's own rows have slacks, so its QP is feasible exactly when the
+    frozen rows of levels 0..k-1 are; ``x_prev`` (level k-1's solution, shape
+    (n,)) is a feasibility certificate when it satisfies them. The reason
+    says which case it is, and for a feasible QP how many frozen rows are
+    active at ``x_prev`` against n (more than n: a degenerate vertex, which
+    active-set backends cannot always handle). Level 0 (x_prev None) is
+    always feasible."""
+    if x_prev is None:
+        return f"backend {backend} found no solution (status {text}) of a feasible QP (level 0 has slacks)"
+    r = A_f @ x_prev
+    # rounding scale of each frozen row at x_prev: |a| |x| + |bound| (finite bounds)
+    scale = np.abs(A_f) @ np.abs(x_prev) + np.maximum(np.abs(np.where(np.isfinite(lower_f), lower_f, 0.0)),
+                                                      np.abs(np.where(np.isfinite(upper_f), upper_f, 0.0)))
+    tol = 1e-9 * (1.0 + scale)
+    below, above = lower_f - r, r - upper_f
+    viol = float(np.max(np.maximum(np.maximum(below, above), 0.0), initial=0.0))
+    if np.any((below > tol) | (above > tol)):
+        i = int(np.argmax(np.maximum(below, above) / tol))
+        return (f"infeasible after freezing levels 0..{k - 1} (backend {backend} found no solution, status "
+                f"{text}; x of level {k - 1} violates frozen row {i} by {viol:.1e})")
+    active = int(np.count_nonzero((below >= -tol) | (above >= -tol)))
+    n = x_prev.shape[0]
+    degenerate = " (more than n: degenerate)" if active > n else ""
+    return (f"backend {backend} found no solution (status {text}) of a feasible QP: x of level {k - 1} "
+            f"satisfies the frozen rows of levels 0..{k - 1} to {viol:.1e}, with {active} of them active "
+            f"on n = {n} variables{degenerate}")
 
 
 class CascadeBase(Solver):
@@ -186,10 +218,8 @@ class CascadeBase(Solver):
                 return fail(MAX_ITERATIONS, k, f"backend {self.backend} hit its iteration limit "
                                                f"({it} iterations, status {text})", x_out)
             if kind == "infeasible" or (kind == "unknown" and k > 0):
-                presumed = "" if kind == "infeasible" else "; status not reported, infeasibility presumed"
-                return fail(INFEASIBLE_LEVEL, k, f"infeasible after freezing levels 0..{k - 1} "
-                                                 f"(backend {self.backend} found no solution, status {text}"
-                                                 f"{presumed})", x_prev)
+                return fail(INFEASIBLE_LEVEL, k, _no_solution(self.backend, text, k, A_f, lower_f, upper_f, x_prev),
+                            x_prev)
             if kind in ("unknown", "numerical") or z is None:
                 return fail(NUMERICAL_FAILURE, k, f"backend {self.backend} found no solution (status {text})",
                             x_prev)

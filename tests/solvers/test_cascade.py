@@ -14,6 +14,7 @@ and are asserted exactly, so a backend that gets better or worse shows up.
 from __future__ import annotations
 
 import importlib
+import re
 
 import numpy as np
 import pytest
@@ -314,6 +315,62 @@ def test_infeasible_after_freezing_names_the_level():
     res = registry.create("cascade-quadprog", freeze="equality", slack_tol=10.0).solve(h)
     assert res.status == INFEASIBLE_LEVEL
     assert res.reason.startswith("cascade-quadprog: level 2: infeasible after freezing levels 0..1")
+
+
+
+def _fail_at_call(monkeypatch, fail_call: int):
+    """qpsolvers.solve_problem with no solution (status not reported) at call fail_call (1-based)."""
+    import qpsolvers
+
+    real = qpsolvers.solve_problem
+    calls = []
+
+    def no_solution(problem, solver, **kw):
+        calls.append(solver)
+        if len(calls) == fail_call:
+            return qpsolvers.Solution(problem)  # found None, x None: what a silent backend gives
+        return real(problem, solver, **kw)
+
+    monkeypatch.setattr(qpsolvers, "solve_problem", no_solution)
+
+
+@pytest.mark.parametrize("levels, fail_call, expect", [
+    # x0, x1 <= 0 and x0 + x1 >= 0, then (1, 1) wanted: x = 0 with 3 rows active on 2 variables
+    ([Level(np.array([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]]), np.array([-np.inf, -np.inf, 0.0]),
+            np.array([0.0, 0.0, np.inf])),
+      Level.equality(np.eye(2), [1.0, 1.0]), Level.equality(np.array([[1.0, -1.0]]), [0.5])], 3,
+     ("level 2: backend daqp found no solution (status not reported by qpsolvers) of a feasible QP: "
+      "x of level 1 satisfies the frozen rows of levels 0..1 to NUM, with 5 of them active on n = 2 "
+      "variables (more than n: degenerate)")),
+    ([Level.equality(np.array([[1.0, 0.0]]), [2.0]), Level.equality(np.array([[0.0, 1.0]]), [3.0])], 2,
+     ("level 1: backend daqp found no solution (status not reported by qpsolvers) of a feasible QP: "
+      "x of level 0 satisfies the frozen rows of levels 0..0 to NUM, with 1 of them active on n = 2 "
+      "variables")),
+], ids=["degenerate-vertex", "feasible"])
+def test_no_solution_of_a_feasible_level_says_so(monkeypatch, levels, fail_call, expect):
+    # a level's QP has slacks: it is feasible when x of the level above satisfies the frozen rows,
+    # and a backend without a solution then failed (it is not "infeasible")
+    _fail_at_call(monkeypatch, fail_call)
+    res = registry.create("cascade-daqp").solve(Hierarchy.from_levels(levels))
+    assert res.status == INFEASIBLE_LEVEL
+    assert res.reason.startswith("cascade-daqp: ")
+    # (the violation at x is rounding: its digits are the backend's)
+    assert re.fullmatch(re.escape(expect).replace("NUM", r"\d\.\de[+-]\d\d"), res.reason[len("cascade-daqp: "):])
+    assert res.x is not None
+
+
+def test_truly_infeasible_level_names_the_violated_row(monkeypatch):
+    # as test_infeasible_after_freezing_names_the_level, with a backend that reports nothing:
+    # x of level 1 violates the frozen row x0 >= 1 (kept at its own bound) by 1
+    _fail_at_call(monkeypatch, 3)
+    h = Hierarchy.from_levels([Level.equality(np.array([[1.0, 0.0]]), [0.0]),
+                               Level(np.array([[1.0, 0.0]]), np.array([1.0]), np.array([np.inf])),
+                               Level.equality(np.array([[0.0, 1.0]]), [1.0])])
+    res = registry.create("cascade-daqp", freeze="equality", slack_tol=10.0).solve(h)
+    assert res.status == INFEASIBLE_LEVEL
+    assert res.reason == ("cascade-daqp: level 2: infeasible after freezing levels 0..1 (backend daqp found "
+                          "no solution, status not reported by qpsolvers; x of level 1 violates frozen row 1 "
+                          "by 1.0e+00)")
 
 
 # ------------------------------------------------------------------ options
