@@ -10,12 +10,18 @@ Layout of OUT::
     problems/<id>.npz     every problem of the suite (and .soth.txt if exported)
     reference/<id>.npz    cached reference solution (x, status, reason)
     worker.log            stderr of the isolated worker processes
+    run.lock              held (flock) by the run writing to OUT: a second run on
+                          the same OUT is refused; the OS releases it when the
+                          run's process ends, however it ends
 """
 
 from __future__ import annotations
 
+import fcntl
 import json
 import math
+import os
+import socket
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -32,7 +38,7 @@ from problems.errors import HikbenchError
 from problems.verify import level_norms, verify
 from solvers.base import CRASHED, TIMEOUT
 
-__all__ = ["run_suite", "RunSummary"]
+__all__ = ["RunSummary", "out_lock", "run_suite"]
 
 
 @dataclass
@@ -146,6 +152,32 @@ class _Progress:
                           self.p.tasks[tid].description)
 
 
+def out_lock(out: Path):
+    """Take the exclusive lock of a run directory, ``OUT/run.lock`` (an
+    ``flock``: a run killed by any signal leaves no stale lock). Returns the
+    open lock file; closing it releases the lock. Raises HikbenchError,
+    naming the holder, when another run holds it: two runs appending to one
+    results.csv (or compacting it) would mix or drop rows."""
+    path = Path(out) / "run.lock"
+    try:
+        f = open(path, "a+")  # noqa: SIM115 - held open for the run, closed by the caller
+    except OSError as err:
+        raise HikbenchError(f"--out {out}: cannot create {path.name}: {err.strerror or err}") from err
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        f.seek(0)
+        holder = f.read().strip() or "a process that has not written its name yet"
+        f.close()
+        raise HikbenchError(f"--out {out}: another hikbench run is writing to this directory ({holder}); "
+                            "wait for it to finish, or give this run another --out") from None
+    f.seek(0)
+    f.truncate()
+    f.write(f"pid {os.getpid()} on {socket.gethostname()}, started {utc_now()}\n")
+    f.flush()
+    return f
+
+
 def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rerun=False, executor=None,
               quiet=False, limit=None, log=print) -> RunSummary:
     """Run ``suite`` into directory ``out`` (see the module docstring).
@@ -175,82 +207,86 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise HikbenchError(f"--out {out}: cannot create the output directory: {err.strerror or err}") from err
-    export, export_skipped = _export_formats(suite.export)
-    for name, why in skipped.items():
-        print(f"hikbench run: skipping solver {name}: {why}", file=sys.stderr)
-    for pid, h in problems.items():
-        save_problem(h, out / "problems", pid, export)
-    if not tasks:  # e.g. every solver's backend missing: the problems are still exported, then fail
-        why = "; ".join(f"skipped solver {k}: {v}" for k, v in skipped.items()) or (
-            f"none of its solvers runs in its modes {list(suite.modes)}: warm needs supports_warm_start")
-        raise SuiteError(f"suite {suite.source or suite.name} selects no job to run ({why}); "
-                         f"its problems were written to {out / 'problems'}")
-
-    compact(out)  # a run killed while replacing rows left old rows behind
-    done = finished_rows(out)
-    if rerun:
-        todo = list(tasks)
-    else:  # a finished key whose settings' options changed runs again
-        todo = [t for t in tasks if done.get(t.key) != t.entry.options_json()]
-        changed = sum(t.key in done for t in todo)
-        if changed:
-            print(f"hikbench run: {changed} finished row(s) run again: their settings' options changed",
-                  file=sys.stderr)
-    summary.skipped_finished = len(tasks) - len(todo)
-    if limit is not None:
-        todo = todo[: max(int(limit), 0)]
-    replaced = sum(t.key in done for t in todo)
-    if replaced:
-        bak = backup(out)
-        print(f"hikbench run: {replaced} finished row(s) will be replaced as they are run again; "
-              f"the previous results.csv is kept as {bak}", file=sys.stderr)
-
-    meta = read_run_json(out)
-    session = {"started": utc_now(), "calibration_start_ns": calibrate(), "todo": len(todo),
-               "repeat": repeat, "timeout": timeout}
-    meta.update({"suite": suite.to_dict(), "calibration_kernel": KERNEL, "key": list(KEY),
-                 "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
-                 "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
-    meta.setdefault("created", session["started"])
-    meta.setdefault("sessions", []).append(session)
-    write_run_json(out, meta)
-
-    own_executor = executor is None
-    executor = executor or SerialExecutor(log=out / "worker.log")
-    session["executor"] = getattr(executor, "name", type(executor).__name__)
+    lock = out_lock(out)  # released on return or raise, and by the OS when the process dies
     try:
-        with _Progress(quiet) as progress:
-            refs = _references(todo, problems, out, executor, max(timeout, suite.first_solve_timeout), progress)
-            tid = progress.add("solves", len(todo))
-            by_tag = {i: t for i, t in enumerate(todo)}
-            items = ((i, {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
-                          "hierarchy": problems[t.problem.id], "solver": t.entry.spec,
-                          "options": t.entry.options, "mode": t.mode, "repeat": repeat,
-                          "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
-                          "calibrate": suite.calibrate_each_job}, timeout)
-                     for i, t in by_tag.items())
-            with ResultsWriter(out) as writer:
-                for i, res in executor.map(items):
-                    t = by_tag[i]
-                    pid = t.problem.id
-                    row = make_row(t, pcols[pid], problems[pid], refs[pid], res, rtol, atol)
-                    writer.write(row)
-                    summary.written += 1
-                    summary.statuses[row["status"]] = summary.statuses.get(row["status"], 0) + 1
-                    progress.advance(tid, f"solves: {t.entry.solver} {t.mode}")
-    finally:
-        if own_executor:
-            executor.close()
+        export, export_skipped = _export_formats(suite.export)
+        for name, why in skipped.items():
+            print(f"hikbench run: skipping solver {name}: {why}", file=sys.stderr)
+        for pid, h in problems.items():
+            save_problem(h, out / "problems", pid, export)
+        if not tasks:  # e.g. every solver's backend missing: the problems are still exported, then fail
+            why = "; ".join(f"skipped solver {k}: {v}" for k, v in skipped.items()) or (
+                f"none of its solvers runs in its modes {list(suite.modes)}: warm needs supports_warm_start")
+            raise SuiteError(f"suite {suite.source or suite.name} selects no job to run ({why}); "
+                             f"its problems were written to {out / 'problems'}")
+
+        compact(out)  # a run killed while replacing rows left old rows behind
+        done = finished_rows(out)
+        if rerun:
+            todo = list(tasks)
+        else:  # a finished key whose settings' options changed runs again
+            todo = [t for t in tasks if done.get(t.key) != t.entry.options_json()]
+            changed = sum(t.key in done for t in todo)
+            if changed:
+                print(f"hikbench run: {changed} finished row(s) run again: their settings' options changed",
+                      file=sys.stderr)
+        summary.skipped_finished = len(tasks) - len(todo)
+        if limit is not None:
+            todo = todo[: max(int(limit), 0)]
+        replaced = sum(t.key in done for t in todo)
         if replaced:
-            compact(out)  # drop the old rows of the keys that were run again
-        session["finished"] = utc_now()
-        session["calibration_end_ns"] = calibrate()
-        session["written"] = summary.written
-        cal = [s[k] for s in meta["sessions"] for k in ("calibration_start_ns",
-                                                        "calibration_end_ns") if k in s]
-        meta["calibration_ns"] = int(np.median(cal))
+            bak = backup(out)
+            print(f"hikbench run: {replaced} finished row(s) will be replaced as they are run again; "
+                  f"the previous results.csv is kept as {bak}", file=sys.stderr)
+
+        meta = read_run_json(out)
+        session = {"started": utc_now(), "calibration_start_ns": calibrate(), "todo": len(todo),
+                   "repeat": repeat, "timeout": timeout}
+        meta.update({"suite": suite.to_dict(), "calibration_kernel": KERNEL, "key": list(KEY),
+                     "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
+                     "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
+        meta.setdefault("created", session["started"])
+        meta.setdefault("sessions", []).append(session)
         write_run_json(out, meta)
-    return summary
+
+        own_executor = executor is None
+        executor = executor or SerialExecutor(log=out / "worker.log")
+        session["executor"] = getattr(executor, "name", type(executor).__name__)
+        try:
+            with _Progress(quiet) as progress:
+                refs = _references(todo, problems, out, executor, max(timeout, suite.first_solve_timeout), progress)
+                tid = progress.add("solves", len(todo))
+                by_tag = {i: t for i, t in enumerate(todo)}
+                items = ((i, {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
+                              "hierarchy": problems[t.problem.id], "solver": t.entry.spec,
+                              "options": t.entry.options, "mode": t.mode, "repeat": repeat,
+                              "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
+                              "calibrate": suite.calibrate_each_job}, timeout)
+                         for i, t in by_tag.items())
+                with ResultsWriter(out) as writer:
+                    for i, res in executor.map(items):
+                        t = by_tag[i]
+                        pid = t.problem.id
+                        row = make_row(t, pcols[pid], problems[pid], refs[pid], res, rtol, atol)
+                        writer.write(row)
+                        summary.written += 1
+                        summary.statuses[row["status"]] = summary.statuses.get(row["status"], 0) + 1
+                        progress.advance(tid, f"solves: {t.entry.solver} {t.mode}")
+        finally:
+            if own_executor:
+                executor.close()
+            if replaced:
+                compact(out)  # drop the old rows of the keys that were run again
+            session["finished"] = utc_now()
+            session["calibration_end_ns"] = calibrate()
+            session["written"] = summary.written
+            cal = [s[k] for s in meta["sessions"] for k in ("calibration_start_ns",
+                                                            "calibration_end_ns") if k in s]
+            meta["calibration_ns"] = int(np.median(cal))
+            write_run_json(out, meta)
+        return summary
+    finally:
+        lock.close()
 
 
 def _generate(suite: Suite, spec):
