@@ -155,14 +155,17 @@ def write_report(run_dir) -> Path:
                 [[i, *[_percent(by.get((i, f), pd.Series(dtype=bool))) for f in families]] for i in labels])
 
     for mode in ("cold", "warm"):
-        d = df[(df["mode"] == mode) & df["verified"].eq(True)]
-        if d.empty:
+        ran = df[(df["mode"] == mode) & (df["status"] != "unsupported")]
+        if ran.empty:
             continue
-        grp = d["problem"].str.replace(r"/seed=\d+$", "", regex=True)
-        med = d.assign(group=grp).pivot_table(index="group", columns="label", values="time_median_s",
-                                              aggfunc="median")
-        L += _table(f"Median {mode} time per problem over its seeds [us] (verified rows; the speed table)",
-                    ["problem", *med.columns],
+        # every solver and problem that ran in this mode has its cell: a solver without a
+        # verified row shows "-" rather than dropping out of the table
+        ran = ran.assign(group=ran["problem"].str.replace(r"/seed=\d+$", "", regex=True),
+                         t=ran["time_median_s"].where(ran["verified"].eq(True)))
+        med = ran.groupby(["group", "label"])["t"].median().unstack("label")
+        med = med.reindex(index=sorted(ran["group"].unique()), columns=sorted(ran["label"].unique()))
+        L += _table(f"Median {mode} time per problem over its seeds [us] (verified rows; the speed table; "
+                    "- = no verified row)", ["problem", *med.columns],
                     [[g, *[_us(v) for v in med.loc[g]]] for g in med.index])
 
     st = df.pivot_table(index="label", columns="status", values="problem", aggfunc="count", fill_value=0)

@@ -84,6 +84,28 @@ def test_report_with_bogus_times_and_timeouts(declining_run, tmp_path, capsys):
 
 
 @pytest.mark.filterwarnings("error")
+def test_speed_table_keeps_a_solver_without_a_verified_row(declining_run, tmp_path):
+    # a solver whose every row failed verification keeps its column ("-"), like a problem no
+    # solver verified keeps its row: leaving them out hid them from the table
+    import shutil
+    run = tmp_path / "run"
+    shutil.copytree(declining_run, run)
+    df = pd.read_csv(run / "results.csv", keep_default_na=False)
+    df["verified"] = df["verified"].astype(str)
+    df.loc[df["solver"] == "nullspace-svd", "verified"] = "False"
+    df.loc[df["family"] == "ik-like", "verified"] = "False"
+    df.to_csv(run / "results.csv", index=False)
+    assert main(["report", str(run)]) == 0
+    speed = _table((run / "report.md").read_text(), "Median cold time per problem")
+    assert sorted(speed) == ["equality/depth=2,n=6", "equality/depth=2,n=8", "ik-like/n=6"]
+    for problem, row in speed.items():
+        assert row["nullspace-svd"] == "-"
+        assert (row["reference"] == "-") == problem.startswith("ik-like"), row
+        if row["reference"] != "-":
+            assert float(row["reference"]) > 0
+
+
+@pytest.mark.filterwarnings("error")
 @pytest.mark.parametrize("times", [
     [[np.nan, np.nan], [1e-4, 2e-4]],
     [[0.0, -1.0], [1e-4, np.inf]],
