@@ -50,6 +50,16 @@ def normalised_joints(run) -> tuple[np.ndarray, list[str]]:
     return z, names
 
 
+def not_optimal(records) -> tuple[np.ndarray, str]:
+    """The steps whose solve status is not ``optimal`` (bool mask, shape
+    (steps,)) and the statuses with their counts, e.g. "infeasible_level 22"
+    (empty when every step is optimal): the figures mark those steps, so a
+    run whose solver failed on some steps does not look like a clean one."""
+    bad = (records["status"] != "optimal").to_numpy()
+    counts = records.loc[bad, "status"].value_counts()
+    return bad, ", ".join(f"{k} {v}" for k, v in counts.sort_index().items())
+
+
 def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) -> list[Path]:
     """Write the four figures for ``runs`` (ScenarioRun objects of one scenario); returns paths."""
     plt = _plt()
@@ -60,9 +70,13 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
 
     # Fig. 1: solve time per step, per run
     fig, (ax, axb) = plt.subplots(1, 2, figsize=(11, 4), gridspec_kw={"width_ratios": [3, 1]})
-    for run in runs:
+    for i, run in enumerate(runs):
         df = run.records
-        ax.plot(df["step"], df["solve_time_s"] * 1e3, lw=0.8, label=run.label)
+        ax.plot(df["step"], df["solve_time_s"] * 1e3, lw=0.8, color=f"C{i}", label=run.label)
+        bad, text = not_optimal(df)
+        if bad.any():
+            ax.scatter(df["step"][bad], df["solve_time_s"][bad] * 1e3, s=18, facecolors="none",
+                       edgecolors=f"C{i}", zorder=3, label=f"{run.label}: not optimal ({text})")
     ax.set_xlabel("control step")
     ax.set_ylabel("solve time (ms)")
     ax.set_yscale("log")
@@ -90,6 +104,10 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
                    label=f"activation ({int(act.sum())} steps)")
         ax.scatter(df["step"][deact], t_ms[deact], s=14, marker="x", color="C2", zorder=3,
                    label=f"deactivation ({int(deact.sum())} steps)")
+        bad, text = not_optimal(df)
+        if bad.any():
+            ax.scatter(df["step"][bad], t_ms[bad], s=40, facecolors="none", edgecolors="k", zorder=4,
+                       label=f"status not optimal ({text})")
         if not (act.any() or deact.any()):
             ax.text(0.01, 0.9, "solver reports no active-set changes", transform=ax.transAxes, fontsize=8)
         ax.set_ylabel("solve time (ms)")
