@@ -160,6 +160,8 @@ def check_run(run: ScenarioRun) -> list[Check]:
     steps_run = len(df)
     stopped = steps_run and (df["status"].iloc[-1] == "diverged" or not np.all(np.isfinite(run.q[-1]))
                              or len(run.q) < steps_run + 1)
+    # a run cut short by --steps (not stopped by a failure): final values are not judged
+    cut = not stopped and steps_run < run.scenario.steps
     not_optimal = df[df["status"] != "optimal"] if steps_run else df
     detail = f"{steps_run} steps; {len(not_optimal)} with a status other than optimal"
     if len(not_optimal):
@@ -179,11 +181,12 @@ def check_run(run: ScenarioRun) -> list[Check]:
         worst = int(np.argmax(e))
         k = min(50, len(e) - 1)
         rate = (e[k] / e[0]) ** (1.0 / k) if k > 0 and e[0] > 1e-9 and e[k] > 0 else float("nan")
-        ok = bool(np.all(e <= e[0] + REGULATED_ATOL) and e[-1] <= REGULATED_FINAL)
-        out.append(Check(f"{name} regulated", ok,
-                         f"e0 {e[0]:.2e}, max {e[worst]:.2e} at step {worst}, final {e[-1]:.2e} "
-                         f"(tol {REGULATED_FINAL}); decay per step {rate:.4f} vs commanded "
-                         f"{1 - task.gain * run.scenario.dt:.4f}"))
+        bounded = bool(np.all(e <= e[0] + REGULATED_ATOL))
+        final = (f"final {e[-1]:.2e} not judged: the run was cut to {steps_run} of the scenario's "
+                 f"{run.scenario.steps} steps (--steps)" if cut else f"final {e[-1]:.2e} (tol {REGULATED_FINAL})")
+        out.append(Check(f"{name} regulated", bool(bounded and (cut or e[-1] <= REGULATED_FINAL)),
+                         f"e0 {e[0]:.2e}, max {e[worst]:.2e} at step {worst}, {final}; decay per step "
+                         f"{rate:.4f} vs commanded {1 - task.gain * run.scenario.dt:.4f}"))
     for name, tol in spec.get("tracked", {}).items():
         e = df[f"err_{name}"].to_numpy()
         worst = int(np.argmax(e))
