@@ -98,9 +98,10 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
             verdict = "NEWLY FAILING"
         elif np.isfinite(ratio) and ratio > threshold and ratio_min > threshold and p < alpha:
             verdict = "SLOWER"
-        elif np.isfinite(ratio) and ratio < 1 / threshold and len(bs) and len(ns) and \
-                float(mannwhitneyu(ns, bs, alternative="less").pvalue) < alpha:
+        elif np.isfinite(ratio) and ratio < 1 / threshold and \
+                (p_less := float(mannwhitneyu(ns, bs, alternative="less").pvalue)) < alpha:
             verdict = "faster"
+            p = p_less  # (the p-value shown is that of the verdict's direction)
         else:
             verdict = "ok"
         rows.append(dict(zip(KEY, key), base_status=b["status"], new_status=n["status"],
@@ -149,17 +150,20 @@ def format_table(c: Comparison, show_all: bool = False) -> str:
     t = c.table.sort_values("ratio", ascending=False, na_position="last")
     if not show_all:
         t = pd.concat([t[t["verdict"] != "ok"], t[t["verdict"] == "ok"].head(10)])
-    lines = [f"{'verdict':<13} {'ratio':>6} {'min r':>6} {'p':>7} {'base us':>9} {'new us':>9}  "
-             "solver / settings / mode / problem"]
+    # p: the one-sided Mann-Whitney p-value of the verdict's direction (new slower than base, or
+    # faster for "faster" rows); the verdict column is as wide as its longest entry
+    w = max([13, *map(len, t["verdict"])])
+    lines = [(f"{'verdict':<{w}} {'ratio':>6} {'min r':>6} {'p':>7} {'base us':>9} {'new us':>9}  "
+              "solver / settings / mode / problem")]
     for r in t.itertuples():
-        lines.append(f"{r.verdict:<13} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.p_value:>7.4f} "
+        lines.append(f"{r.verdict:<{w}} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.p_value:>7.4f} "
                      f"{r.base_median_s * 1e6:>9.1f} "
                      f"{r.new_median_s * 1e6:>9.1f}  {r.solver} / {r.settings} / {r.mode} / {r.problem}")
     for what, keys in (("only in base", c.only_base), ("only in new", c.only_new)):  # listed, not judged
         keys = sorted(keys)
         shown = keys if show_all else keys[:10]
-        lines += [f"{what:<13} {'':>31}  {solver} / {settings} / {mode} / {problem}"
+        lines += [f"{what:<{w}} {'':>41}  {solver} / {settings} / {mode} / {problem}"
                   for problem, solver, settings, mode in shown]
         if len(shown) < len(keys):
-            lines.append(f"{what:<13} {'':>31}  ... and {len(keys) - len(shown)} more (--all lists them)")
+            lines.append(f"{what:<{w}} {'':>41}  ... and {len(keys) - len(shown)} more (--all lists them)")
     return "\n".join(lines)

@@ -129,3 +129,27 @@ def test_a_case_must_fail_in_every_confirmation_run():
     both = confirmed([a, b])
     assert len(both.slowdowns) == 1 and both.table.iloc[0]["verdict"] == "SLOWER"
     assert confirmed([b, a]).table["verdict"].str.contains("not reproduced").sum() == 19
+
+
+def test_table_shows_each_verdicts_p_value_and_stays_aligned():
+    # a "faster" row showed the p-value of the "slower" test (~1.0); a "slower, not reproduced"
+    # verdict pushed its row's numbers out of their columns
+    from bench.compare import Comparison, confirmed, format_table
+
+    rng = np.random.default_rng(7)
+    base = _samples(rng, n_cases=3, noise=0.01)
+    new = {k: (v * {"p0": 0.5, "p1": 2.0, "p2": 1.0}[k[0]]).astype(int)
+           for k, v in _samples(rng, n_cases=3, noise=0.01).items()}
+    a = compare_frames(_frame(base), _frame(new), {}, {})
+    v = a.table.set_index("problem")
+    assert v.loc["p0", "verdict"] == "faster" and v.loc["p0", "p_value"] < 0.01
+    assert v.loc["p1", "verdict"] == "SLOWER" and v.loc["p1", "p_value"] < 0.01
+    assert v.loc["p2", "verdict"] == "ok"
+    twice = confirmed([a, compare_frames(_frame(base), _frame(base), {}, {})])  # p1 does not reproduce
+    shown = Comparison(twice.table, [("p9", "s", "default", "cold")], [])
+    lines = format_table(shown, show_all=True).splitlines()
+    assert [ln.split()[0] for ln in lines] == ["verdict", "slower,", "ok", "faster", "only"]
+    col = lines[0].index("solver / settings")  # every row's case starts under its header
+    assert [ln[col:] for ln in lines[1:]] == ["s / default / cold / p1", "s / default / cold / p2",
+                                              "s / default / cold / p0", "s / default / cold / p9"]
+    assert all(ln[col - 2:col] == "  " for ln in lines)
