@@ -369,8 +369,8 @@ def test_truly_infeasible_level_names_the_violated_row(monkeypatch):
     res = registry.create("cascade-daqp", freeze="equality", slack_tol=10.0).solve(h)
     assert res.status == INFEASIBLE_LEVEL
     assert res.reason == ("cascade-daqp: level 2: infeasible after freezing levels 0..1 (backend daqp found "
-                          "no solution, status not reported by qpsolvers; x of level 1 violates frozen row 1 "
-                          "by 1.0e+00)")
+                          "no solution, status not reported by qpsolvers; x of level 1 violates the frozen row 0 "
+                          "of level 1 by 1.0e+00)")
 
 
 # ------------------------------------------------------------------ options
