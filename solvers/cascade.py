@@ -101,7 +101,7 @@ def level_qp(A_f, lower_f, upper_f, A_k, lower_k, upper_k, eps: float):
             C[eq] if eq.any() else None, lo[eq] if eq.any() else None)
 
 
-def _no_solution(backend: str, text: str, k: int, A_f, lower_f, upper_f, rows_f, x_prev) -> str:
+def _no_solution(backend: str, text: str, h: Hierarchy, k: int, A_f, lower_f, upper_f, x_prev) -> str:
     """Reason of a level k > 0 without a solution from the backend. The
     level's own rows have slacks, so its QP is feasible exactly when the
     frozen rows of levels 0..k-1 are; ``x_prev`` (level k-1's solution, shape
@@ -109,7 +109,7 @@ def _no_solution(backend: str, text: str, k: int, A_f, lower_f, upper_f, rows_f,
     says which case it is, and for a feasible QP how many frozen rows are
     active at ``x_prev`` against n (more than n: a degenerate vertex, which
     active-set backends cannot always handle). Level 0 (x_prev None) is
-    always feasible. ``rows_f`` names each frozen row, (level, row in level)."""
+    always feasible. A_f stacks the non-free rows of h's levels 0..k-1."""
     if x_prev is None:
         return f"backend {backend} found no solution (status {text}) of a feasible QP (level 0 has slacks)"
     r = A_f @ x_prev
@@ -120,6 +120,7 @@ def _no_solution(backend: str, text: str, k: int, A_f, lower_f, upper_f, rows_f,
     below, above = lower_f - r, r - upper_f
     viol = float(np.max(np.maximum(np.maximum(below, above), 0.0), initial=0.0))
     if np.any((below > tol) | (above > tol)):
+        rows_f = [(j, int(i)) for j in range(k) for i in np.flatnonzero(~h.is_free[h.level_rows(j)])]
         lev, row = rows_f[int(np.argmax(np.maximum(below, above) / tol))]
         return (f"infeasible after freezing levels 0..{k - 1} (backend {backend} found no solution, status "
                 f"{text}; x of level {k - 1} violates the frozen row {row} of level {lev} by {viol:.1e})")
@@ -176,7 +177,6 @@ class CascadeBase(Solver):
         n = h.n
         x = np.zeros(n)
         A_f = np.zeros((0, n))
-        rows_f: list[tuple[int, int]] = []  # (level, row in level) of each frozen row
         lower_f = np.zeros(0)
         upper_f = np.zeros(0)
         iters: list[int] = []
@@ -219,7 +219,7 @@ class CascadeBase(Solver):
                 return fail(MAX_ITERATIONS, k, f"backend {self.backend} hit its iteration limit "
                                                f"({it} iterations, status {text})", x_out)
             if kind == "infeasible" or (kind == "unknown" and k > 0):
-                why = _no_solution(self.backend, text, k, A_f, lower_f, upper_f, rows_f, x_prev)
+                why = _no_solution(self.backend, text, h, k, A_f, lower_f, upper_f, x_prev)
                 return fail(INFEASIBLE_LEVEL, k, why, x_prev)
             if kind in ("unknown", "numerical") or z is None:
                 return fail(NUMERICAL_FAILURE, k, f"backend {self.backend} found no solution (status {text})",
@@ -230,7 +230,6 @@ class CascadeBase(Solver):
             x = z[:n]
             lo, up, _ = freeze_level(self.freeze, A_k, lower_k, upper_k, x, self.slack_tol, self.delta)
             A_f = np.vstack([A_f, A_k])
-            rows_f += [(k, int(j)) for j in np.flatnonzero(keep)]
             lower_f = np.concatenate([lower_f, lo])
             upper_f = np.concatenate([upper_f, up])
         if inaccurate:
