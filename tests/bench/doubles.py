@@ -121,3 +121,19 @@ class Sleep4ms(Sleep2ms):
 
     def __init__(self, delay: float = 0.004):
         super().__init__(delay)
+
+
+def still_run(sc, steps: int, status=None, err: float = 1e-3):
+    """A ScenarioRun of ``steps`` steps standing at ``sc.q_init`` (no solve), every task error
+    ``err``, statuses ``status`` (default all optimal); a last status "diverged" adds no q, as
+    in bench.scenario.run_scenario."""
+    import pandas as pd
+
+    from bench.scenario import ScenarioRun
+
+    status = list(status or ["optimal"] * steps)
+    rec = pd.DataFrame({"step": np.arange(steps), "time_s": np.arange(steps) * sc.dt, "solve_time_s": 1e-4,
+                        "activations": 0, "deactivations": 0, "status": status, "reason": "",
+                        **{f"err_{task.name}": err for task in sc.stack.tasks}})
+    n_q = steps if status[-1] == "diverged" else steps + 1
+    return ScenarioRun(sc, "hcod", "time", rec, np.tile(sc.q_init, (n_q, 1)))

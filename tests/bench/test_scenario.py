@@ -3,9 +3,10 @@
 import numpy as np
 import pandas as pd
 import pytest
+from doubles import still_run
 
 from bench.cli import main
-from bench.scenario import COLUMNS, NO_WARM_START, ScenarioRun, check_run, run_scenario
+from bench.scenario import COLUMNS, NO_WARM_START, check_run, run_scenario
 from problems.robots.scenarios import ScenarioError, load_scenario, scenario_names
 
 
@@ -180,15 +181,6 @@ def test_warm_start_modes_reach_the_solver(warm_solver, tmp_path, capsys):
     assert (tmp_path / "fig1_solve_time.png").exists()
 
 
-def _still_run(sc, steps, err, last_status="optimal"):
-    """A run of ``steps`` steps standing at q_init with every task error ``err`` (no solve)."""
-    rec = pd.DataFrame({"step": np.arange(steps), "time_s": np.arange(steps) * sc.dt, "reason": "",
-                        "status": ["optimal"] * (steps - 1) + [last_status],
-                        **{f"err_{task.name}": err for task in sc.stack.tasks}})
-    n_q = steps + 1 if last_status == "optimal" else steps  # (a diverged step adds no q)
-    return ScenarioRun(sc, "hcod", "time", rec, np.tile(sc.q_init, (n_q, 1)))
-
-
 @pytest.mark.parametrize("last_status, passed, final", [
     ("optimal", True, "final 1.00e-03 not judged: the run was cut to 5 of the scenario's 700 steps (--steps)"),
     ("diverged", False, "final 1.00e-03 (tol 1e-05)"),
@@ -198,7 +190,7 @@ def test_a_run_cut_by_steps_is_not_judged_on_final_errors(last_status, passed, f
     # what it can judge; a run that stopped on a failure is judged in full (and fails)
     sc = load_scenario("reach")
     assert sc.steps == 700 and sc.checks["regulated"] == ["com", "left_foot", "right_foot"]
-    checks = {c.name: c for c in check_run(_still_run(sc, 5, 1e-3, last_status))}
+    checks = {c.name: c for c in check_run(still_run(sc, 5, ["optimal"] * 4 + [last_status]))}
     for task in ("com", "left_foot", "right_foot"):
         c = checks[f"{task} regulated"]
         assert c.passed is passed, c

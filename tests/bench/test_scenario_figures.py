@@ -2,21 +2,10 @@
 whose status is not optimal are marked (and counted in the legend) in Figs. 1 and 2."""
 
 import matplotlib.axes
-import numpy as np
-import pandas as pd
+from doubles import still_run
 
-from bench.scenario import ScenarioRun
 from bench.scenario_plots import plot_runs
 from problems.robots.scenarios import load_scenario
-
-
-def _short_run(sc, steps, status=None):
-    """A run of ``steps`` steps that stood still (no solve needed to draw its figures)."""
-    t = np.arange(steps) * sc.dt
-    rec = pd.DataFrame({"step": np.arange(steps), "time_s": t, "solve_time_s": 1e-4, "activations": 0,
-                        "deactivations": 0, "status": status or ["optimal"] * steps,
-                        **{f"err_{task.name}": 1e-3 for task in sc.stack.tasks}})
-    return ScenarioRun(sc, "hcod", "time", rec, np.tile(sc.q_init, (steps + 1, 1)))
 
 
 def test_event_lines_of_later_events_are_not_drawn(tmp_path, monkeypatch):
@@ -31,7 +20,7 @@ def test_event_lines_of_later_events_are_not_drawn(tmp_path, monkeypatch):
         return real(self, x, *args, **kwargs)
 
     monkeypatch.setattr(matplotlib.axes.Axes, "axvline", spy)
-    paths = plot_runs([_short_run(sc, steps)], tmp_path)
+    paths = plot_runs([still_run(sc, steps)], tmp_path)
     assert all(p.exists() for p in paths)
     assert [x for x in drawn if x > steps * sc.dt] == [], f"event lines past the run's end: {drawn}"
 
@@ -47,7 +36,7 @@ def test_steps_that_are_not_optimal_are_marked(tmp_path, monkeypatch):
         return real(self, x, y, *args, **kwargs)
 
     monkeypatch.setattr(matplotlib.axes.Axes, "scatter", spy)
-    plot_runs([_short_run(sc, 6, status), _short_run(sc, 6)], tmp_path)
+    plot_runs([still_run(sc, 6, status), still_run(sc, 6)], tmp_path)
     marked = [(lab, x) for lab, x in labels if "not optimal" in lab]
     assert marked == [("hcod (time): not optimal (infeasible_level 2, max_iterations 1)", [1, 3, 4]),
                       ("status not optimal (infeasible_level 2, max_iterations 1)", [1, 3, 4])]
