@@ -12,7 +12,14 @@ The first solve of a solver in a worker process may compile (numba) or fill
 caches; until the worker reports that first untimed solve done, a job of a
 solver that this process has not run yet is allowed ``first_timeout``
 seconds (if larger than the job timeout); after it, and for every later job
-of that solver, the job timeout applies.
+of that solver, the job timeout applies. The allowance is given in full once
+per solver and :class:`IsolatedWorker` (not per process: a solver that hangs
+on every problem would cost ``first_timeout`` per row, each timeout
+restarting the process). After a restart, a solver whose first solve
+completed before gets the job timeout plus twice the longest first solve it
+took (its caches are on disk now), capped by ``first_timeout``; a solver
+whose first solve ran past the allowance gets the job timeout only. The
+``timeout`` row's reason says which limit applied.
 
 Plain subprocesses (not ``multiprocessing``) so that this also works inside
 daemonic Dask worker processes.
@@ -118,6 +125,10 @@ class IsolatedWorker:
         self.info: dict = {}
         self.restarts = 0
         self._warmed: set = set()  # solver specs whose first solve this process has done
+        # across restarts: the longest completed first solve (s) of each spec, and the specs whose
+        # first solve ran past the full allowance (see the module docstring)
+        self._first_s: dict = {}
+        self._first_hung: set = set()
 
     def _env(self) -> dict:
         env = dict(os.environ)
@@ -165,21 +176,30 @@ class IsolatedWorker:
         meta = {"host": self.info.get("host", socket.gethostname()), "pid": proc.pid,
                 "calib_ns": self.info.get("calib_ns")}
         spec = job.get("solver")
-        first = bool(first_timeout and first_timeout > timeout and spec not in self._warmed)
+        allowance, why = self._allowance(spec, timeout, first_timeout)
+        first = allowance > timeout
         try:
+            t0 = time.monotonic()
             _write_frame(proc.stdin, job)
-            deadline = time.monotonic() + (first_timeout if first else timeout)
+            deadline = t0 + (allowance if first else timeout)
             while True:
                 out = _read_frame(proc.stdout.fileno(), deadline)
                 if not (isinstance(out, str) and out == _FIRST_SOLVE_DONE):
                     break
-                self._warmed.add(spec)
+                if spec not in self._warmed:
+                    self._warmed.add(spec)
+                    self._first_s[spec] = max(self._first_s.get(spec, 0.0), time.monotonic() - t0)
                 if first:  # the allowance covered the first solve; the job timeout applies after it
                     first = False
                     deadline = time.monotonic() + timeout
         except _Timeout:
             self.kill()
-            limit = f"{first_timeout:g} s allowed for the first solve" if first else f"{timeout:g} s timeout"
+            if first:
+                limit = f"{allowance:g} s allowed for the first solve{why}"
+                if spec not in self._first_s:
+                    self._first_hung.add(spec)
+            else:
+                limit = f"{timeout:g} s timeout{why}"
             return {**meta, "status": TIMEOUT, "x": None, "samples_ns": [],
                     "reason": f"no answer within the {limit}; worker killed"}
         except (_Closed, BrokenPipeError, OSError):
@@ -191,6 +211,22 @@ class IsolatedWorker:
             return {**meta, "status": CRASHED, "x": None, "samples_ns": [], "reason": _describe_exit(code)}
         out.setdefault("calib_ns", meta["calib_ns"])
         return out
+
+    def _allowance(self, spec, timeout: float, first_timeout: float | None) -> tuple[float, str]:
+        """Seconds allowed for the first solve of ``spec`` in the current process, and
+        the words a timeout reason adds when that is not the full ``first_timeout``
+        (see the module docstring)."""
+        if not first_timeout or first_timeout <= timeout or spec in self._warmed:
+            return timeout, ""
+        if spec in self._first_hung:
+            return timeout, (f" (no first-solve allowance: this solver's first solve ran past the "
+                             f"{first_timeout:g} s allowance earlier in this worker)")
+        done = self._first_s.get(spec)
+        if done is None:
+            return first_timeout, ""
+        allowance = min(first_timeout, timeout + 2.0 * done)
+        return allowance, (f" (after a restart: the job timeout plus twice this solver's first solve "
+                           f"before, {done:.3g} s)")
 
     def kill(self) -> None:
         """End the worker and every process a solver started in its session (a helper

@@ -62,6 +62,17 @@ class HangSolver(Solver):
             time.sleep(0.05)
 
 
+class HangOnWideSolver(SleepSolver):
+    """Solves hierarchies of up to 6 variables, hangs on wider ones."""
+
+    name = "hang-on-wide"
+
+    def solve(self, hierarchy):
+        while hierarchy.n > 6:
+            time.sleep(0.05)
+        return super().solve(hierarchy)
+
+
 class SegfaultSolver(Solver):
     """Dereferences NULL: the process dies with SIGSEGV."""
 

@@ -440,3 +440,51 @@ def test_compare_on_a_foreign_or_damaged_results_csv_is_a_one_line_error(tmp_pat
     new = _write_run(tmp_path / "new", ["p0"])
     code, _, err = run(capsys, "compare", base, new)
     assert_user_error(code, err, str(base), message)
+
+
+def test_a_solver_that_hangs_on_every_problem_gets_the_first_solve_allowance_once():
+    """Each timeout restarted the process, and the next job of the solver got the full
+    first-solve allowance again (300 s by default): a backend hanging on every problem cost
+    the allowance per row, not the job timeout."""
+    import time
+
+    from bench.isolation import IsolatedWorker
+
+    job = _solve_job(spec("HangSolver"))
+    with IsolatedWorker() as w:
+        first = w.run(job, timeout=0.3, first_timeout=2.0)
+        t0 = time.monotonic()
+        again = w.run(job, timeout=0.3, first_timeout=2.0)
+        took = time.monotonic() - t0
+    assert first["status"] == "timeout" and "2 s allowed for the first solve;" in first["reason"], first
+    assert again["status"] == "timeout", again
+    assert again["reason"] == ("no answer within the 0.3 s timeout (no first-solve allowance: this solver's "
+                               "first solve ran past the 2 s allowance earlier in this worker); worker killed")
+    assert took < 1.5  # the job timeout, not the 2 s allowance (process start included)
+
+
+def test_after_a_restart_a_solver_gets_twice_its_first_solve_not_the_full_allowance():
+    """A solver that completed its first solve, then hung on a later problem: the restarted
+    process gave its next job the full allowance again. Now it gets the job timeout plus twice
+    the first solve it took (its caches are on disk), and a slow first solve still fits."""
+    import time
+
+    from bench.isolation import IsolatedWorker
+
+    narrow = {**_solve_job(spec("HangOnWideSolver")), "hierarchy": tiny(n=4)}
+    wide = {**narrow, "hierarchy": tiny(n=8)}
+    with IsolatedWorker() as w:
+        assert w.run(narrow, timeout=0.3, first_timeout=20.0)["status"] == "optimal"
+        hung = w.run(wide, timeout=0.3, first_timeout=20.0)  # warmed in this process: the job timeout
+        t0 = time.monotonic()
+        again = w.run(wide, timeout=0.3, first_timeout=20.0)  # a fresh process
+        took = time.monotonic() - t0
+        slow = {**_solve_job(spec("FirstSlowSolver"))}  # 1 s first solve in every process
+        assert w.run(slow, timeout=0.3, first_timeout=20.0)["status"] == "optimal"
+        w.kill()
+        assert w.run(slow, timeout=0.3, first_timeout=20.0)["status"] == "optimal"  # 0.3 + 2 x ~1 s
+    assert hung["status"] == "timeout" and hung["reason"] == "no answer within the 0.3 s timeout; worker killed"
+    assert again["status"] == "timeout", again
+    assert "allowed for the first solve (after a restart: the job timeout plus twice this solver's first solve " \
+           "before," in again["reason"], again
+    assert took < 5  # not the 20 s allowance
