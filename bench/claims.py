@@ -24,7 +24,8 @@ figure, the paper's figure and the criterion. Criteria (README, "Claims"):
     strictly decreasing none > stage > time, and, with time warm start, the
     extra iterations per activated constraint at steps with activations,
     median of (iterations - median iterations of quiet steps) / activations,
-    in [1, 3] (paper: a new constraint takes "in general two" iterations).
+    in [1, 3] (paper: a new constraint takes "in general two" iterations); the
+    first step, a cold solve (no record yet), is left out of that median.
 """
 
 from __future__ import annotations
@@ -240,6 +241,11 @@ def claim_e(sc: pd.DataFrame | None) -> Claim:
         return Claim("(e) warm start cuts iterations", MISSING, "warm_start none/stage/time not all present",
                      paper, crit)
     ht = h[h["warm_start"] == "time"]
+    cold = ""
+    if "step" in ht.columns and len(ht):  # the first step has no record to start from: a cold solve
+        first = ht["step"].min()
+        cold = f"; the cold first step (step {first:g}) left out"
+        ht = ht[ht["step"] != first]
     quiet = ht[ht["activations"] == 0]["iterations"]
     act = ht[ht["activations"] > 0]
     if quiet.empty or act.empty:
@@ -250,7 +256,7 @@ def claim_e(sc: pd.DataFrame | None) -> Claim:
     ok = it["none"] > it["stage"] > it["time"] and 1 <= per <= 3
     return Claim("(e) warm start cuts iterations", PASS if ok else FAIL,
                  f"mean iterations none {it['none']:.2f}, stage {it['stage']:.2f}, time {it['time']:.2f}; "
-                 f"{per:.2f} extra iterations per activation (quiet steps: {base:g})", paper, crit)
+                 f"{per:.2f} extra iterations per activation (quiet steps: {base:g}{cold})", paper, crit)
 
 
 def check_claims(run_dir, scenario=None) -> list[Claim]:

@@ -142,9 +142,13 @@ def test_bad_suite_values_are_one_line_errors(tmp_path, capsys, text, message):
      "[[settings]] 'x': hcod: option rank_rtol='abc'"),
     ([SLEEP], {"solver": "sleep", "name": "slow", "options": {"dleay": 0.1}},
      "[[settings]] 'slow': solver 'sleep': unknown option(s) 'dleay'; allowed options: delay"),
+    ([SLEEP], {"solver": "sleep", "name": "slow", "options": {"delay": "abc"}},
+     "[[settings]] 'slow': solver 'sleep' rejected its options {'delay': 'abc'}: ValueError: could not convert "
+     "string to float: 'abc'"),
     (["hcod"], {"solver": "hcdo", "name": "x", "options": {}},
      "[[settings]] 'x': solver 'hcdo' is not one of the suite's solvers (hcod)"),
-], ids=["registry-unknown-name", "registry-bad-value", "class-unknown-name", "settings-solver-typo"])
+], ids=["registry-unknown-name", "registry-bad-value", "class-unknown-name", "class-bad-value",
+        "settings-solver-typo"])
 def test_bad_settings_options_fail_before_running(tmp_path, capsys, solvers, settings, message):
     path = write_suite(tmp_path / "s.toml", solvers, grid={"n": [4]}, modes=("cold",))
     options = ", ".join(f"{k} = {json.dumps(v)}" for k, v in settings["options"].items())
