@@ -22,6 +22,38 @@ from bench.shgeom import SHIFT_S, charged_times, shifted_geometric_mean
 __all__ = ["write_report", "solver_label"]
 
 
+def _profile_groups(d: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:
+    """The rows of one mode split for performance profiles: a profile compares
+    solvers on one set of problems, and a solver that does not support a problem
+    (status ``unsupported``, e.g. an equality-only method on a problem with
+    inequalities) has not failed it. Problems are grouped by the solvers that
+    support them; each group gets (title words, file suffix, its supported rows).
+    One group (every solver supports every problem): no words, no suffix."""
+    sup = d[d["status"] != "unsupported"]
+    if sup.empty:
+        return []
+    key = sup.groupby("problem")["label"].agg(lambda s: tuple(sorted(set(s))))
+    groups = sorted(key.groupby(key), key=lambda kv: (-len(kv[0]), kv[0]))
+    if len(groups) == 1:
+        return [("", "", sup)]
+    ineq = sup.groupby("problem")["ineq_rows"].max().fillna(0) > 0
+    every = set(d["label"])
+    out, used = [], {}
+    for labels, probs in groups:
+        kinds = set(ineq[probs.index])
+        kind, slug = (("with inequalities", "_ineq") if kinds == {True} else
+                      ("equality-only", "_eq") if kinds == {False} else ("", "_mixed"))
+        used[slug] = used.get(slug, 0) + 1
+        if used[slug] > 1:
+            slug = f"{slug}{used[slug]}"
+        left = sorted(every - set(labels))
+        what = (f", {len(probs)} problem{'s' * (len(probs) != 1)}{' ' + kind if kind else ''} "
+                f"({len(labels)} solver{'s' * (len(labels) != 1)}"
+                f"{'; unsupported by ' + ', '.join(left) if left else ''})")
+        out.append((what, slug, sup[sup["problem"].isin(probs.index)]))
+    return out
+
+
 def solver_label(df: pd.DataFrame) -> pd.Series:
     return df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
 
@@ -210,14 +242,14 @@ def write_report(run_dir) -> Path:
         figures.append(("Verified success rate", p))
     for mode in ("cold", "warm"):
         d = df[df["mode"] == mode]
-        if d.empty:
-            continue
-        t = d.assign(t=d["time_median_s"].where(d["verified"].eq(True))).pivot_table(
-            index="problem", columns="label", values="t", aggfunc="first", dropna=False)
-        p = plots.plot_profiles(t, plot_dir / f"performance_profile_{mode}.png",
-                                f"Performance profiles (Dolan-More), {mode} solves; failures never reach 1")
-        if p:
-            figures.append((f"Performance profile, {mode}", p))
+        for what, slug, g in _profile_groups(d):
+            t = g.assign(t=g["time_median_s"].where(g["verified"].eq(True))).pivot_table(
+                index="problem", columns="label", values="t", aggfunc="first", dropna=False)
+            p = plots.plot_profiles(t, plot_dir / f"performance_profile_{mode}{slug}.png",
+                                    f"Performance profiles (Dolan-More), {mode} solves; failures never reach 1"
+                                    + (f"\n{what[2:]}" if what else ""))
+            if p:
+                figures.append((f"Performance profile, {mode}{what}", p))
     p = plots.plot_accuracy(df, plot_dir / "accuracy_per_level.png")
     if p:
         figures.append(("Per-level accuracy", p))

@@ -105,6 +105,29 @@ def test_speed_table_keeps_a_solver_without_a_verified_row(declining_run, tmp_pa
             assert float(row["reference"]) > 0
 
 
+def test_performance_profiles_compare_solvers_on_the_problems_they_support(declining_run):
+    """One profile over every problem counted nullspace-svd's `unsupported` ik-like row as
+    a failure (its curve could not pass 2/3) while the tables leave such rows out. Problems
+    are now grouped by the solvers that support them, one profile per group."""
+    from bench.report import _profile_groups, solver_label
+    from bench.results import read_results
+
+    df = read_results(declining_run)
+    df = df.assign(label=solver_label(df))
+    groups = {slug: (what, sorted(g["problem"].unique()), sorted(g["label"].unique()))
+              for what, slug, g in _profile_groups(df[df["mode"] == "cold"])}
+    assert groups == {
+        "_eq": (", 2 problems equality-only (2 solvers)",
+                ["equality/depth=2,n=6/seed=0", "equality/depth=2,n=8/seed=0"], ["nullspace-svd", "reference"]),
+        "_ineq": (", 1 problem with inequalities (1 solver; unsupported by nullspace-svd)", ["ik-like/n=6/seed=0"], ["reference"]),
+    }
+    assert main(["report", str(declining_run)]) == 0
+    plots = {p.name for p in (declining_run / "plots").glob("performance_profile_*.png")}
+    assert plots == {"performance_profile_cold_eq.png", "performance_profile_cold_ineq.png"}
+    md = (declining_run / "report.md").read_text()
+    assert "Performance profile, cold, 1 problem with inequalities (1 solver; unsupported by nullspace-svd)" in md
+
+
 @pytest.mark.filterwarnings("error")
 @pytest.mark.parametrize("times", [
     [[np.nan, np.nan], [1e-4, 2e-4]],
