@@ -25,9 +25,17 @@ SHIFT_S = 1e-5  #: 10 us
 
 
 def shifted_geometric_mean(t, shift: float = SHIFT_S) -> float:
-    t = np.asarray(t, dtype=float)
+    """``exp(mean log(t + shift)) - shift`` of times ``t`` (s, finite, >= 0:
+    a failure is charged its penalty by the caller, see :func:`charged_times`);
+    NaN for no times. Anything else is a ValueError naming the first bad entry."""
+    t = np.asarray(t, dtype=float).ravel()
     if t.size == 0:
         return float("nan")
+    bad = ~(np.isfinite(t) & (t >= 0))
+    if bad.any() or not shift > 0:
+        i = int(np.argmax(bad))
+        what = f"time {i} is {float(t[i])!r}" if bad.any() else f"shift is {shift!r}"
+        raise ValueError(f"shifted geometric mean: {what}; expected finite times >= 0 and a shift > 0")
     return float(np.exp(np.mean(np.log(t + shift))) - shift)
 
 

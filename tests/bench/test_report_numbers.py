@@ -152,3 +152,19 @@ def test_slopes_skip_nonpositive(fit):
 ], ids=["no params", "params"])
 def test_problem_id_has_no_empty_segment(params, pid):
     assert ProblemSpec("equality", params, 3).id == pid
+
+
+def test_shifted_geometric_mean_value_and_bad_times():
+    """The log of a negative or NaN time gave NaN with a RuntimeWarning; now a ValueError
+    names the entry (the report charges failures before aggregating)."""
+    from bench.shgeom import shifted_geometric_mean
+
+    t = np.array([1e-5, 3e-5, 7e-5])
+    expected = np.exp(np.log(t + 1e-5).mean()) - 1e-5  # the definition, shift 10 us
+    np.testing.assert_allclose(shifted_geometric_mean(t), expected, rtol=1e-15)
+    assert np.isnan(shifted_geometric_mean([]))
+    for bad, what in (([1e-5, -1.0], "time 1 is -1.0"), ([np.nan], "time 0 is nan"), ([1.0, np.inf], "time 1 is inf")):
+        with pytest.raises(ValueError, match=f"^shifted geometric mean: {what}; expected finite times >= 0"):
+            shifted_geometric_mean(bad)
+    with pytest.raises(ValueError, match="shift is 0"):
+        shifted_geometric_mean([1.0], shift=0)
