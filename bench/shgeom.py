@@ -31,10 +31,9 @@ def shifted_geometric_mean(t, shift: float = SHIFT_S) -> float:
     t = np.asarray(t, dtype=float).ravel()
     if t.size == 0:
         return float("nan")
-    bad = ~(np.isfinite(t) & (t >= 0))
-    if bad.any() or not shift > 0:
-        i = int(np.argmax(bad))
-        what = f"time {i} is {float(t[i])!r}" if bad.any() else f"shift is {shift!r}"
+    bad = np.flatnonzero(~(np.isfinite(t) & (t >= 0)))
+    if bad.size or not shift > 0:
+        what = f"time {bad[0]} is {float(t[bad[0]])!r}" if bad.size else f"shift is {shift!r}"
         raise ValueError(f"shifted geometric mean: {what}; expected finite times >= 0 and a shift > 0")
     return float(np.exp(np.mean(np.log(t + shift))) - shift)
 

@@ -352,24 +352,17 @@ def _check_options(entry: SolverEntry, settings_name: str, options: dict, suite_
             raise SuiteError(f"{ctx}: solver {entry.solver!r} is external and takes no options; "
                              f"got {sorted(options)}")
         return
-    if ":" in entry.spec:  # module:Class or any factory: the names against its signature, then the values
-        factory = load_object(entry.spec)
-        info = registry.SolverInfo(entry.solver, "", factory)
-        allowed = registry.option_names(info)
-        unknown = [k for k in options if allowed is not None and k not in allowed]
-        if unknown:
-            raise SuiteError(f"{ctx}: solver {entry.solver!r}: unknown option(s) {', '.join(map(repr, unknown))}; "
-                             f"allowed options: {', '.join(allowed) or 'none'}")
-        try:
-            factory(**options)  # (the worker builds it so for every job: its values fail here, once)
-        except Exception as err:  # a user's factory raises what it likes; it is reported, never dropped
-            raise SuiteError(f"{ctx}: solver {entry.solver!r} rejected its options {options}: "
-                             f"{type(err).__name__}: {err}") from err
-        return
+    user = ":" in entry.spec  # module:Class or any factory (the worker builds it so for every job)
     try:
-        registry.create(entry.spec, **options)  # validates names and values, as `hikbench solve --option`
+        info = registry.SolverInfo(entry.solver, "", load_object(entry.spec)) if user else registry.get(entry.spec)
+        registry.build(info, **options)  # names and values, as `hikbench solve --option`
     except HikbenchError as err:
         raise SuiteError(f"{ctx}: {err}") from err
+    except Exception as err:  # a user's factory raises what it likes: reported, never dropped
+        if not user:
+            raise
+        raise SuiteError(f"{ctx}: solver {entry.solver!r} rejected its options {options}: "
+                         f"{type(err).__name__}: {err}") from err
 
 
 def resolve_solvers(patterns, settings=(), where: str = "the suite",

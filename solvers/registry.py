@@ -24,7 +24,7 @@ from typing import Callable
 from problems.errors import SolverNotFoundError, SolverOptionError
 from solvers.base import Solver
 
-__all__ = ["SolverInfo", "available", "get", "create", "missing", "option_names", "check_number", "check_bool",
+__all__ = ["SolverInfo", "available", "get", "build", "create", "missing", "option_names", "check_number", "check_bool",
            "check_int", "check_numbers", "check_choice"]
 
 _BUILTIN_MODULES: tuple[str, ...] = (
@@ -145,13 +145,19 @@ def option_names(info: SolverInfo) -> tuple[str, ...] | None:
 
 
 def create(name: str, **options) -> Solver:
-    """Build a fresh solver object.
+    """Build a fresh solver object of the registered solver ``name`` (:func:`build`)."""
+    return build(get(name), **options)
+
+
+def build(info: SolverInfo, **options) -> Solver:
+    """Build a fresh solver object from ``info`` (registered, or made for a
+    ``module:Class`` spec), its default options overridden by ``options``.
 
     Option names are checked against the factory's signature (unless it takes
     ``**kwargs``): an unknown one raises SolverOptionError naming it and the
     allowed ones. Errors raised by the factory itself propagate unchanged (a
     wrong option *value* should raise SolverOptionError there)."""
-    info = get(name)
+    name = info.name
     opts = {**info.options, **options}
     allowed = option_names(info)
     if allowed is not None:

@@ -479,7 +479,7 @@ def test_after_a_restart_a_solver_gets_twice_its_first_solve_not_the_full_allowa
         t0 = time.monotonic()
         again = w.run(wide, timeout=0.3, first_timeout=20.0)  # a fresh process
         took = time.monotonic() - t0
-        slow = {**_solve_job(spec("FirstSlowSolver"))}  # 1 s first solve in every process
+        slow = _solve_job(spec("FirstSlowSolver"))  # 1 s first solve in every process
         assert w.run(slow, timeout=0.3, first_timeout=20.0)["status"] == "optimal"
         w.kill()
         assert w.run(slow, timeout=0.3, first_timeout=20.0)["status"] == "optimal"  # 0.3 + 2 x ~1 s
