@@ -109,6 +109,7 @@ from solvers.registry import SolverInfo, check_bool, check_choice, check_int, ch
 __all__ = ["SOLVERS", "WARM_STARTS", "HcodSolver", "warmup"]
 
 WARM_STARTS = ("none", "stage", "time")
+_NAN = float("nan")  # (build_time_s, solve_time_s: not separated)
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
 _eq_run = None  # solvers.hcod._equality.eq_run, imported on the first solve (numba compiles then)
 _ineq = None  # (._kernel.hcod_solve, ._setup), imported on the first solve with inequalities
@@ -226,10 +227,11 @@ class HcodSolver(Solver):
                 reason = (f"hcod: numerical breakdown at level {o[5]} (x not finite, or a blocking row "
                           "could not enter the decomposition)")
                 x = None
-            # (x_finite: the kernel tested every entry of u with isfinite, status 2 otherwise)
-            return SolveResult(x=x, status=status, reason=reason, iterations=o[1],
-                               iterations_per_level=tuple(o[it0:it1]), activations=o[2], deactivations=o[3],
-                               flops=o[4], info=info, x_finite=True)
+            # (x_finite: the kernel tested every entry of u with isfinite, status 2 otherwise).
+            # Positional, in the order of SolveResult's fields: eleven keywords cost ~0.35 us
+            # more per call, 3% of a warm re-solve at n = 20 (test_solve_result_fields_in_order)
+            return SolveResult(x, status, reason, o[1], tuple(o[it0:it1]), o[2], o[3], o[4], _NAN, _NAN, info,
+                               True)
 
         self._run = run
         return run
