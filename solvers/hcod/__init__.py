@@ -213,7 +213,7 @@ class HcodSolver(Solver):
             except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
                 return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
                                    iterations_per_level=(0,) * depth)
-            o = outv.tolist()
+            o = outv.tolist()  # the counters (slots ._kernel.O_*), then the iterations per level
             info = {"min_norm_iterations": o[it1]} if extra else {}
             if o[6]:
                 info["warm_fallback_levels"] = o[6]

@@ -70,7 +70,7 @@ _FM = set(FASTMATH)
 INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
-O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_P = range(8)
+O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL = range(7)
 BLAND_AFTER = 32  #: consecutive iterations that leave u where it is before the anti-cycling rule takes over
 
 
@@ -681,5 +681,4 @@ def hcod_solve(fw, iw):
     out[O_FLOPS] = fl
     out[O_LEVEL] = fail_level
     out[O_WARMFAIL] = warm_failed
-    out[O_P] = p
 
