@@ -27,7 +27,6 @@ import json
 import math
 import os
 import shlex
-import signal
 import socket
 import subprocess
 import tempfile
@@ -35,6 +34,7 @@ import time
 
 import numpy as np
 
+from bench.isolation import kill_session
 from problems.errors import HikbenchError
 from solvers.base import CRASHED, ERROR, OPTIMAL, STATUSES, TIMEOUT
 
@@ -68,10 +68,7 @@ def _run(argv: list[str], timeout: float) -> subprocess.CompletedProcess:
         try:
             out, err = proc.communicate(timeout=timeout)
         except subprocess.TimeoutExpired:
-            try:
-                os.killpg(proc.pid, signal.SIGKILL)
-            except ProcessLookupError:  # the whole group ended at the deadline: nothing left to kill
-                proc.kill()
+            kill_session(proc.pid)
             proc.communicate()
             raise
     return subprocess.CompletedProcess(argv, proc.returncode, out, err)

@@ -40,7 +40,7 @@ import time
 from problems.errors import HikbenchError
 from solvers.base import CRASHED, TIMEOUT
 
-__all__ = ["IsolatedWorker"]
+__all__ = ["IsolatedWorker", "kill_session"]
 
 _HEADER = struct.Struct("<Q")
 _THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
@@ -97,14 +97,13 @@ def _describe_exit(code: int | None) -> str:
     return f"worker process exited with code {code}"
 
 
-def _kill_session(pid: int) -> bool:
-    """SIGKILL the process group of the worker ``pid`` (it leads its own session, so the
-    group holds the worker and the processes its solvers started); False when none is left."""
+def kill_session(pid: int) -> None:
+    """SIGKILL the process group led by ``pid`` (a process started in a session of its own:
+    the group holds it and the processes it started); nothing when none is left."""
     try:
         os.killpg(pid, signal.SIGKILL)
     except ProcessLookupError:
-        return False
-    return True
+        return  # the whole group has ended: nothing left to kill
 
 
 class IsolatedWorker:
@@ -181,7 +180,7 @@ class IsolatedWorker:
         try:
             t0 = time.monotonic()
             _write_frame(proc.stdin, job)
-            deadline = t0 + (allowance if first else timeout)
+            deadline = t0 + allowance  # (= timeout when this is not a first solve)
             while True:
                 out = _read_frame(proc.stdout.fileno(), deadline)
                 if not (isinstance(out, str) and out == _FIRST_SOLVE_DONE):
@@ -232,7 +231,7 @@ class IsolatedWorker:
         """End the worker and every process a solver started in its session (a helper
         left running would burn CPU through the timings of every later job)."""
         if self.proc is not None:
-            _kill_session(self.proc.pid)
+            kill_session(self.proc.pid)
             self.proc.wait()
             for f in (self.proc.stdin, self.proc.stdout):
                 try:

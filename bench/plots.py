@@ -35,10 +35,7 @@ def loglog_slope(x, y) -> tuple[float, float]:
         return float("nan"), float("nan")
     A = np.vstack([lx, np.ones_like(lx)]).T
     coef, res, *_ = np.linalg.lstsq(A, ly, rcond=None)
-    dof = lx.size - 2
-    if dof <= 0:
-        return float(coef[0]), float("nan")
-    s2 = float(np.sum((ly - A @ coef) ** 2)) / dof
+    s2 = float(np.sum((ly - A @ coef) ** 2)) / (lx.size - 2)  # (>= 3 points here)
     se = float(np.sqrt(s2 / np.sum((lx - lx.mean()) ** 2)))
     return float(coef[0]), se
 

@@ -90,10 +90,8 @@ def _penalty(meta: dict) -> float:
 
 
 def _aggregate(g: pd.DataFrame, penalty: float) -> float:
-    """Shifted geometric mean of the charged times; a time that is not a
-    finite number >= 0 (a bogus row) is charged like a failure."""
-    t = charged_times(g, penalty)
-    return shifted_geometric_mean(t.where(np.isfinite(t) & (t >= 0), penalty))
+    """Shifted geometric mean of the charged times (a bogus time is charged like a failure)."""
+    return shifted_geometric_mean(charged_times(g, penalty))
 
 
 def _percent(ok: pd.Series) -> str:

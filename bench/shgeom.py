@@ -39,8 +39,10 @@ def shifted_geometric_mean(t, shift: float = SHIFT_S) -> float:
 
 
 def charged_times(df: pd.DataFrame, penalty_s: float) -> pd.Series:
-    """time_median_s where the row is verified, ``penalty_s`` elsewhere."""
-    ok = df["verified"].eq(True) & df["time_median_s"].notna()
+    """time_median_s where the row is verified and its time a finite number >= 0,
+    ``penalty_s`` elsewhere (a failure, or a bogus time)."""
+    t = df["time_median_s"]
+    ok = df["verified"].eq(True) & np.isfinite(t) & (t >= 0)
     return df["time_median_s"].where(ok, penalty_s).astype(float)
 
 

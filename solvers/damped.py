@@ -182,7 +182,7 @@ class _Stacked(Solver):
                                        iterations=passes)
         info = {"target_rows": int((side != 0).sum())}
         if passes == self.passes:
-            left = _mark_violated(h, rows, x, side.copy())
+            left = _mark_violated(h, rows, x, side)  # (side is not read after this)
             if left:
                 return SolveResult(x=x, status=MAX_ITERATIONS, iterations=passes, info=info,
                                    reason=f"{self.name}: pass limit {self.passes} reached with {left} inequality "

@@ -21,6 +21,8 @@ from importlib import metadata
 from numbers import Integral, Real
 from typing import Callable
 
+import numpy as np
+
 from problems.errors import SolverNotFoundError, SolverOptionError
 from solvers.base import Solver
 
@@ -232,8 +234,6 @@ def check_choice(solver: str, opt: str, value, choices):
 def check_bool(solver: str, opt: str, value) -> bool:
     """value when it is True or False (not 0 / 1, not a string); else
     SolverOptionError."""
-    import numpy as np
-
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     _reject(solver, opt, value, "True or False")
@@ -243,8 +243,6 @@ def check_numbers(solver: str, opt: str, value, *, low: float | None = None, wha
     """A non-empty list (or tuple, or 1-D array) of finite real numbers >= low
     as a float ndarray, shape (len,); else SolverOptionError. ``what`` is
     appended to the expectation (e.g. "one per level")."""
-    import numpy as np
-
     ok = isinstance(value, (list, tuple, np.ndarray)) and len(value) > 0
     if ok:
         items = np.asarray(value, dtype=object)
