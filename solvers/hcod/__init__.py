@@ -26,7 +26,10 @@ Inequalities at any level (sec. VII-X, :mod:`._kernel`)
     Householder QR, then its reflectors applied to ``W`` at once); the
     projected objective rows ``J_hat_k Z`` are carried along the same updates
     across iterations (a new column or a reflector, not a new projection); the
-    level's COD (19) itself is recomputed each iteration. At the end of a
+    level's COD (19) is updated when only the level's own rows entered since
+    the last iteration (one reflector per independent row: :func:`._linalg.cod_append`)
+    and recomputed after a working row entered or left (``Z`` changed) or an
+    objective row left. At the end of a
     level its rows are frozen (eq. 36) through that COD: rows with a nonzero
     slack become equalities at their achieved value, zero-slack inequality
     rows stay (removable) inequality constraints. Each level starts from the

@@ -55,6 +55,7 @@ from solvers.hcod._linalg import (
     FASTMATH,
     apply_reflectors,
     cod,
+    cod_append,
     matrix_view,
     mf_reflect,
     row_dot,
@@ -368,6 +369,7 @@ def hcod_solve(fw, iw):
             r = 0
             cod_done = False
             mf_valid = False
+            ncod = 0  # objective rows the level's COD in Mr holds (0: none valid)
             degen = 0
             for j in range(nO):
                 piv[j] = j
@@ -383,12 +385,14 @@ def hcod_solve(fw, iw):
                     # explicit for the rest of the solve (see ._basis)
                     fl += basis_explicit(Wt, qv, qi, sv, sv2)
                     lazy = False
+                    ncod = 0
                 nf = n - p
-                r = 0
                 for c in range(n):
                     ps[c] = 0.0
-                for j in range(nO):
-                    piv[j] = j
+                if ncod == 0:
+                    r = 0
+                    for j in range(nO):
+                        piv[j] = j
                 cod_done = False
                 if has_ineq and nf > 0 and nO == n and levid[k] != 0:
                     # identity-like level: J_k Z = D S Z has orthogonal columns (S a permutation,
@@ -404,21 +408,39 @@ def hcod_solve(fw, iw):
                         ps[c] = g[c] / d2
                     fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
                     r = nf
+                    if ncod > 0:
+                        ncod = 0
+                        for j in range(nO):
+                            piv[j] = j
                 elif nf > 0 and nO > 0:
                     if not mf_valid:
                         fl += basis_rows(lazy, A, Olist, 0, nO, bcol, bval, Wt, qv, qi, Mf, p, sv, sv2)
                         mf_valid = True
-                    for j in range(nO):
-                        i = Olist[j]
-                        bvec[j] = target[i] - row_dot(A[i], bcol[i], bval[i], u)
-                        piv[j] = j
-                        mrj = Mr[j, :nf]
-                        mfj = Mf[j, p:]
-                        for c in range(nf):
-                            mrj[c] = mfj[c]
-                    r, f = cod(Mr, nO, nf, thr_k, piv, bvec, diag, beta)
+                    if ncod == 0:
+                        # the COD (19) of the projected objective rows, from scratch
+                        for j in range(nO):
+                            mrj = Mr[j, :nf]
+                            mfj = Mf[j, p:]
+                            for c in range(nf):
+                                mrj[c] = mfj[c]
+                        r, f = cod(Mr, nO, nf, thr_k, piv, diag, beta)
+                        fl += f
+                    else:
+                        # only objective rows entered since the last COD (Z is the same): it is
+                        # updated, one reflector per independent row (sec. IX)
+                        for j in range(ncod, nO):
+                            piv[j] = j
+                            mrj = Mr[j, :nf]
+                            mfj = Mf[j, p:]
+                            for c in range(nf):
+                                mrj[c] = mfj[c]
+                            r, f = cod_append(Mr, j, nf, thr_k, r, piv, diag, beta)
+                            fl += f
+                    ncod = nO
                     cod_done = True
-                    fl += f
+                    for j in range(nO):
+                        i = Olist[piv[j]]
+                        bvec[j] = target[i] - row_dot(A[i], bcol[i], bval[i], u)
                     if r > 0:
                         fl += solve_lower(Mr, diag, nO, r, bvec, Lb, y)
                         for c in range(nf):
@@ -496,6 +518,7 @@ def hcod_solve(fw, iw):
                             break
                         if mf_valid:
                             fl += mf_reflect(Mf, nO, p, q, bt)
+                        ncod = 0
                         widx[p] = blk
                         wside[p] = bsd
                         p += 1
@@ -538,6 +561,7 @@ def hcod_solve(fw, iw):
                     if mf_valid:  # (whole rows: the freeze reads Mf[:, :p])
                         Mf[jw, :] = Mf[nO - 1, :]
                     nO -= 1
+                    ncod = 0
                     state[i] = INACTIVE
                     continue
                 anydel = False
@@ -585,6 +609,7 @@ def hcod_solve(fw, iw):
                             p -= 1
                             state[i] = INACTIVE
                             deacts += 1
+                            ncod = 0
                             if mf_valid and not lazy:
                                 wp = Wt[p]
                                 for j in range(nO):

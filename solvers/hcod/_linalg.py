@@ -282,13 +282,13 @@ def row_dot(a, b, bv, x):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def cod(Mr, nO, nf, thr, rows, bvec, diag, beta):
+def cod(Mr, nO, nf, thr, rows, diag, beta):
     """Rank-revealing Householder QR with column pivoting of ``M^T`` (nf, nO),
     whose columns are the rows of ``Mr``: ``M^T Pi = H [R1 R2; 0 0]``, the
     first half of the COD (19) (``L_k = [R1 R2]^T``, ``Y_k = H[:, :r]``,
     ``Z_k = H[:, r:]``).
 
-    Pivoting permutes ``Mr``, ``rows`` and ``bvec`` together. The rank r is
+    Pivoting permutes ``Mr`` and ``rows`` together. The rank r is
     the number of pivots whose remaining norm exceeds ``thr`` (the relative
     threshold times ``||A_k||``, see the package docstring). Remaining norms
     are downdated, and recomputed when cancellation makes the downdate
@@ -323,9 +323,6 @@ def cod(Mr, nO, nf, thr, rows, bvec, diag, beta):
             ti = rows[i]
             rows[i] = rows[jb]
             rows[jb] = ti
-            tb = bvec[i]
-            bvec[i] = bvec[jb]
-            bvec[jb] = tb
             beta[jb] = beta[i]
         alpha, bt = householder(Mr[i, i:nf], nrm)
         beta[i] = bt
@@ -342,6 +339,43 @@ def cod(Mr, nO, nf, thr, rows, bvec, diag, beta):
         fl += 2 * (nO - i - 1) * (nf - i)
         r = i + 1
     return r, fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def cod_append(Mr, j, nf, thr, r, rows, diag, beta):
+    """Update the COD of :func:`cod` (rank r, rows ``Mr[:j]``) for one more
+    row, loaded in ``Mr[j, :nf]`` with its index in ``rows[j]`` (sec. IX: a
+    row enters by updating the decomposition, not by refactoring it): the r
+    reflectors are applied to the row; when what is left of it on the columns
+    ``r:`` has norm above ``thr`` (the rank test of :func:`cod`), it becomes
+    pivot r -- swapped with the first dependent row, reduced by one more
+    reflector, which the dependent rows meet too. Returns (rank, flops)."""
+    mj = Mr[j, :nf]
+    fl = 0
+    for i in range(r):
+        vreflect(beta[i], Mr[i, i:nf], mj[i:])
+        fl += 2 * (nf - i)
+    if r == nf:
+        return r, fl
+    v = mj[r:]
+    nrm = math.sqrt(vdot(v, v))
+    fl += nf - r
+    if not nrm > thr:
+        return r, fl
+    if j != r:
+        for c in range(nf):
+            t = Mr[r, c]
+            Mr[r, c] = mj[c]
+            mj[c] = t
+        t = rows[r]
+        rows[r] = rows[j]
+        rows[j] = t
+    alpha, bt = householder(Mr[r, r:nf], nrm)
+    beta[r] = bt
+    diag[r] = alpha
+    reflect_rows(bt, Mr[r, r:nf], Mr, r + 1, j + 1, r)
+    fl += 2 * (j - r) * (nf - r)
+    return r + 1, fl
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)

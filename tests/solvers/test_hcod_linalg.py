@@ -1,0 +1,141 @@
+"""The level COD (19) of the HCOD inequality kernel (solvers/hcod/_linalg.py):
+from scratch (:func:`cod`) and updated row by row (:func:`cod_append`, the
+update the kernel makes when a level's own row enters its objective). Each
+test checks the factors against the rows they decompose, the rank against
+numpy's, and the least-squares step against ``numpy.linalg.lstsq``."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from solvers.hcod._linalg import apply_reflectors, cod, cod_append, solve_lower
+
+ATOL = 1e-11
+THR = 1e-10
+
+
+def _rows(nO: int, nf: int, rank: int, seed: int) -> np.ndarray:
+    """nO rows of length nf and the given rank (random mixtures of rank rows)."""
+    rng = np.random.default_rng(seed)
+    return rng.standard_normal((nO, rank)) @ rng.standard_normal((rank, nf))
+
+
+class Cod:
+    """The kernel's arrays of one level COD."""
+
+    def __init__(self, M: np.ndarray):
+        self.M = M
+        self.nO, self.nf = M.shape
+        self.Mr = np.zeros((self.nO, self.nf))
+        self.piv = np.arange(self.nO)
+        self.diag = np.zeros(self.nO)
+        self.beta = np.zeros(self.nO)
+        self.r = 0
+
+    def scratch(self, k: int) -> None:
+        """cod() of the first k rows."""
+        self.Mr[:k] = self.M[:k]
+        self.r, _ = cod(self.Mr, k, self.nf, THR, self.piv, self.diag, self.beta)
+
+    def append(self, j: int) -> None:
+        """cod_append() of row j (rows before it decomposed)."""
+        self.Mr[j] = self.M[j]
+        self.piv[j] = j
+        self.r, _ = cod_append(self.Mr, j, self.nf, THR, self.r, self.piv, self.diag, self.beta)
+
+    def row(self, j: int) -> np.ndarray:
+        """Row j of Mr rebuilt from the factors: H [L[j], remainder]."""
+        z = self.Mr[j].copy()
+        if j < self.r:
+            z[j] = self.diag[j]
+            z[j + 1:] = 0.0
+        apply_reflectors(self.Mr, self.beta, self.r, self.nf, z)
+        return z
+
+    def step(self, b: np.ndarray) -> np.ndarray:
+        """The least-squares step x = H [y; 0] of eq. (28) for right-hand side b (M's order)."""
+        bvec = b[self.piv].copy()
+        y = np.zeros(self.nf)
+        Lb = np.zeros((max(self.r, 1), self.nO))
+        solve_lower(self.Mr, self.diag, self.nO, self.r, bvec, Lb, y)
+        z = np.zeros(self.nf)
+        z[:self.r] = y[:self.r]
+        apply_reflectors(self.Mr, self.beta, self.r, self.nf, z)
+        return z
+
+
+CASES = [
+    pytest.param(4, 9, 4, id="full-row-rank"),
+    pytest.param(9, 4, 4, id="more-rows-than-columns"),
+    pytest.param(8, 10, 3, id="rank-deficient"),
+    pytest.param(6, 6, 6, id="square"),
+    pytest.param(1, 5, 1, id="one-row"),
+]
+
+
+@pytest.mark.parametrize("nO, nf, rank", CASES)
+@pytest.mark.parametrize("k0", [0, 1, 3], ids=["all-appended", "1-then-appended", "3-then-appended"])
+def test_appended_rows_give_a_decomposition_of_the_rows(nO, nf, rank, k0):
+    M = _rows(nO, nf, rank, seed=nO * 100 + nf * 10 + rank)
+    c = Cod(M)
+    k0 = min(k0, nO)
+    c.scratch(k0)
+    for j in range(k0, nO):
+        c.append(j)
+    assert c.r == np.linalg.matrix_rank(M)
+    assert sorted(c.piv) == list(range(nO))
+    for j in range(nO):
+        np.testing.assert_allclose(c.row(j), M[c.piv[j]], rtol=0, atol=ATOL)
+    b = np.random.default_rng(7).standard_normal(nO)
+    np.testing.assert_allclose(c.step(b), np.linalg.lstsq(M, b, rcond=None)[0], rtol=0, atol=1e-9)
+
+
+def test_a_dependent_row_then_an_independent_one_swaps_the_pivot_in():
+    """The independent row becomes pivot r in front of the dependent one; the
+    dependent row meets its reflector too."""
+    rng = np.random.default_rng(3)
+    top = rng.standard_normal((2, 6))
+    M = np.vstack([top, top[0] - 2.0 * top[1], rng.standard_normal(6)])
+    c = Cod(M)
+    c.scratch(2)
+    c.append(2)
+    assert c.r == 2
+    c.append(3)
+    assert c.r == 3
+    assert list(c.piv[2:]) == [3, 2]
+    for j in range(4):
+        np.testing.assert_allclose(c.row(j), M[c.piv[j]], rtol=0, atol=ATOL)
+    assert np.linalg.norm(c.Mr[3, 3:]) < THR  # the dependent row: nothing left beyond the pivots
+
+
+def test_a_row_appended_when_the_rank_is_full_is_dependent():
+    M = _rows(5, 3, 3, seed=11)
+    c = Cod(M)
+    c.scratch(3)
+    assert c.r == 3
+    c.append(3)
+    c.append(4)
+    assert c.r == 3
+    for j in range(5):
+        np.testing.assert_allclose(c.row(j), M[c.piv[j]], rtol=0, atol=ATOL)
+
+
+@settings(max_examples=40, deadline=None)
+@given(nO=st.integers(1, 10), nf=st.integers(1, 10), data=st.data())
+def test_appending_matches_the_decomposition_from_scratch(nO, nf, data):
+    """Same rank and same least-squares step as cod() of all the rows."""
+    rank = data.draw(st.integers(1, min(nO, nf)), label="rank")
+    k0 = data.draw(st.integers(0, nO), label="rows before appending")
+    M = _rows(nO, nf, rank, seed=data.draw(st.integers(0, 2**31), label="seed"))
+    inc, ref = Cod(M), Cod(M)
+    inc.scratch(k0)
+    for j in range(k0, nO):
+        inc.append(j)
+    ref.scratch(nO)
+    assert inc.r == ref.r == rank
+    b = np.random.default_rng(0).standard_normal(nO)
+    scale = 1.0 + np.abs(ref.step(b)).max()
+    np.testing.assert_allclose(inc.step(b), ref.step(b), rtol=0, atol=1e-8 * scale)
