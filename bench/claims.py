@@ -40,6 +40,7 @@ import pandas as pd
 from scipy import stats
 
 from bench.results import read_results
+from bench.shgeom import loglog_fit
 from problems.errors import HikbenchError
 
 __all__ = ["Claim", "check_claims", "find_scenario_csvs", "load_scenario", "paper_flops_formula"]
@@ -73,15 +74,13 @@ def _ok(df: pd.DataFrame, mode: str = "cold") -> pd.DataFrame:
 
 
 def slope_interval(x, y, level: float = 0.95) -> tuple[float, float, float]:
-    """Slope of log y vs log x with its ``level`` confidence interval."""
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    keep = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)  # no log of 0 or of a negative
-    lx, ly = np.log(x[keep]), np.log(y[keep])
-    if lx.size < 3 or np.ptp(lx) == 0:
-        return float("nan"), float("nan"), float("nan")
-    res = stats.linregress(lx, ly)
-    h = stats.t.ppf(0.5 + level / 2, lx.size - 2) * res.stderr
-    return float(res.slope), float(res.slope - h), float(res.slope + h)
+    """Slope of log y vs log x (:func:`bench.shgeom.loglog_fit`) with its
+    ``level`` confidence interval (Student t on the points - 2 degrees of freedom)."""
+    slope, se, npts = loglog_fit(x, y)
+    if not math.isfinite(slope):
+        return slope, slope, slope
+    h = stats.t.ppf(0.5 + level / 2, npts - 2) * se
+    return slope, slope - h, slope + h
 
 
 def claim_a(df: pd.DataFrame) -> Claim:

@@ -15,7 +15,7 @@ import matplotlib.ticker
 import numpy as np
 import pandas as pd
 
-from bench.shgeom import performance_profile
+from bench.shgeom import loglog_fit, performance_profile
 
 __all__ = ["sweeps", "plot_sweep", "plot_success", "plot_profiles", "plot_accuracy", "plot_cold_warm",
            "loglog_slope"]
@@ -24,20 +24,9 @@ _STYLE = {"figsize": (9.5, 5.0), "dpi": 110}
 
 
 def loglog_slope(x, y) -> tuple[float, float]:
-    """Least-squares slope of log y vs log x and its standard error, over the
-    points where both are finite and > 0 (no log of 0 or of a negative); NaN
-    with fewer than 3 distinct x (two sizes give a line through two points,
-    no fitted slope, as in bench.claims.slope_interval)."""
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    keep = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
-    lx, ly = np.log(x[keep]), np.log(y[keep])
-    if np.unique(lx).size < 3:
-        return float("nan"), float("nan")
-    A = np.vstack([lx, np.ones_like(lx)]).T
-    coef, res, *_ = np.linalg.lstsq(A, ly, rcond=None)
-    s2 = float(np.sum((ly - A @ coef) ** 2)) / (lx.size - 2)  # (>= 3 points here)
-    se = float(np.sqrt(s2 / np.sum((lx - lx.mean()) ** 2)))
-    return float(coef[0]), se
+    """Slope of log y vs log x and its standard error (:func:`bench.shgeom.loglog_fit`)."""
+    slope, se, _ = loglog_fit(x, y)
+    return slope, se
 
 
 def _other_params(params_json: str, var: str) -> str:
@@ -168,21 +157,16 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
 
 
 def plot_profiles(times: pd.DataFrame, path: Path, title: str) -> Path | None:
-    """Dolan-More performance profiles of a problems x solvers table (NaN = failure)."""
+    """Dolan-More performance profiles of a problems x solvers table
+    (:func:`bench.shgeom.performance_profile`: NaN, inf or <= 0 = failure)."""
     if times.empty or times.shape[1] == 0:
         return None
-    arr = times.to_numpy(dtype=float)
-    good = np.isfinite(arr) & (arr > 0)  # a time <= 0 is no time: counted as a failure
-    if not good.any():
+    prof = performance_profile(times)
+    if prof is None:
         return None
-    times = times.where(good)
-    solved = good.any(axis=1)  # problems no solver solved have no best time (and no ratio)
-    best = np.where(good, arr, np.inf).min(axis=1)[solved]
-    worst = float((np.where(good, arr, 0.0)[solved] / best[:, None]).max())
-    taus = np.logspace(0, np.log10(max(10.0, 2.0 * worst)), 300)
-    prof = performance_profile(times, taus)
+    taus, fractions = prof
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
-    for i, (s, y) in enumerate(prof.items()):
+    for i, (s, y) in enumerate(fractions.items()):
         st = _style(i)
         ax.step(taus, y, where="post", label=s, color=st["color"], linestyle=st["linestyle"])
     ax.set_xscale("log")

@@ -188,12 +188,12 @@ def write_report(run_dir) -> Path:
         ran = df[(df["mode"] == mode) & (df["status"] != "unsupported")]
         if ran.empty:
             continue
-        # every solver and problem that ran in this mode has its cell: a solver without a
+        # every solver and problem that ran in this mode has its cell (groupby keeps a group
+        # whose times are all NaN, unstack fills the grid, both sorted): a solver without a
         # verified row shows "-" rather than dropping out of the table
         ran = ran.assign(group=ran["problem"].str.replace(r"/seed=\d+$", "", regex=True),
                          t=ran["time_median_s"].where(ran["verified"].eq(True)))
         med = ran.groupby(["group", "label"])["t"].median().unstack("label")
-        med = med.reindex(index=sorted(ran["group"].unique()), columns=sorted(ran["label"].unique()))
         L += _table(f"Median {mode} time per problem over its seeds [us] (verified rows; the speed table; "
                     "- = no verified row)", ["problem", *med.columns],
                     [[g, *[_us(v) for v in med.loc[g]]] for g in med.index])

@@ -1,4 +1,5 @@
-"""Aggregates of runtimes: shifted geometric mean and Dolan-More profiles.
+"""Aggregates of runtimes: shifted geometric mean, Dolan-More profiles, and
+the slope of a runtime against a size on log-log axes.
 
 Shifted geometric mean (as in qpbenchmark, but with the shift in the metric's
 own units, 10 us by default for solve times, not 10 s):
@@ -18,8 +19,9 @@ from __future__ import annotations
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
-__all__ = ["shifted_geometric_mean", "charged_times", "performance_profile", "SHIFT_S"]
+__all__ = ["shifted_geometric_mean", "charged_times", "performance_profile", "loglog_fit", "SHIFT_S"]
 
 SHIFT_S = 1e-5  #: 10 us
 
@@ -46,14 +48,35 @@ def charged_times(df: pd.DataFrame, penalty_s: float) -> pd.Series:
     return df["time_median_s"].where(ok, penalty_s).astype(float)
 
 
-def performance_profile(times: pd.DataFrame, taus: np.ndarray) -> dict:
-    """Dolan-More profile. ``times``: problems x solvers, NaN / inf = failure.
-    Returns {solver: fraction of problems with t_ps / min_s t_ps <= tau, for each tau}."""
-    t = times.astype(float).replace(np.nan, np.inf)
+def performance_profile(times: pd.DataFrame, points: int = 300) -> tuple[np.ndarray, dict] | None:
+    """Dolan-More profile of ``times`` (problems x solvers; a time that is
+    NaN, infinite or <= 0 is a failure). The ratios ``r_ps = t_ps / min_s
+    t_ps`` over the problems some solver solved, on ``points`` log-spaced
+    ``tau`` from 1 to max(10, twice the worst ratio). Returns (taus, {solver:
+    fraction of all problems with r_ps <= tau, for each tau}); None when no
+    solver solved anything."""
+    t = times.astype(float)
+    t = t.where(np.isfinite(t) & (t > 0), np.inf)
     best = t.min(axis=1)
-    ratio = t.div(best.where(np.isfinite(best)), axis=0)
-    out = {}
-    for s in t.columns:
-        r = ratio[s].to_numpy()
-        out[s] = np.array([(r <= tau).mean() if r.size else 0.0 for tau in taus])
-    return out
+    solved = np.isfinite(best)
+    if not solved.any():
+        return None
+    ratio = t.div(best.where(solved), axis=0).to_numpy()  # (NaN on the problems nobody solved)
+    worst = float(ratio[np.isfinite(ratio)].max())
+    taus = np.logspace(0, np.log10(max(10.0, 2.0 * worst)), points)
+    return taus, {s: np.array([(ratio[:, j] <= tau).mean() for tau in taus]) for j, s in enumerate(t.columns)}
+
+
+def loglog_fit(x, y) -> tuple[float, float, int]:
+    """Least-squares slope of ``log y`` vs ``log x`` (``scipy.stats.linregress``)
+    over the points where both are finite and > 0 (no log of 0 or of a
+    negative): (slope, its standard error, number of points). NaN slope and
+    error with fewer than 3 distinct x: two sizes give a line through two
+    points, no fitted slope."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    keep = np.isfinite(x) & np.isfinite(y) & (x > 0) & (y > 0)
+    lx, ly = np.log(x[keep]), np.log(y[keep])
+    if np.unique(lx).size < 3:
+        return float("nan"), float("nan"), int(lx.size)
+    res = stats.linregress(lx, ly)
+    return float(res.slope), float(res.stderr), int(lx.size)

@@ -43,12 +43,13 @@ def _integer(v, label: str) -> int:
     return int(v)
 
 
-def _number(v, label: str, low: float, what: str = "") -> float:
-    """v as a finite float >= low; HikbenchError naming ``label`` otherwise
-    (a string, True, NaN, inf, or a value below ``low``)."""
+def _number(v, label: str, low: float, what: str = "", high: float = np.inf) -> float:
+    """v as a finite float in [low, high]; HikbenchError naming ``label``
+    otherwise (a string, True, NaN, inf, or a value outside the interval)."""
     if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer, float, np.floating)) \
-            or not np.isfinite(v) or v < low:
-        raise HikbenchError(f"{label} must be a finite number >= {low:g}{what}; got {v!r}")
+            or not np.isfinite(v) or not low <= v <= high:
+        bound = f" and <= {high:g}" if np.isfinite(high) else ""
+        raise HikbenchError(f"{label} must be a finite number >= {low:g}{bound}{what}; got {v!r}")
     return float(v)
 
 
@@ -155,8 +156,7 @@ def random_hierarchy(n: int, depth: int, rows: int | Sequence[int], *, rank=None
     cond = _number(cond, "cond", 1, " (largest / smallest singular value of a level)")
     row_scale = _number(row_scale, "row_scale", 1, " (largest / smallest row norm)")
     box_bound = _number(box_bound, "box_bound", 0, " (the box is -box_bound <= x_i <= box_bound)")
-    if _number(equality_fraction, "equality_fraction", 0, " and <= 1") > 1:
-        raise HikbenchError(f"equality_fraction must be a finite number >= 0 and <= 1; got {equality_fraction!r}")
+    _number(equality_fraction, "equality_fraction", 0, high=1)
     rng = np.random.default_rng(_seed(seed))
     m = _per_level(rows, depth, "rows")
     if any(mk < 0 for mk in m):

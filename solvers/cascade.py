@@ -118,10 +118,12 @@ def _no_solution(backend: str, text: str, h: Hierarchy, k: int, A_f, lower_f, up
                                                       np.abs(np.where(np.isfinite(upper_f), upper_f, 0.0)))
     tol = 1e-9 * (1.0 + scale)
     below, above = lower_f - r, r - upper_f
-    viol = float(np.max(np.maximum(np.maximum(below, above), 0.0), initial=0.0))
-    if np.any((below > tol) | (above > tol)):
-        rows_f = [(j, int(i)) for j in range(k) for i in np.flatnonzero(~h.is_free[h.level_rows(j)])]
-        lev, row = rows_f[int(np.argmax(np.maximum(below, above) / tol))]
+    excess = np.maximum(below, above)
+    viol = float(np.max(np.maximum(excess, 0.0), initial=0.0))
+    if np.any(excess > tol):
+        i = int(np.flatnonzero(~h.is_free[:h.starts[k]])[np.argmax(excess / tol)])  # A_f's rows in h
+        lev = int(np.searchsorted(h.starts, i, side="right")) - 1
+        row = i - int(h.starts[lev])
         return (f"infeasible after freezing levels 0..{k - 1} (backend {backend} found no solution, status "
                 f"{text}; x of level {k - 1} violates the frozen row {row} of level {lev} by {viol:.1e})")
     active = int(np.count_nonzero((below >= -tol) | (above >= -tol)))

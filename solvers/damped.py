@@ -273,6 +273,7 @@ class DLSLiegeois(Solver):
         side = np.zeros(h.rows, dtype=np.int8)
         side[rows & h.is_equality] = 1
         it = 0
+        converged = False
         with np.errstate(all="ignore"):
             for it in range(1, self.max_iter + 1):
                 _mark_violated(h, rows, x, side)  # rows once targets stay targets
@@ -300,23 +301,22 @@ class DLSLiegeois(Solver):
                                        reason=f"{self.name}: NaN/inf step at iteration {it} "
                                               "(an iterate on a limit?)")
                 x = x + dx
-                if np.linalg.norm(dx) <= self.tol * (1 + np.linalg.norm(x)):
+                converged = np.linalg.norm(dx) <= self.tol * (1 + np.linalg.norm(x))
+                if converged:
                     break
-            else:
-                outside = box_excess(x, qmin, qmax, kbox)
-                return SolveResult(x=x, status=MAX_ITERATIONS, iterations=it,
-                                   info={"box_level": kbox, "alpha": alpha},
-                                   reason=f"{self.name}: no convergence in {self.max_iter} iterations "
-                                          f"(last ||dx|| = {np.linalg.norm(dx):.3g})"
-                                          + (f"; {outside}" if outside else ""))
+        info = {"box_level": kbox, "alpha": alpha}
         outside = box_excess(x, qmin, qmax, kbox)
+        if not converged:
+            return SolveResult(x=x, status=MAX_ITERATIONS, iterations=it, info=info,
+                               reason=f"{self.name}: no convergence in {self.max_iter} iterations "
+                                      f"(last ||dx|| = {np.linalg.norm(dx):.3g})"
+                                      + (f"; {outside}" if outside else ""))
         if outside:  # converged, but not to what the method is for: x within the limits
-            return SolveResult(x=x, status=INFEASIBLE_LEVEL, iterations=it,
-                               info={"box_level": kbox, "alpha": alpha},
+            return SolveResult(x=x, status=INFEASIBLE_LEVEL, iterations=it, info=info,
                                reason=f"{self.name}: converged in {it} iterations outside the limits: "
                                       f"{outside} (the joint-limit gradient acts only in the null space "
                                       "of the task rows: it cannot hold x inside the box against them)")
-        return SolveResult(x=x, status=OPTIMAL, iterations=it, info={"box_level": kbox, "alpha": alpha})
+        return SolveResult(x=x, status=OPTIMAL, iterations=it, info=info)
 
 
 SOLVERS = [

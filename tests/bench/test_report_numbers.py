@@ -168,3 +168,16 @@ def test_shifted_geometric_mean_value_and_bad_times():
             shifted_geometric_mean(bad)
     with pytest.raises(ValueError, match="shift is 0"):
         shifted_geometric_mean([1.0], shift=0)
+
+
+def test_performance_profile_fractions_and_failures():
+    """Dolan-More: the fraction of *all* problems within tau of the best; NaN, inf
+    and <= 0 are failures; a problem nobody solved counts against every solver."""
+    from bench.shgeom import performance_profile
+
+    t = pd.DataFrame([[1.0, 2.0], [2.0, 1.0], [np.nan, 3.0], [0.0, np.inf]], columns=["a", "b"])
+    taus, frac = performance_profile(t, points=50)
+    assert taus[0] == 1.0 and taus[-1] == pytest.approx(10.0)  # max(10, 2 x the worst ratio 2)
+    np.testing.assert_allclose([frac["a"][0], frac["b"][0]], [0.25, 0.5], rtol=0, atol=0)
+    np.testing.assert_allclose([frac["a"][-1], frac["b"][-1]], [0.5, 0.75], rtol=0, atol=0)
+    assert performance_profile(pd.DataFrame([[0.0, np.nan]], columns=["a", "b"])) is None

@@ -373,6 +373,21 @@ def test_truly_infeasible_level_names_the_violated_row(monkeypatch):
                           "of level 1 by 1.0e+00)")
 
 
+def test_the_violated_frozen_row_is_named_in_its_level_past_free_rows_and_empty_levels():
+    # A_f holds the non-free rows only: its row 1 is row 2 of level 2 (level 1 empty, two free rows)
+    free = [-np.inf, np.inf]
+    h = Hierarchy.from_levels([
+        Level(np.array([[1.0, 1.0], [1.0, 0.0]]), np.array([free[0], 0.0]), np.array([free[1], 0.0])),
+        Level(np.zeros((0, 2)), np.zeros(0), np.zeros(0)),
+        Level(np.array([[1.0, 1.0], [0.0, 2.0], [0.0, 1.0]]), np.array([free[0], free[0], 1.0]),
+              np.array([free[1], free[1], np.inf])),
+        Level.equality(np.array([[1.0, 1.0]]), [0.0])])
+    A_f = np.array([[1.0, 0.0], [0.0, 1.0]])
+    why = cascade._no_solution("daqp", "s", h, 3, A_f, np.array([0.0, 1.0]), np.array([0.0, np.inf]), np.zeros(2))
+    assert why == ("infeasible after freezing levels 0..2 (backend daqp found no solution, status s; x of "
+                   "level 2 violates the frozen row 2 of level 2 by 1.0e+00)")
+
+
 # ------------------------------------------------------------------ options
 
 @pytest.mark.parametrize("opts, match", [
