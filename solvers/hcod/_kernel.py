@@ -81,6 +81,20 @@ def _norm(x):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _level_cod(Mr, Mf, nO, p, nf, thr, piv, diag, beta):
+    """The COD (19) from scratch of the level's nO objective rows projected on
+    Z (``Mf[:nO, p:]``, copied to ``Mr``; ``piv`` starts as the identity).
+    Returns (r, flops)."""
+    for j in range(nO):
+        piv[j] = j
+        mrj = Mr[j, :nf]
+        mfj = Mf[j, p:]
+        for c in range(nf):
+            mrj[c] = mfj[c]
+    return cod(Mr, nO, nf, thr, piv, diag, beta)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def hcod_solve(fw, iw):
     """Solve the hierarchy held in the workspaces fw/iw (:mod:`._setup`: the
     int workspace starts with the offsets of the blocks of both, and the ends of
@@ -370,6 +384,7 @@ def hcod_solve(fw, iw):
             cod_done = False
             mf_valid = False
             ncod = 0  # objective rows the level's COD in Mr holds (0: none valid)
+            cod_weak = False  # a pivot appended with a small diagonal (cod_append)
             degen = 0
             for j in range(nO):
                 piv[j] = j
@@ -418,13 +433,9 @@ def hcod_solve(fw, iw):
                         mf_valid = True
                     if ncod == 0:
                         # the COD (19) of the projected objective rows, from scratch
-                        for j in range(nO):
-                            mrj = Mr[j, :nf]
-                            mfj = Mf[j, p:]
-                            for c in range(nf):
-                                mrj[c] = mfj[c]
-                        r, f = cod(Mr, nO, nf, thr_k, piv, diag, beta)
+                        r, f = _level_cod(Mr, Mf, nO, p, nf, thr_k, piv, diag, beta)
                         fl += f
+                        cod_weak = False
                     else:
                         # only objective rows entered since the last COD (Z is the same): it is
                         # updated, one reflector per independent row (sec. IX)
@@ -434,8 +445,9 @@ def hcod_solve(fw, iw):
                             mfj = Mf[j, p:]
                             for c in range(nf):
                                 mrj[c] = mfj[c]
-                            r, f = cod_append(Mr, j, nf, thr_k, r, piv, diag, beta)
+                            r, f, weak = cod_append(Mr, j, nf, thr_k, r, piv, diag, beta)
                             fl += f
+                            cod_weak = cod_weak or weak
                     ncod = nO
                     cod_done = True
                     for j in range(nO):
@@ -655,6 +667,10 @@ def hcod_solve(fw, iw):
                 p += r
             else:
                 unorm = _norm(u)
+                if cod_done and cod_weak:
+                    # the pivots become working rows: pivoting picks them (see cod_append)
+                    r, f = _level_cod(Mr, Mf, nO, p, n - p, thr_k, piv, diag, beta)
+                    fl += f
                 if cod_done:
                     # the COD (19) of the last iteration is the update: its r pivot rows enter
                     # W by its reflectors (W[:, p:] <- W[:, p:] H, eq. 23, pushed), their R columns

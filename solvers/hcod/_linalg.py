@@ -341,6 +341,11 @@ def cod(Mr, nO, nf, thr, rows, diag, beta):
     return r, fl
 
 
+#: a row appended to a level's COD as a pivot with a diagonal below this fraction of its
+#: norm (above the rank threshold) has the COD refactored with pivoting before the freeze
+WEAK_PIVOT = 1e-3
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def cod_append(Mr, j, nf, thr, r, rows, diag, beta):
     """Update the COD of :func:`cod` (rank r, rows ``Mr[:j]``) for one more
@@ -349,19 +354,27 @@ def cod_append(Mr, j, nf, thr, r, rows, diag, beta):
     reflectors are applied to the row; when what is left of it on the columns
     ``r:`` has norm above ``thr`` (the rank test of :func:`cod`), it becomes
     pivot r -- swapped with the first dependent row, reduced by one more
-    reflector, which the dependent rows meet too. Returns (rank, flops)."""
+    reflector, which the dependent rows meet too.
+
+    Without pivoting, a nearly dependent row that comes first becomes a pivot
+    with a small diagonal where :func:`cod` would have taken a later row: the
+    least-squares step is the same, but the pivots become working rows at the
+    freeze. ``weak`` flags a new pivot whose diagonal is below ``WEAK_PIVOT``
+    times the row's norm, so that the caller refactors with pivoting before
+    the freeze. Returns (rank, flops, weak)."""
     mj = Mr[j, :nf]
-    fl = 0
+    rn = math.sqrt(vdot(mj, mj))
+    fl = nf
     for i in range(r):
         vreflect(beta[i], Mr[i, i:nf], mj[i:])
         fl += 2 * (nf - i)
     if r == nf:
-        return r, fl
+        return r, fl, False
     v = mj[r:]
     nrm = math.sqrt(vdot(v, v))
     fl += nf - r
     if not nrm > thr:
-        return r, fl
+        return r, fl, False
     if j != r:
         for c in range(nf):
             t = Mr[r, c]
@@ -375,7 +388,7 @@ def cod_append(Mr, j, nf, thr, r, rows, diag, beta):
     diag[r] = alpha
     reflect_rows(bt, Mr[r, r:nf], Mr, r + 1, j + 1, r)
     fl += 2 * (j - r) * (nf - r)
-    return r + 1, fl
+    return r + 1, fl, nrm < WEAK_PIVOT * rn
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)

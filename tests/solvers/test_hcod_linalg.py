@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from solvers.hcod._linalg import apply_reflectors, cod, cod_append, solve_lower
+from solvers.hcod._linalg import WEAK_PIVOT, apply_reflectors, cod, cod_append, solve_lower
 
 ATOL = 1e-11
 THR = 1e-10
@@ -40,11 +40,12 @@ class Cod:
         self.Mr[:k] = self.M[:k]
         self.r, _ = cod(self.Mr, k, self.nf, THR, self.piv, self.diag, self.beta)
 
-    def append(self, j: int) -> None:
-        """cod_append() of row j (rows before it decomposed)."""
+    def append(self, j: int) -> bool:
+        """cod_append() of row j (rows before it decomposed); returns its ``weak`` flag."""
         self.Mr[j] = self.M[j]
         self.piv[j] = j
-        self.r, _ = cod_append(self.Mr, j, self.nf, THR, self.r, self.piv, self.diag, self.beta)
+        self.r, _, weak = cod_append(self.Mr, j, self.nf, THR, self.r, self.piv, self.diag, self.beta)
+        return weak
 
     def row(self, j: int) -> np.ndarray:
         """Row j of Mr rebuilt from the factors: H [L[j], remainder]."""
@@ -109,6 +110,35 @@ def test_a_dependent_row_then_an_independent_one_swaps_the_pivot_in():
     for j in range(4):
         np.testing.assert_allclose(c.row(j), M[c.piv[j]], rtol=0, atol=ATOL)
     assert np.linalg.norm(c.Mr[3, 3:]) < THR  # the dependent row: nothing left beyond the pivots
+
+
+def test_a_nearly_dependent_pivot_is_flagged_weak():
+    """[1, 1e-4] after [1, 0] is independent (1e-4 > THR) but becomes a pivot with
+    diagonal 1e-4, where pivoting, once [0, 1] is in, takes [0, 1] and leaves
+    diagonals of 1: the kernel refactors (cod) before the freeze when a pivot
+    was weak."""
+    M = np.array([[1.0, 0.0], [1.0, 0.1 * WEAK_PIVOT], [0.0, 1.0]])
+    c = Cod(M)
+    c.scratch(1)
+    assert c.append(1)  # weak pivot
+    assert not c.append(2)  # (r == nf: dependent)
+    assert c.r == 2 and abs(c.diag[1]) < WEAK_PIVOT
+    for j in range(3):
+        np.testing.assert_allclose(c.row(j), M[c.piv[j]], rtol=0, atol=ATOL)
+    c.piv[:] = np.arange(3)
+    c.scratch(3)
+    assert c.r == 2 and 2 in c.piv[:2]  # [0, 1] is a pivot, beside [1, 0] or [1, 1e-4]
+    np.testing.assert_allclose(np.abs(c.diag[:2]), [1.0, 1.0], rtol=1e-7)
+    assert not _appended(M[[0, 2]])[1]  # orthogonal rows: no weak pivot
+
+
+def _appended(M: np.ndarray) -> tuple[Cod, bool]:
+    """Every row of M appended in turn; (the decomposition, whether a pivot was weak)."""
+    c = Cod(M)
+    weak = False
+    for j in range(M.shape[0]):
+        weak |= c.append(j)
+    return c, weak
 
 
 def test_a_row_appended_when_the_rank_is_full_is_dependent():
