@@ -95,6 +95,26 @@ def _level_cod(Mr, Mf, nO, p, nf, thr, piv, diag, beta):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _level_cod_append(Mr, Mf, j0, nO, p, nf, thr, r, piv, diag, beta):
+    """The level's COD of rank r over its objective rows ``:j0`` updated for
+    the rows ``j0:nO`` that entered since (:func:`._linalg.cod_append`, one
+    row at a time, copied from ``Mf[j, p:]``). Returns (r, flops, weak: a new
+    pivot has a small diagonal)."""
+    fl = 0
+    weak = False
+    for j in range(j0, nO):
+        piv[j] = j
+        mrj = Mr[j, :nf]
+        mfj = Mf[j, p:]
+        for c in range(nf):
+            mrj[c] = mfj[c]
+        r, f, w = cod_append(Mr, j, nf, thr, r, piv, diag, beta)
+        fl += f
+        weak = weak or w
+    return r, fl, weak
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def hcod_solve(fw, iw):
     """Solve the hierarchy held in the workspaces fw/iw (:mod:`._setup`: the
     int workspace starts with the offsets of the blocks of both, and the ends of
@@ -400,7 +420,6 @@ def hcod_solve(fw, iw):
                     # explicit for the rest of the solve (see ._basis)
                     fl += basis_explicit(Wt, qv, qi, sv, sv2)
                     lazy = False
-                    ncod = 0
                 nf = n - p
                 for c in range(n):
                     ps[c] = 0.0
@@ -439,15 +458,9 @@ def hcod_solve(fw, iw):
                     else:
                         # only objective rows entered since the last COD (Z is the same): it is
                         # updated, one reflector per independent row (sec. IX)
-                        for j in range(ncod, nO):
-                            piv[j] = j
-                            mrj = Mr[j, :nf]
-                            mfj = Mf[j, p:]
-                            for c in range(nf):
-                                mrj[c] = mfj[c]
-                            r, f, weak = cod_append(Mr, j, nf, thr_k, r, piv, diag, beta)
-                            fl += f
-                            cod_weak = cod_weak or weak
+                        r, f, weak = _level_cod_append(Mr, Mf, ncod, nO, p, nf, thr_k, r, piv, diag, beta)
+                        fl += f
+                        cod_weak = cod_weak or weak
                     ncod = nO
                     cod_done = True
                     for j in range(nO):
