@@ -6,22 +6,38 @@ run), so hard timeouts and crash isolation hold there too.
 
 An executor maps ``(tag, job, timeout)`` items to ``(tag, result)`` in the
 order they finish; ``result`` carries ``worker`` and ``wall_s``.
+
+On Dask, a job that takes its worker process down (the Dask worker itself
+killed, not the isolated solve process) costs its row only: a job whose worker
+died runs once more at the end, alone on the cluster, and its row is
+``crashed`` when the worker dies again (a job next to it, or one whose finished
+result was still on that worker, dies with it the first time). On the local
+cluster a worker holds only the job it runs (``worker-saturation`` 1.0) and
+Dask does not retry a job on another worker (``allowed-failures`` 0: the retry
+above is hikbench's); results are fetched as soon as they finish and their
+futures released, so that a dying worker holds no finished result that Dask
+would compute again. A cluster left without any worker for
+:data:`NO_WORKER_GRACE` seconds while jobs wait ends the run with an error on
+the local cluster (its nannies gave up) and prints a warning on an external one
+(workers may come back).
 """
 
 from __future__ import annotations
 
 import os
 import socket
+import sys
 import threading
 import time
 import uuid
-from concurrent.futures import CancelledError
 
 from bench.isolation import IsolatedWorker
 from problems.errors import HikbenchError
 from solvers.base import CRASHED
 
-__all__ = ["SerialExecutor", "DaskExecutor", "run_job"]
+__all__ = ["NO_WORKER_GRACE", "DaskExecutor", "SerialExecutor", "run_job"]
+
+NO_WORKER_GRACE = 60.0  # seconds a Dask cluster may have no worker while jobs wait (see DaskExecutor)
 
 
 def run_job(worker: IsolatedWorker, job: dict, timeout: float) -> dict:
@@ -71,7 +87,20 @@ def _dask_task(job: dict, timeout: float, session: str) -> dict:
     return res
 
 
+def _died(err) -> dict:
+    """The row of a job whose Dask worker died under it twice, the second time alone (KilledWorker)."""
+    worker = getattr(err.last_worker, "address", None)
+    return {"status": CRASHED, "x": None, "samples_ns": [], "worker": worker,
+            "reason": f"the Dask worker process died while this job was running on it, also when it ran again "
+                      f"alone on the cluster (KilledWorker; last on {worker}: see that worker's log)"}
+
+
 _CONNECT_TIMEOUT = 10.0  # seconds to reach a --scheduler
+# the local cluster, for the executor's life: a worker holds only the job it runs; Dask retries no
+# job whose worker died (DaskExecutor.map does, alone); a nanny is never dropped (by default it is
+# when its worker is still down 15 s after a death: under repeated deaths no worker was left)
+_LOCAL_CLUSTER = {"distributed.scheduler.worker-saturation": 1.0, "distributed.scheduler.allowed-failures": 0,
+                  "distributed.deploy.lost-worker-timeout": "1 day"}
 
 
 def _check_scheduler_address(address: str) -> tuple[str, int] | None:
@@ -119,6 +148,9 @@ class DaskExecutor:
                                     f"expected at least one, e.g. `dask worker {scheduler}`") from err
             self.name = f"dask:{scheduler}"
         else:
+            import dask
+
+            self._config = dask.config.set(_LOCAL_CLUSTER)  # (undone by close)
             # no dashboard; the scheduler's HTTP server on a free local port, not on 8787 (taken by
             # any other cluster: a "Port 8787 is already in use" warning on every run)
             self.cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
@@ -127,27 +159,79 @@ class DaskExecutor:
             self.name = f"dask-local:{workers}"
 
     def map(self, items):
+        """Every job at once; a job whose worker process died (KilledWorker) runs once more at
+        the end, alone on the cluster (see the module docstring)."""
+        jobs = {self._submit(job, timeout): (tag, job, timeout) for tag, job, timeout in items}
+        again = []
+        for (tag, job, timeout), res in self._collect(jobs):
+            if isinstance(res, dict):
+                yield tag, res
+            else:
+                again.append((tag, job, timeout))
+        for tag, job, timeout in again:
+            for _, res in self._collect({self._submit(job, timeout): tag}):
+                yield tag, res if isinstance(res, dict) else _died(res)
+
+    def _submit(self, job: dict, timeout: float):
+        return self.client.submit(_dask_task, job, timeout, self.session, pure=False)
+
+    def _collect(self, futures: dict):
+        """``(futures[fut], result)`` in the order the jobs finish; the result is the
+        KilledWorker exception for a job whose worker process died."""
         from distributed import KilledWorker, as_completed
 
-        futures = {}
-        for tag, job, timeout in items:
-            futures[self.client.submit(_dask_task, job, timeout, self.session, pure=False)] = tag
-        for fut in as_completed(futures):
+        lost = []  # the watchdog's reason when it cancelled the jobs (a local cluster left without workers)
+        stop = threading.Event()
+        threading.Thread(target=self._watch_workers, args=(futures, lost, stop), daemon=True).start()
+        try:
+            for fut, res in as_completed(futures, with_results=True, raise_errors=False):
+                key, status = futures.pop(fut), fut.status
+                fut.release()  # (fetched: a worker that dies later holds nothing Dask would compute again)
+                if status == "cancelled":  # hikbench cancels only through the watchdog
+                    why = lost[0] if lost else "a job was cancelled (the Dask scheduler went away)"
+                    raise HikbenchError(f"{self.name}: {why}; expected the cluster to stay up for the whole run. "
+                                        f"The rows written so far are kept: run the same command again to resume")
+                if status == "error":
+                    _, err, tb = res
+                    if not isinstance(err, KilledWorker):  # a bug of _dask_task
+                        raise err.with_traceback(tb)
+                    res = err
+                yield key, res
+        finally:
+            stop.set()
+
+    def _watch_workers(self, futures: dict, lost: list, stop: threading.Event) -> None:
+        """While jobs wait, look every second whether the cluster has a worker. After
+        NO_WORKER_GRACE seconds without one: cancel the jobs of a local cluster (``_collect``
+        raises with the reason put in ``lost``), or warn once on an external cluster."""
+        since = None
+        warned = False
+        while not stop.wait(1.0):
             try:
-                res = fut.result()
-            except KilledWorker as err:  # every Dask worker holding the job died: its row only, the run goes on
-                worker = getattr(err.last_worker, "address", None)
-                res = {"status": CRASHED, "x": None, "samples_ns": [], "worker": worker,
-                       "reason": f"the Dask worker process died while this job was running or queued on it, "
-                                 f"on each of its {err.allowed_failures + 1} attempts (KilledWorker; last on "
-                                 f"{worker}: see that worker's log)"}
-            except CancelledError as err:  # hikbench cancels nothing: the scheduler went away
-                raise HikbenchError(f"{self.name}: a job was cancelled ({err}); expected the Dask scheduler "
-                                    f"to stay up for the whole run. The rows written so far are kept: run "
-                                    f"the same command again to resume") from err
-            yield futures.pop(fut), res
+                n = len(self.client.nthreads())
+            except Exception as err:
+                if isinstance(err, OSError) or stop.is_set():  # the scheduler gone (_collect sees the jobs
+                    return  # cancelled), or the run over and the client closing
+                raise
+            if n:
+                since = None
+                continue
+            since = since or time.monotonic()
+            if time.monotonic() - since < NO_WORKER_GRACE:
+                continue
+            if self.cluster is not None:
+                lost.append(f"the local Dask cluster has had no worker for {NO_WORKER_GRACE:g} s (its worker "
+                            f"processes died and were not restarted)")
+                self.client.cancel(list(futures.copy()))  # (_collect pops from it meanwhile)
+                return
+            if not warned:
+                print(f"hikbench: {self.name} has had no worker for {NO_WORKER_GRACE:g} s; {len(futures)} jobs "
+                      f"wait for one (Ctrl-C stops the run; the rows written so far are kept)",
+                      file=sys.stderr, flush=True)
+                warned = True
 
     def close(self) -> None:
         self.client.close()
         if self.cluster is not None:
             self.cluster.close()
+            self._config.__exit__(None, None, None)
