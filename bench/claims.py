@@ -69,7 +69,9 @@ def _select(d: pd.DataFrame, pred) -> pd.DataFrame:
 
 
 def _ok(df: pd.DataFrame, mode: str = "cold") -> pd.DataFrame:
-    return df[(df["mode"] == mode) & df["verified"].eq(True) & df["time_median_s"].notna()
+    """Verified rows of ``mode`` with default settings and a time that can be measured (finite, > 0)."""
+    t = df["time_median_s"].astype(float)
+    return df[(df["mode"] == mode) & df["verified"].eq(True) & np.isfinite(t) & (t > 0)
               & (df["settings"] == "default")]
 
 

@@ -45,6 +45,14 @@ def test_claim_a_missing_when_no_single_sweep_has_three_depths():
     assert c.status == MISSING and "fixed n and rows" in c.measured, c.measured
 
 
+def test_claim_a_counts_only_depths_with_a_time_it_can_fit():
+    """A sweep whose nullspace-svd times were 0 at all but two depths: the depths were counted
+    before the log-log fit dropped those times, so the claim gave FAIL with a "nan" slope."""
+    rows = _sweep(lambda d: 1e-5, lambda d: 1e-5 * d if d in (5, 6) else 0.0)
+    c = claim_a(pd.DataFrame(rows))
+    assert c.status == MISSING and "3 saturated depths" in c.measured, c.measured
+
+
 @pytest.mark.parametrize("present", [("hcod", "nullspace-svd"), ("hcod", "nullspace-cod")],
                          ids=["no-cod", "no-svd"])
 def test_claim_b_missing_without_both_recursions(present):
