@@ -9,14 +9,15 @@ order they finish; ``result`` carries ``worker`` and ``wall_s``.
 
 On Dask, a job that takes its worker process down (the Dask worker itself
 killed, not the isolated solve process) costs its row only: a job whose worker
-died runs once more at the end, alone on the cluster, and its row is
-``crashed`` when the worker dies again (a job next to it, or one whose finished
-result was still on that worker, dies with it the first time). On the local
-cluster a worker holds only the job it runs (``worker-saturation`` 1.0) and
-Dask does not retry a job on another worker (``allowed-failures`` 0: the retry
-above is hikbench's); results are fetched as soon as they finish and their
-futures released, so that a dying worker holds no finished result that Dask
-would compute again. A cluster left without any worker for
+died runs once more at the end, with no other job of the run beside it, and
+its row is ``crashed`` when the worker dies again (a job assigned to the same
+worker, or one whose finished result was still on it and was computed again,
+can die with it the first time). On the local cluster Dask does not retry a
+job on another worker (``allowed-failures`` 0: the retry above is hikbench's),
+queues the jobs of a large run rather than assigning two to a worker ahead
+(``worker-saturation`` 1.0), and never drops a worker's nanny
+(``lost-worker-timeout``); a future is released once its result is taken. A
+cluster left without any worker for
 :data:`NO_WORKER_GRACE` seconds while jobs wait ends the run with an error on
 the local cluster (its nannies gave up) and prints a warning on an external one
 (workers may come back).
@@ -30,6 +31,7 @@ import sys
 import threading
 import time
 import uuid
+from concurrent.futures import CancelledError
 
 from bench.isolation import IsolatedWorker
 from problems.errors import HikbenchError
@@ -96,9 +98,9 @@ def _died(err) -> dict:
 
 
 _CONNECT_TIMEOUT = 10.0  # seconds to reach a --scheduler
-# the local cluster, for the executor's life: a worker holds only the job it runs; Dask retries no
-# job whose worker died (DaskExecutor.map does, alone); a nanny is never dropped (by default it is
-# when its worker is still down 15 s after a death: under repeated deaths no worker was left)
+# the local cluster, for the executor's life: Dask retries no job whose worker died (map does, alone);
+# a large run's jobs wait in the scheduler, not two per worker; a nanny is never dropped (by default
+# it is when its worker is still down 15 s after a death: under repeated deaths no worker was left)
 _LOCAL_CLUSTER = {"distributed.scheduler.worker-saturation": 1.0, "distributed.scheduler.allowed-failures": 0,
                   "distributed.deploy.lost-worker-timeout": "1 day"}
 
@@ -151,16 +153,20 @@ class DaskExecutor:
             import dask
 
             self._config = dask.config.set(_LOCAL_CLUSTER)  # (undone by close)
-            # no dashboard; the scheduler's HTTP server on a free local port, not on 8787 (taken by
-            # any other cluster: a "Port 8787 is already in use" warning on every run)
-            self.cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
-                                        dashboard_address="127.0.0.1:0", scheduler_kwargs={"dashboard": False})
-            self.client = Client(self.cluster)
+            try:
+                # no dashboard; the scheduler's HTTP server on a free local port, not on 8787 (taken by
+                # any other cluster: a "Port 8787 is already in use" warning on every run)
+                self.cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
+                                            dashboard_address="127.0.0.1:0", scheduler_kwargs={"dashboard": False})
+                self.client = Client(self.cluster)
+            except BaseException:
+                self._config.__exit__(None, None, None)
+                raise
             self.name = f"dask-local:{workers}"
 
     def map(self, items):
         """Every job at once; a job whose worker process died (KilledWorker) runs once more at
-        the end, alone on the cluster (see the module docstring)."""
+        the end, with no other job of the run beside it (see the module docstring)."""
         jobs = {self._submit(job, timeout): (tag, job, timeout) for tag, job, timeout in items}
         again = []
         for (tag, job, timeout), res in self._collect(jobs):
@@ -184,19 +190,18 @@ class DaskExecutor:
         stop = threading.Event()
         threading.Thread(target=self._watch_workers, args=(futures, lost, stop), daemon=True).start()
         try:
-            for fut, res in as_completed(futures, with_results=True, raise_errors=False):
-                key, status = futures.pop(fut), fut.status
-                fut.release()  # (fetched: a worker that dies later holds nothing Dask would compute again)
-                if status == "cancelled":  # hikbench cancels only through the watchdog
-                    why = lost[0] if lost else "a job was cancelled (the Dask scheduler went away)"
-                    raise HikbenchError(f"{self.name}: {why}; expected the cluster to stay up for the whole run. "
-                                        f"The rows written so far are kept: run the same command again to resume")
-                if status == "error":
-                    _, err, tb = res
-                    if not isinstance(err, KilledWorker):  # a bug of _dask_task
-                        raise err.with_traceback(tb)
+            for fut in as_completed(futures):
+                try:
+                    res = fut.result()
+                except KilledWorker as err:
                     res = err
-                yield key, res
+                except CancelledError as err:  # hikbench cancels only through the watchdog
+                    why = lost[0] if lost else f"a job was cancelled ({err}: the Dask scheduler went away)"
+                    raise HikbenchError(f"{self.name}: {why}; expected the cluster to stay up for the whole run. "
+                                        f"The rows written so far are kept: run the same command again to "
+                                        f"resume") from err
+                fut.release()  # (a worker that dies later holds nothing Dask would compute again)
+                yield futures.pop(fut), res
         finally:
             stop.set()
 
@@ -209,9 +214,9 @@ class DaskExecutor:
         while not stop.wait(1.0):
             try:
                 n = len(self.client.nthreads())
-            except Exception as err:
-                if isinstance(err, OSError) or stop.is_set():  # the scheduler gone (_collect sees the jobs
-                    return  # cancelled), or the run over and the client closing
+            except Exception as err:  # the scheduler gone (_collect sees the jobs cancelled), or the
+                if isinstance(err, OSError) or stop.is_set() or self.client.status != "running":
+                    return  # client closed: the run is over
                 raise
             if n:
                 since = None
@@ -231,7 +236,10 @@ class DaskExecutor:
                 warned = True
 
     def close(self) -> None:
-        self.client.close()
-        if self.cluster is not None:
-            self.cluster.close()
-            self._config.__exit__(None, None, None)
+        try:
+            self.client.close()
+            if self.cluster is not None:
+                self.cluster.close()
+        finally:
+            if self.cluster is not None:
+                self._config.__exit__(None, None, None)

@@ -90,8 +90,8 @@ def test_jobs_that_kill_their_dask_worker_cost_their_rows_only():
 
 
 def test_a_local_cluster_left_without_workers_ends_the_run_with_an_error(monkeypatch):
-    """The local cluster lost every worker (its nannies dropped under repeated worker deaths):
-    the run waited for them forever, silently."""
+    """The local cluster lost every worker (its nannies dropped under repeated worker deaths;
+    here the cluster is scaled to 0): the run waited for them forever, silently."""
     import bench.executors
     from problems.errors import HikbenchError
 
@@ -117,14 +117,15 @@ def test_an_external_cluster_without_workers_is_waited_for_with_a_warning(monkey
     monkeypatch.setattr(bench.executors, "NO_WORKER_GRACE", 0.5)
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, **NO_DASHBOARD) as c:
         ex = DaskExecutor(scheduler=c.scheduler_address)
+        back = threading.Timer(5.0, c.scale, args=(1,))  # a worker comes back (the warning: after ~2 s)
         try:
             c.scale(0)
             while ex.client.nthreads():
                 time.sleep(0.05)
-            items = [(0, _solve_job(spec("SleepSolver")), 10.0)]
-            threading.Timer(3.0, c.scale, args=(1,)).start()  # a worker comes back
-            res = dict(ex.map(items))
+            back.start()
+            res = dict(ex.map([(0, _solve_job(spec("SleepSolver")), 10.0)]))
         finally:
+            back.cancel()
             ex.close()
     assert res[0]["status"] == "optimal", res[0]
     assert f"hikbench: dask:{c.scheduler_address} has had no worker for 0.5 s; 1 jobs wait" in capsys.readouterr().err
