@@ -132,6 +132,7 @@ class DaskExecutor:
         from distributed import Client, LocalCluster
 
         self.cluster = None
+        self._config = None  # the local cluster's dask settings, undone by close
         self.session = uuid.uuid4().hex  # fresh isolated processes on the Dask workers (see _dask_task)
         if scheduler:
             host_port = _check_scheduler_address(scheduler)
@@ -152,7 +153,7 @@ class DaskExecutor:
         else:
             import dask
 
-            self._config = dask.config.set(_LOCAL_CLUSTER)  # (undone by close)
+            self._config = dask.config.set(_LOCAL_CLUSTER)
             try:
                 # no dashboard; the scheduler's HTTP server on a free local port, not on 8787 (taken by
                 # any other cluster: a "Port 8787 is already in use" warning on every run)
@@ -241,5 +242,5 @@ class DaskExecutor:
             if self.cluster is not None:
                 self.cluster.close()
         finally:
-            if self.cluster is not None:
+            if self._config is not None:
                 self._config.__exit__(None, None, None)
