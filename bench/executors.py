@@ -215,10 +215,13 @@ class DaskExecutor:
         while not stop.wait(1.0):
             try:
                 n = len(self.client.nthreads())
-            except Exception as err:  # the scheduler gone (_collect sees the jobs cancelled), or the
+            except Exception as err:
                 if isinstance(err, OSError) or stop.is_set() or self.client.status != "running":
-                    return  # client closed: the run is over
-                raise
+                    return  # the client closed or the scheduler went away: the run is over
+                # any other failure leaves the run unguarded (a silent hang if the workers go): end it
+                lost.append(f"the watchdog could not ask the cluster for its workers ({type(err).__name__}: {err})")
+                self.client.cancel(list(futures.copy()))
+                return
             if n:
                 since = None
                 continue

@@ -119,15 +119,15 @@ def _no_solution(backend: str, text: str, h: Hierarchy, k: int, A_f, lower_f, up
     tol = 1e-9 * (1.0 + scale)
     below, above = lower_f - r, r - upper_f
     excess = np.maximum(below, above)
-    viol = float(np.max(np.maximum(excess, 0.0), initial=0.0))
     if np.any(excess > tol):
         worst = int(np.argmax(excess / tol))
         i = int(np.flatnonzero(~h.is_free[:h.starts[k]])[worst])  # A_f's rows in h
-        lev = int(np.searchsorted(h.starts, i, side="right")) - 1
+        lev = int(h.level[i])
         row = i - int(h.starts[lev])
         return (f"infeasible after freezing levels 0..{k - 1} (backend {backend} found no solution, status "
                 f"{text}; x of level {k - 1} violates the frozen row {row} of level {lev} by "
                 f"{excess[worst]:.1e})")
+    viol = float(np.max(np.maximum(excess, 0.0), initial=0.0))
     active = int(np.count_nonzero((below >= -tol) | (above >= -tol)))
     n = x_prev.shape[0]
     degenerate = " (more than n: degenerate)" if active > n else ""

@@ -108,6 +108,24 @@ def test_a_local_cluster_left_without_workers_ends_the_run_with_an_error(monkeyp
         ex.close()
 
 
+def test_a_watchdog_that_cannot_ask_for_workers_ends_the_run_with_an_error(monkeypatch):
+    """An unexpected error in the watchdog's poll killed only its thread: the run went on
+    unguarded (a local cluster losing its workers would then hang)."""
+    from problems.errors import HikbenchError
+
+    ex = DaskExecutor(workers=1)
+    try:
+        def broken():
+            raise ValueError("no answer")
+        monkeypatch.setattr(ex.client, "nthreads", broken)
+        with pytest.raises(HikbenchError, match=r"the watchdog could not ask the cluster for its workers "
+                                                r"\(ValueError: no answer\).*run the same command again"):
+            list(ex.map([(0, {**_solve_job(spec("SleepSolver")), "options": {"delay": 5.0}}, 30.0)]))
+    finally:
+        monkeypatch.undo()
+        ex.close()
+
+
 def test_an_external_cluster_without_workers_is_waited_for_with_a_warning(monkeypatch, capsys):
     """A cluster whose workers all left mid-run: the run waited without a word."""
     from distributed import LocalCluster
