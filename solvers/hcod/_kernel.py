@@ -406,8 +406,6 @@ def hcod_solve(fw, iw):
             ncod = 0  # objective rows the level's COD in Mr holds (0: none valid)
             cod_weak = False  # a pivot appended with a small diagonal (cod_append)
             degen = 0
-            for j in range(nO):
-                piv[j] = j
             while True:
                 if total >= max_iter:
                     status = ST_MAXIT
@@ -423,7 +421,7 @@ def hcod_solve(fw, iw):
                 nf = n - p
                 for c in range(n):
                     ps[c] = 0.0
-                if ncod == 0:
+                if ncod == 0:  # (piv: the identity unless a COD below pivots; the freeze reads it)
                     r = 0
                     for j in range(nO):
                         piv[j] = j
