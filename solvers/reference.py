@@ -25,6 +25,14 @@ Two methods that share no code with the HCOD solver:
   equalities are eliminated (``x = x_p + N y``) before each QP. A last stage
   picks the minimum-norm x in the optimal set. The QP backends are Clarabel,
   then PIQP when Clarabel fails (the one used is recorded per stage).
+  When every backend fails on a stage -- typically "primal infeasible" on a
+  frozen set that is feasible but has no interior, rows held at their bounds
+  by others of an ill-conditioned level -- the stage is solved again with the
+  frozen inequality bounds widened by :data:`WIDEN_RTOL` of each row's scale;
+  such a point is kept only if polishing puts it on the exact bounds and the
+  KKT conditions certify it optimal there (multipliers of the right signs,
+  found by bounded least squares); the widening is recorded in the stage's
+  ``backend``.
 """
 
 from __future__ import annotations
@@ -39,13 +47,16 @@ from solvers.base import ERROR, OPTIMAL, SolveResult, Solver
 from solvers.registry import SolverInfo
 
 __all__ = ["nullspace_reference", "cascade_reference", "reference_solution", "ReferenceSolver",
-           "RANK_RTOL"]
+           "RANK_RTOL", "WIDEN_RTOL"]
 
 RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
 _ACTIVE_RTOL = 1e-7  #: a constraint within this (relative) distance of its bound is read as active
 _ALMOST_SOLVED = ("AlmostSolved",)  #: Clarabel's reduced-accuracy success
 _Y_REG = 1e-9  #: regularisation of the free coordinates y in a level's QP (removed by polishing)
 _FEAS_RTOL = 1e-11  #: feasibility slack allowed to a polished point (relative, per row)
+#: widenings of the frozen inequality bounds (relative to each row's scale) tried, in order, on a
+#: stage no backend solved; 1e-7 is _ACTIVE_RTOL: polishing reads rows that close as active anyway
+WIDEN_RTOL = (1e-9, 1e-7)
 
 
 class ReferenceError(HikbenchError):
@@ -94,7 +105,7 @@ def _signed_slack(r: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
     return r - np.clip(r, lo, up)
 
 
-def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
+def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, widen: float = 0.0):
     """Build and solve the QP of one level.
 
     Level k (not final): min 1/2 ||w||^2  s.t. lo_hi <= A_hi x <= up_hi,
@@ -102,12 +113,17 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
     The equality rows of the higher levels (frozen rows) are eliminated first,
     ``x = x_p + N y`` with N an orthonormal basis of their null space (SVD,
     rank threshold RANK_RTOL), so that the QP in z = (y, w) has no redundant
-    equality constraints, on which interior-point backends stall.
+    equality constraints, on which interior-point backends stall. ``widen`` > 0
+    moves each remaining bound of A_hi outward by ``widen`` times the row's
+    scale (:func:`_row_scale` at x_p).
     Returns x, shape (n,), and the backend name."""
     import qpsolvers
 
     eq_hi = lo_hi == up_hi
     x_p, N = _null_update(np.zeros(P_n), np.eye(P_n), A_hi[eq_hi], lo_hi[eq_hi])
+    if widen > 0:
+        gap = widen * _row_scale(A_hi, lo_hi, up_hi, x_p)
+        lo_hi, up_hi = np.where(eq_hi, lo_hi, lo_hi - gap), np.where(eq_hi, up_hi, up_hi + gap)
     A_hi, lo_hi, up_hi = A_hi[~eq_hi], lo_hi[~eq_hi] - A_hi[~eq_hi] @ x_p, up_hi[~eq_hi] - A_hi[~eq_hi] @ x_p
     lo_k, up_k = lo_k - A_k @ x_p, up_k - A_k @ x_p
     A_hi, A_k = A_hi @ N, A_k @ N
@@ -148,7 +164,8 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
             warnings.simplefilter("ignore", RuntimeWarning)
             warnings.simplefilter("ignore", UserWarning)
             sol = qpsolvers.solve_problem(problem, solver=backend, **options)
-        status = sol.extras.get("status") if isinstance(sol.extras, dict) else None
+        extras = sol.extras if isinstance(sol.extras, dict) else {}
+        status = extras.get("status", getattr(extras.get("info"), "status", None))  # (PIQP: in its info)
         # the QP only has to identify the active set (polishing is exact), so
         # an almost-solved point is accepted; its status is kept in the name
         usable = sol.found or str(status) in _ALMOST_SOLVED
@@ -183,13 +200,43 @@ def _row_scale(A: np.ndarray, lo: np.ndarray, up: np.ndarray, x: np.ndarray) -> 
     return np.linalg.norm(A, axis=1) * (1.0 + np.linalg.norm(x)) + b + 1e-300
 
 
-def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
+def _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool) -> bool:
+    """Whether the feasible x is optimal for the stage by the KKT conditions:
+    multipliers, free for the equality rows of A_hi and of the right sign for
+    its rows at a bound (``_ACTIVE_RTOL``), that cancel the gradient of the
+    stage's cost, ``g = x`` (final) or ``A_k^T w`` (``w`` the slack of level
+    k): ``min || g + C^T lam ||`` over those signs (bounded least squares) is
+    at most 1e-7 ||g|| plus round-off."""
+    from scipy.optimize import lsq_linear
+
+    if final:
+        g, floor = x, 1e-12 * (1.0 + float(np.linalg.norm(x)))
+    else:
+        scale = _row_scale(A_k, lo_k, up_k, x)
+        g = A_k.T @ _signed_slack(A_k @ x, lo_k, up_k)
+        floor = 1e-12 * float(np.linalg.norm(A_k, axis=1) @ scale)
+    r = A_hi @ x
+    delta = _ACTIVE_RTOL * _row_scale(A_hi, lo_hi, up_hi, x)
+    eq = lo_hi == up_hi
+    at_up = ~eq & np.isfinite(up_hi) & (up_hi - r <= delta)
+    at_lo = ~eq & ~at_up & np.isfinite(lo_hi) & (r - lo_hi <= delta)
+    C = np.vstack([A_hi[eq], A_hi[at_up], -A_hi[at_lo]])
+    if C.shape[0] == 0:
+        return float(np.linalg.norm(g)) <= floor
+    lower = np.concatenate([np.full(int(eq.sum()), -np.inf), np.zeros(int(at_up.sum() + at_lo.sum()))])
+    lam = lsq_linear(C.T, -g, bounds=(lower, np.inf), method="bvls").x
+    return float(np.linalg.norm(g + C.T @ lam)) <= 1e-7 * float(np.linalg.norm(g)) + floor
+
+
+def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: bool = False):
     """Read the active set off x_qp and solve the equality problem on it
     exactly, by the smallest correction of x_qp (so that constraints inactive
     at x_qp stay satisfied).
 
     Returns the polished x if it is feasible and no worse than x_qp, else x_qp,
-    and whether polishing was kept."""
+    and whether polishing was kept. With ``certify`` (x_qp from widened bounds,
+    so possibly better than the exact optimum) the polished x must instead pass
+    :func:`_kkt_certified`."""
     delta = _ACTIVE_RTOL * _row_scale(A_hi, lo_hi, up_hi, x_qp)
     r_hi = A_hi @ x_qp
     eq_hi = lo_hi == up_hi
@@ -243,10 +290,36 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
         d = np.append(d, up_hi[j] if tau_u[j] <= tau_l[j] else lo_hi[j])
     else:
         return x_qp, False
+    if certify:
+        return (x, True) if _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final) else (x_qp, False)
     c_tol = 0.0 if final else float(np.sum((_FEAS_RTOL * _row_scale(A_k, lo_k, up_k, x)) ** 2))
     if cost(x) <= cost(x_qp) * (1 + 1e-9) + c_tol:
         return x, True
     return x_qp, False
+
+
+def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
+    """One stage of the cascade: the QP (:func:`_qp_level`), then polishing
+    (:func:`_polish`, on the exact bounds). When no backend solves the QP, it is
+    solved again with the bounds of A_hi widened by each of WIDEN_RTOL in turn;
+    a widened QP's point counts only once polished onto the exact bounds and
+    certified optimal there (:func:`_kkt_certified`). Returns x, whether it was
+    polished, and the backend label. Raises ReferenceError naming every try."""
+    failed = []
+    for widen in (0.0, *WIDEN_RTOL):
+        try:
+            x_qp, backend = _qp_level(A_hi.shape[1], A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, widen)
+        except ReferenceError as err:
+            failed.append(f"bounds widened by {widen:g}: {err}" if widen else str(err))
+            continue
+        x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, certify=widen > 0)
+        if not widen:
+            return x, ok, backend
+        if ok:
+            return x, ok, f"{backend}, bounds widened by {widen:g}"
+        failed.append(f"bounds widened by {widen:g}: {backend} solved it, but no point polished onto the "
+                      f"exact bounds passed the KKT check")
+    raise ReferenceError("; ".join(failed))
 
 
 def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
@@ -271,9 +344,11 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
             polished.append(True)
             backends.append("none")
             continue
-        x_qp, backend = _qp_level(n, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final=False)
+        try:
+            x, ok, backend = _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final=False)
+        except ReferenceError as err:
+            raise ReferenceError(f"level {k}: {err}") from err
         backends.append(backend)
-        x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final=False)
         polished.append(ok)
         w = _signed_slack(A_k @ x, lo_k, up_k)
         w[np.abs(w) <= 1e-13 * _row_scale(A_k, lo_k, up_k, x)] = 0.0
@@ -288,9 +363,11 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
         up_hi = np.concatenate([up_hi, np.where(w != 0, achieved, up_k)])
     if A_hi.shape[0]:
         empty = np.zeros((0, n))
-        x_qp, backend = _qp_level(n, A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), final=True)
+        try:
+            x, ok, backend = _stage(A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), final=True)
+        except ReferenceError as err:
+            raise ReferenceError(f"the minimum-norm stage: {err}") from err
         backends.append(backend)
-        x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), final=True)
         polished.append(ok)
     return x, {"polished": polished, "slack": slacks, "backend": backends}
 

@@ -188,3 +188,67 @@ def test_cascade_reference_agrees_with_kkt_enumeration_random(n, depth, rows, mi
     for x_try in rng.standard_normal((20, n)):
         v = compare_lexicographic(h.level_norms(x_try), norms, rtol=0.0, atol=1e-9)
         assert v.lower != "a", f"x={x_try} beats the brute force at level {v.level}"
+
+
+def _no_interior():
+    """An ill-conditioned hierarchy (cond 1e6, rows scaled over 1e4; problem 67 of the HCOD
+    conditioning sweep) whose frozen set at level 3 and at the minimum-norm stage is feasible
+    but has no interior: every QP backend calls it infeasible or stalls."""
+    return random_hierarchy(7, 4, [5, 10, 1, 3], rank=[5, 1, 1, 3], shared_rank=[0, 1, 0, 2], inequality="mixed",
+                            box=True, box_bound=1.0, equality_fraction=0.0, cond=1e6, row_scale=1e4, seed=67)
+
+
+def test_a_stage_no_backend_solves_is_solved_on_widened_bounds_polished_and_certified(monkeypatch):
+    """Such a stage had no reference at all (4.5% of the ill-conditioned sweep)."""
+    from solvers import reference
+    from problems.verify import verify
+    from solvers.hcod import HcodSolver
+
+    h = _no_interior()
+    x, info = cascade_reference(h)
+    widened = [k for k, b in enumerate(info["backend"]) if "bounds widened by" in b]
+    assert widened == [3, h.depth] and all(info["polished"]), info  # (level 3, the minimum-norm stage)
+    v = verify(h, HcodSolver().solve(h).x, x, rtol=1e-7)  # an independent method finds the same optimum
+    assert v.equal, v
+    monkeypatch.setattr(reference, "WIDEN_RTOL", ())
+    with pytest.raises(reference.ReferenceError, match=r"^level 3: no QP backend solved the level \(clarabel: "
+                                                       r"PrimalInfeasible; piqp: .*\)$"):
+        cascade_reference(h)
+
+
+def test_a_widened_point_that_fails_the_kkt_check_is_no_reference(monkeypatch):
+    from solvers import reference
+
+    monkeypatch.setattr(reference, "_kkt_certified", lambda *args: False)
+    with pytest.raises(reference.ReferenceError, match=r"^level 3: no QP backend .*; bounds widened by 1e-09: "
+                                                       r"clarabel solved it, but no point polished onto the exact "
+                                                       r"bounds passed the KKT check; bounds widened by 1e-07: "):
+        cascade_reference(_no_interior())
+
+
+@pytest.mark.parametrize(("x", "rows", "lo", "up", "optimal"), [
+    ([1.0, 0.0], [[1.0, 0.0]], [1.0], [np.inf], True),  # min ||x|| s.t. x0 >= 1: at the bound
+    ([2.0, 0.0], [[1.0, 0.0]], [1.0], [np.inf], False),  # feasible, off the bound: ||x|| can shrink
+    ([1.0, 0.5], [[1.0, 0.0]], [1.0], [np.inf], False),  # on the bound, x1 can shrink
+    ([1.0, 0.0], [[-1.0, 0.0]], [-np.inf], [-1.0], True),  # the same row written as an upper bound
+    ([1.0, 0.0], [[1.0, 0.0], [1.0, 0.0]], [-np.inf, 1.0], [1.0, np.inf], True),  # two rows pin x0 (no interior)
+    ([1.0, 1.0], [[1.0, 1.0]], [2.0], [2.0], True),  # an equality row: a free multiplier
+    ([2.0, 0.0], [[1.0, 1.0]], [2.0], [2.0], False),  # on it, not the nearest point
+], ids=["lower-bound", "interior", "slack-direction", "upper-bound", "pinned-pair", "equality", "equality-off"])
+def test_kkt_certificate_of_the_minimum_norm_stage(x, rows, lo, up, optimal):
+    from solvers.reference import _kkt_certified
+
+    empty = np.zeros((0, 2))
+    assert _kkt_certified(np.array(x), np.array(rows), np.array(lo), np.array(up), empty, np.zeros(0), np.zeros(0),
+                          True) is optimal
+
+
+@pytest.mark.parametrize(("x", "optimal"), [([1.0, 0.0], True), ([0.5, 0.0], False)], ids=["at-bound", "inside"])
+def test_kkt_certificate_of_a_level(x, optimal):
+    """Level: x0 + x1 = 3 (slack w = x0 + x1 - 3), above it x0 <= 1 and x1 <= 0: the slack's gradient
+    (1, 1) w is cancelled by the multipliers of both bounds only where both are active."""
+    from solvers.reference import _kkt_certified
+
+    A_hi, lo_hi, up_hi = np.eye(2), np.full(2, -np.inf), np.array([1.0, 0.0])
+    assert _kkt_certified(np.array(x), A_hi, lo_hi, up_hi, np.array([[1.0, 1.0]]), np.array([3.0]),
+                          np.array([3.0]), False) is optimal
