@@ -200,8 +200,8 @@ def _no_interior():
 
 def test_a_stage_no_backend_solves_is_solved_on_widened_bounds_polished_and_certified(monkeypatch):
     """Such a stage had no reference at all (4.5% of the ill-conditioned sweep)."""
-    from solvers import reference
     from problems.verify import verify
+    from solvers import reference
     from solvers.hcod import HcodSolver
 
     h = _no_interior()
