@@ -8,16 +8,12 @@ An executor maps ``(tag, job, timeout)`` items to ``(tag, result)`` in the
 order they finish; ``result`` carries ``worker`` and ``wall_s``.
 
 On Dask, a job that takes its worker process down (the Dask worker itself
-killed, not the isolated solve process) costs its row only. On the local
-cluster Dask does not retry a job on another worker (``allowed-failures`` 0):
-a job whose worker died runs once more at the end, with no other job of the
-run beside it, and its row is ``crashed`` when the worker dies again (a job
-assigned to the same worker, or one whose finished result was still on it and
-was computed again, can die with it the first time). A scheduler that retries
-(an external cluster: Dask's default ``allowed-failures`` is 3) has already
-run the job on that many more workers when it gives up, so its row is
-``crashed`` at once: a job that kills every worker it runs on costs
-``allowed-failures + 1`` workers, not twice that. The local cluster also
+killed, not the isolated solve process) costs its row only: a job whose worker
+died runs once more at the end, with no other job of the run beside it, and
+its row is ``crashed`` when the worker dies again (a job assigned to the same
+worker, or one whose finished result was still on it and was computed again,
+can die with it the first time). On the local cluster Dask does not retry a
+job on another worker (``allowed-failures`` 0: the retry above is hikbench's),
 queues the jobs of a large run rather than assigning two to a worker ahead
 (``worker-saturation`` 1.0), and never drops a worker's nanny
 (``lost-worker-timeout``); a future is released once its result is taken. A
@@ -93,18 +89,12 @@ def _dask_task(job: dict, timeout: float, session: str) -> dict:
     return res
 
 
-def _died(err, alone: bool) -> dict:
-    """The row of a job whose Dask worker died under it (KilledWorker): on ``allowed_failures + 1``
-    workers in a row (the scheduler's retries), or twice with hikbench's retry ``alone``."""
+def _died(err) -> dict:
+    """The row of a job whose Dask worker died under it twice, the second time alone (KilledWorker)."""
     worker = getattr(err.last_worker, "address", None)
-    if alone:
-        how = "also when it ran again alone on the cluster"
-    else:
-        how = (f"all {err.allowed_failures + 1} times the scheduler ran it (its allowed-failures "
-               f"is {err.allowed_failures}; not run again)")
     return {"status": CRASHED, "x": None, "samples_ns": [], "worker": worker,
-            "reason": f"the Dask worker process died while this job was running on it, {how} "
-                      f"(KilledWorker; last on {worker}: see that worker's log)"}
+            "reason": f"the Dask worker process died while this job was running on it, also when it ran again "
+                      f"alone on the cluster (KilledWorker; last on {worker}: see that worker's log)"}
 
 
 _CONNECT_TIMEOUT = 10.0  # seconds to reach a --scheduler
@@ -177,20 +167,17 @@ class DaskExecutor:
 
     def map(self, items):
         """Every job at once; a job whose worker process died (KilledWorker) runs once more at
-        the end, with no other job of the run beside it, unless the scheduler retried it
-        already (see the module docstring)."""
+        the end, with no other job of the run beside it (see the module docstring)."""
         jobs = {self._submit(job, timeout): (tag, job, timeout) for tag, job, timeout in items}
         again = []
         for (tag, job, timeout), res in self._collect(jobs):
             if isinstance(res, dict):
                 yield tag, res
-            elif res.allowed_failures > 0:
-                yield tag, _died(res, alone=False)
             else:
                 again.append((tag, job, timeout))
         for tag, job, timeout in again:
             for _, res in self._collect({self._submit(job, timeout): tag}):
-                yield tag, res if isinstance(res, dict) else _died(res, alone=True)
+                yield tag, res if isinstance(res, dict) else _died(res)
 
     def _submit(self, job: dict, timeout: float):
         return self.client.submit(_dask_task, job, timeout, self.session, pure=False)

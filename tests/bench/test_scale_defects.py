@@ -89,36 +89,6 @@ def test_jobs_that_kill_their_dask_worker_cost_their_rows_only():
         assert "KilledWorker" in r["reason"], r
 
 
-class CountingKillSolver(KillParentSolver):
-    """KillParentSolver that first appends a line to the file ``log`` (one per run)."""
-
-    def __init__(self, log: str):
-        self.log = log
-
-    def solve(self, h):
-        with open(self.log, "a") as f:
-            f.write("run\n")
-        super().solve(h)
-
-
-def test_a_job_the_scheduler_gave_up_on_is_not_run_again(tmp_path):
-    """A scheduler that retries a job whose worker died (an external cluster, allowed-failures
-    > 0) had run it allowed-failures + 1 times when it gave up; hikbench's own retry then ran
-    it as often again: a job that kills every worker it runs on took down twice as many."""
-    import dask
-    from distributed import LocalCluster
-
-    log = tmp_path / "runs.txt"
-    killer = {**_solve_job(f"{__file__}:CountingKillSolver"), "options": {"log": str(log)}}
-    with dask.config.set({"distributed.scheduler.allowed-failures": 1}), LocalCluster(
-            n_workers=2, threads_per_worker=1, processes=True, **NO_DASHBOARD) as c:
-        (res,) = _run_on(c, [(0, killer, 20.0)])
-    assert res["status"] == "crashed", res
-    assert "died while this job was running on it, all 2 times the scheduler ran it (its allowed-failures " \
-           "is 1; not run again) (KilledWorker; last on tcp://" in res["reason"], res
-    assert log.read_text().splitlines() == ["run", "run"]
-
-
 def test_a_local_cluster_left_without_workers_ends_the_run_with_an_error(monkeypatch):
     """The local cluster lost every worker (its nannies dropped under repeated worker deaths;
     here the cluster is scaled to 0): the run waited for them forever, silently."""
