@@ -206,7 +206,10 @@ def _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool) -> bool:
     its rows at a bound (``_ACTIVE_RTOL``), that cancel the gradient of the
     stage's cost, ``g = x`` (final) or ``A_k^T w`` (``w`` the slack of level
     k): ``min || g + C^T lam ||`` over those signs (bounded least squares) is
-    at most 1e-7 ||g|| plus round-off."""
+    at most 1e-7 ||g|| plus round-off. A row counts as at its (nearer) bound
+    within ``_FEAS_RTOL`` of its scale -- where polishing put it -- so that a
+    point merely near a bound is not certified (no complementary slackness
+    beyond that)."""
     from scipy.optimize import lsq_linear
 
     if final:
@@ -216,10 +219,10 @@ def _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool) -> bool:
         g = A_k.T @ _signed_slack(A_k @ x, lo_k, up_k)
         floor = 1e-12 * float(np.linalg.norm(A_k, axis=1) @ scale)
     r = A_hi @ x
-    delta = _ACTIVE_RTOL * _row_scale(A_hi, lo_hi, up_hi, x)
+    delta = _FEAS_RTOL * _row_scale(A_hi, lo_hi, up_hi, x)
     eq = lo_hi == up_hi
-    at_up = ~eq & np.isfinite(up_hi) & (up_hi - r <= delta)
-    at_lo = ~eq & ~at_up & np.isfinite(lo_hi) & (r - lo_hi <= delta)
+    at_up = ~eq & np.isfinite(up_hi) & (np.abs(up_hi - r) <= delta) & (up_hi - r <= r - lo_hi)
+    at_lo = ~eq & ~at_up & np.isfinite(lo_hi) & (np.abs(r - lo_hi) <= delta)
     C = np.vstack([A_hi[eq], A_hi[at_up], -A_hi[at_lo]])
     if C.shape[0] == 0:
         return float(np.linalg.norm(g)) <= floor
@@ -317,8 +320,8 @@ def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
             return x, ok, backend
         if ok:
             return x, ok, f"{backend}, bounds widened by {widen:g}"
-        failed.append(f"bounds widened by {widen:g}: {backend} solved it, but no point polished onto the "
-                      f"exact bounds passed the KKT check")
+        failed.append(f"bounds widened by {widen:g}: {backend} solved it, but its point could not be polished "
+                      f"onto the exact bounds and certified optimal there (KKT check)")
     raise ReferenceError("; ".join(failed))
 
 
@@ -329,7 +332,8 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
     final minimum-norm stage), ``polished`` (bool: the exact active-set point
     was kept) and ``backend`` (the QP backend that solved it), and ``slack``
     (the signed optimal slack w_k* of each level). Raises ReferenceError when
-    no backend solves a stage."""
+    no backend solves a stage, not even on widened bounds with a certified
+    polished point (:func:`_stage`)."""
     n = h.n
     A_hi = np.zeros((0, n))
     lo_hi = np.zeros(0)
