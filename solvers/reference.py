@@ -105,7 +105,7 @@ def _signed_slack(r: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
     return r - np.clip(r, lo, up)
 
 
-def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, widen: float = 0.0):
+def _qp_level(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, widen: float = 0.0):
     """Build and solve the QP of one level.
 
     Level k (not final): min 1/2 ||w||^2  s.t. lo_hi <= A_hi x <= up_hi,
@@ -116,11 +116,12 @@ def _qp_level(P_n: int, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, widen:
     equality constraints, on which interior-point backends stall. ``widen`` > 0
     moves each remaining bound of A_hi outward by ``widen`` times the row's
     scale (:func:`_row_scale` at x_p).
-    Returns x, shape (n,), and the backend name."""
+    Returns x, shape (n,) (n = A_hi's columns), and the backend name."""
     import qpsolvers
 
     eq_hi = lo_hi == up_hi
-    x_p, N = _null_update(np.zeros(P_n), np.eye(P_n), A_hi[eq_hi], lo_hi[eq_hi])
+    nx = A_hi.shape[1]
+    x_p, N = _null_update(np.zeros(nx), np.eye(nx), A_hi[eq_hi], lo_hi[eq_hi])
     if widen > 0:
         gap = widen * _row_scale(A_hi, lo_hi, up_hi, x_p)
         lo_hi, up_hi = np.where(eq_hi, lo_hi, lo_hi - gap), np.where(eq_hi, up_hi, up_hi + gap)
@@ -203,7 +204,7 @@ def _row_scale(A: np.ndarray, lo: np.ndarray, up: np.ndarray, x: np.ndarray) -> 
 def _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool) -> bool:
     """Whether the feasible x is optimal for the stage by the KKT conditions:
     multipliers, free for the equality rows of A_hi and of the right sign for
-    its rows at a bound (``_ACTIVE_RTOL``), that cancel the gradient of the
+    its rows at a bound, that cancel the gradient of the
     stage's cost, ``g = x`` (final) or ``A_k^T w`` (``w`` the slack of level
     k): ``min || g + C^T lam ||`` over those signs (bounded least squares) is
     at most 1e-7 ||g|| plus round-off. A row counts as at its (nearer) bound
@@ -301,17 +302,18 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
     return x_qp, False
 
 
-def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
+def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, name: str):
     """One stage of the cascade: the QP (:func:`_qp_level`), then polishing
     (:func:`_polish`, on the exact bounds). When no backend solves the QP, it is
     solved again with the bounds of A_hi widened by each of WIDEN_RTOL in turn;
     a widened QP's point counts only once polished onto the exact bounds and
     certified optimal there (:func:`_kkt_certified`). Returns x, whether it was
-    polished, and the backend label. Raises ReferenceError naming every try."""
+    polished, and the backend label. Raises ReferenceError naming the stage
+    (``name``) and every try."""
     failed = []
     for widen in (0.0, *WIDEN_RTOL):
         try:
-            x_qp, backend = _qp_level(A_hi.shape[1], A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, widen)
+            x_qp, backend = _qp_level(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, widen)
         except ReferenceError as err:
             failed.append(f"bounds widened by {widen:g}: {err}" if widen else str(err))
             continue
@@ -322,7 +324,7 @@ def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
             return x, ok, f"{backend}, bounds widened by {widen:g}"
         failed.append(f"bounds widened by {widen:g}: {backend} solved it, but its point could not be polished "
                       f"onto the exact bounds and certified optimal there (KKT check)")
-    raise ReferenceError("; ".join(failed))
+    raise ReferenceError(f"{name}: " + "; ".join(failed))
 
 
 def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
@@ -348,10 +350,7 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
             polished.append(True)
             backends.append("none")
             continue
-        try:
-            x, ok, backend = _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final=False)
-        except ReferenceError as err:
-            raise ReferenceError(f"level {k}: {err}") from err
+        x, ok, backend = _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, False, f"level {k}")
         backends.append(backend)
         polished.append(ok)
         w = _signed_slack(A_k @ x, lo_k, up_k)
@@ -367,10 +366,7 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
         up_hi = np.concatenate([up_hi, np.where(w != 0, achieved, up_k)])
     if A_hi.shape[0]:
         empty = np.zeros((0, n))
-        try:
-            x, ok, backend = _stage(A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), final=True)
-        except ReferenceError as err:
-            raise ReferenceError(f"the minimum-norm stage: {err}") from err
+        x, ok, backend = _stage(A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), True, "the minimum-norm stage")
         backends.append(backend)
         polished.append(ok)
     return x, {"polished": polished, "slack": slacks, "backend": backends}
