@@ -6,7 +6,10 @@ chosen by the kernel at the start of each solve:
   ``LAZY_MIN_N`` variables): every orthogonal factor is applied to ``W`` at
   once (``2 n L`` multiply-adds per reflector of length L); the products read
   only the columns they need (``Z`` for the projections of eq. 19, held in
-  ``Mf[:, p:]``);
+  ``Mf[:, p:]``). While ``W`` is still the identity of the solve's start
+  (flag ``qi[Q_ID]``, as in the factored form: until the first update, e.g.
+  the first level with objective rows when nothing above is active) the
+  projections of eq. 19 are copies;
 - *factored* (:mod:`._factored`: warm re-solves from a recorded active set,
   sec. XI, from ``LAZY_MIN_N`` variables on, until a level iterates more than
   ``LAZY_MAX_ITER`` times: then the queue is flushed and ``W`` stays explicit
@@ -31,6 +34,7 @@ from __future__ import annotations
 from numba import njit
 
 from solvers.hcod import _explicit, _factored
+from solvers.hcod._factored import Q_ID
 from solvers.hcod._linalg import FASTMATH
 
 __all__ = [
@@ -64,13 +68,15 @@ _FM = set(FASTMATH)
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def basis_reset(lazy, Wt, qi):
-    """``W = I`` (a solve's start): a flag when factored."""
+    """``W = I`` (a solve's start): a flag when factored; explicit, the
+    identity written and flagged (the flag is cleared by the first update)."""
     if lazy:
         _factored.basis_reset(qi)
     else:
         Wt[:, :] = 0.0
         for i in range(Wt.shape[0]):
             Wt[i, i] = 1.0
+        qi[Q_ID] = 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -104,7 +110,7 @@ def basis_rows(lazy, A, rows, j0, j1, bcol, bval, Wt, qv, qi, M, p, sv, sv2):
     ``M[j] = W^T a`` when factored, ``M[j, p:] = Z^T a`` when explicit."""
     if lazy:
         return _factored.basis_rows(A, rows, j0, j1, bcol, bval, Wt, qv, qi, M, sv, sv2)
-    return _explicit.project_into(A, rows, j0, j1, bcol, bval, Wt, p, M)
+    return _explicit.project_into(A, rows, j0, j1, bcol, bval, Wt, p, M, qi[Q_ID] != 0)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -112,6 +118,8 @@ def push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, sv, sv2):
     """``W[:, p:] <- W[:, p:] H_0 ... H_{r-1}`` (eq. 23), reflector t =
     ``I - beta[t] v v^T`` with ``v = Mr[t, t:n-p]`` on the columns ``p + t:``."""
     if not lazy:
+        if r > 0:
+            qi[Q_ID] = 0
         return _explicit.apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv, sv2)
     nf = Wt.shape[0] - p
     fl = 0
@@ -127,7 +135,10 @@ def insert_row(lazy, A, i, bcol, bval, R, p, thr, q, Wt, qv, qi, sv, sv2):
     beta); the reflector stays in ``q[p:]``."""
     if lazy:
         return _factored.insert_row(A, i, bcol, bval, R, p, thr, q, Wt, qv, qi, sv, sv2)
-    return _explicit.insert_row(A, i, bcol, bval, Wt, R, p, thr, q, sv)
+    ok, fl, bt = _explicit.insert_row(A, i, bcol, bval, Wt, R, p, thr, q, sv)
+    if ok:
+        qi[Q_ID] = 0
+    return ok, fl, bt
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -137,7 +148,10 @@ def insert_rows(lazy, A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb
     if lazy:
         return _factored.insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok,
                                      Wt, qv, qi, sv, sv2)
-    return _explicit.insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2)
+    t, fl = _explicit.insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2)
+    if t > 0:
+        qi[Q_ID] = 0
+    return t, fl
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -147,6 +161,7 @@ def delete_row(lazy, j, R, p, widx, wside, M, nM, Wt, qv, qi, sv, sv2):
     Returns flops; the caller decrements p."""
     if lazy:
         return _factored.delete_row(j, R, p, widx, wside, M, nM, Wt, qv, qi, sv, sv2)
+    qi[Q_ID] = 0
     return _explicit.delete_row(j, Wt, R, p, widx, wside, qv)
 
 

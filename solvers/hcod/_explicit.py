@@ -215,11 +215,26 @@ def multipliers(Wt, R, p, g, h, nu):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def project_into(A, Olist, j0, j1, bcol, bval, Wt, p, Mf):
+def project_into(A, Olist, j0, j1, bcol, bval, Wt, p, Mf, ident):
     """``Mf[j, p:] = A[Olist[j]] @ W[:, p:]`` for j0 <= j < j1: the objective rows
-    projected on Z (eq. 19), kept up to date across iterations. Returns flops."""
+    projected on Z (eq. 19), kept up to date across iterations; copies of
+    ``A[Olist[j], p:]`` when ``W`` is the identity (``ident``). Returns flops."""
     n = Wt.shape[0]
     fl = 0
+    if ident:
+        for j in range(j0, j1):
+            i = Olist[j]
+            mj = Mf[j, p:]
+            b = bcol[i]
+            if b >= 0:
+                mj[:] = 0.0
+                if b >= p:
+                    mj[b - p] = bval[i]
+            else:
+                ra = A[i, p:]
+                for c in range(n - p):
+                    mj[c] = ra[c]
+        return 0
     ng = 0
     for j in range(j0, j1):
         if bcol[Olist[j]] < 0:

@@ -230,3 +230,45 @@ def test_insert_row_refuses_without_room(lazy):
     np.testing.assert_array_equal(b.qi, qi0)
     np.testing.assert_array_equal(b.Wt, Wt0)
     np.testing.assert_array_equal(b.R, np.triu(np.ones((n, n))))
+
+
+def _projections(b: Basis, rows: np.ndarray) -> tuple[np.ndarray, int]:
+    M = np.zeros((len(rows), b.n))
+    fl = basis_rows(b.lazy, b.A, rows, 0, len(rows), b.bcol, b.bval, b.Wt, b.qv, b.qi, M, b.p, b.sv, b.sv2)
+    return M, fl
+
+
+@pytest.mark.parametrize("update", ["push", "insert", "insert_rows"])
+def test_explicit_identity_flag(update):
+    """An explicit W starts flagged the identity: the projections (eq. 19) are
+    copies of the rows (no multiply-adds); a refused row leaves the flag, the
+    first update clears it and the products read W again."""
+    n = 8
+    rng = np.random.default_rng(11)
+    b = Basis(n, 12, rng, lazy=False)
+    rows = np.arange(12, dtype=np.int64)  # general rows and bound rows (every fifth)
+    assert b.qi[Q_ID] == 1
+    M, fl = _projections(b, rows)
+    assert fl == 0
+    np.testing.assert_array_equal(M, b.A)
+    ok, _, _ = insert_row(False, b.A, 1, b.bcol, b.bval, b.R, b.p, 1e30, b.q, *b.args())  # refused
+    assert not ok and b.qi[Q_ID] == 1
+    if update == "push":
+        Mr = rng.standard_normal((2, n))
+        beta = 2.0 / np.array([Mr[0] @ Mr[0], Mr[1, 1:] @ Mr[1, 1:]])
+        b.push(Mr, beta, 2)
+    elif update == "insert":
+        assert b.insert(1)
+    else:
+        cok = np.zeros(2, dtype=np.int64)
+        t, _ = insert_rows(False, b.A, np.array([1, 5], dtype=np.int64), 2, b.bcol, b.bval, b.R, 0, 1e-10,
+                           np.ones(1), np.zeros(12, dtype=np.int64), np.zeros((2, n)), np.zeros(2), cok, *b.args())
+        assert t == 2
+        b.widx[:2] = [1, 5]
+        b.p = 2
+    assert b.qi[Q_ID] == 0
+    W = b.check()
+    assert np.abs(W - np.eye(n)).max() > 0.1
+    M, fl = _projections(b, rows)
+    assert fl > 0
+    np.testing.assert_allclose(M[:, b.p:], (b.A @ W)[:, b.p:], rtol=0, atol=ATOL * n)
