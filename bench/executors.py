@@ -241,9 +241,11 @@ class DaskExecutor:
 
     def close(self) -> None:
         try:
-            self.client.close()
-            if self.cluster is not None:
-                self.cluster.close()
+            try:
+                self.client.close()
+            finally:  # (the local cluster's processes are stopped even when the client's close fails)
+                if self.cluster is not None:
+                    self.cluster.close()
         finally:
             if self._config is not None:
                 self._config.__exit__(None, None, None)

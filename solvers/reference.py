@@ -55,8 +55,8 @@ _ALMOST_SOLVED = ("AlmostSolved",)  #: Clarabel's reduced-accuracy success
 _Y_REG = 1e-9  #: regularisation of the free coordinates y in a level's QP (removed by polishing)
 _FEAS_RTOL = 1e-11  #: feasibility slack allowed to a polished point (relative, per row)
 #: widenings of the frozen inequality bounds (relative to each row's scale) tried, in order, on a
-#: stage no backend solved; 1e-7 is _ACTIVE_RTOL: polishing reads rows that close as active anyway
-WIDEN_RTOL = (1e-9, 1e-7)
+#: stage no backend solved; the last is _ACTIVE_RTOL: polishing reads rows that close as active anyway
+WIDEN_RTOL = (1e-9, _ACTIVE_RTOL)
 
 
 class ReferenceError(HikbenchError):

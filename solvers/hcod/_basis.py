@@ -26,7 +26,8 @@ triangular. Every function returns its multiply-adds.
 
 Workspaces: ``Wt`` (n, n) W (or W0) stored by columns; ``qv``, ``qi`` the
 queue (:func:`._factored.queue_sizes`; in the explicit representation ``qv``
-is scratch); sv, sv2 (n,) scratch.
+is scratch and ``qi`` holds only the identity flag ``qi[Q_ID]``, cleared here
+by each update of ``W``); sv, sv2 (n,) scratch.
 """
 
 from __future__ import annotations

@@ -232,7 +232,7 @@ def test_a_widened_point_that_fails_the_kkt_check_is_no_reference(monkeypatch):
     ([2.0, 0.0], [[1.0, 0.0]], [1.0], [np.inf], False),  # feasible, off the bound: ||x|| can shrink
     ([1.0, 0.5], [[1.0, 0.0]], [1.0], [np.inf], False),  # on the bound, x1 can shrink
     ([1.0 + 3e-7, 0.0], [[1.0, 0.0]], [1.0], [np.inf], False),  # near the bound, not on it
-    ([1.0, 0.0], [[1.0, 0.0]], [1.0], [1.0 + 1e-8], True),  # a narrow band, at its lower side
+    ([1.0, 0.0], [[1.0, 0.0]], [1.0], [1.0 + 1e-12], True),  # a narrow band (both bounds within _FEAS_RTOL), at its lower side
     ([1.0, 0.0], [[-1.0, 0.0]], [-np.inf], [-1.0], True),  # the same row written as an upper bound
     ([1.0, 0.0], [[1.0, 0.0], [1.0, 0.0]], [-np.inf, 1.0], [1.0, np.inf], True),  # two rows pin x0 (no interior)
     ([1.0, 1.0], [[1.0, 1.0]], [2.0], [2.0], True),  # an equality row: a free multiplier
