@@ -25,6 +25,7 @@ the local cluster (its nannies gave up) and prints a warning on an external one
 
 from __future__ import annotations
 
+import contextlib
 import os
 import socket
 import sys
@@ -132,7 +133,9 @@ class DaskExecutor:
         from distributed import Client, LocalCluster
 
         self.cluster = None
-        self._config = None  # the local cluster's dask settings, undone by close
+        # what close undoes, last first: the client, the local cluster, its dask settings (each even
+        # when one before it fails to close)
+        self._closing = contextlib.ExitStack()
         self.session = uuid.uuid4().hex  # fresh isolated processes on the Dask workers (see _dask_task)
         if scheduler:
             host_port = _check_scheduler_address(scheduler)
@@ -140,29 +143,30 @@ class DaskExecutor:
                 if host_port is not None:  # fail at once on a refused connection (Client retries for 30 s)
                     socket.create_connection(host_port, timeout=_CONNECT_TIMEOUT).close()
                 self.client = Client(scheduler, timeout=_CONNECT_TIMEOUT)
+                self._closing.callback(self.client.close)
             except OSError as err:  # refused, unreachable, unknown host, timed out
                 raise HikbenchError(f"could not connect to scheduler {scheduler}: "
                                     f"{err.strerror or err or type(err).__name__}") from err
             try:  # a cluster without workers would queue the jobs forever, silently
                 self.client.wait_for_workers(1, timeout=_CONNECT_TIMEOUT)
             except TimeoutError as err:
-                self.client.close()
+                self._closing.close()
                 raise HikbenchError(f"scheduler {scheduler} has no worker (waited {_CONNECT_TIMEOUT:g} s); "
                                     f"expected at least one, e.g. `dask worker {scheduler}`") from err
             self.name = f"dask:{scheduler}"
         else:
             import dask
 
-            self._config = dask.config.set(_LOCAL_CLUSTER)
-            try:
+            with contextlib.ExitStack() as starting:  # (undone at once if the cluster does not start)
+                starting.enter_context(dask.config.set(_LOCAL_CLUSTER))
                 # no dashboard; the scheduler's HTTP server on a free local port, not on 8787 (taken by
                 # any other cluster: a "Port 8787 is already in use" warning on every run)
                 self.cluster = LocalCluster(n_workers=int(workers), threads_per_worker=1, processes=True,
                                             dashboard_address="127.0.0.1:0", scheduler_kwargs={"dashboard": False})
+                starting.callback(self.cluster.close)
                 self.client = Client(self.cluster)
-            except BaseException:
-                self._config.__exit__(None, None, None)
-                raise
+                starting.callback(self.client.close)
+                self._closing = starting.pop_all()
             self.name = f"dask-local:{workers}"
 
     def map(self, items):
@@ -240,12 +244,4 @@ class DaskExecutor:
                 warned = True
 
     def close(self) -> None:
-        try:
-            try:
-                self.client.close()
-            finally:  # (the local cluster's processes are stopped even when the client's close fails)
-                if self.cluster is not None:
-                    self.cluster.close()
-        finally:
-            if self._config is not None:
-                self._config.__exit__(None, None, None)
+        self._closing.close()

@@ -267,6 +267,27 @@ def test_a_scheduler_without_workers_is_a_one_line_error(tmp_path, capsys, monke
     assert not (tmp_path / "out" / "results.csv").exists()
 
 
+def test_closing_a_local_cluster_whose_client_fails_to_close_still_stops_it(monkeypatch):
+    """DaskExecutor.close left the local cluster's worker processes running, and its dask
+    settings applied to the rest of the process, when the client's close raised."""
+    import dask
+    from distributed import Client
+
+    real_close = Client.close
+
+    def failing_close(self, *args, **kwargs):
+        raise RuntimeError("the client could not close")
+
+    monkeypatch.setattr(Client, "close", failing_close)
+    ex = DaskExecutor(workers=1)
+    assert dask.config.get("distributed.scheduler.allowed-failures") == 0
+    with pytest.raises(RuntimeError, match="could not close"):
+        ex.close()
+    real_close(ex.client)
+    assert ex.cluster.status.name == "closed"
+    assert dask.config.get("distributed.scheduler.allowed-failures") != 0
+
+
 def test_workers_run_next_to_another_cluster_gives_no_port_warning(tmp_path):
     """--workers N bound the scheduler's HTTP server to port 8787: next to any other Dask
     cluster every run warned "Port 8787 is already in use. Perhaps you already have a
