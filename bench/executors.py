@@ -65,6 +65,11 @@ class SerialExecutor:
         for tag, job, timeout in items:
             yield tag, run_job(self.worker, job, timeout)
 
+    def _abort(self, futures: dict, lost: list, why: str) -> None:
+        """The watchdog ends the run: the reason for ``_collect``, then every job cancelled."""
+        lost.append(why)
+        self.client.cancel(list(futures.copy()))  # (a copy: _collect pops from it meanwhile)
+
     def close(self) -> None:
         self.worker.close()
 
@@ -223,8 +228,8 @@ class DaskExecutor:
                 if isinstance(err, OSError) or stop.is_set() or self.client.status != "running":
                     return  # the client closed or the scheduler went away: the run is over
                 # any other failure leaves the run unguarded (a silent hang if the workers go): end it
-                lost.append(f"the watchdog could not ask the cluster for its workers ({type(err).__name__}: {err})")
-                self.client.cancel(list(futures.copy()))
+                self._abort(futures, lost, f"the watchdog could not ask the cluster for its workers "
+                                           f"({type(err).__name__}: {err})")
                 return
             if n:
                 since = None
@@ -233,15 +238,19 @@ class DaskExecutor:
             if time.monotonic() - since < NO_WORKER_GRACE:
                 continue
             if self.cluster is not None:
-                lost.append(f"the local Dask cluster has had no worker for {NO_WORKER_GRACE:g} s (its worker "
-                            f"processes died and were not restarted)")
-                self.client.cancel(list(futures.copy()))  # (_collect pops from it meanwhile)
+                self._abort(futures, lost, f"the local Dask cluster has had no worker for {NO_WORKER_GRACE:g} s "
+                                           f"(its worker processes died and were not restarted)")
                 return
             if not warned:
                 print(f"hikbench: {self.name} has had no worker for {NO_WORKER_GRACE:g} s; {len(futures)} jobs "
                       f"wait for one (Ctrl-C stops the run; the rows written so far are kept)",
                       file=sys.stderr, flush=True)
                 warned = True
+
+    def _abort(self, futures: dict, lost: list, why: str) -> None:
+        """The watchdog ends the run: the reason for ``_collect``, then every job cancelled."""
+        lost.append(why)
+        self.client.cancel(list(futures.copy()))  # (a copy: _collect pops from it meanwhile)
 
     def close(self) -> None:
         self._closing.close()
