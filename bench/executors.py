@@ -65,11 +65,6 @@ class SerialExecutor:
         for tag, job, timeout in items:
             yield tag, run_job(self.worker, job, timeout)
 
-    def _abort(self, futures: dict, lost: list, why: str) -> None:
-        """The watchdog ends the run: the reason for ``_collect``, then every job cancelled."""
-        lost.append(why)
-        self.client.cancel(list(futures.copy()))  # (a copy: _collect pops from it meanwhile)
-
     def close(self) -> None:
         self.worker.close()
 

@@ -268,8 +268,8 @@ def test_a_scheduler_without_workers_is_a_one_line_error(tmp_path, capsys, monke
 
 
 def test_closing_a_local_cluster_whose_client_fails_to_close_still_stops_it(monkeypatch):
-    """DaskExecutor.close left the local cluster's worker processes running, and its dask
-    settings applied to the rest of the process, when the client's close raised."""
+    """DaskExecutor.close left the local cluster's worker processes running when the
+    client's close raised; the cluster and its dask settings must be undone all the same."""
     import dask
     from distributed import Client
 
@@ -280,12 +280,15 @@ def test_closing_a_local_cluster_whose_client_fails_to_close_still_stops_it(monk
 
     monkeypatch.setattr(Client, "close", failing_close)
     ex = DaskExecutor(workers=1)
-    assert dask.config.get("distributed.scheduler.allowed-failures") == 0
-    with pytest.raises(RuntimeError, match="could not close"):
-        ex.close()
-    real_close(ex.client)
-    assert ex.cluster.status.name == "closed"
-    assert dask.config.get("distributed.scheduler.allowed-failures") != 0
+    try:
+        assert dask.config.get("distributed.scheduler.allowed-failures") == 0
+        with pytest.raises(RuntimeError, match="could not close"):
+            ex.close()
+        assert ex.cluster.status.name == "closed"
+        assert dask.config.get("distributed.scheduler.allowed-failures") != 0
+    finally:  # (nothing left behind for the later tests, whatever failed above)
+        real_close(ex.client)
+        ex.cluster.close()
 
 
 def test_workers_run_next_to_another_cluster_gives_no_port_warning(tmp_path):
