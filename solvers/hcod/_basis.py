@@ -26,8 +26,8 @@ triangular. Every function returns its multiply-adds.
 
 Workspaces: ``Wt`` (n, n) W (or W0) stored by columns; ``qv``, ``qi`` the
 queue (:func:`._factored.queue_sizes`; in the explicit representation ``qv``
-is scratch and ``qi`` holds only the identity flag ``qi[Q_ID]``, cleared here
-by each update of ``W``); sv, sv2 (n,) scratch.
+is scratch and ``qi`` holds only the identity flag ``qi[Q_ID]``, cleared by
+each update of ``W`` in :mod:`._explicit`); sv, sv2 (n,) scratch.
 """
 
 from __future__ import annotations
@@ -35,7 +35,6 @@ from __future__ import annotations
 from numba import njit
 
 from solvers.hcod import _explicit, _factored
-from solvers.hcod._factored import Q_ID
 from solvers.hcod._linalg import FASTMATH
 
 __all__ = [
@@ -74,10 +73,7 @@ def basis_reset(lazy, Wt, qi):
     if lazy:
         _factored.basis_reset(qi)
     else:
-        Wt[:, :] = 0.0
-        for i in range(Wt.shape[0]):
-            Wt[i, i] = 1.0
-        qi[Q_ID] = 1
+        _explicit.reset(Wt, qi)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -111,7 +107,7 @@ def basis_rows(lazy, A, rows, j0, j1, bcol, bval, Wt, qv, qi, M, p, sv, sv2):
     ``M[j] = W^T a`` when factored, ``M[j, p:] = Z^T a`` when explicit."""
     if lazy:
         return _factored.basis_rows(A, rows, j0, j1, bcol, bval, Wt, qv, qi, M, sv, sv2)
-    return _explicit.project_into(A, rows, j0, j1, bcol, bval, Wt, p, M, qi[Q_ID] != 0)
+    return _explicit.project_into(A, rows, j0, j1, bcol, bval, Wt, qi, p, M)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -119,9 +115,7 @@ def push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, sv, sv2):
     """``W[:, p:] <- W[:, p:] H_0 ... H_{r-1}`` (eq. 23), reflector t =
     ``I - beta[t] v v^T`` with ``v = Mr[t, t:n-p]`` on the columns ``p + t:``."""
     if not lazy:
-        if r > 0:
-            qi[Q_ID] = 0
-        return _explicit.apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv, sv2)
+        return _explicit.apply_reflectors_to_basis(Wt, qi, p, Mr, beta, r, sv, sv2)
     nf = Wt.shape[0] - p
     fl = 0
     for t in range(r):
@@ -136,10 +130,7 @@ def insert_row(lazy, A, i, bcol, bval, R, p, thr, q, Wt, qv, qi, sv, sv2):
     beta); the reflector stays in ``q[p:]``."""
     if lazy:
         return _factored.insert_row(A, i, bcol, bval, R, p, thr, q, Wt, qv, qi, sv, sv2)
-    ok, fl, bt = _explicit.insert_row(A, i, bcol, bval, Wt, R, p, thr, q, sv)
-    if ok:
-        qi[Q_ID] = 0
-    return ok, fl, bt
+    return _explicit.insert_row(A, i, bcol, bval, Wt, qi, R, p, thr, q, sv)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -149,10 +140,8 @@ def insert_rows(lazy, A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb
     if lazy:
         return _factored.insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok,
                                      Wt, qv, qi, sv, sv2)
-    t, fl = _explicit.insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2)
-    if t > 0:
-        qi[Q_ID] = 0
-    return t, fl
+    return _explicit.insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv,
+                                 sv2)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -162,8 +151,7 @@ def delete_row(lazy, j, R, p, widx, wside, M, nM, Wt, qv, qi, sv, sv2):
     Returns flops; the caller decrements p."""
     if lazy:
         return _factored.delete_row(j, R, p, widx, wside, M, nM, Wt, qv, qi, sv, sv2)
-    qi[Q_ID] = 0
-    return _explicit.delete_row(j, Wt, R, p, widx, wside, qv)
+    return _explicit.delete_row(j, Wt, qi, R, p, widx, wside, qv)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")

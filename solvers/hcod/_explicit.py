@@ -28,6 +28,7 @@ import math
 import numpy as np
 from numba import njit
 
+from solvers.hcod._factored import Q_ID
 from solvers.hcod._linalg import (
     BLAS_MIN_N,
     BLAS_MIN_ROWS,
@@ -50,9 +51,20 @@ __all__ = [
     "insert_rows",
     "multipliers",
     "project_into",
+    "reset",
 ]
 
 _FM = set(FASTMATH)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def reset(Wt, qi):
+    """``W = I`` (a solve's start), written and flagged (``qi[Q_ID]``: the
+    projections are copies until the first update clears it)."""
+    Wt[:, :] = 0.0
+    for c in range(Wt.shape[0]):
+        Wt[c, c] = 1.0
+    qi[Q_ID] = 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -96,7 +108,7 @@ def basis_n(Wt, x, c0, c1, sv):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv, sv2):
+def apply_reflectors_to_basis(Wt, qi, p, Mr, beta, r, sv, sv2):
     """``W[:, p:] <- W[:, p:] H`` (eq. 23: ``[Y_bar_k, Z_k] = Z_{k-1} H``) with
     ``H = H_0 ... H_{r-1}``, reflector i = ``I - beta[i] v v^T`` on the
     columns ``p + i:`` (``v = Mr[i, i:nf]``). On ``Wt = W^T``: ``s = sum_c v_c
@@ -106,9 +118,12 @@ def apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv, sv2):
     the update (:func:`._linalg.reflect_cols_pair` does the same on a pair of
     vectors; this loop on the rows of Mr, the product ``v_{i+1} . v_i`` taken
     in the first pass, is ~0.3 us faster on IK-like warm n=20). After it, ``W[:, p:p+r]`` spans the projected level and
-    ``W[:, p+r:]`` is ``Z_k``. sv, sv2 (n,) are scratch. Returns flops."""
+    ``W[:, p+r:]`` is ``Z_k``. Clears the identity flag ``qi[Q_ID]`` when r >
+    0. sv, sv2 (n,) are scratch. Returns flops."""
     n = Wt.shape[0]
     nf = n - p
+    if r > 0:
+        qi[Q_ID] = 0
     i = 0
     while i + 2 <= r:
         v1 = Mr[i]
@@ -146,7 +161,7 @@ def apply_reflectors_to_basis(Wt, p, Mr, beta, r, sv, sv2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def insert_row(A, i, bcol, bval, Wt, R, p, thr, q, sv):
+def insert_row(A, i, bcol, bval, Wt, qi, R, p, thr, q, sv):
     """Add row ``a = A[i]`` to the working constraints by one Householder
     update of ``W`` (sec. IX: the decomposition is updated, not recomputed):
     ``q = W^T a``; the reflector that maps ``q[p:]`` to ``alpha e_1`` is
@@ -166,6 +181,7 @@ def insert_row(A, i, bcol, bval, Wt, R, p, thr, q, sv):
         return False, fl, 0.0
     alpha, bt = householder(qz, nrm)
     fl += reflect_cols(Wt, p, bt, qz, sv)
+    qi[Q_ID] = 0
     for c in range(p):
         R[c, p] = q[c]
     R[p, p] = alpha
@@ -173,7 +189,7 @@ def insert_row(A, i, bcol, bval, Wt, R, p, thr, q, sv):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2):
+def insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2):
     """Add the rows ``A[cand[:m]]`` to the working constraints, in order, as m
     calls of :func:`insert_row` would (same rank test, same ``W`` and ``R``),
     but blocked: ``Q = A_cand W`` at once, the QR of ``Q[:, p:]``
@@ -186,16 +202,18 @@ def insert_rows(A, cand, m, bcol, bval, Wt, R, p, rank_rtol, lnorm, rowlev, Qb, 
     t, f = qr_rows(Qb, cand, m, p, rank_rtol, lnorm, rowlev, R, bq, cok)
     fl += f
     if t > 0:
-        fl += apply_reflectors_to_basis(Wt, p, Qb[:, p:], bq, t, sv, sv2)
+        fl += apply_reflectors_to_basis(Wt, qi, p, Qb[:, p:], bq, t, sv, sv2)
     return t, fl
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def delete_row(j, Wt, R, p, widx, wside, cs):
+def delete_row(j, Wt, qi, R, p, widx, wside, cs):
     """Remove working row j (0 <= j < p): drop column j of R and restore the
     triangle by Givens rotations of R's rows (:func:`._linalg.retriangulate`),
     applied to W's columns too (``W R`` is unchanged). ``widx``/``wside``
-    shift; cs (>= 2 p) scratch. Returns flops; the caller decrements p."""
+    shift; cs (>= 2 p) scratch. Clears the identity flag ``qi[Q_ID]``.
+    Returns flops; the caller decrements p."""
+    qi[Q_ID] = 0
     if j >= p - 1:
         return 0
     return retriangulate(j, R, p, widx, wside, cs, Wt, True)
@@ -215,13 +233,14 @@ def multipliers(Wt, R, p, g, h, nu):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def project_into(A, Olist, j0, j1, bcol, bval, Wt, p, Mf, ident):
+def project_into(A, Olist, j0, j1, bcol, bval, Wt, qi, p, Mf):
     """``Mf[j, p:] = A[Olist[j]] @ W[:, p:]`` for j0 <= j < j1: the objective rows
     projected on Z (eq. 19), kept up to date across iterations; copies of
-    ``A[Olist[j], p:]`` when ``W`` is the identity (``ident``). Returns flops."""
+    ``A[Olist[j], p:]`` while ``W`` is flagged the identity (``qi[Q_ID]``,
+    set at a solve's start, cleared by every update above). Returns flops."""
     n = Wt.shape[0]
     fl = 0
-    if ident:
+    if qi[Q_ID] != 0:
         for j in range(j0, j1):
             i = Olist[j]
             mj = Mf[j, p:]
