@@ -193,6 +193,7 @@ def hcod_solve(fw, iw):
     piv = iw[ioff[13]:ioff[14]]
     cand = iw[ioff[14]:ioff[15]]
     cok = iw[ioff[15]:ioff[16]]
+    went = iw[ioff[19]:ioff[20]]  # 2 k: a working inequality row entered during level k, 2 k + 1: at its freeze
 
     fl = 0
     acts = 0
@@ -223,6 +224,7 @@ def hcod_solve(fw, iw):
         total = 0
         status = ST_OPTIMAL
         fail_level = -1
+        run0 = -1  # first level of the run of exactly met levels just before this one (-1: none)
         for k in range(D):
             s0 = starts[k]
             s1 = starts[k + 1]
@@ -327,6 +329,7 @@ def hcod_solve(fw, iw):
                             state[i] = WORK
                             side[i] = sd
                             target[i] = up[i] if sd > 0 else lo[i]
+                            went[i] = 2 * k
                 # LSE correction onto the working rows: R^T c = res, u += W[:, :p] c
                 big = 0.0
                 for j in range(p):
@@ -361,6 +364,7 @@ def hcod_solve(fw, iw):
                     p = p_in
                     for c in range(n):
                         u[c] = uprev[c]
+                unorm = _norm(u)
                 for i in range(s0, s1):
                     if hist_state[k, i] == OBJECTIVE:
                         sd = hist_side[k, i]
@@ -369,9 +373,14 @@ def hcod_solve(fw, iw):
                         elif (kind[i] == 2 or sd == 0 or (sd > 0 and up[i] == np.inf)
                               or (sd < 0 and lo[i] == -np.inf)):
                             continue  # (the row changed kind since the record: eq. 45 decides)
+                        tg = up[i] if sd > 0 else lo[i]
+                        if sd != 0 and sd * (row_dot(A[i], bcol[i], bval[i], u) - tg) < -dual_rtol * (
+                                rnorm[i] * (1.0 + unorm) + abs(tg)):
+                            continue  # (u_hat leaves it strictly inside its bounds: its mu = w has
+                            # the wrong sign, it would leave the objective at once)
                         state[i] = OBJECTIVE
                         side[i] = sd
-                        target[i] = up[i] if sd > 0 else lo[i]
+                        target[i] = tg
                         Olist[nO] = i
                         nO += 1
             # eq. (45): equality rows and rows violated at u_hat enter the objective
@@ -406,6 +415,7 @@ def hcod_solve(fw, iw):
             ncod = 0  # objective rows the level's COD in Mr holds (0: none valid)
             cod_weak = False  # a pivot appended with a small diagonal (cod_append)
             degen = 0
+            exact = False  # at the optimum, the objective's gradient is below its noise floor
             while True:
                 if total >= max_iter:
                     status = ST_MAXIT
@@ -546,6 +556,7 @@ def hcod_solve(fw, iw):
                         wside[p] = bsd
                         p += 1
                         state[blk] = WORK
+                        went[blk] = 2 * k
                     continue
                 if not has_ineq:
                     break
@@ -592,7 +603,8 @@ def hcod_solve(fw, iw):
                     if wside[j] != 0:
                         anydel = True
                         break
-                if anydel and nO > 0:
+                exact = nO == 0
+                if (anydel or warm == 2) and nO > 0:  # (time: `exact` decides the record, below)
                     for c in range(n):
                         g[c] = 0.0
                     for j in range(nO):
@@ -612,7 +624,8 @@ def hcod_solve(fw, iw):
                         i = Olist[j]
                         gtol += rnorm[i] * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
                     gtol *= dual_rtol
-                    if gn > gtol:
+                    exact = gn <= gtol
+                    if gn > gtol and anydel:
                         fl += multipliers(lazy, R, p, g, nu, hv, Wt, qv, qi, sv, sv2)  # eq. (39)
                         worst = 0.0
                         for j in range(p):
@@ -662,6 +675,32 @@ def hcod_solve(fw, iw):
                 for c in range(n):
                     hist_du[k, c] = u[c] - uprev[c]
                 hist_valid[k] = 1
+                last = k == D - 1 or levid[k] == 2
+                if run0 >= 0 and (not exact or last):
+                    # levels run0..k-1 met their objectives exactly (zero gradient): any point of
+                    # their optimal sets, u_k among them, is a KKT point of each with any working
+                    # set. Their records become one step from u_{run0-1} to u_k at run0 and this
+                    # level's working set (of the rows above each), less the rows that entered
+                    # during level k (level k inserts them again, behind the rows the levels
+                    # before froze). A re-solve goes straight to u_k and no longer inserts the
+                    # rows these levels activated on their way and a level below deleted; the
+                    # record stays a fixed point of a repeated problem. (The rows they activated
+                    # and u_k keeps stay in their records: on a trajectory their steps hit
+                    # them again.)
+                    for kk in range(run0 + 1, k + 1):
+                        for c in range(n):
+                            hist_du[run0, c] += hist_du[kk, c]
+                            hist_du[kk, c] = 0.0
+                    for kk in range(run0, k):
+                        for i in range(starts[kk]):
+                            st = state[i]
+                            if st == WORK and side[i] != 0 and went[i] == 2 * k:
+                                st = INACTIVE
+                            hist_state[kk, i] = st
+                            hist_side[kk, i] = side[i]
+                    run0 = -1
+                if exact and run0 < 0:
+                    run0 = k
             # ---- freeze level k (eq. 36); nothing to freeze below the last level, nor below
             # an identity-like equality level: its objective ||D x - e||^2 is strictly convex,
             # so x is unique after it and the levels below (the min-norm stage) change nothing
@@ -719,6 +758,7 @@ def hcod_solve(fw, iw):
                         wside[p] = sd
                         p += 1
                         state[i] = WORK
+                        went[i] = 2 * k + 1
                     else:
                         state[i] = IMPLIED if sd == 0 else INACTIVE
         break

@@ -195,6 +195,28 @@ def test_warm_start_modes_agree(mode):
         assert res.activations == res.deactivations == 0
 
 
+@pytest.mark.parametrize("n", [20, 40])
+@pytest.mark.parametrize("seed", range(5))
+def test_time_warm_start_record_is_a_fixed_point_of_a_repeated_problem(n, seed):
+    """The benchmark's warm mode: one object re-solving the same IK-like problem. The record
+    of the last call (sec. XI; the exactly met levels' records rewritten to one step to the
+    optimum of the level that ends their run) must lead every later call straight to the
+    optimum: one LSE per level, nothing activated or deactivated, no level falling back to
+    cold. (Regression: a recorded objective row that the step leaves strictly inside its
+    bounds pulled u back to the bound: 20 iterations and a fallback level at n = 20, seed 2.)"""
+    h = G.ik_like(n, seed)
+    s = HcodSolver(warm_start="time")
+    cold = s.solve(h)
+    assert cold.status == OPTIMAL
+    for call in range(1, 5):
+        res = s.solve(h)
+        assert res.status == OPTIMAL, (call, res.reason)
+        assert max(res.iterations_per_level) <= 1 and res.activations == res.deactivations == 0, (
+            call, res.iterations_per_level, res.activations, res.deactivations)
+        assert "warm_fallback_levels" not in res.info, (call, res.info)
+        assert verify(h, res.x, cold.x, rtol=RTOL).equal
+
+
 @pytest.mark.parametrize("make, drift",
                          [(lambda: G.random_hierarchy(10, 4, 4, inequality="mixed", box=True, seed=11), 0.01),
                           (lambda: G.ik_like(15, 4), 0.01),
