@@ -82,9 +82,12 @@ Warm start (sec. XI), option ``warm_start``
     rewritten when the run ends: the optimum ``u_m`` of the level m after it
     is an optimum of each of them, a KKT point with any working set, so their
     ``Delta u`` becomes one step to ``u_m`` at the run's first level and their
-    working sets level m's (less the rows level m itself activated, which it
-    inserts again): a re-solve no longer inserts the rows those levels met on
-    their way and a level below deleted. The record is
+    working sets level m's: a re-solve no longer inserts the rows those levels
+    met on their way and a level below deleted. A quiet level (every row of
+    it met at ``u_hat``: a zero step whatever the working set) inserts none
+    of its recorded rows while they are feasible; the first level that moves
+    does (on a repeated problem, level m, behind the rows frozen before it).
+    The record is
     used whenever the new hierarchy has the same shape (a trajectory, or the
     benchmark's warm mode that re-solves the same problem); ``reset()``
     forgets it. Equality-only problems have no active set: warm == cold.

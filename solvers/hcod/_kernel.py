@@ -193,7 +193,6 @@ def hcod_solve(fw, iw):
     piv = iw[ioff[13]:ioff[14]]
     cand = iw[ioff[14]:ioff[15]]
     cok = iw[ioff[15]:ioff[16]]
-    went = iw[ioff[19]:ioff[20]]  # 2 k: a working inequality row entered during level k, 2 k + 1: at its freeze
 
     fl = 0
     acts = 0
@@ -316,6 +315,30 @@ def hcod_solve(fw, iw):
                         cok[j] = dl
                         m_in += 1
                 if m_in > 0:
+                    # a quiet level -- every row of it met at u_hat to rounding, so its objective
+                    # and the LSE step are zero whatever the working set -- inserts nothing when
+                    # those rows are feasible: they enter at the first level that moves (a re-solve
+                    # whose exactly met levels jump to the optimum of the level after them, sec.
+                    # XI: that level, behind the rows these levels freeze)
+                    unorm = _norm(u)
+                    quiet = True
+                    for j in range(m_in):
+                        i = cand[j]
+                        av = row_dot(A[i], bcol[i], bval[i], u)
+                        tol = feas_rtol * (rnorm[i] * (1.0 + unorm) + 1.0)
+                        if av > up[i] + tol or av < lo[i] - tol:
+                            quiet = False
+                            break
+                    for i in range(s0, s1):
+                        if not quiet:
+                            break
+                        if kind[i] != 2:
+                            av = row_dot(A[i], bcol[i], bval[i], u)
+                            quiet = (lo[i] - dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(lo[i])) <= av
+                                     <= up[i] + dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(up[i])))
+                    if quiet:
+                        m_in = 0
+                if m_in > 0:
                     _, f = insert_rows(lazy, A, cand, m_in, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok,
                                        Wt, qv, qi, sv, sv2)
                     fl += f
@@ -329,7 +352,6 @@ def hcod_solve(fw, iw):
                             state[i] = WORK
                             side[i] = sd
                             target[i] = up[i] if sd > 0 else lo[i]
-                            went[i] = 2 * k
                 # LSE correction onto the working rows: R^T c = res, u += W[:, :p] c
                 big = 0.0
                 for j in range(p):
@@ -556,7 +578,6 @@ def hcod_solve(fw, iw):
                         wside[p] = bsd
                         p += 1
                         state[blk] = WORK
-                        went[blk] = 2 * k
                     continue
                 if not has_ineq:
                     break
@@ -680,23 +701,19 @@ def hcod_solve(fw, iw):
                     # levels run0..k-1 met their objectives exactly (zero gradient): any point of
                     # their optimal sets, u_k among them, is a KKT point of each with any working
                     # set. Their records become one step from u_{run0-1} to u_k at run0 and this
-                    # level's working set (of the rows above each), less the rows that entered
-                    # during level k (level k inserts them again, behind the rows the levels
-                    # before froze). A re-solve goes straight to u_k and no longer inserts the
-                    # rows these levels activated on their way and a level below deleted; the
-                    # record stays a fixed point of a repeated problem. (The rows they activated
-                    # and u_k keeps stay in their records: on a trajectory their steps hit
-                    # them again.)
+                    # level's working set (of the rows above each): a re-solve goes straight to
+                    # u_k and no longer inserts the rows these levels activated on their way and
+                    # a level below deleted; the record stays a fixed point of a repeated problem.
+                    # (All of level k's working rows enter at run0, those level k activated too:
+                    # u_k is on their bounds, and on a trajectory the steps of the levels between
+                    # would hit them one by one.)
                     for kk in range(run0 + 1, k + 1):
                         for c in range(n):
                             hist_du[run0, c] += hist_du[kk, c]
                             hist_du[kk, c] = 0.0
                     for kk in range(run0, k):
                         for i in range(starts[kk]):
-                            st = state[i]
-                            if st == WORK and side[i] != 0 and went[i] == 2 * k:
-                                st = INACTIVE
-                            hist_state[kk, i] = st
+                            hist_state[kk, i] = state[i]
                             hist_side[kk, i] = side[i]
                     run0 = -1
                 if exact and run0 < 0:
@@ -758,7 +775,6 @@ def hcod_solve(fw, iw):
                         wside[p] = sd
                         p += 1
                         state[i] = WORK
-                        went[i] = 2 * k + 1
                     else:
                         state[i] = IMPLIED if sd == 0 else INACTIVE
         break

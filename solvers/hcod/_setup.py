@@ -27,7 +27,7 @@ F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", 
             "prm", "Qv")
 # int blocks; "out" holds the N_OUT counters, then the iterations per level
 I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "hist_state",
-            "hist_side", "hist_valid", "out", "levid", "piv", "cand", "cok", "starts", "ip", "qi", "went")
+            "hist_side", "hist_valid", "out", "levid", "piv", "cand", "cok", "starts", "ip", "qi")
 #: the int workspace starts with the offsets themselves: foff (starts of the float blocks and
 #: the total, iw[:FEND0]), fend (ends of the float blocks, iw[FEND0:IOFF0]), ioff (iw[IOFF0:N_HEAD])
 FEND0 = len(F_BLOCKS) + 1
@@ -49,7 +49,7 @@ def layout(n: int, mt: int, D: int, mmax: int):
     mm = max(mmax, 1)
     fsz = (n * n, n * n, n, n, n, n, n, n, n, n, n, mm * n, mm, mm, mm, mm * max(min(n, mm), 1), mt, mt, mt, D,
            D * n, mm * n, n * n, n, 2 * n, mt * n, mt, mt, N_PRM, queue_sizes(n)[0])
-    isz = (mt, mt, mt, mt, mt, n, n, mm, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP, queue_sizes(n)[1], mt)
+    isz = (mt, mt, mt, mt, mt, n, n, mm, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP, queue_sizes(n)[1])
     foff = np.array((0, *accumulate(-(-size // ALIGN) * ALIGN for size in fsz)), dtype=np.int64)
     fend = foff[:-1] + np.array(fsz, dtype=np.int64)
     return foff, fend, np.array((N_HEAD, *(N_HEAD + c for c in accumulate(isz))), dtype=np.int64)
