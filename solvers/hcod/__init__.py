@@ -73,21 +73,9 @@ Warm start (sec. XI), option ``warm_start``
     level's working set and ``Delta u`` (eq. 46) recorded at the last call are
     re-applied (``Delta^- A`` removed, ``Delta u`` projected on the current
     ``Z`` and shortened by tau to keep inactive rows feasible, ``Delta^+ A``
-    inserted, then an LSE correction onto the inserted rows); its recorded
-    objective rows that ``u_hat`` leaves strictly inside their bounds stay
-    inactive. A level whose
+    inserted, then an LSE correction onto the inserted rows). A level whose
     corrected point violates a row above starts cold from the previous
-    level's optimum instead (``info["warm_fallback_levels"]``). The record of
-    a run of levels that met their objectives exactly (zero gradient) is
-    rewritten when the run ends: the optimum ``u_m`` of the level m after it
-    is an optimum of each of them, a KKT point with any working set, so their
-    ``Delta u`` becomes one step to ``u_m`` at the run's first level and their
-    working sets level m's: a re-solve no longer inserts the rows those levels
-    met on their way and a level below deleted. A quiet level (every row of
-    it met at ``u_hat``: a zero step whatever the working set) inserts none
-    of its recorded rows while they are feasible; the first level that moves
-    does (on a repeated problem, level m, behind the rows frozen before it).
-    The record is
+    level's optimum instead (``info["warm_fallback_levels"]``). The record is
     used whenever the new hierarchy has the same shape (a trajectory, or the
     benchmark's warm mode that re-solves the same problem); ``reset()``
     forgets it. Equality-only problems have no active set: warm == cold.

@@ -223,7 +223,6 @@ def hcod_solve(fw, iw):
         total = 0
         status = ST_OPTIMAL
         fail_level = -1
-        run0 = -1  # first level of the run of exactly met levels just before this one (-1: none)
         for k in range(D):
             s0 = starts[k]
             s1 = starts[k + 1]
@@ -315,30 +314,6 @@ def hcod_solve(fw, iw):
                         cok[j] = dl
                         m_in += 1
                 if m_in > 0:
-                    # a quiet level -- every row of it met at u_hat to rounding, so its objective
-                    # and the LSE step are zero whatever the working set -- inserts nothing when
-                    # those rows are feasible: they enter at the first level that moves (a re-solve
-                    # whose exactly met levels jump to the optimum of the level after them, sec.
-                    # XI: that level, behind the rows these levels freeze)
-                    unorm = _norm(u)
-                    quiet = True
-                    for j in range(m_in):
-                        i = cand[j]
-                        av = row_dot(A[i], bcol[i], bval[i], u)
-                        tol = feas_rtol * (rnorm[i] * (1.0 + unorm) + 1.0)
-                        if av > up[i] + tol or av < lo[i] - tol:
-                            quiet = False
-                            break
-                    for i in range(s0, s1):
-                        if not quiet:
-                            break
-                        if kind[i] != 2:
-                            av = row_dot(A[i], bcol[i], bval[i], u)
-                            quiet = (lo[i] - dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(lo[i])) <= av
-                                     <= up[i] + dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(up[i])))
-                    if quiet:
-                        m_in = 0
-                if m_in > 0:
                     _, f = insert_rows(lazy, A, cand, m_in, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok,
                                        Wt, qv, qi, sv, sv2)
                     fl += f
@@ -386,7 +361,6 @@ def hcod_solve(fw, iw):
                     p = p_in
                     for c in range(n):
                         u[c] = uprev[c]
-                unorm = _norm(u)
                 for i in range(s0, s1):
                     if hist_state[k, i] == OBJECTIVE:
                         sd = hist_side[k, i]
@@ -395,14 +369,9 @@ def hcod_solve(fw, iw):
                         elif (kind[i] == 2 or sd == 0 or (sd > 0 and up[i] == np.inf)
                               or (sd < 0 and lo[i] == -np.inf)):
                             continue  # (the row changed kind since the record: eq. 45 decides)
-                        tg = up[i] if sd > 0 else lo[i]
-                        if sd != 0 and sd * (row_dot(A[i], bcol[i], bval[i], u) - tg) < -dual_rtol * (
-                                rnorm[i] * (1.0 + unorm) + abs(tg)):
-                            continue  # (u_hat leaves it strictly inside its bounds: its mu = w has
-                            # the wrong sign, it would leave the objective at once)
                         state[i] = OBJECTIVE
                         side[i] = sd
-                        target[i] = tg
+                        target[i] = up[i] if sd > 0 else lo[i]
                         Olist[nO] = i
                         nO += 1
             # eq. (45): equality rows and rows violated at u_hat enter the objective
@@ -437,7 +406,6 @@ def hcod_solve(fw, iw):
             ncod = 0  # objective rows the level's COD in Mr holds (0: none valid)
             cod_weak = False  # a pivot appended with a small diagonal (cod_append)
             degen = 0
-            exact = False  # at the optimum, the objective's gradient is below its noise floor
             while True:
                 if total >= max_iter:
                     status = ST_MAXIT
@@ -624,8 +592,7 @@ def hcod_solve(fw, iw):
                     if wside[j] != 0:
                         anydel = True
                         break
-                exact = nO == 0
-                if (anydel or warm == 2) and nO > 0:  # (time: `exact` decides the record, below)
+                if anydel and nO > 0:
                     for c in range(n):
                         g[c] = 0.0
                     for j in range(nO):
@@ -645,8 +612,7 @@ def hcod_solve(fw, iw):
                         i = Olist[j]
                         gtol += rnorm[i] * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
                     gtol *= dual_rtol
-                    exact = gn <= gtol
-                    if gn > gtol and anydel:
+                    if gn > gtol:
                         fl += multipliers(lazy, R, p, g, nu, hv, Wt, qv, qi, sv, sv2)  # eq. (39)
                         worst = 0.0
                         for j in range(p):
@@ -696,28 +662,6 @@ def hcod_solve(fw, iw):
                 for c in range(n):
                     hist_du[k, c] = u[c] - uprev[c]
                 hist_valid[k] = 1
-                last = k == D - 1 or levid[k] == 2
-                if run0 >= 0 and (not exact or last):
-                    # levels run0..k-1 met their objectives exactly (zero gradient): any point of
-                    # their optimal sets, u_k among them, is a KKT point of each with any working
-                    # set. Their records become one step from u_{run0-1} to u_k at run0 and this
-                    # level's working set (of the rows above each): a re-solve goes straight to
-                    # u_k and no longer inserts the rows these levels activated on their way and
-                    # a level below deleted; the record stays a fixed point of a repeated problem.
-                    # (All of level k's working rows enter at run0, those level k activated too:
-                    # u_k is on their bounds, and on a trajectory the steps of the levels between
-                    # would hit them one by one.)
-                    for kk in range(run0 + 1, k + 1):
-                        for c in range(n):
-                            hist_du[run0, c] += hist_du[kk, c]
-                            hist_du[kk, c] = 0.0
-                    for kk in range(run0, k):
-                        for i in range(starts[kk]):
-                            hist_state[kk, i] = state[i]
-                            hist_side[kk, i] = side[i]
-                    run0 = -1
-                if exact and run0 < 0:
-                    run0 = k
             # ---- freeze level k (eq. 36); nothing to freeze below the last level, nor below
             # an identity-like equality level: its objective ||D x - e||^2 is strictly convex,
             # so x is unique after it and the levels below (the min-norm stage) change nothing
