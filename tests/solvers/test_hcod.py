@@ -217,6 +217,21 @@ def test_time_warm_start_record_is_a_fixed_point_of_a_repeated_problem(n, seed):
         assert verify(h, res.x, cold.x, rtol=RTOL).equal
 
 
+def drifting(h: Hierarchy, drift: float, seed: int, steps: int = 8):
+    """A trajectory from h: at each step A's nonzeros and the finite bounds move by
+    ``drift`` N(0, 1) (equality rows stay equalities, upper >= lower)."""
+    rng = np.random.default_rng(seed)
+    A, lo, up = h.A.copy(), h.lower.copy(), h.upper.copy()
+    for _ in range(steps):
+        A = A + drift * rng.standard_normal(A.shape) * (A != 0)
+        d = drift * rng.standard_normal(h.rows)
+        lo2 = np.where(np.isfinite(lo), lo + d, lo)
+        up2 = np.where(np.isfinite(up), up + d, up)
+        up = np.where(lo == up, lo2, np.maximum(up2, lo2))
+        lo = lo2
+        yield Hierarchy(A, lo, up, h.level, n=h.n, depth=h.depth)
+
+
 @pytest.mark.parametrize("make, drift",
                          [(lambda: G.random_hierarchy(10, 4, 4, inequality="mixed", box=True, seed=11), 0.01),
                           (lambda: G.ik_like(15, 4), 0.01),
@@ -232,19 +247,9 @@ def test_warm_start_along_a_trajectory(make, drift):
     a level iterating more than LAZY_MAX_ITER times (drift 0.01) turns W
     explicit mid-solve, a small drift keeps it factored (one iteration per
     level after the first steps)."""
-    h = make()
     s = HcodSolver(warm_start="time")
-    rng = np.random.default_rng(0)
-    A, lo, up = h.A.copy(), h.lower.copy(), h.upper.copy()
     warm_iters = cold_iters = 0
-    for t in range(8):
-        A = A + drift * rng.standard_normal(A.shape) * (A != 0)
-        d = drift * rng.standard_normal(h.rows)
-        lo2 = np.where(np.isfinite(lo), lo + d, lo)
-        up2 = np.where(np.isfinite(up), up + d, up)
-        up = np.where(lo == up, lo2, np.maximum(up2, lo2))
-        lo = lo2
-        ht = Hierarchy(A, lo, up, h.level, n=h.n, depth=h.depth)
+    for t, ht in enumerate(drifting(make(), drift, seed=0)):
         res = s.solve(ht)
         cold = HcodSolver(warm_start="stage").solve(ht)
         assert res.status == OPTIMAL
@@ -260,21 +265,11 @@ def test_warm_start_along_a_trajectory(make, drift):
 def test_warm_start_along_badly_scaled_trajectories(drift, min_norm):
     """Rows 1e-4 the size of their level's others, the problem drifting: every `time` solve
     matches a cold one. (A record rewrite that made rows leave through the multipliers lost
-    such rows under the level's noise floor: 24 of these 320 solves
-    disagreed in all; see README, the `time` warm start.)"""
+    such rows under the level's noise floor: 24 of the 320 solves of
+    the four cases disagreed; see README, the `time` warm start.)"""
     for seed in range(10):
-        h = G.degenerate("badly_scaled", 12, seed)
         s = HcodSolver(warm_start="time", min_norm=min_norm)
-        rng = np.random.default_rng(seed)
-        A, lo, up = h.A.copy(), h.lower.copy(), h.upper.copy()
-        for t in range(8):
-            A = A + drift * rng.standard_normal(A.shape) * (A != 0)
-            d = drift * rng.standard_normal(h.rows)
-            lo2 = np.where(np.isfinite(lo), lo + d, lo)
-            up2 = np.where(np.isfinite(up), up + d, up)
-            up = np.where(lo == up, lo2, np.maximum(up2, lo2))
-            lo = lo2
-            ht = Hierarchy(A, lo, up, h.level, n=h.n, depth=h.depth)
+        for t, ht in enumerate(drifting(G.degenerate("badly_scaled", 12, seed), drift, seed)):
             res = s.solve(ht)
             cold = HcodSolver(warm_start="stage", min_norm=min_norm).solve(ht)
             assert res.status == OPTIMAL, (seed, t, res.reason)
