@@ -75,7 +75,16 @@ Warm start (sec. XI), option ``warm_start``
     ``Z`` and shortened by tau to keep inactive rows feasible, ``Delta^+ A``
     inserted, then an LSE correction onto the inserted rows). A level whose
     corrected point violates a row above starts cold from the previous
-    level's optimum instead (``info["warm_fallback_levels"]``). The record is
+    level's optimum instead (``info["warm_fallback_levels"]``). A run of
+    levels run0..m-1 that met their objectives exactly (every objective row
+    within its rounding floor) is marked in the record: a re-solve jumps at
+    run0 to the last call's ``u_m`` (the sum of the run's ``Delta u``, level
+    m's included) with level m's working set for the rows above each level
+    of the run, when every row of those levels is met there (before and after
+    the correction; otherwise the records as above): each of them is then at a
+    zero objective and takes one LSE, and it no longer re-inserts rows that a
+    level below deletes. A jumping call keeps the run's records (level m's
+    ``Delta u`` absorbs its step). The record is
     used whenever the new hierarchy has the same shape (a trajectory, or the
     benchmark's warm mode that re-solves the same problem); ``reset()``
     forgets it. Equality-only problems have no active set: warm == cold.

@@ -115,6 +115,23 @@ def _level_cod_append(Mr, Mf, j0, nO, p, nf, thr, r, piv, diag, beta):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _levels_met(A, bcol, bval, kind, lo, up, rnorm, i0, i1, u, dual_rtol):
+    """Every row i0 <= i < i1 within its bounds at u to its rounding floor
+    ``1e-13 (||a_i|| (1 + ||u||) + |bound|)`` (free rows aside): the levels holding
+    them have a zero objective at u (eq. 33: all slacks w = 0)."""
+    unorm = _norm(u)
+    for i in range(i0, i1):
+        if kind[i] == 2:
+            continue
+        av = row_dot(A[i], bcol[i], bval[i], u)
+        if lo[i] > -np.inf and av < lo[i] - dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(lo[i])):
+            return False
+        if up[i] < np.inf and av > up[i] + dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(up[i])):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def hcod_solve(fw, iw):
     """Solve the hierarchy held in the workspaces fw/iw (:mod:`._setup`: the
     int workspace starts with the offsets of the blocks of both, and the ends of
@@ -223,6 +240,9 @@ def hcod_solve(fw, iw):
         total = 0
         status = ST_OPTIMAL
         fail_level = -1
+        run0 = -1  # (time, recording) first level of the current run of exactly met levels, -1: none
+        jrun = -1  # (time, re-solving) a jump over the levels jrun..jm-1 to u_jm: see below
+        jm = -1
         for k in range(D):
             s0 = starts[k]
             s1 = starts[k + 1]
@@ -238,13 +258,41 @@ def hcod_solve(fw, iw):
             thr_k = rank_rtol * lnorm[k]
             nO = 0
             warm_level = use_hist and hist_valid[k] != 0
+            if warm_level and jm < 0 and hist_valid[k] >= 2:
+                # the levels k..m-1 met their objectives exactly at the last call (every row at
+                # or within its bounds: a zero objective) and the run ended at level m
+                # (hist_valid[k] = 2 + m). When the point of the last call's levels m,
+                # u_{k-1} + sum_{l=k..m} Delta u_l, still meets every row of levels k..m-1, it
+                # is an optimum of each of them whatever their working sets: the re-solve jumps
+                # there at level k, with level m's working set for the rows above each level.
+                # It no longer inserts the rows these levels activated on their way and a level
+                # below deleted; their records stay those of the last call that did not jump.
+                m = hist_valid[k] - 2
+                ok = k < m < D
+                for kk in range(k + 1, m + 1):
+                    ok = ok and hist_valid[kk] == 1
+                if ok:
+                    for c in range(n):
+                        ps[c] = 0.0
+                    for kk in range(k, m + 1):
+                        vaxpy(1.0, hist_du[kk], ps)
+                    for c in range(n):
+                        z[c] = u[c] + ps[c]
+                    fl += n * (m - k + 1)
+                    ok = _levels_met(A, bcol, bval, kind, lo, up, rnorm, s0, starts[m], z, dual_rtol)
+                    fl += n * (starts[m] - s0)
+                if ok:
+                    jrun = k
+                    jm = m
+            jump = jrun <= k < jm  # (a level of the jump: its record is level jm's for the rows above)
+            rk = jm if jump else k
             if (warm == 0 and k > 0) or warm_level:
                 # drop working inequality rows: all of them ("none"), or those the
                 # level deactivated at the previous call (Delta^- A, sec. XI)
                 dropped = False
                 for j in range(p - 1, -1, -1):
                     i = widx[j]
-                    if wside[j] != 0 and (warm == 0 or hist_state[k, i] != WORK):
+                    if wside[j] != 0 and (warm == 0 or hist_state[rk, i] != WORK):
                         fl += delete_row(lazy, j, R, p, widx, wside, Mf, 0, Wt, qv, qi, sv, sv2)
                         p -= 1
                         state[i] = INACTIVE
@@ -266,16 +314,20 @@ def hcod_solve(fw, iw):
                 # recorded: the step must keep the rows frozen above).
                 nf = n - p
                 dun = 0.0
+                if k != jrun:  # (jrun: ps holds the jump; the other levels of it and jm: no step)
+                    for c in range(n):
+                        ps[c] = 0.0 if jump or k == jm else hist_du[k, c]
                 for c in range(n):
-                    ps[c] = hist_du[k, c]
                     dun += abs(ps[c])
+                at_jump = k == jrun  # (u_hat is the point _levels_met accepted, u + ps, so far)
                 if p > 0 and dun > 0.0:  # (p = 0: Z spans everything): ps <- Z Z^T ps
+                    at_jump = False
                     fl += basis_t(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
                     ps[:p] = 0.0
                     fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
                 tau = 1.0
                 for i in range(s0):
-                    if state[i] != INACTIVE or kind[i] != 1 or hist_state[k, i] == WORK:
+                    if state[i] != INACTIVE or kind[i] != 1 or hist_state[rk, i] == WORK:
                         continue
                     ap = row_dot(A[i], bcol[i], bval[i], ps)
                     if ap == 0.0:
@@ -289,12 +341,13 @@ def hcod_solve(fw, iw):
                         continue
                     if rt < tau:
                         tau = max(rt, 0.0)
+                at_jump = at_jump and tau == 1.0
                 for c in range(n):
                     u[c] += tau * ps[c]
                 # Delta^+ A: rows the level activated at the previous call
                 p_in = p
                 m_in = 0
-                for i in range(s0):
+                for i in range(s0 if not jump else 0):  # (a jump: level jm inserts its rows)
                     sd = hist_side[k, i]
                     if (hist_state[k, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0
                             and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf) and m_in < n):  # (<= n: WORK rows)
@@ -334,6 +387,7 @@ def hcod_solve(fw, iw):
                     hv[j] = 0.0 if wside[j] == 0 else target[i] - row_dot(A[i], bcol[i], bval[i], u)
                     big = max(big, abs(hv[j]))
                 if big > 0.0:
+                    at_jump = False
                     # R^T nu = hv by columns of R^T (rows of R: contiguous)
                     for l in range(p):
                         nu[l] = hv[l] / R[l, l]
@@ -351,6 +405,13 @@ def hcod_solve(fw, iw):
                         if av > up[i] + tol or av < lo[i] - tol or not math.isfinite(av):
                             feasible = False
                             break
+                if feasible and k == jrun and not at_jump:
+                    feasible = _levels_met(A, bcol, bval, kind, lo, up, rnorm, s0, starts[jm], u, dual_rtol)
+                    fl += n * (starts[jm] - s0)
+                if not feasible and jump:
+                    jrun = -1  # (the levels after this one re-enter with their own records)
+                    jm = -1
+                    jump = False
                 if not feasible:
                     # the shifted point violates a row above: this level starts cold from
                     # u_{k-1} (feasible) without the rows just inserted (they were appended
@@ -369,9 +430,14 @@ def hcod_solve(fw, iw):
                         elif (kind[i] == 2 or sd == 0 or (sd > 0 and up[i] == np.inf)
                               or (sd < 0 and lo[i] == -np.inf)):
                             continue  # (the row changed kind since the record: eq. 45 decides)
+                        tg = up[i] if sd > 0 else lo[i]
+                        if jump and sd * (row_dot(A[i], bcol[i], bval[i], u) - tg) < -dual_rtol * (
+                                rnorm[i] * (1.0 + unorm) + abs(tg)):
+                            continue  # (the jump left it strictly inside its bounds: mu = w has the
+                            # wrong sign, it would leave the objective at once)
                         state[i] = OBJECTIVE
                         side[i] = sd
-                        target[i] = up[i] if sd > 0 else lo[i]
+                        target[i] = tg
                         Olist[nO] = i
                         nO += 1
             # eq. (45): equality rows and rows violated at u_hat enter the objective
@@ -385,7 +451,7 @@ def hcod_solve(fw, iw):
                     target[i] = lo[i]
                     Olist[nO] = i
                     nO += 1
-                elif kind[i] == 1:
+                elif kind[i] == 1 and not jump:  # (a jump: its rows are all met, _levels_met)
                     av = row_dot(A[i], bcol[i], bval[i], u)
                     if av > up[i]:
                         state[i] = OBJECTIVE
@@ -655,17 +721,46 @@ def hcod_solve(fw, iw):
                 break
             if status != ST_OPTIMAL:
                 break
-            if warm == 2:
+            last = k == D - 1 or levid[k] == 2
+            if warm == 2 and jrun <= k < jm:
+                pass  # (a level of the jump keeps the record of the last call that did not jump)
+            elif warm == 2:
                 for i in range(s1):
                     hist_state[k, i] = state[i]
                     hist_side[k, i] = side[i]
-                for c in range(n):
-                    hist_du[k, c] = u[c] - uprev[c]
+                if k == jm:
+                    # the jump's end: the steps of levels jrun..jm still sum to u_jm - u_{jrun-1}
+                    for c in range(n):
+                        hist_du[k, c] += u[c] - uprev[c]
+                    jrun = -1
+                    jm = -1
+                    run0 = -1
+                    exact = False
+                else:
+                    for c in range(n):
+                        hist_du[k, c] = u[c] - uprev[c]
+                    # exactly met: every objective row within its rounding floor (a zero
+                    # objective; per row: a floor summed over the level would hide the
+                    # residual of a row 1e-8 the size of the others)
+                    unorm = _norm(u)
+                    exact = True
+                    for j in range(nO):
+                        i = Olist[j]
+                        w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
+                        if abs(w) > dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i])):
+                            exact = False
+                            break
+                    fl += n * nO
                 hist_valid[k] = 1
+                if run0 >= 0 and (not exact or last):
+                    hist_valid[run0] = 2 + k
+                    run0 = -1
+                if exact and run0 < 0 and not last:
+                    run0 = k
             # ---- freeze level k (eq. 36); nothing to freeze below the last level, nor below
             # an identity-like equality level: its objective ||D x - e||^2 is strictly convex,
             # so x is unique after it and the levels below (the min-norm stage) change nothing
-            if k == D - 1 or levid[k] == 2:
+            if last:
                 for kk in range(k + 1, D):
                     itl[kk] = 0
                     if warm == 2:
