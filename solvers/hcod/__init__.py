@@ -80,11 +80,13 @@ Warm start (sec. XI), option ``warm_start``
     within its rounding floor) is marked in the record: a re-solve jumps at
     run0 to the last call's ``u_m`` (the sum of the run's ``Delta u``, level
     m's included) with level m's working set for the rows above each level
-    of the run, when every row of those levels is met there (before and after
-    the correction; otherwise the records as above): each of them is then at a
-    zero objective and takes one LSE, and it no longer re-inserts rows that a
-    level below deletes. A jumping call keeps the run's records (level m's
-    ``Delta u`` absorbs its step). The record is
+    of the run, when every row of those levels is met there (tested before
+    the jump -- if not, the records as above -- and after the correction --
+    if not, that level starts cold as above): each of them is then at a zero
+    objective, and it no longer re-inserts rows that a level below deletes.
+    A jumping call keeps the run's records (level m's ``Delta u`` absorbs its
+    step). The test costs 1-5 % more flops on a problem that moved, where it
+    fails; it pays on a re-solve of the same problem. The record is
     used whenever the new hierarchy has the same shape (a trajectory, or the
     benchmark's warm mode that re-solves the same problem); ``reset()``
     forgets it. Equality-only problems have no active set: warm == cold.

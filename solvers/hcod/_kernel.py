@@ -409,7 +409,10 @@ def hcod_solve(fw, iw):
                     feasible = _levels_met(A, bcol, bval, kind, lo, up, rnorm, s0, starts[jm], u, dual_rtol)
                     fl += n * (starts[jm] - s0)
                 if not feasible and jump:
-                    jrun = -1  # (the levels after this one re-enter with their own records)
+                    # the levels after this one re-enter with their own records; those before it
+                    # kept theirs from the last call that did not jump: no run marked any more
+                    hist_valid[jrun] = 1
+                    jrun = -1
                     jm = -1
                     jump = False
                 if not feasible:
@@ -441,6 +444,7 @@ def hcod_solve(fw, iw):
                         Olist[nO] = i
                         nO += 1
             # eq. (45): equality rows and rows violated at u_hat enter the objective
+            ujn = _norm(u) if jump else 0.0
             for i in range(s0, s1):
                 if state[i] == OBJECTIVE:
                     continue
@@ -451,8 +455,14 @@ def hcod_solve(fw, iw):
                     target[i] = lo[i]
                     Olist[nO] = i
                     nO += 1
-                elif kind[i] == 1 and not jump:  # (a jump: its rows are all met, _levels_met)
+                elif kind[i] == 1:
                     av = row_dot(A[i], bcol[i], bval[i], u)
+                    if jump:
+                        # (a jump: a row over its bound by its rounding floor only, a row the jump
+                        # met, stays out: the same record at every call of a repeated problem)
+                        vt = dual_rtol * (rnorm[i] * (1.0 + ujn) + abs(up[i] if av > up[i] else lo[i]))
+                        if lo[i] - vt <= av <= up[i] + vt:
+                            continue
                     if av > up[i]:
                         state[i] = OBJECTIVE
                         side[i] = 1
