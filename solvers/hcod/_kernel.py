@@ -444,7 +444,6 @@ def hcod_solve(fw, iw):
                         Olist[nO] = i
                         nO += 1
             # eq. (45): equality rows and rows violated at u_hat enter the objective
-            ujn = _norm(u) if jump else 0.0
             for i in range(s0, s1):
                 if state[i] == OBJECTIVE:
                     continue
@@ -459,8 +458,9 @@ def hcod_solve(fw, iw):
                     av = row_dot(A[i], bcol[i], bval[i], u)
                     if jump:
                         # (a jump: a row over its bound by its rounding floor only, a row the jump
-                        # met, stays out: the same record at every call of a repeated problem)
-                        vt = dual_rtol * (rnorm[i] * (1.0 + ujn) + abs(up[i] if av > up[i] else lo[i]))
+                        # met, stays out: the same record at every call of a repeated problem;
+                        # unorm: ||u|| since the warm point's correction)
+                        vt = dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(up[i] if av > up[i] else lo[i]))
                         if lo[i] - vt <= av <= up[i] + vt:
                             continue
                     if av > up[i]:
@@ -732,9 +732,7 @@ def hcod_solve(fw, iw):
             if status != ST_OPTIMAL:
                 break
             last = k == D - 1 or levid[k] == 2
-            if warm == 2 and jrun <= k < jm:
-                pass  # (a level of the jump keeps the record of the last call that did not jump)
-            elif warm == 2:
+            if warm == 2 and not jump:  # (a level of a jump keeps the record of the last call that did not)
                 for i in range(s1):
                     hist_state[k, i] = state[i]
                     hist_side[k, i] = side[i]
