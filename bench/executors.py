@@ -139,20 +139,21 @@ class DaskExecutor:
         self.session = uuid.uuid4().hex  # fresh isolated processes on the Dask workers (see _dask_task)
         if scheduler:
             host_port = _check_scheduler_address(scheduler)
-            try:
-                if host_port is not None:  # fail at once on a refused connection (Client retries for 30 s)
-                    socket.create_connection(host_port, timeout=_CONNECT_TIMEOUT).close()
-                self.client = Client(scheduler, timeout=_CONNECT_TIMEOUT)
-                self._closing.callback(self.client.close)
-            except OSError as err:  # refused, unreachable, unknown host, timed out
-                raise HikbenchError(f"could not connect to scheduler {scheduler}: "
-                                    f"{err.strerror or err or type(err).__name__}") from err
-            try:  # a cluster without workers would queue the jobs forever, silently
-                self.client.wait_for_workers(1, timeout=_CONNECT_TIMEOUT)
-            except TimeoutError as err:
-                self._closing.close()
-                raise HikbenchError(f"scheduler {scheduler} has no worker (waited {_CONNECT_TIMEOUT:g} s); "
-                                    f"expected at least one, e.g. `dask worker {scheduler}`") from err
+            with contextlib.ExitStack() as starting:  # (the client closes at once if the scheduler is unusable)
+                try:
+                    if host_port is not None:  # fail at once on a refused connection (Client retries for 30 s)
+                        socket.create_connection(host_port, timeout=_CONNECT_TIMEOUT).close()
+                    self.client = Client(scheduler, timeout=_CONNECT_TIMEOUT)
+                except OSError as err:  # refused, unreachable, unknown host, timed out
+                    raise HikbenchError(f"could not connect to scheduler {scheduler}: "
+                                        f"{err.strerror or err or type(err).__name__}") from err
+                starting.callback(self.client.close)
+                try:  # a cluster without workers would queue the jobs forever, silently
+                    self.client.wait_for_workers(1, timeout=_CONNECT_TIMEOUT)
+                except TimeoutError as err:
+                    raise HikbenchError(f"scheduler {scheduler} has no worker (waited {_CONNECT_TIMEOUT:g} s); "
+                                        f"expected at least one, e.g. `dask worker {scheduler}`") from err
+                self._closing = starting.pop_all()
             self.name = f"dask:{scheduler}"
         else:
             import dask

@@ -94,7 +94,12 @@ Warm start (sec. XI), option ``warm_start``
 Result
     ``iterations`` counts LSE solves (active-set iterations; 1 per nonempty
     level for equality problems), ``iterations_per_level`` the same per level,
-    ``activations`` / ``deactivations`` the active-set changes, ``flops`` the
+    ``activations`` / ``deactivations`` the active-set changes of the
+    iterations: a blocking row entering, a row leaving by the sign of its
+    multiplier (a two-sided row switching side counts as one of each); not
+    counted: implied rows re-entering the decomposition after a deletion, and
+    the rows a warm start's record brings in or drops before a level's first
+    iteration (Delta+ / Delta-). ``flops`` the
     multiply-adds counted inside the kernels (see the test relating it to the
     26.9 Kflops of sec. VI). Statuses: ``optimal``; ``max_iterations`` when the
     cap (option ``max_iterations``, default ``100 + 10 (rows + n)``) is hit

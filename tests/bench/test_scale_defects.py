@@ -267,6 +267,28 @@ def test_a_scheduler_without_workers_is_a_one_line_error(tmp_path, capsys, monke
     assert not (tmp_path / "out" / "results.csv").exists()
 
 
+def test_a_scheduler_that_fails_while_waiting_for_workers_leaves_no_client_open(cluster, monkeypatch):
+    """Only a timeout while waiting for a worker closed the client: any other error left
+    its connection to the scheduler open for the rest of the process."""
+    from distributed import Client
+
+    real_close = Client.close
+    closed = []
+
+    def lost(self, *args, **kwargs):
+        raise RuntimeError("the scheduler went away")
+
+    def recording_close(self, *args, **kwargs):
+        closed.append(self)
+        return real_close(self, *args, **kwargs)
+
+    monkeypatch.setattr(Client, "wait_for_workers", lost)
+    monkeypatch.setattr(Client, "close", recording_close)
+    with pytest.raises(RuntimeError, match="went away"):
+        DaskExecutor(scheduler=cluster.scheduler_address)
+    assert len(closed) == 1 and closed[0].status == "closed"
+
+
 def test_closing_a_local_cluster_whose_client_fails_to_close_still_stops_it(monkeypatch):
     """DaskExecutor.close left the local cluster's worker processes running when the
     client's close raised; the cluster and its dask settings must be undone all the same."""
