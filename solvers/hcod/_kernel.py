@@ -80,6 +80,14 @@ def _norm(x):
     return math.sqrt(vdot(x, x))
 
 
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def _floor(rnorm_i, unorm, b, dual_rtol):
+    """The rounding floor of a row's residual ``a u - b``:
+    ``dual_rtol (||a|| (1 + ||u||) + |b|)`` (dual_rtol = 1e-13), the size of the
+    rounding errors of ``a u`` and ``b``; a row within it of a bound is met there."""
+    return dual_rtol * (rnorm_i * (1.0 + unorm) + abs(b))
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def _level_cod(Mr, Mf, nO, p, nf, thr, piv, diag, beta):
     """The COD (19) from scratch of the level's nO objective rows projected on
@@ -117,16 +125,16 @@ def _level_cod_append(Mr, Mf, j0, nO, p, nf, thr, r, piv, diag, beta):
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def _levels_met(A, bcol, bval, kind, lo, up, rnorm, i0, i1, u, dual_rtol):
     """Every row i0 <= i < i1 within its bounds at u to its rounding floor
-    ``1e-13 (||a_i|| (1 + ||u||) + |bound|)`` (free rows aside): the levels holding
+    (:func:`_floor`; free rows aside): the levels holding
     them have a zero objective at u (eq. 33: all slacks w = 0)."""
     unorm = _norm(u)
     for i in range(i0, i1):
         if kind[i] == 2:
             continue
         av = row_dot(A[i], bcol[i], bval[i], u)
-        if lo[i] > -np.inf and av < lo[i] - dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(lo[i])):
+        if lo[i] > -np.inf and av < lo[i] - _floor(rnorm[i], unorm, lo[i], dual_rtol):
             return False
-        if up[i] < np.inf and av > up[i] + dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(up[i])):
+        if up[i] < np.inf and av > up[i] + _floor(rnorm[i], unorm, up[i], dual_rtol):
             return False
     return True
 
@@ -434,8 +442,8 @@ def hcod_solve(fw, iw):
                               or (sd < 0 and lo[i] == -np.inf)):
                             continue  # (the row changed kind since the record: eq. 45 decides)
                         tg = up[i] if sd > 0 else lo[i]
-                        if jump and sd * (row_dot(A[i], bcol[i], bval[i], u) - tg) < -dual_rtol * (
-                                rnorm[i] * (1.0 + unorm) + abs(tg)):
+                        if jump and sd * (row_dot(A[i], bcol[i], bval[i], u) - tg) < -_floor(
+                                rnorm[i], unorm, tg, dual_rtol):
                             continue  # (the jump left it strictly inside its bounds: mu = w has the
                             # wrong sign, it would leave the objective at once)
                         state[i] = OBJECTIVE
@@ -460,7 +468,7 @@ def hcod_solve(fw, iw):
                         # (a jump: a row over its bound by its rounding floor only, a row the jump
                         # met, stays out: the same record at every call of a repeated problem;
                         # unorm: ||u|| since the warm point's correction)
-                        vt = dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(up[i] if av > up[i] else lo[i]))
+                        vt = _floor(rnorm[i], unorm, up[i] if av > up[i] else lo[i], dual_rtol)
                         if lo[i] - vt <= av <= up[i] + vt:
                             continue
                     if av > up[i]:
@@ -635,7 +643,7 @@ def hcod_solve(fw, iw):
                         continue
                     w = row_dot(A[i], bcol[i], bval[i], u) - target[i]  # eq. (38): mu = w
                     val = side[i] * w
-                    tol = dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
+                    tol = _floor(rnorm[i], unorm, target[i], dual_rtol)
                     if val < -tol and (val / rnorm[i] < worst if degen < BLAND_AFTER
                                        else (jw < 0 or i < Olist[jw])):
                         worst = val / rnorm[i]
@@ -755,7 +763,7 @@ def hcod_solve(fw, iw):
                     for j in range(nO):
                         i = Olist[j]
                         w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
-                        if abs(w) > dual_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i])):
+                        if abs(w) > _floor(rnorm[i], unorm, target[i], dual_rtol):
                             exact = False
                             break
                     fl += n * nO
