@@ -51,9 +51,15 @@ Rank detection
     the same test on its component outside the span of the working rows.
 
 Tolerances (data, not options)
-    multipliers: a working row is removed when ``lambda_j ||a_j|| < -1e-13 *
-    sum_j ||a_j|| (||a_j|| (1 + ||u||) + |e_j|)`` over the objective rows (the
-    rounding floor of the gradient); an objective inequality row when its
+    multipliers: they are computed when ``||g|| > gtol`` and a working row is
+    removed when ``lambda_j ||a_j|| < -gtol``, ``gtol = sum_j ||a_j|| delta_j``
+    over the objective rows (the noise floor of the gradient ``g = J_k^T w``),
+    ``delta_j`` the error of the residual ``w_j``: its rounding floor
+    ``f_j = 1e-13 (||a_j|| (1 + ||u||) + |e_j|)``, or, for a row met to within
+    ``f_j``, its measured ``|w_j| + 1e-2 f_j`` (a met row's residual is u's
+    error along it; when met rows counted at their whole floor, the large met
+    rows of a badly scaled level hid the force of its small unmet rows);
+    an objective inequality row when its
     ``mu = w`` has the wrong sign beyond ``1e-13 (||a|| (1 + ||u||) + |e|)``;
     a slack below ``1e-11 (...)`` counts as zero at a freeze; warm-start
     feasibility ``1e-9 (||a|| (1 + ||u||) + 1)``.

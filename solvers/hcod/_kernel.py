@@ -72,6 +72,7 @@ INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
 O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL = range(7)
+MET_ROUNDING = 1e-2  #: a met row's rounding in the noise floor of g, a fraction of its _floor (1e-15)
 BLAND_AFTER = 32  #: consecutive iterations that leave u where it is before the anti-cycling rule takes over
 
 
@@ -677,8 +678,14 @@ def hcod_solve(fw, iw):
                         anydel = True
                         break
                 if anydel and nO > 0:
+                    # g = J_k^T w and its noise floor: per objective row, ||a_j|| times the
+                    # error of its residual w_j; a row met to its rounding floor (_floor) is
+                    # counted at its measured |w_j| (the projection of u's error on a_j, which
+                    # makes its term of g) plus MET_ROUNDING of the floor (the rounding of a u);
+                    # another row at its whole floor (its error hides in its residual)
                     for c in range(n):
                         g[c] = 0.0
+                    gtol = 0.0
                     for j in range(nO):
                         i = Olist[j]
                         w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
@@ -686,16 +693,9 @@ def hcod_solve(fw, iw):
                             g[bcol[i]] += bval[i] * w
                         else:
                             vaxpy(w, A[i], g)
+                        fj = _floor(rnorm[i], unorm, target[i], dual_rtol)
+                        gtol += rnorm[i] * (abs(w) + MET_ROUNDING * fj if abs(w) <= fj else fj)
                     gn = _norm(g)
-                    # noise floor of g: its terms are rows of A_k times residuals of size
-                    # ||A_k|| (1 + ||u||) + ||e_k||
-                    # (per objective row: ||a_j|| (||a_j|| (1 + ||u||) + |e_j|), the size of the
-                    # terms whose rounding errors make up g)
-                    gtol = 0.0
-                    for j in range(nO):
-                        i = Olist[j]
-                        gtol += rnorm[i] * (rnorm[i] * (1.0 + unorm) + abs(target[i]))
-                    gtol *= dual_rtol
                     if gn > gtol:
                         fl += multipliers(lazy, R, p, g, nu, hv, Wt, qv, qi, sv, sv2)  # eq. (39)
                         worst = 0.0
