@@ -82,11 +82,12 @@ def _norm(x):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _floor(rnorm_i, unorm, b, dual_rtol):
-    """The rounding floor of a row's residual ``a u - b``:
-    ``dual_rtol (||a|| (1 + ||u||) + |b|)`` (dual_rtol = 1e-13), the size of the
-    rounding errors of ``a u`` and ``b``; a row within it of a bound is met there."""
-    return dual_rtol * (rnorm_i * (1.0 + unorm) + abs(b))
+def _floor(rnorm_i, unorm, b, rtol):
+    """``rtol (||a|| (1 + ||u||) + |b|)``, a floor of a row's residual ``a u - b``:
+    with dual_rtol (1e-13) its rounding floor, the size of the rounding errors
+    of ``a u`` and ``b`` (a row within it of a bound is met there); with
+    freeze_rtol (1e-11) the zero slack of a freeze."""
+    return rtol * (rnorm_i * (1.0 + unorm) + abs(b))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -816,7 +817,7 @@ def hcod_solve(fw, iw):
                     av = row_dot(A[i], bcol[i], bval[i], u)
                     w = av - target[i]
                     sd = side[i]
-                    if kind[i] == 0 or abs(w) > freeze_rtol * (rnorm[i] * (1.0 + unorm) + abs(target[i])):
+                    if kind[i] == 0 or abs(w) > _floor(rnorm[i], unorm, target[i], freeze_rtol):
                         target[i] = av
                         sd = 0
                     if cod_done:
