@@ -72,7 +72,7 @@ INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
 O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL = range(7)
-MET_ROUNDING = 1e-2  #: a met row's rounding in the noise floor of g, a fraction of its _floor (1e-15)
+G_ROUNDING = 1e-2  #: a row's rounding in the noise floor of g, a fraction of its _floor (1e-15)
 BLAND_AFTER = 32  #: consecutive iterations that leave u where it is before the anti-cycling rule takes over
 
 
@@ -680,10 +680,11 @@ def hcod_solve(fw, iw):
                         break
                 if anydel and nO > 0:
                     # g = J_k^T w and its noise floor: per objective row, ||a_j|| times the
-                    # error of its residual w_j; a row met to its rounding floor (_floor) is
-                    # counted at its measured |w_j| (the projection of u's error on a_j, which
-                    # makes its term of g) plus MET_ROUNDING of the floor (the rounding of a u);
-                    # another row at its whole floor (its error hides in its residual)
+                    # error of its residual w_j, G_ROUNDING of its rounding floor (_floor: the
+                    # rounding of a_j u - e_j) plus, for a row met to within that floor, its
+                    # measured |w_j| (the projection of u's error on a_j, which makes its term of
+                    # g). An unmet row's residual is its own: counting it at its whole floor let
+                    # a level's large rows hide the force of its small ones
                     for c in range(n):
                         g[c] = 0.0
                     gtol = 0.0
@@ -695,7 +696,7 @@ def hcod_solve(fw, iw):
                         else:
                             vaxpy(w, A[i], g)
                         fj = _floor(rnorm[i], unorm, target[i], dual_rtol)
-                        gtol += rnorm[i] * (abs(w) + MET_ROUNDING * fj if abs(w) <= fj else fj)
+                        gtol += rnorm[i] * (G_ROUNDING * fj + (abs(w) if abs(w) <= fj else 0.0))
                     gn = _norm(g)
                     if gn > gtol:
                         fl += multipliers(lazy, R, p, g, nu, hv, Wt, qv, qi, sv, sv2)  # eq. (39)
