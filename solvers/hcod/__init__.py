@@ -54,8 +54,9 @@ Tolerances (data, not options)
     multipliers: they are computed when ``||g|| > gtol`` and a working row is
     removed when ``lambda_j ||a_j|| < -gtol``, ``gtol = sum_j ||a_j|| delta_j``
     over the objective rows (the noise floor of the gradient ``g = J_k^T w``),
-    ``delta_j`` the error of the residual ``w_j``: ``1e-2 f_j``, a fraction
-    of its rounding floor ``f_j = 1e-13 (||a_j|| (1 + ||u||) + |e_j|)``, plus,
+    ``delta_j`` the error of the residual ``w_j``: ``1e-2 f_j`` (a typical
+    rounding of ``a_j u - e_j``, not a bound; ``f_j = 1e-13 (||a_j|| (1 +
+    ||u||) + |e_j|)`` the row's rounding floor), plus,
     for a row met to within ``f_j``, its measured ``|w_j|`` (a met row's
     residual is u's error along it; when rows counted at their whole floor,
     the large rows of a badly scaled level, met or not, hid the force of its

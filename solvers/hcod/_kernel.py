@@ -84,7 +84,7 @@ def _norm(x):
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def _floor(rnorm_i, unorm, b, rtol):
     """``rtol (||a|| (1 + ||u||) + |b|)``, a floor of a row's residual ``a u - b``:
-    with dual_rtol (1e-13) its rounding floor, the size of the rounding errors
+    with dual_rtol (1e-13) its rounding floor, a bound of the rounding errors
     of ``a u`` and ``b`` (a row within it of a bound is met there); with
     freeze_rtol (1e-11) the zero slack of a freeze."""
     return rtol * (rnorm_i * (1.0 + unorm) + abs(b))
@@ -683,8 +683,9 @@ def hcod_solve(fw, iw):
                     # error of its residual w_j, G_ROUNDING of its rounding floor (_floor: the
                     # rounding of a_j u - e_j) plus, for a row met to within that floor, its
                     # measured |w_j| (the projection of u's error on a_j, which makes its term of
-                    # g). An unmet row's residual is its own: counting it at its whole floor let
-                    # a level's large rows hide the force of its small ones
+                    # g). An unmet row's residual is not u's error, only its rounding counts:
+                    # counting it at its whole floor let a level's large rows hide the force of
+                    # its small ones
                     for c in range(n):
                         g[c] = 0.0
                     gtol = 0.0

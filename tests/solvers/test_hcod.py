@@ -276,15 +276,16 @@ def test_warm_start_along_badly_scaled_trajectories(drift, min_norm):
             assert verify(ht, res.x, cold.x, rtol=1e-8).equal, (seed, t)
 
 
+@pytest.mark.parametrize("min_norm", [True, False], ids=["min_norm", "no_min_norm"])
 @pytest.mark.parametrize("warm_start", ["stage", "none"])
-def test_small_row_sharing_a_free_direction_with_a_large_unmet_one(warm_start):
+def test_small_row_sharing_a_free_direction_with_a_large_unmet_one(warm_start, min_norm):
     """badly_scaled seed 28, drift 1e-3, step 4: at level 4 a row of norm 8.4e-3 and one of
     norm 1.9e3 share the level's last free direction, the large one left unmet by a few times
     its rounding floor. A working row's multiplier (-1.2e-13, scaled) must release it: when
     unmet rows counted at their whole rounding floor in the noise floor of g (3.1e-13), a cold
     solve stopped there, level 4 at 1.33e-3 against the reference's 9.77e-4."""
     ht = list(drifting(G.degenerate("badly_scaled", 12, 28), 1e-3, 28, steps=5))[4]
-    res = HcodSolver(warm_start=warm_start).solve(ht)
+    res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(ht)
     assert res.status == OPTIMAL
     x_ref = reference_solution(ht)
     assert verify(ht, res.x, x_ref, rtol=1e-8).equal, verify(ht, res.x, x_ref, rtol=1e-8)
