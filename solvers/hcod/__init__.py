@@ -60,9 +60,15 @@ Tolerances (data, not options)
     for a row met to within ``f_j``, its measured ``|w_j|`` (a met row's
     residual is u's error along it; when rows counted at their whole floor,
     the large rows of a badly scaled level, met or not, hid the force of its
-    small unmet rows);
-    an objective inequality row when its
-    ``mu = w`` has the wrong sign beyond ``1e-13 (||a|| (1 + ||u||) + |e|)``;
+    small unmet rows). A multiplier below ``-gtol_r`` (the rounding part of
+    gtol alone) but above ``-gtol`` is computed once more from ``g`` without
+    the met rows' terms: the row leaves when both are below ``-gtol_r``
+    (a met row's residual is u's error or the optimum's: either way);
+    an objective inequality row leaves when its ``mu = w`` has the wrong
+    sign beyond its floor ``f`` (``1e-13 (||a|| (1 + ||u||) + |e|)``), or
+    beyond ``1e-2 f`` and twice its change under one more step from ``u``
+    on the same working set (iterative refinement: the change measures u's
+    error along the row; one such step per level and working set);
     a slack below ``1e-11 (...)`` counts as zero at a freeze; warm-start
     feasibility ``1e-9 (||a|| (1 + ||u||) + 1)``.
 

@@ -492,6 +492,10 @@ def hcod_solve(fw, iw):
             ncod = 0  # objective rows the level's COD in Mr holds (0: none valid)
             cod_weak = False  # a pivot appended with a small diagonal (cod_append)
             degen = 0
+            ref_row = -1  # (refinement: the objective row whose residual it measures, its side * w, and
+            ref_val = 0.0  # acts + deacts when it was recorded / when the check was last decided)
+            ref_ad = -1
+            ref_done = -1
             while True:
                 if total >= max_iter:
                     status = ST_MAXIT
@@ -639,6 +643,8 @@ def hcod_solve(fw, iw):
                 unorm = _norm(u)
                 worst = 0.0
                 jw = -1
+                ja = -1  # the row most below zero within its rounding floor, beyond G_ROUNDING of it
+                wa = 0.0
                 for j in range(nO):
                     i = Olist[j]
                     if kind[i] != 1:
@@ -650,6 +656,28 @@ def hcod_solve(fw, iw):
                                        else (jw < 0 or i < Olist[jw])):
                         worst = val / rnorm[i]
                         jw = j
+                    elif val < -G_ROUNDING * tol and (ja < 0 or val / rnorm[i] < wa / rnorm[Olist[ja]]):
+                        ja = j
+                        wa = val
+                ad = acts + deacts
+                if jw < 0 and ja >= 0 and ad != ref_done:
+                    # a row negative under its rounding floor: the floor bounds the rounding of
+                    # w, not the error of u, which one step more from u (iterative refinement,
+                    # same working set and COD) measures: w's change. Beyond twice that the
+                    # sign is the optimum's and the row leaves. (A large row met at one bound
+                    # of its interval, pushed by a level's small rows, -2e-13 against a floor
+                    # of 4e-13 scaled, otherwise held them off their optimum.)
+                    if ref_row == Olist[ja] and ref_ad == ad:
+                        if wa < -2.0 * abs(wa - ref_val):
+                            jw = ja
+                        ref_done = ad
+                    elif ref_ad == ad:
+                        ref_done = ad
+                    else:
+                        ref_row = Olist[ja]
+                        ref_val = wa
+                        ref_ad = ad
+                        continue
                 if jw >= 0:
                     i = Olist[jw]
                     av = row_dot(A[i], bcol[i], bval[i], u)
@@ -689,6 +717,7 @@ def hcod_solve(fw, iw):
                     for c in range(n):
                         g[c] = 0.0
                     gtol = 0.0
+                    gtol_r = 0.0  # (the rounding part of gtol alone)
                     for j in range(nO):
                         i = Olist[j]
                         w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
@@ -697,18 +726,48 @@ def hcod_solve(fw, iw):
                         else:
                             vaxpy(w, A[i], g)
                         fj = _floor(rnorm[i], unorm, target[i], dual_rtol)
+                        gtol_r += rnorm[i] * G_ROUNDING * fj
                         gtol += rnorm[i] * (G_ROUNDING * fj + (abs(w) if abs(w) <= fj else 0.0))
                     gn = _norm(g)
                     if gn > gtol:
                         fl += multipliers(lazy, R, p, g, nu, hv, Wt, qv, qi, sv, sv2)  # eq. (39)
                         worst = 0.0
+                        amb = False  # a multiplier below the rounding, within the met rows' part
                         for j in range(p):
                             if wside[j] != 0:
                                 val = wside[j] * nu[j] * rnorm[widx[j]]
+                                amb = amb or val < -gtol_r
                                 if val < -gtol and (val < worst if degen < BLAND_AFTER
                                                     else (jw < 0 or widx[j] < widx[jw])):
                                     worst = val
                                     jw = j
+                        if jw < 0 and amb:
+                            # the met rows' residuals are either u's error (then g less their
+                            # terms is the force) or the true optimum's (then g is): a row whose
+                            # multiplier is negative beyond the rounding both ways leaves. (The
+                            # large met rows of a badly scaled level otherwise hid a force of
+                            # its small unmet ones, ~1e-2 of it, that frees a bound row.)
+                            # z: g of the unmet rows alone, y: its multipliers (free scratch here)
+                            for c in range(n):
+                                z[c] = 0.0
+                            for j in range(nO):
+                                i = Olist[j]
+                                w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
+                                if abs(w) > _floor(rnorm[i], unorm, target[i], dual_rtol):
+                                    if bcol[i] >= 0:
+                                        z[bcol[i]] += bval[i] * w
+                                    else:
+                                        vaxpy(w, A[i], z)
+                            fl += multipliers(lazy, R, p, z, y, hv, Wt, qv, qi, sv, sv2)
+                            for j in range(p):
+                                if wside[j] != 0:
+                                    val = wside[j] * nu[j] * rnorm[widx[j]]
+                                    val2 = wside[j] * y[j] * rnorm[widx[j]]
+                                    if val < -gtol_r and val2 < -gtol_r and (
+                                            max(val, val2) < worst if degen < BLAND_AFTER
+                                            else (jw < 0 or widx[j] < widx[jw])):
+                                        worst = max(val, val2)
+                                        jw = j
                         if jw >= 0:
                             i = widx[jw]
                             # (lazy: the rotations of W's columns are applied to the projected

@@ -278,17 +278,45 @@ def test_warm_start_along_badly_scaled_trajectories(drift, min_norm):
 
 @pytest.mark.parametrize("min_norm", [True, False], ids=["min_norm", "no_min_norm"])
 @pytest.mark.parametrize("warm_start", ["stage", "none"])
-def test_small_row_sharing_a_free_direction_with_a_large_unmet_one(warm_start, min_norm):
-    """badly_scaled seed 28, drift 1e-3, step 4: at level 4 a row of norm 8.4e-3 and one of
-    norm 1.9e3 share the level's last free direction, the large one left unmet by a few times
-    its rounding floor. A working row's multiplier (-1.2e-13, scaled) must release it: when
-    unmet rows counted at their whole rounding floor in the noise floor of g (3.1e-13), a cold
-    solve stopped there, level 4 at 1.33e-3 against the reference's 9.77e-4."""
-    ht = list(drifting(G.degenerate("badly_scaled", 12, 28), 1e-3, 28, steps=5))[4]
+@pytest.mark.parametrize("seed, step", [(28, 4), (25, 3)],
+                         ids=["small_row_sharing_a_free_direction_with_a_large_unmet_one",
+                              "bound_row_freed_by_small_rows_beside_a_large_met_one"])
+def test_multiplier_noise_floor_on_badly_scaled_levels(seed, step, warm_start, min_norm):
+    """Cold solves of drifting badly_scaled problems (drift 1e-3) reach the reference.
+
+    * seed 28 step 4: at level 4 a row of norm 8.4e-3 and one of norm 1.9e3 share the level's
+      last free direction, the large one left unmet by a few times its rounding floor. A
+      working row's multiplier (-1.2e-13, scaled) must release it: when unmet rows counted at
+      their whole rounding floor in the noise floor of g (3.1e-13), the solve stopped there,
+      level 4 at 1.33e-3 against the reference's 9.77e-4.
+    * seed 25 step 3: at level 2 two small rows (norms 3e-2 and 7e-3) are left unmet beside a
+      row of norm 1.2e4 met at its bound (to 2e-13, scaled: within its rounding floor). A box
+      row's multiplier (-9.4e-14; -1.2e-13 without the met row's term of g) must release it:
+      while the met row's measured residual counted whole in the noise floor (2.2e-13), the
+      solve stopped there, level 2 0.5 % above the reference's optimum (3.4e-9 of the level's
+      scale) and level 3 at 4.26e3 against 3.63e3."""
+    ht = list(drifting(G.degenerate("badly_scaled", 12, seed), 1e-3, seed, steps=step + 1))[step]
     res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(ht)
     assert res.status == OPTIMAL
     verdict = verify(ht, res.x, reference_solution(ht), rtol=1e-8)
     assert verdict.equal, verdict
+
+
+@pytest.mark.parametrize("min_norm", [True, False], ids=["min_norm", "no_min_norm"])
+def test_large_row_met_at_one_end_of_its_interval_leaves(min_norm):
+    """badly_scaled seed 25, drift 1e-3, `time`: at step 3 level 2 re-enters with its row of
+    norm 1.2e4 in the objective at the upper end of its interval (the side recorded at step 2),
+    met to -2.3e-13 (scaled): under its rounding floor (4.1e-13) but exact (u's error is 5e-16;
+    a 60-digit solve of the same working set gives -2.306e-13), the level's small rows pushing
+    it into its interval. It must leave: while a residual under the floor counted as zero, the
+    solve stopped there, level 2 1.8 % above the reference's optimum (3.808e-2 against
+    3.743e-2). Every step matches the reference."""
+    s = HcodSolver(warm_start="time", min_norm=min_norm)
+    for t, ht in enumerate(drifting(G.degenerate("badly_scaled", 12, 25), 1e-3, 25, steps=4)):
+        res = s.solve(ht)
+        assert res.status == OPTIMAL, (t, res.reason)
+        verdict = verify(ht, res.x, reference_solution(ht), rtol=1e-8)
+        assert verdict.equal, (t, verdict)
 
 
 @pytest.mark.xfail(strict=True, raises=AssertionError, reason="known: a row 1e-8 the size of its level's others keeps a residual that a "
