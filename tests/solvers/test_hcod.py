@@ -290,7 +290,7 @@ def test_multiplier_noise_floor_on_badly_scaled_levels(seed, step, warm_start, m
       their whole rounding floor in the noise floor of g (3.1e-13), the solve stopped there,
       level 4 at 1.33e-3 against the reference's 9.77e-4.
     * seed 25 step 3: at level 2 two small rows (norms 3e-2 and 7e-3) are left unmet beside a
-      row of norm 1.2e4 met at its bound (to 2e-13, scaled: within its rounding floor). A box
+      row of norm 1.2e4 met at its bound (to 2.1e-13, scaled: within its floor 5.2e-13). A box
       row's multiplier (-9.4e-14; -1.2e-13 without the met row's term of g) must release it:
       while the met row's measured residual counted whole in the noise floor (2.2e-13), the
       solve stopped there, level 2 0.5 % above the reference's optimum (3.4e-9 of the level's
@@ -309,8 +309,8 @@ def test_large_row_met_at_one_end_of_its_interval_leaves(min_norm):
     met to -2.3e-13 (scaled): under its rounding floor (4.1e-13) but exact (u's error is 5e-16;
     a 60-digit solve of the same working set gives -2.306e-13), the level's small rows pushing
     it into its interval. It must leave: while a residual under the floor counted as zero, the
-    solve stopped there, level 2 1.8 % above the reference's optimum (3.808e-2 against
-    3.743e-2). Every step matches the reference."""
+    solve stopped there (with the multiplier test above; 2.3 % without), level 2 1.8 % above the
+    reference's optimum (3.8084e-2 against 3.7426e-2). Every step matches the reference."""
     s = HcodSolver(warm_start="time", min_norm=min_norm)
     for t, ht in enumerate(drifting(G.degenerate("badly_scaled", 12, 25), 1e-3, 25, steps=4)):
         res = s.solve(ht)
