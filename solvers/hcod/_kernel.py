@@ -58,6 +58,7 @@ from solvers.hcod._linalg import (
     cod_append,
     matrix_view,
     mf_reflect,
+    row_axpy,
     row_dot,
     solve_lower,
     unowned,
@@ -492,10 +493,9 @@ def hcod_solve(fw, iw):
             ncod = 0  # objective rows the level's COD in Mr holds (0: none valid)
             cod_weak = False  # a pivot appended with a small diagonal (cod_append)
             degen = 0
-            ref_row = -1  # (refinement: the objective row whose residual it measures, its side * w, and
-            ref_val = 0.0  # acts + deacts when it was recorded / when the check was last decided)
+            ref_row = -1  # (refinement: the objective row whose residual it measures, its side * w,
+            ref_val = 0.0  # and acts + deacts when it was recorded)
             ref_ad = -1
-            ref_done = -1
             while True:
                 if total >= max_iter:
                     status = ST_MAXIT
@@ -660,24 +660,22 @@ def hcod_solve(fw, iw):
                         ja = j
                         wa = val
                 ad = acts + deacts
-                if jw < 0 and ja >= 0 and ad != ref_done:
+                if jw < 0 and ja >= 0:
                     # a row negative under its rounding floor: the floor bounds the rounding of
                     # w, not the error of u, which one step more from u (iterative refinement,
                     # same working set and COD) measures: w's change. Beyond twice that the
                     # sign is the optimum's and the row leaves. (A large row met at one bound
                     # of its interval, pushed by a level's small rows, -2e-13 against a floor
-                    # of 4e-13 scaled, otherwise held them off their optimum.)
-                    if ref_row == Olist[ja] and ref_ad == ad:
-                        if wa < -2.0 * abs(wa - ref_val):
-                            jw = ja
-                        ref_done = ad
-                    elif ref_ad == ad:
-                        ref_done = ad
-                    else:
+                    # of 4e-13 scaled, otherwise held them off their optimum.) After the
+                    # refinement, the same ad: this full step either releases a row or ends the
+                    # level (one refinement per working set)
+                    if ref_ad != ad:
                         ref_row = Olist[ja]
                         ref_val = wa
                         ref_ad = ad
                         continue
+                    if ref_row == Olist[ja] and wa < -2.0 * abs(wa - ref_val):
+                        jw = ja
                 if jw >= 0:
                     i = Olist[jw]
                     av = row_dot(A[i], bcol[i], bval[i], u)
@@ -721,10 +719,7 @@ def hcod_solve(fw, iw):
                     for j in range(nO):
                         i = Olist[j]
                         w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
-                        if bcol[i] >= 0:
-                            g[bcol[i]] += bval[i] * w
-                        else:
-                            vaxpy(w, A[i], g)
+                        row_axpy(w, A[i], bcol[i], bval[i], g)
                         fj = _floor(rnorm[i], unorm, target[i], dual_rtol)
                         gtol_r += rnorm[i] * G_ROUNDING * fj
                         gtol += rnorm[i] * (G_ROUNDING * fj + (abs(w) if abs(w) <= fj else 0.0))
@@ -754,10 +749,7 @@ def hcod_solve(fw, iw):
                                 i = Olist[j]
                                 w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
                                 if abs(w) > _floor(rnorm[i], unorm, target[i], dual_rtol):
-                                    if bcol[i] >= 0:
-                                        z[bcol[i]] += bval[i] * w
-                                    else:
-                                        vaxpy(w, A[i], z)
+                                    row_axpy(w, A[i], bcol[i], bval[i], z)
                             fl += multipliers(lazy, R, p, z, y, hv, Wt, qv, qi, sv, sv2)
                             for j in range(p):
                                 if wside[j] != 0:

@@ -281,6 +281,16 @@ def row_dot(a, b, bv, x):
     return vdot(a, x)
 
 
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def row_axpy(w, a, b, bv, y):
+    """``y += w a`` for the row ``a = A[i]`` (see :func:`row_dot`; O(1) for a
+    bound row)."""
+    if b >= 0:
+        y[b] += bv * w
+    else:
+        vaxpy(w, a, y)
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def cod(Mr, nO, nf, thr, rows, diag, beta):
     """Rank-revealing Householder QR with column pivoting of ``M^T`` (nf, nO),
