@@ -274,8 +274,10 @@ def test_a_scheduler_that_fails_while_waiting_for_workers_leaves_no_client_open(
 
     real_close = Client.close
     closed = []
+    made = []  # the executor's client (another test's client, collected meanwhile, may close too)
 
     def lost(self, *args, **kwargs):
+        made.append(self)
         raise RuntimeError("the scheduler went away")
 
     def recording_close(self, *args, **kwargs):
@@ -286,7 +288,8 @@ def test_a_scheduler_that_fails_while_waiting_for_workers_leaves_no_client_open(
     monkeypatch.setattr(Client, "close", recording_close)
     with pytest.raises(RuntimeError, match="went away"):
         DaskExecutor(scheduler=cluster.scheduler_address)
-    assert len(closed) == 1 and closed[0].status == "closed"
+    assert len(made) == 1
+    assert [c for c in closed if c is made[0]] == made and made[0].status == "closed"
 
 
 def test_closing_a_local_cluster_whose_client_fails_to_close_still_stops_it(monkeypatch):
