@@ -28,7 +28,7 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("options", "JSON dict of the solver options of these settings"),
     ("strict", "True for strict-hierarchy solvers (judged against the lexicographic optimum)"),
     ("mode", "cold (fresh solver object per repetition) or warm (re-solve on one object)"),
-    ("repeat", "timed repetitions (after the discarded warm-up)"),
+    ("repeat", "timed repetitions (after the discarded warm-up; with rounds, over all of them)"),
     ("status", "solver status (optimal, max_iterations, infeasible_level, numerical_failure, "
                "unsupported, error) or harness status (timeout: killed after --timeout; "
                "crashed: the worker process died, e.g. segfault)"),
@@ -59,7 +59,7 @@ COLUMNS: tuple[tuple[str, str], ...] = (
                  "divides times by it"),
     ("host", "host name of the worker"),
     ("worker", "worker id (pid@host serial, dask worker address with --workers/--scheduler)"),
-    ("wall_s", "wall time of the whole job (warm-up + repetitions + transport), seconds"),
+    ("wall_s", "wall time of the whole job (warm-up + repetitions + transport; with rounds, their sum), seconds"),
     ("finished_at", "UTC time the row was written (ISO 8601)"),
 )
 

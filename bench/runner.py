@@ -36,7 +36,7 @@ from bench.results import ResultsWriter, backup, compact, finished_rows
 from bench.suites import ACCURACY, Suite, SuiteError, Task, expand
 from problems.errors import HikbenchError
 from problems.verify import level_norms, verify
-from solvers.base import CRASHED, TIMEOUT
+from solvers.base import CRASHED, ERROR, TIMEOUT
 
 __all__ = ["RunSummary", "out_lock", "run_suite"]
 
@@ -144,9 +144,9 @@ class _Progress:
     def add(self, description: str, total: int):
         return self.p.add_task(description, total=total, rate="") if self.p else None
 
-    def advance(self, tid, label: str = ""):
+    def advance(self, tid, label: str = "", steps: int = 1):
         if self.p is not None:
-            self.p.advance(tid)
+            self.p.advance(tid, steps)
             speed = self.p.tasks[tid].speed if tid < len(self.p.tasks) else None
             self.p.update(tid, rate=f"{speed:.1f}/s" if speed else "", description=label or
                           self.p.tasks[tid].description)
@@ -179,12 +179,17 @@ def out_lock(out: Path):
 
 
 def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rerun=False, executor=None,
-              quiet=False, limit=None, log=print) -> RunSummary:
+              quiet=False, limit=None, rounds=None, log=print) -> RunSummary:
     """Run ``suite`` into directory ``out`` (see the module docstring).
 
-    ``solvers`` (patterns) replaces the suite's solver lists; ``repeat`` and
-    ``timeout`` override the suite's; ``limit`` stops after that many new rows
-    (the run resumes later). ``rerun`` runs finished rows again: each new row
+    ``solvers`` (patterns) replaces the suite's solver lists; ``repeat``,
+    ``rounds`` and ``timeout`` override the suite's; ``limit`` stops after
+    that many new rows (the run resumes later). With ``rounds`` R > 1 the
+    ``repeat`` timed solves of a row are split over R rounds, each round
+    running every job of the run once (:func:`_merge_rounds`): a slow window
+    of the machine then shifts a part of every row's samples, not all the
+    samples of the rows it happens to meet; a row is written after its last
+    round (a run stopped in between runs its unwritten rows again). ``rerun`` runs finished rows again: each new row
     replaces its old one, the other rows are kept, and results.csv is first
     backed up without overwriting an older backup (bench.results.backup); a
     finished row whose settings' options changed is run again the same way.
@@ -194,6 +199,10 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
 
     out = Path(out)
     repeat = int(repeat or suite.repeat)
+    rounds = int(rounds or suite.rounds)
+    if rounds > repeat:
+        raise HikbenchError(f"rounds = {rounds} (--rounds or the suite's): expected at most repeat = {repeat} "
+                            "(--repeat or the suite's): each round times at least one solve of every row")
     timeout = float(timeout or suite.timeout)
     rtol, atol = ACCURACY[suite.accuracy]
     tasks, skipped = expand(suite, solvers)  # checks solvers and settings before anything is written
@@ -241,7 +250,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
 
         meta = read_run_json(out)
         session = {"started": utc_now(), "calibration_start_ns": calibrate(), "todo": len(todo),
-                   "repeat": repeat, "timeout": timeout}
+                   "repeat": repeat, "rounds": rounds, "timeout": timeout}
         meta.update({"suite": suite.to_dict(), "calibration_kernel": KERNEL, "key": list(KEY),
                      "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
                      "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
@@ -255,23 +264,36 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         try:
             with _Progress(quiet) as progress:
                 refs = _references(todo, problems, out, executor, max(timeout, suite.first_solve_timeout), progress)
-                tid = progress.add("solves", len(todo))
-                by_tag = {i: t for i, t in enumerate(todo)}
-                items = ((i, {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
-                              "hierarchy": problems[t.problem.id], "solver": t.entry.spec,
-                              "options": t.entry.options, "mode": t.mode, "repeat": repeat,
-                              "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
-                              "calibrate": suite.calibrate_each_job}, timeout)
-                         for i, t in by_tag.items())
+                tid = progress.add("solves", len(todo) * rounds)
+                earlier = {i: [] for i in range(len(todo))}  # results of the rounds before, per job
+                alive = list(earlier)  # jobs still to run in the next round
                 with ResultsWriter(out) as writer:
-                    for i, res in executor.map(items):
-                        t = by_tag[i]
-                        pid = t.problem.id
-                        row = make_row(t, pcols[pid], problems[pid], refs[pid], res, rtol, atol)
-                        writer.write(row)
-                        summary.written += 1
-                        summary.statuses[row["status"]] = summary.statuses.get(row["status"], 0) + 1
-                        progress.advance(tid, f"solves: {t.entry.solver} {t.mode}")
+                    for rnd in range(rounds):
+                        share = repeat // rounds + (rnd < repeat % rounds)
+                        items = ((i, {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
+                                      "hierarchy": problems[t.problem.id], "solver": t.entry.spec,
+                                      "options": t.entry.options, "mode": t.mode, "repeat": share,
+                                      "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
+                                      "calibrate": suite.calibrate_each_job}, timeout)
+                                 for i, t in ((i, todo[i]) for i in alive))
+                        again = []
+                        for i, res in executor.map(items):
+                            t = todo[i]
+                            label = f"solves: {t.entry.solver} {t.mode}" + (
+                                f" (round {rnd + 1}/{rounds})" if rounds > 1 else "")
+                            if rnd < rounds - 1 and res["status"] not in _HARNESS_FAILURES:
+                                earlier[i].append(res)
+                                again.append(i)
+                                progress.advance(tid, label)
+                                continue
+                            res = _merge_rounds(earlier.pop(i), res, rounds)
+                            pid = t.problem.id
+                            row = make_row(t, pcols[pid], problems[pid], refs[pid], res, rtol, atol)
+                            writer.write(row)
+                            summary.written += 1
+                            summary.statuses[row["status"]] = summary.statuses.get(row["status"], 0) + 1
+                            progress.advance(tid, label, rounds - rnd)
+                        alive = sorted(again)  # (the suite's order, whatever order the executor finished in)
         finally:
             if own_executor:
                 executor.close()
@@ -287,6 +309,38 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         return summary
     finally:
         lock.close()
+
+
+#: a job that ends so in a round is not run in the later ones: its row is written at once
+_HARNESS_FAILURES = (TIMEOUT, CRASHED, ERROR)
+
+
+def _merge_rounds(earlier: list[dict], res: dict, rounds: int) -> dict:
+    """The result of a job run in rounds: the last round's result (x, status,
+    counters) with the timed samples of every round (``wall_s`` their sum,
+    ``calib_ns`` the smallest of the rounds'); a round that ended in a
+    harness failure (timeout, crash, escaped exception) is the row, its reason
+    naming the round (no samples: like a run without rounds). Rounds whose
+    statuses differ are named in the reason."""
+    if not earlier:
+        if rounds > 1 and res["status"] in _HARNESS_FAILURES:
+            res = {**res, "reason": f"{res.get('reason', '')} (in round 1 of {rounds})".lstrip()}
+        return res
+    rnd = len(earlier) + 1
+    if res["status"] in _HARNESS_FAILURES:
+        return {**res, "reason": f"{res.get('reason', '')} (in round {rnd} of {rounds}; the earlier rounds "
+                                 f"ended {', '.join(r['status'] for r in earlier)})".lstrip()}
+    samples = [s for r in (*earlier, res) for s in r.get("samples_ns") or []]
+    out = {**res, "samples_ns": samples}
+    if all(r.get("wall_s") is not None for r in (*earlier, res)):
+        out["wall_s"] = sum(r["wall_s"] for r in (*earlier, res))
+    if all(r.get("calib_ns") is not None for r in (*earlier, res)):  # (around the timed solves of each round)
+        out["calib_ns"] = min(r["calib_ns"] for r in (*earlier, res))
+    statuses = [r["status"] for r in (*earlier, res)]
+    if len(set(statuses)) > 1:
+        out["reason"] = "; ".join(filter(None, (res.get("reason", ""),
+                                                f"statuses differ across the rounds: {', '.join(statuses)}")))
+    return out
 
 
 def _generate(suite: Suite, spec):

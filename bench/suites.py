@@ -6,6 +6,7 @@ path. Schema (every key optional except ``problems``)::
 
     description = "..."
     repeat = 5              # timed repetitions per row
+    rounds = 1              # the repetitions split over rounds: round r runs every job once (slow windows)
     warmup = 1              # discarded solves before timing
     timeout = 60.0          # seconds per job (warm-up + repetitions), hard
     first_solve_timeout = 300.0  # allowance for a solver's first solve in a worker process (JIT: hcod ~70 s without a cache)
@@ -67,8 +68,8 @@ ACCURACY: dict[str, tuple[float, float]] = {
     "default": (1e-6, 1e-9),
     "low": (1e-3, 1e-6),
 }
-_TOP_KEYS = {"description", "repeat", "warmup", "timeout", "first_solve_timeout", "calibrate_each_job", "modes",
-             "accuracy", "export", "solvers", "settings", "problems"}
+_TOP_KEYS = {"description", "repeat", "rounds", "warmup", "timeout", "first_solve_timeout", "calibrate_each_job",
+             "modes", "accuracy", "export", "solvers", "settings", "problems"}
 _GROUP_KEYS = {"family", "params", "grid", "seeds", "solvers"}
 _SETTINGS_KEYS = {"solver", "name", "options"}
 _EXPORTS = ("npz", "soth")
@@ -111,6 +112,7 @@ class Suite:
     name: str
     description: str = ""
     repeat: int = 5
+    rounds: int = 1
     warmup: int = 1
     timeout: float = 60.0
     first_solve_timeout: float = 300.0
@@ -146,7 +148,7 @@ class Suite:
 
     def to_dict(self) -> dict:
         return {"name": self.name, "source": self.source, "description": self.description,
-                "repeat": self.repeat, "warmup": self.warmup, "timeout": self.timeout,
+                "repeat": self.repeat, "rounds": self.rounds, "warmup": self.warmup, "timeout": self.timeout,
                 "first_solve_timeout": self.first_solve_timeout, "calibrate_each_job": self.calibrate_each_job,
                 "modes": list(self.modes), "accuracy": self.accuracy, "export": list(self.export),
                 "solvers": list(self.solvers), "settings": self.settings, "problems": self.groups}
@@ -320,7 +322,8 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
     modes = tuple(c.strings(data, "modes", ["cold"], choices=("cold", "warm"), example='["cold", "warm"]'))
     acc = c.string(data, "accuracy", "default", choices=tuple(ACCURACY))
     suite = Suite(name=name, description=c.string(data, "description", ""),
-                  repeat=c.integer(data, "repeat", 5, 1), warmup=c.integer(data, "warmup", 1, 0),
+                  repeat=c.integer(data, "repeat", 5, 1), rounds=c.integer(data, "rounds", 1, 1),
+                  warmup=c.integer(data, "warmup", 1, 0),
                   timeout=c.positive(data, "timeout", 60.0),
                   first_solve_timeout=c.positive(data, "first_solve_timeout", 300.0),
                   calibrate_each_job=c.boolean(data, "calibrate_each_job", False), modes=modes,
@@ -328,6 +331,9 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
                                                        example='["npz"]')),
                   solvers=tuple(c.strings(data, "solvers", ["*"], example='["hcod", "cascade-*"]')),
                   settings=list(settings), groups=groups, source=source)
+    if suite.rounds > suite.repeat:
+        c.fail(f"rounds = {suite.rounds}: expected at most repeat = {suite.repeat} (each round times at "
+               "least one solve of every row)")
     return suite
 
 

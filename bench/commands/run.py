@@ -1,5 +1,5 @@
 """``hikbench run [--suite NAME|FILE] [--solvers ...] [--out DIR] [--repeat R]
-[--timeout S] [--workers N | --scheduler ADDR] [--rerun] [--quiet] [--limit N]``."""
+[--rounds K] [--timeout S] [--workers N | --scheduler ADDR] [--rerun] [--quiet] [--limit N]``."""
 
 from __future__ import annotations
 
@@ -17,6 +17,10 @@ def add_arguments(p) -> None:
     p.add_argument("--out", default=None, help="output directory (default: results/<suite>)")
     p.add_argument("--repeat", type=int, default=None,
                    help="timed repetitions per row (default: the suite's)")
+    p.add_argument("--rounds", type=int, default=None,
+                   help="split each row's repetitions over K rounds, each round running every job once, so "
+                        "that a slow moment of the machine shifts part of every row, not whole rows "
+                        "(1 <= K <= repeat; default: the suite's, 1)")
     p.add_argument("--timeout", type=float, default=None,
                    help="hard limit per job in seconds, warm-up and repetitions included "
                         "(default: the suite's)")
@@ -39,6 +43,8 @@ def _check_args(args) -> None:
 
     if args.repeat is not None and args.repeat < 1:
         raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
+    if args.rounds is not None and args.rounds < 1:
+        raise HikbenchError(f"--rounds must be >= 1; got {args.rounds}")
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
         raise HikbenchError(f"--timeout must be a number of seconds > 0; got {args.timeout}")
     if args.workers is not None and args.workers < 1:
@@ -76,7 +82,7 @@ def run(args) -> int:
         executor = DaskExecutor(workers=args.workers, scheduler=args.scheduler)
     try:
         s = run_suite(suite, out, solvers=args.solvers, repeat=args.repeat, timeout=args.timeout,
-                      rerun=args.rerun, executor=executor, quiet=args.quiet, limit=args.limit)
+                      rounds=args.rounds, rerun=args.rerun, executor=executor, quiet=args.quiet, limit=args.limit)
     finally:
         if executor is not None:
             executor.close()

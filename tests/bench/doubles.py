@@ -4,6 +4,7 @@ generator. Injected as ``/path/doubles.py:Name`` (never registered)."""
 from __future__ import annotations
 
 import ctypes
+import os
 import time
 from pathlib import Path
 
@@ -148,3 +149,27 @@ def still_run(sc, steps: int, status=None, err: float = 1e-3):
                         **{f"err_{task.name}": err for task in sc.stack.tasks}})
     n_q = steps if status[-1] == "diverged" else steps + 1
     return ScenarioRun(sc, "hcod", "time", rec, np.tile(sc.q_init, (n_q, 1)))
+
+
+class LogSolver(SleepSolver):
+    """Correct; appends ``n`` of every hierarchy it solves to the file named by
+    the environment variable HIKBENCH_TEST_LOG (the order in which the run's
+    jobs solve)."""
+
+    name = "log"
+
+    def solve(self, hierarchy):
+        with open(os.environ["HIKBENCH_TEST_LOG"], "a") as f:
+            f.write(f"{self.name} {hierarchy.n}\n")
+        return super().solve(hierarchy)
+
+
+class LogSegfaultSolver(LogSolver):
+    """Logs (as LogSolver), then dies with SIGSEGV."""
+
+    name = "log-segfault"
+
+    def solve(self, hierarchy):
+        with open(os.environ["HIKBENCH_TEST_LOG"], "a") as f:
+            f.write(f"{self.name} {hierarchy.n}\n")
+        ctypes.string_at(0)

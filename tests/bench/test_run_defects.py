@@ -262,6 +262,9 @@ def _refused_port() -> int:
 @pytest.mark.parametrize("argv, message", [
     (["--limit", "-1"], "--limit must be >= 0"),
     (["--repeat", "0"], "--repeat must be >= 1; got 0"),
+    (["--rounds", "0"], "--rounds must be >= 1; got 0"),
+    (["--rounds", "4"], ("rounds = 4 (--rounds or the suite's): expected at most repeat = 3 (--repeat or the "
+                         "suite's): each round times at least one solve of every row")),
     (["--timeout", "nan"], "--timeout must be a number of seconds > 0; got nan"),
     (["--workers", "0"], "--workers must be >= 1; got 0"),
     (["--scheduler", "nonsense"], ("--scheduler 'nonsense': expected a Dask scheduler address like "
@@ -271,7 +274,7 @@ def _refused_port() -> int:
     (["--out", "{file}"], "--out {file}: exists and is not a directory; expected an output directory"),
     (["--out", "{file}/sub"], "--out {file}/sub: is under {file}, which exists and is not a directory"),
     (["--scheduler", "tcp://127.0.0.1:{port}"], "could not connect to scheduler tcp://127.0.0.1:{port}: "),
-], ids=["limit-neg", "repeat-0", "timeout-nan", "workers-0", "scheduler-garbage", "scheduler-port-0",
+], ids=["limit-neg", "repeat-0", "rounds-0", "rounds-over-repeat", "timeout-nan", "workers-0", "scheduler-garbage", "scheduler-port-0",
         "scheduler-scheme", "out-file", "out-under-file", "scheduler-unreachable"])
 def test_bad_command_line_values(tmp_path, capsys, argv, message):
     file = tmp_path / "a-file"

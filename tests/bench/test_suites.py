@@ -61,7 +61,11 @@ def test_expand_modes_settings_and_skips(tmp_path):
     ({"repeats": 3, "problems": [{"family": "equality"}]}, "unknown key"),
     ({"repeat": "abc", "problems": [{"family": "equality"}]}, "repeat = 'abc': expected an integer >= 1"),
     ({"problems": [{"family": "equality", "seeds": 3}]}, "seeds = 3: expected a non-empty list of integers"),
-], ids=["no-problems", "no-family", "group-key", "mode", "accuracy", "top-key", "repeat", "seeds"])
+    ({"rounds": 0, "problems": [{"family": "equality"}]}, "rounds = 0: expected an integer >= 1"),
+    ({"repeat": 3, "rounds": 4, "problems": [{"family": "equality"}]},
+     "rounds = 4: expected at most repeat = 3 \\(each round times at least one solve of every row\\)"),
+], ids=["no-problems", "no-family", "group-key", "mode", "accuracy", "top-key", "repeat", "seeds", "rounds-0",
+        "rounds-over-repeat"])
 def test_bad_suites(data, match):
     with pytest.raises(SuiteError, match=match):
         suite_from_dict(data, "bad")

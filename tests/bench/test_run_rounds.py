@@ -1,0 +1,71 @@
+"""``hikbench run --rounds``: a row's repetitions split over rounds, each round
+running every job once; a harness failure ends a job's rounds."""
+
+import json
+
+import pytest
+from doubles import spec, write_suite
+
+from bench.cli import main
+from bench.results import read_results
+from bench.runner import _merge_rounds
+
+
+def _run(*argv):
+    return main(["run", "--quiet", *map(str, argv)])
+
+
+def test_rounds_interleave_the_jobs_and_pool_their_samples(tmp_path, monkeypatch):
+    log = tmp_path / "solves.log"
+    monkeypatch.setenv("HIKBENCH_TEST_LOG", str(log))
+    suite = write_suite(tmp_path / "s.toml", [spec("LogSolver")], grid={"n": [4, 6]}, modes=("cold",), repeat=5)
+    assert _run("--suite", suite, "--out", tmp_path / "out", "--rounds", "2") == 0
+    df = read_results(tmp_path / "out")
+    assert len(df) == 2
+    for _, row in df.iterrows():
+        assert row["status"] == "optimal" and row["verified"]
+        assert row["repeat"] == 5 and len(json.loads(row["samples_ns"])) == 5
+    # per job and round: one untimed first solve (the warm-up), then its share of the
+    # repetitions: 3 then 2. Round 1 runs both problems, then round 2 both again.
+    ns = [int(line.split()[1]) for line in log.read_text().splitlines()]
+    first, second = ns[:8], ns[8:]
+    assert len(ns) == 8 + 6
+    assert sorted(set(first)) == [4, 6] and first[:4] == [first[0]] * 4 and first[4:] == [first[4]] * 4
+    assert second == [first[0]] * 3 + [first[4]] * 3
+    session = json.loads((tmp_path / "out" / "run.json").read_text())["sessions"][-1]
+    assert session["rounds"] == 2 and session["repeat"] == 5
+
+
+def test_a_crash_ends_the_rounds_of_its_job_only(tmp_path, monkeypatch):
+    log = tmp_path / "solves.log"
+    monkeypatch.setenv("HIKBENCH_TEST_LOG", str(log))
+    suite = write_suite(tmp_path / "s.toml", [spec("LogSegfaultSolver"), spec("LogSolver")], grid={"n": [4]},
+                        modes=("cold",), repeat=3)
+    assert _run("--suite", suite, "--out", tmp_path / "out", "--rounds", "3") == 0
+    df = read_results(tmp_path / "out").set_index("solver")
+    assert df.loc["log-segfault", "status"] == "crashed"
+    assert df.loc["log-segfault", "reason"].endswith("(in round 1 of 3)")
+    assert df.loc["log", "status"] == "optimal" and df.loc["log", "repeat"] == 3
+    lines = log.read_text().splitlines()
+    assert lines.count("log-segfault 4") == 1  # not run again in rounds 2 and 3
+    assert lines.count("log 4") == 3 * 2  # per round: the warm-up solve and one timed solve
+
+
+def _res(status="optimal", samples=(10, 20), wall=1.0, reason=""):
+    return {"status": status, "reason": reason, "x": None, "samples_ns": list(samples), "wall_s": wall}
+
+
+@pytest.mark.parametrize("earlier, last, expected", [
+    ([], _res(), _res()),
+    ([_res(samples=(5,))], _res(samples=(7, 9), wall=2.0), _res(samples=(5, 7, 9), wall=3.0)),
+    ([_res(), _res(status="max_iterations")], _res(samples=(1,)),
+     _res(samples=(10, 20, 10, 20, 1), wall=3.0,
+          reason="statuses differ across the rounds: optimal, max_iterations, optimal")),
+    ([_res(), _res()], _res(status="timeout", samples=(), reason="killed after 5 s"),
+     _res(status="timeout", samples=(), reason="killed after 5 s (in round 3 of 3; the earlier rounds ended "
+                                               "optimal, optimal)")),
+    ([], _res(status="error", samples=(), reason="boom"), _res(status="error", samples=(),
+                                                               reason="boom (in round 1 of 3)")),
+], ids=["one-round", "samples-pooled", "statuses-differ", "timeout-in-round-3", "error-in-round-1"])
+def test_merge_rounds(earlier, last, expected):
+    assert _merge_rounds(earlier, last, 3) == expected
