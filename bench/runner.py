@@ -199,6 +199,10 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
 
     out = Path(out)
     repeat = int(repeat or suite.repeat)
+    if rounds is None and suite.rounds > repeat:  # (a smaller --repeat than the suite's)
+        print(f"hikbench run: the suite's rounds = {suite.rounds} lowered to repeat = {repeat}: each round "
+              "times at least one solve of every row", file=sys.stderr)
+        rounds = repeat
     rounds = int(rounds or suite.rounds)
     if rounds > repeat:
         raise HikbenchError(f"rounds = {rounds} (--rounds or the suite's): expected at most repeat = {repeat} "

@@ -69,3 +69,13 @@ def _res(status="optimal", samples=(10, 20), wall=1.0, reason=""):
 ], ids=["one-round", "samples-pooled", "statuses-differ", "timeout-in-round-3", "error-in-round-1"])
 def test_merge_rounds(earlier, last, expected):
     assert _merge_rounds(earlier, last, 3) == expected
+
+
+def test_a_suites_rounds_are_lowered_to_a_smaller_repeat(tmp_path, capsys):
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], grid={"n": [4]}, modes=("cold",), repeat=5)
+    suite.write_text("rounds = 4\n" + suite.read_text())
+    assert _run("--suite", suite, "--out", tmp_path / "out", "--repeat", "2") == 0
+    assert "the suite's rounds = 4 lowered to repeat = 2" in capsys.readouterr().err
+    session = json.loads((tmp_path / "out" / "run.json").read_text())["sessions"][-1]
+    assert session["rounds"] == 2
+    assert read_results(tmp_path / "out")["repeat"].tolist() == [2]
