@@ -125,19 +125,26 @@ def _level_cod_append(Mr, Mf, j0, nO, p, nf, thr, r, piv, diag, beta):
     return r, fl, weak
 
 
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def _within(av, lo_i, up_i, rnorm_i, unorm, rtol):
+    """``lo_i <= a u <= up_i`` (``av = a u``) to the rounding floor of the bound it
+    passes (:func:`_floor` with ``rtol = dual_rtol``): the row is met."""
+    if av > up_i:
+        return av <= up_i + _floor(rnorm_i, unorm, up_i, rtol)
+    if av < lo_i:
+        return av >= lo_i - _floor(rnorm_i, unorm, lo_i, rtol)
+    return True
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def _levels_met(A, bcol, bval, kind, lo, up, rnorm, i0, i1, u, dual_rtol):
-    """Every row i0 <= i < i1 within its bounds at u to its rounding floor
-    (:func:`_floor`; free rows aside): the levels holding
-    them have a zero objective at u (eq. 33: all slacks w = 0)."""
+    """Every row i0 <= i < i1 met at u (:func:`_within`; free rows aside):
+    the levels holding them have a zero objective at u (eq. 33: all slacks
+    w = 0)."""
     unorm = _norm(u)
     for i in range(i0, i1):
-        if kind[i] == 2:
-            continue
-        av = row_dot(A[i], bcol[i], bval[i], u)
-        if lo[i] > -np.inf and av < lo[i] - _floor(rnorm[i], unorm, lo[i], dual_rtol):
-            return False
-        if up[i] < np.inf and av > up[i] + _floor(rnorm[i], unorm, up[i], dual_rtol):
+        if kind[i] != 2 and not _within(row_dot(A[i], bcol[i], bval[i], u), lo[i], up[i], rnorm[i], unorm,
+                                         dual_rtol):
             return False
     return True
 
@@ -467,13 +474,11 @@ def hcod_solve(fw, iw):
                     nO += 1
                 elif kind[i] == 1:
                     av = row_dot(A[i], bcol[i], bval[i], u)
-                    if jump:
+                    if jump and _within(av, lo[i], up[i], rnorm[i], unorm, dual_rtol):
                         # (a jump: a row over its bound by its rounding floor only, a row the jump
                         # met, stays out: the same record at every call of a repeated problem;
                         # unorm: ||u|| since the warm point's correction)
-                        vt = _floor(rnorm[i], unorm, up[i] if av > up[i] else lo[i], dual_rtol)
-                        if lo[i] - vt <= av <= up[i] + vt:
-                            continue
+                        continue
                     if av > up[i]:
                         state[i] = OBJECTIVE
                         side[i] = 1

@@ -554,6 +554,38 @@ def test_many_grid_hierarchies_cold_and_warm(h):
         assert v.equal or (h.has_inequalities and v.lower == "a"), v  # (see check())
 
 
+def test_time_warm_start_stress(capsys):
+    """``HIKBENCH_STRESS`` seeds (default 30; about 5 s) of every degenerate family (n = 12) and of IK-like
+    n = 16, each along trajectories of drift 0 (a repeated problem), 1e-6 and 1e-3, 6 steps,
+    ``min_norm`` on and off: every ``time`` solve optimal and equal to a cold (``stage``) solve at
+    rtol 1e-8, but the known case of :func:`test_time_warm_start_known_wrong_on_badly_scaled_drift`.
+    The tally (``-s``) sums the iterations of both kinds of solve: a fingerprint of the kernels'
+    path, which a change meant to keep it must keep (10800 solves of each kind: 93795 `time`
+    iterations and 185934 cold ones at 61ac486)."""
+    known = {("badly_scaled", 3, 1e-3, 4)}
+    tally = Counter()
+    wrong = []
+    for seed in range(int(os.environ.get("HIKBENCH_STRESS", "30"))):
+        for case in (*G.DEGENERATE_CASES, "ik_like"):
+            h0 = G.ik_like(16, seed) if case == "ik_like" else G.degenerate(case, 12, seed)
+            for drift in (0.0, 1e-6, 1e-3):
+                for min_norm in (True, False):
+                    s = HcodSolver(warm_start="time", min_norm=min_norm)
+                    for t, ht in enumerate(drifting(h0, drift, seed, steps=6)):
+                        res = s.solve(ht)
+                        cold = HcodSolver(warm_start="stage", min_norm=min_norm).solve(ht)
+                        assert res.status == OPTIMAL and cold.status == OPTIMAL, (case, seed, drift, t, res.reason,
+                                                                                    cold.reason)
+                        tally["solves"] += 1
+                        tally["time iterations"] += res.iterations
+                        tally["cold iterations"] += cold.iterations
+                        if not verify(ht, res.x, cold.x, rtol=1e-8).equal:
+                            wrong.append((case, seed, drift, t, min_norm))
+    with capsys.disabled():
+        print(f"\n  {dict(tally)}; time != cold: {wrong}")
+    assert [w for w in wrong if w[:4] not in known] == []
+
+
 def _sweep_problem(trial: int):
     """Problem ``trial`` of the conditioning sweep: a random hierarchy (n 2-69, 1-5 levels,
     rank-deficient and conflicting levels, every inequality kind, cond 1, 1e3 or 1e6, rows
