@@ -55,8 +55,8 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("solve_time_s", "time the solver (or an external program) reports for itself, seconds"),
     ("samples_ns", "JSON list: every timed repetition, nanoseconds (used by compare)"),
     ("calib_ns", "calibration kernel time, ns (bench/calibration.py): around this row's timed solves when "
-                 "the suite sets calibrate_each_job, else at the start of the worker process; compare "
-                 "divides times by it"),
+                 "the suite sets calibrate_each_job, else at the start of the worker process (with rounds, the "
+                 "median of the rounds'); compare divides times by it"),
     ("host", "host name of the worker"),
     ("worker", "worker id (pid@host serial, dask worker address with --workers/--scheduler)"),
     ("wall_s", "wall time of the whole job (warm-up + repetitions + transport; with rounds, their sum), seconds"),

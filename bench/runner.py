@@ -1,7 +1,8 @@
 """``hikbench run``: expand a suite, generate and save its problems, compute
 (and cache) the reference of each problem, run every (problem, solver,
 settings, mode) not already in OUT/results.csv, verify each x against the
-reference, and append one row per job as it finishes.
+reference, and append one row per job as it finishes (with rounds: after its
+last round).
 
 Layout of OUT::
 
@@ -189,7 +190,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     running every job of the run once (:func:`_merge_rounds`): a slow window
     of the machine then shifts a part of every row's samples, not all the
     samples of the rows it happens to meet; a row is written after its last
-    round (a run stopped in between runs its unwritten rows again). ``rerun`` runs finished rows again: each new row
+    round (a run stopped in between has not written it: a plain run of the
+    same OUT runs it again, unless ``rerun`` left its old row). ``rerun`` runs finished rows again: each new row
     replaces its old one, the other rows are kept, and results.csv is first
     backed up without overwriting an older backup (bench.results.backup); a
     finished row whose settings' options changed is run again the same way.
@@ -285,8 +287,9 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                             t = todo[i]
                             label = f"solves: {t.entry.solver} {t.mode}" + (
                                 f" (round {rnd + 1}/{rounds})" if rounds > 1 else "")
-                            if rnd < rounds - 1 and res["status"] not in _HARNESS_FAILURES:
-                                earlier[i].append(res)
+                            if rnd < rounds - 1 and not _ends_rounds(res):
+                                earlier[i].append({k: res.get(k) for k in ("status", "samples_ns", "wall_s",
+                                                                           "calib_ns", "host")})
                                 again.append(i)
                                 progress.advance(tid, label)
                                 continue
@@ -315,35 +318,43 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         lock.close()
 
 
-#: a job that ends so in a round is not run in the later ones: its row is written at once
-_HARNESS_FAILURES = (TIMEOUT, CRASHED, ERROR)
+def _ends_rounds(res: dict) -> bool:
+    """A job that ends so in a round is not run in the later ones (its row is
+    written at once): the harness killed it (timeout), its worker died
+    (crashed), or an exception escaped (error without samples; a solver that
+    reports ``error`` itself, with its timed solves, goes on)."""
+    return res["status"] in (TIMEOUT, CRASHED) or (res["status"] == ERROR and not res.get("samples_ns"))
 
 
 def _merge_rounds(earlier: list[dict], res: dict, rounds: int) -> dict:
     """The result of a job run in rounds: the last round's result (x, status,
     counters) with the timed samples of every round (``wall_s`` their sum,
-    ``calib_ns`` the smallest of the rounds'); a round that ended in a
-    harness failure (timeout, crash, escaped exception) is the row, its reason
-    naming the round (no samples: like a run without rounds). Rounds whose
-    statuses differ are named in the reason."""
+    ``calib_ns`` the median of the rounds'); a round that ended the job's
+    rounds (:func:`_ends_rounds`) is the row, its reason naming the round (no
+    samples: like a run without rounds). Rounds whose statuses differ, or that
+    ran on different hosts, are named in the reason."""
     if not earlier:
-        if rounds > 1 and res["status"] in _HARNESS_FAILURES:
+        if rounds > 1 and _ends_rounds(res):
             res = {**res, "reason": f"{res.get('reason', '')} (in round 1 of {rounds})".lstrip()}
         return res
     rnd = len(earlier) + 1
-    if res["status"] in _HARNESS_FAILURES:
+    if _ends_rounds(res):
         return {**res, "reason": f"{res.get('reason', '')} (in round {rnd} of {rounds}; the earlier rounds "
                                  f"ended {', '.join(r['status'] for r in earlier)})".lstrip()}
-    samples = [s for r in (*earlier, res) for s in r.get("samples_ns") or []]
-    out = {**res, "samples_ns": samples}
-    if all(r.get("wall_s") is not None for r in (*earlier, res)):
-        out["wall_s"] = sum(r["wall_s"] for r in (*earlier, res))
-    if all(r.get("calib_ns") is not None for r in (*earlier, res)):  # (around the timed solves of each round)
-        out["calib_ns"] = min(r["calib_ns"] for r in (*earlier, res))
-    statuses = [r["status"] for r in (*earlier, res)]
+    every = (*earlier, res)
+    out = {**res, "samples_ns": [s for r in every for s in r.get("samples_ns") or []]}
+    if all(r.get("wall_s") is not None for r in every):
+        out["wall_s"] = sum(r["wall_s"] for r in every)
+    if all(r.get("calib_ns") is not None for r in every):
+        out["calib_ns"] = int(np.median([r["calib_ns"] for r in every]))
+    notes = [res.get("reason") or ""]
+    statuses = [r["status"] for r in every]
     if len(set(statuses)) > 1:
-        out["reason"] = "; ".join(filter(None, (res.get("reason", ""),
-                                                f"statuses differ across the rounds: {', '.join(statuses)}")))
+        notes.append(f"statuses differ across the rounds: {', '.join(statuses)}")
+    hosts = list(dict.fromkeys(r.get("host") for r in every if r.get("host")))
+    if len(hosts) > 1:  # (a Dask cluster: each round's jobs go to whichever worker is free)
+        notes.append(f"rounds ran on hosts {', '.join(hosts)} (calib_ns: their median)")
+    out["reason"] = "; ".join(filter(None, notes))
     return out
 
 

@@ -22,8 +22,8 @@ def add_arguments(p) -> None:
                         "that a slow moment of the machine shifts part of every row, not whole rows "
                         "(1 <= K <= repeat; default: the suite's, 1)")
     p.add_argument("--timeout", type=float, default=None,
-                   help="hard limit per job in seconds, warm-up and repetitions included "
-                        "(default: the suite's)")
+                   help="hard limit per job in seconds, warm-up and repetitions included; with --rounds, "
+                        "per round (default: the suite's)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, default=None,
                    help="run on a local Dask cluster of N single-threaded worker processes")

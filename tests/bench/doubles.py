@@ -173,3 +173,18 @@ class LogSegfaultSolver(LogSolver):
         with open(os.environ["HIKBENCH_TEST_LOG"], "a") as f:
             f.write(f"{self.name} {hierarchy.n}\n")
         ctypes.string_at(0)
+
+
+class LogHangLaterSolver(LogSolver):
+    """Logs (as LogSolver); from its third solve on (counted in the log) it never
+    returns: with one timed solve per round, round 1 ends, round 2 hangs."""
+
+    name = "log-hang-later"
+
+    def solve(self, hierarchy):
+        res = super().solve(hierarchy)
+        log = Path(os.environ["HIKBENCH_TEST_LOG"])
+        if sum(line.startswith(self.name + " ") for line in log.read_text().splitlines()) > 2:
+            while True:
+                time.sleep(0.05)
+        return res

@@ -51,8 +51,23 @@ def test_a_crash_ends_the_rounds_of_its_job_only(tmp_path, monkeypatch):
     assert lines.count("log 4") == 3 * 2  # per round: the warm-up solve and one timed solve
 
 
-def _res(status="optimal", samples=(10, 20), wall=1.0, reason=""):
-    return {"status": status, "reason": reason, "x": None, "samples_ns": list(samples), "wall_s": wall}
+def test_a_timeout_in_a_later_round_is_the_row(tmp_path, monkeypatch):
+    log = tmp_path / "solves.log"
+    monkeypatch.setenv("HIKBENCH_TEST_LOG", str(log))
+    suite = write_suite(tmp_path / "s.toml", [spec("LogHangLaterSolver"), spec("LogSolver")], grid={"n": [4]},
+                        modes=("cold",), repeat=3, timeout=1.5)
+    # not --quiet: the progress bar counts each job's rounds (a row written early advances by the rest)
+    assert main(["run", "--suite", str(suite), "--out", str(tmp_path / "out"), "--rounds", "3"]) == 0
+    df = read_results(tmp_path / "out").set_index("solver")
+    assert df.loc["log-hang-later", "status"] == "timeout"
+    assert df.loc["log-hang-later", "reason"].endswith("(in round 2 of 3; the earlier rounds ended optimal)")
+    assert df.loc["log-hang-later", "repeat"] == 0  # (a timeout row has no timing, as without rounds)
+    assert df.loc["log", "status"] == "optimal" and df.loc["log", "repeat"] == 3
+    assert log.read_text().splitlines().count("log-hang-later 4") == 3  # round 3 did not run it
+
+
+def _res(status="optimal", samples=(10, 20), wall=1.0, reason="", **kw):
+    return {"status": status, "reason": reason, "x": None, "samples_ns": list(samples), "wall_s": wall, **kw}
 
 
 @pytest.mark.parametrize("earlier, last, expected", [
@@ -66,7 +81,14 @@ def _res(status="optimal", samples=(10, 20), wall=1.0, reason=""):
                                                "optimal, optimal)")),
     ([], _res(status="error", samples=(), reason="boom"), _res(status="error", samples=(),
                                                                reason="boom (in round 1 of 3)")),
-], ids=["one-round", "samples-pooled", "statuses-differ", "timeout-in-round-3", "error-in-round-1"])
+    ([_res(status="error", reason="qp failed")], _res(status="error", reason="qp failed"),
+     _res(status="error", samples=(10, 20, 10, 20), wall=2.0, reason="qp failed")),
+    ([_res(calib_ns=100, host="a"), _res(calib_ns=300, host="a")], _res(calib_ns=110, host="a", wall=None),
+     _res(samples=(10, 20) * 3, wall=None, calib_ns=110, host="a")),
+    ([_res(host="a"), _res(host="b")], _res(host="a"),
+     _res(samples=(10, 20) * 3, wall=3.0, host="a", reason="rounds ran on hosts a, b (calib_ns: their median)")),
+], ids=["one-round", "samples-pooled", "statuses-differ", "timeout-in-round-3", "error-in-round-1",
+        "solver-reported-error-goes-on", "calib-median-wall-unknown", "hosts-differ"])
 def test_merge_rounds(earlier, last, expected):
     assert _merge_rounds(earlier, last, 3) == expected
 

@@ -554,14 +554,15 @@ def test_many_grid_hierarchies_cold_and_warm(h):
         assert v.equal or (h.has_inequalities and v.lower == "a"), v  # (see check())
 
 
-def test_time_warm_start_stress(capsys):
-    """``HIKBENCH_STRESS`` seeds (default 30; about 5 s) of every degenerate family (n = 12) and of IK-like
+def test_time_warm_start_stress():
+    """``HIKBENCH_STRESS`` seeds (default 30; about 3 s here) of every degenerate family (n = 12) and of IK-like
     n = 16, each along trajectories of drift 0 (a repeated problem), 1e-6 and 1e-3, 6 steps,
     ``min_norm`` on and off: every ``time`` solve optimal and equal to a cold (``stage``) solve at
     rtol 1e-8, but the known case of :func:`test_time_warm_start_known_wrong_on_badly_scaled_drift`.
-    The tally (``-s``) sums the iterations of both kinds of solve: a fingerprint of the kernels'
-    path, which a change meant to keep it must keep (10800 solves of each kind: 93795 `time`
-    iterations and 185934 cold ones at 61ac486)."""
+    The tally (printed, ``-s``) sums the iterations of both kinds of solve: a fingerprint of the
+    kernels' path, which a change meant to keep it must keep (10800 solves of each kind: 93795
+    `time` iterations and 185934 cold ones at 61ac486 on this machine). Not asserted: fastmath
+    code compiled for another CPU may round differently (README, numba's cache)."""
     known = {("badly_scaled", 3, 1e-3, 4)}
     tally = Counter()
     wrong = []
@@ -581,8 +582,7 @@ def test_time_warm_start_stress(capsys):
                         tally["cold iterations"] += cold.iterations
                         if not verify(ht, res.x, cold.x, rtol=1e-8).equal:
                             wrong.append((case, seed, drift, t, min_norm))
-    with capsys.disabled():
-        print(f"\n  {dict(tally)}; time != cold: {wrong}")
+    print(f"\n  {dict(tally)}; time != cold: {wrong}")
     assert [w for w in wrong if w[:4] not in known] == []
 
 
