@@ -191,9 +191,9 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     of the machine then shifts a part of every row's samples, not all the
     samples of the rows it happens to meet; a row is written after its last
     round (a run stopped in between has not written it: a plain run of the
-    same OUT runs it again, unless ``rerun`` left its old row). ``rerun`` runs finished rows again: each new row
-    replaces its old one, the other rows are kept, and results.csv is first
-    backed up without overwriting an older backup (bench.results.backup); a
+    same OUT runs it again, unless ``rerun`` left its old row). ``rerun``
+    runs finished rows again: each new row replaces its old one, the other
+    rows are kept, and results.csv is first backed up without overwriting an older backup (bench.results.backup); a
     finished row whose settings' options changed is run again the same way.
     A suite that selects no job raises SuiteError. ``executor`` defaults to a
     SerialExecutor."""
