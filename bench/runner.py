@@ -276,12 +276,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                 with ResultsWriter(out) as writer:
                     for rnd in range(rounds):
                         share = repeat // rounds + (rnd < repeat % rounds)
-                        items = ((i, {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
-                                      "hierarchy": problems[t.problem.id], "solver": t.entry.spec,
-                                      "options": t.entry.options, "mode": t.mode, "repeat": share,
-                                      "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
-                                      "calibrate": suite.calibrate_each_job}, timeout)
-                                 for i, t in ((i, todo[i]) for i in alive))
+                        items = ((i, _job(suite, todo[i], problems, share), timeout) for i in alive)
                         again = []
                         for i, res in executor.map(items):
                             t = todo[i]
@@ -316,6 +311,14 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         return summary
     finally:
         lock.close()
+
+
+def _job(suite: Suite, t: Task, problems: dict, repeat: int) -> dict:
+    """The worker's job (bench.worker) timing ``repeat`` solves of task t."""
+    return {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
+            "hierarchy": problems[t.problem.id], "solver": t.entry.spec, "options": t.entry.options,
+            "mode": t.mode, "repeat": repeat, "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
+            "calibrate": suite.calibrate_each_job}
 
 
 def _ends_rounds(res: dict) -> bool:

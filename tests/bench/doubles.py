@@ -158,9 +158,12 @@ class LogSolver(SleepSolver):
 
     name = "log"
 
-    def solve(self, hierarchy):
+    def _log(self, hierarchy):
         with open(os.environ["HIKBENCH_TEST_LOG"], "a") as f:
             f.write(f"{self.name} {hierarchy.n}\n")
+
+    def solve(self, hierarchy):
+        self._log(hierarchy)
         return super().solve(hierarchy)
 
 
@@ -170,8 +173,7 @@ class LogSegfaultSolver(LogSolver):
     name = "log-segfault"
 
     def solve(self, hierarchy):
-        with open(os.environ["HIKBENCH_TEST_LOG"], "a") as f:
-            f.write(f"{self.name} {hierarchy.n}\n")
+        self._log(hierarchy)
         ctypes.string_at(0)
 
 
