@@ -3,10 +3,12 @@ running every job once; a harness failure ends a job's rounds."""
 
 import json
 
+import pandas as pd
 import pytest
 from doubles import spec, write_suite
 
 from bench.cli import main
+from bench.columns import KEY
 from bench.results import read_results
 from bench.runner import _merge_rounds
 
@@ -101,3 +103,53 @@ def test_a_suites_rounds_are_lowered_to_a_smaller_repeat(tmp_path, capsys):
     session = json.loads((tmp_path / "out" / "run.json").read_text())["sessions"][-1]
     assert session["rounds"] == 2
     assert read_results(tmp_path / "out")["repeat"].tolist() == [2]
+
+
+# --- rounds with the other run options, end to end -------------------------------------------------
+
+
+def _pooled(df):
+    """Every row optimal, verified, with all 4 repetitions of its 2 rounds."""
+    assert (df["status"] == "optimal").all() and df["verified"].all()
+    assert (df["repeat"] == 4).all()
+    assert df["samples_ns"].map(lambda s: len(json.loads(s))).eq(4).all()
+
+
+def test_rounds_with_limit_then_resume(tmp_path):
+    """--limit counts rows (each pooled over its rounds); the resumed run adds the rest once."""
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], modes=("cold",), repeat=4)
+    out = tmp_path / "out"
+    assert _run("--suite", suite, "--out", out, "--rounds", 2, "--limit", 3) == 0
+    first = (out / "results.csv").read_text()
+    assert len(read_results(out)) == 3
+    assert _run("--suite", suite, "--out", out, "--rounds", 2) == 0
+    df = read_results(out)
+    assert len(df) == 4 and not df.duplicated(list(KEY)).any()
+    assert (out / "results.csv").read_text().startswith(first)  # finished rows never rewritten
+    _pooled(df)
+    sessions = json.loads((out / "run.json").read_text())["sessions"]
+    assert [(s["todo"], s["written"], s["rounds"]) for s in sessions] == [(3, 3, 2), (1, 1, 2)]
+
+
+def test_rerun_in_rounds_replaces_each_row_once(tmp_path):
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], modes=("cold",), repeat=4)
+    out = tmp_path / "out"
+    assert _run("--suite", suite, "--out", out) == 0
+    assert _run("--suite", suite, "--out", out, "--rerun", "--rounds", 2) == 0
+    df = read_results(out)
+    assert len(df) == 4 and not df.duplicated(list(KEY)).any()
+    _pooled(df)
+    assert len((out / "results.csv.bak").read_text().splitlines()) == 5  # the one-round rows kept
+
+
+def test_rounds_on_dask_workers_give_the_rows_of_a_serial_run(tmp_path):
+    suite = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), spec("SegfaultSolver")],
+                        modes=("cold",), repeat=4)
+    assert _run("--suite", suite, "--out", tmp_path / "serial", "--rounds", 2) == 0
+    assert _run("--suite", suite, "--out", tmp_path / "dask", "--rounds", 2, "--workers", 2) == 0
+    cols = [*KEY, "status", "verified", "repeat"]
+    a, b = (read_results(tmp_path / d)[cols].sort_values(list(KEY)).reset_index(drop=True)
+            for d in ("serial", "dask"))
+    pd.testing.assert_frame_equal(a, b)
+    assert set(b["status"]) == {"optimal", "crashed"}
+    assert (b.loc[b["status"] == "optimal", "repeat"] == 4).all()
