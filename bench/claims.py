@@ -40,7 +40,7 @@ import pandas as pd
 from scipy import stats
 
 from bench.results import read_results
-from bench.shgeom import loglog_fit
+from bench.shgeom import loglog_fit, timed
 from problems.errors import HikbenchError
 
 __all__ = ["Claim", "check_claims", "find_scenario_csvs", "load_scenario", "paper_flops_formula"]
@@ -70,9 +70,7 @@ def _select(d: pd.DataFrame, pred) -> pd.DataFrame:
 
 def _ok(df: pd.DataFrame, mode: str = "cold") -> pd.DataFrame:
     """Verified rows of ``mode`` with default settings and a time that can be measured (finite, > 0)."""
-    t = df["time_median_s"].astype(float)
-    return df[(df["mode"] == mode) & df["verified"].eq(True) & np.isfinite(t) & (t > 0)
-              & (df["settings"] == "default")]
+    return df[(df["mode"] == mode) & timed(df) & (df["settings"] == "default")]
 
 
 def slope_interval(x, y, level: float = 0.95) -> tuple[float, float, float]:

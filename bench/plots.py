@@ -15,7 +15,7 @@ import matplotlib.ticker
 import numpy as np
 import pandas as pd
 
-from bench.shgeom import loglog_fit, performance_profile
+from bench.shgeom import loglog_fit, performance_profile, timed
 
 __all__ = ["sweeps", "plot_sweep", "plot_success", "plot_profiles", "plot_accuracy", "plot_cold_warm",
            "loglog_slope"]
@@ -102,7 +102,7 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
     the depth where the DOF are saturated. Returns (path, {solver label:
     (slope, std. err., sizes verified, sizes attempted)})."""
     g = g[(g["mode"] == mode) & (g["status"] != "unsupported")]
-    ok = g["verified"].eq(True) & (g["time_median_s"] > 0) & (g[var] > 0)
+    ok = timed(g) & (g[var] > 0)
     if not ok.any():
         return None, {}
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
@@ -202,7 +202,7 @@ def plot_accuracy(df: pd.DataFrame, path: Path) -> Path | None:
 
 def plot_cold_warm(df: pd.DataFrame, path: Path) -> Path | None:
     keys = ["problem", "solver", "settings"]
-    ok = df[df["verified"].eq(True) & (df["time_median_s"] > 0)]  # log axes
+    ok = df[timed(df)]  # log axes
     cold = ok[ok["mode"] == "cold"].set_index(keys)["time_median_s"]
     warm = ok[ok["mode"] == "warm"].set_index(keys)["time_median_s"]
     both = pd.concat([cold.rename("cold"), warm.rename("warm")], axis=1, join="inner")

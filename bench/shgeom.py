@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-__all__ = ["shifted_geometric_mean", "charged_times", "performance_profile", "loglog_fit", "SHIFT_S"]
+__all__ = ["shifted_geometric_mean", "timed", "charged_times", "performance_profile", "loglog_fit", "SHIFT_S"]
 
 SHIFT_S = 1e-5  #: 10 us
 
@@ -40,12 +40,17 @@ def shifted_geometric_mean(t, shift: float = SHIFT_S) -> float:
     return float(np.exp(np.mean(np.log(t + shift))) - shift)
 
 
+def timed(df: pd.DataFrame, zero_ok: bool = False) -> pd.Series:
+    """The rows whose time can be used (a boolean mask): verified, with a
+    finite ``time_median_s`` > 0 (a log axis or fit), or >= 0 with ``zero_ok``."""
+    t = df["time_median_s"].astype(float)
+    return df["verified"].eq(True) & np.isfinite(t) & ((t >= 0) if zero_ok else (t > 0))
+
+
 def charged_times(df: pd.DataFrame, penalty_s: float) -> pd.Series:
-    """time_median_s where the row is verified and its time a finite number >= 0,
-    ``penalty_s`` elsewhere (a failure, or a bogus time)."""
-    t = df["time_median_s"]
-    ok = df["verified"].eq(True) & np.isfinite(t) & (t >= 0)
-    return df["time_median_s"].where(ok, penalty_s).astype(float)
+    """time_median_s where the row is :func:`timed` (zero allowed), ``penalty_s``
+    elsewhere (a failure, or a bogus time)."""
+    return df["time_median_s"].where(timed(df, zero_ok=True), penalty_s).astype(float)
 
 
 def performance_profile(times: pd.DataFrame, points: int = 300) -> tuple[np.ndarray, dict] | None:

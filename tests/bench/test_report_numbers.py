@@ -181,3 +181,20 @@ def test_performance_profile_fractions_and_failures():
     np.testing.assert_allclose([frac["a"][0], frac["b"][0]], [0.25, 0.5], rtol=0, atol=0)
     np.testing.assert_allclose([frac["a"][-1], frac["b"][-1]], [0.5, 0.75], rtol=0, atol=0)
     assert performance_profile(pd.DataFrame([[0.0, np.nan]], columns=["a", "b"])) is None
+
+
+@pytest.mark.parametrize("verified, t, usable, usable_zero_ok", [
+    (True, 1e-5, True, True),
+    (True, 0.0, False, True),
+    (True, -1e-6, False, False),
+    (True, float("nan"), False, False),
+    (True, float("inf"), False, False),
+    (False, 1e-5, False, False),
+], ids=["timed", "zero", "negative", "nan", "inf", "unverified"])
+def test_timed_rows_and_charged_times(verified, t, usable, usable_zero_ok):
+    from bench.shgeom import charged_times, timed
+
+    df = pd.DataFrame({"verified": [verified], "time_median_s": [t]})
+    assert timed(df).tolist() == [usable]
+    assert timed(df, zero_ok=True).tolist() == [usable_zero_ok]
+    assert charged_times(df, 120.0).tolist() == [t if usable_zero_ok else 120.0]
