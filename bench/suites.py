@@ -56,6 +56,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from bench.problemset import ProblemSpec, load_object
+from bench.worker import solver_info
 from problems.errors import HikbenchError, SolverNotFoundError
 
 __all__ = ["Suite", "SolverEntry", "Task", "load_suite", "builtin_suites", "resolve_solvers", "ACCURACY"]
@@ -358,10 +359,9 @@ def _check_options(entry: SolverEntry, settings_name: str, options: dict, suite_
             raise SuiteError(f"{ctx}: solver {entry.solver!r} is external and takes no options; "
                              f"got {sorted(options)}")
         return
-    user = ":" in entry.spec  # module:Class or any factory (the worker builds it so for every job)
-    try:
-        info = registry.SolverInfo(entry.solver, "", load_object(entry.spec)) if user else registry.get(entry.spec)
-        registry.build(info, **options)  # names and values, as `hikbench solve --option`
+    user = ":" in entry.spec  # module:Class or any factory
+    try:  # as the worker builds it for every job (bench.worker.solver_factory)
+        registry.build(solver_info(entry.spec, entry.solver), **options)  # names and values
     except HikbenchError as err:
         raise SuiteError(f"{ctx}: {err}") from err
     except Exception as err:  # a user's factory raises what it likes: reported, never dropped

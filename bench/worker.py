@@ -21,18 +21,25 @@ import numpy as np
 
 from solvers.base import ERROR, SolveResult
 
-__all__ = ["execute", "solver_factory"]
+__all__ = ["execute", "solver_factory", "solver_info"]
+
+
+def solver_info(spec: str, name: str = ""):
+    """The :class:`~solvers.registry.SolverInfo` of a registry name, or one made
+    for a ``module:Class`` spec (its factory the object, no default options)."""
+    from solvers import registry
+    if ":" in spec:
+        from bench.problemset import load_object
+        return registry.SolverInfo(name or spec, "", load_object(spec))
+    return registry.get(spec)
 
 
 def solver_factory(spec: str, options: dict):
-    """A zero-argument callable building a fresh solver."""
-    if ":" in spec:
-        from bench.problemset import load_object
-        obj = load_object(spec)
-        return lambda: obj(**options)
+    """A zero-argument callable building a fresh solver with ``options``
+    (:func:`solvers.registry.build`: option names checked against the factory)."""
     from solvers import registry
-    registry.create(spec, **options)  # validate name and options up front
-    return lambda: registry.create(spec, **options)
+    info = solver_info(spec)
+    return lambda: registry.build(info, **options)
 
 
 def _result_dict(res: SolveResult, samples_ns) -> dict:

@@ -226,3 +226,17 @@ def test_worker_dies_with_a_killed_run(tmp_path):
         time.sleep(0.1)
     os.kill(child, signal.SIGKILL)
     pytest.fail("the worker outlived its parent")
+
+
+@pytest.mark.parametrize("solver", ["nullspace-svd", spec("SleepSolver")], ids=["registered", "module-class"])
+def test_worker_names_an_unknown_option(solver):
+    """A job's options go through registry.build for registered and module:Class
+    solvers alike: an unknown name is the job's error, naming it."""
+    from doubles import tiny
+
+    from bench.worker import execute
+
+    res = execute({"kind": "solve", "hierarchy": tiny(), "solver": solver, "options": {"bogus": 1},
+                   "mode": "cold", "repeat": 1, "warmup": 1})
+    assert res["status"] == "error"
+    assert "unknown option(s) 'bogus'" in res["reason"]
