@@ -29,9 +29,10 @@ def _solve_job(solver: str, repeat: int = 1) -> dict:
 
 
 def _run_on(cluster, items) -> list:
+    """(tag, result) of each item, run on ``cluster`` by a DaskExecutor."""
     ex = DaskExecutor(scheduler=cluster.scheduler_address)
     try:
-        return [res for _, res in ex.map(items)]
+        return list(ex.map(items))
     finally:
         ex.close()
 
@@ -48,7 +49,7 @@ def test_a_second_run_on_the_same_cluster_solves_with_the_edited_solver_file(clu
     reasons = []
     for version in (1, 2):
         path.write_text(text.format(v=version))
-        (res,) = _run_on(cluster, [(0, _solve_job(f"{path}:Versioned"), 10.0)])
+        ((_, res),) = _run_on(cluster, [(0, _solve_job(f"{path}:Versioned"), 10.0)])
         reasons.append(res["reason"])
     assert reasons == ["version 1", "version 2"]
 
@@ -147,14 +148,6 @@ def test_an_external_cluster_without_workers_is_waited_for_with_a_warning(monkey
             ex.close()
     assert res[0]["status"] == "optimal", res[0]
     assert f"hikbench: dask:{c.scheduler_address} has had no worker for 0.5 s; 1 jobs wait" in capsys.readouterr().err
-
-
-def _run_on_tags(cluster, items) -> list:
-    ex = DaskExecutor(scheduler=cluster.scheduler_address)
-    try:
-        return list(ex.map(items))
-    finally:
-        ex.close()
 
 
 class SpawnThenHangSolver:
@@ -502,7 +495,7 @@ def test_a_dask_worker_with_several_threads_keeps_each_result_with_its_job():
     items = [(n, {**_solve_job(spec("SleepSolver")), "hierarchy": tiny(n=n), "options": {"delay": 0.02}}, 20.0)
              for n in sizes]
     with LocalCluster(n_workers=1, threads_per_worker=2, processes=False, **NO_DASHBOARD) as c:
-        got = dict(_run_on_tags(c, items))
+        got = dict(_run_on(c, items))
     assert sorted(got) == sizes
     assert {n: (res["status"], len(res["x"])) for n, res in got.items()} == {n: ("optimal", n) for n in sizes}
     assert len({res["pid"] for res in got.values()}) == 2  # one isolated process per thread
