@@ -11,7 +11,8 @@ __all__ = ["COLUMNS", "KEY", "JSON_COLUMNS", "names", "markdown"]
 
 #: (name, description), in CSV order
 COLUMNS: tuple[tuple[str, str], ...] = (
-    ("problem", "problem id: family/param=value,.../seed=S (the file OUT/problems/<id>.npz)"),
+    ("problem", "problem id: family/param=value,.../seed=S (the file OUT/problems/<id>.npz, each / of the id "
+                "written __)"),
     ("family", "problem family (problems.generators.FAMILIES name, or module:function)"),
     ("params", "JSON dict of the family parameters given by the suite (defaults not repeated)"),
     ("seed", "generator seed"),
