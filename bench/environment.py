@@ -64,15 +64,16 @@ def _blas() -> dict:
 
 def _git() -> dict:
     root = Path(__file__).resolve().parent.parent
-    def git(*args):
+    def git(*args):  # its output, None when git failed (no repository, no git, timeout)
         try:
-            return subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True,
-                                  timeout=10).stdout.strip()
+            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=10)
         except (OSError, subprocess.TimeoutExpired):
-            return ""
+            return None
+        return done.stdout.strip() if done.returncode == 0 else None
     commit = git("rev-parse", "HEAD")
+    status = git("status", "--porcelain", "--untracked-files=no") if commit else None
     return {"commit": commit or None, "branch": git("rev-parse", "--abbrev-ref", "HEAD") or None,
-            "dirty": bool(git("status", "--porcelain", "--untracked-files=no")) if commit else None}
+            "dirty": None if status is None else bool(status)}  # (unknown, never a claimed clean tree)
 
 
 def environment() -> dict:

@@ -266,9 +266,13 @@ def _die_with_parent() -> None:
         import ctypes
 
         try:
-            ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
-        except (OSError, AttributeError):
-            pass  # no glibc: rely on EOF on stdin
+            rc = ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+            why = f"prctl failed, errno {ctypes.get_errno()}" if rc != 0 else ""
+        except (OSError, AttributeError) as err:  # no glibc
+            why = f"{type(err).__name__}: {err}"
+        if why:  # (into worker.log)
+            print(f"hikbench worker: not killed with its parent ({why}); an orphan ends at EOF on stdin",
+                  file=sys.stderr)
 
 
 def _child_main() -> None:

@@ -150,7 +150,7 @@ def test_killed_run_restarts_and_finishes(tmp_path):
                         modes=("cold",))
     # make each solve slow enough to kill in the middle
     text = suite.read_text() + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.05 }\n'
-    suite.write_text(text.replace('"SleepSolver"', '"SleepSolver"'))
+    suite.write_text(text)
     out = tmp_path / "out"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(Path(__file__).parent)])}
     proc = subprocess.Popen([sys.executable, "-m", "bench", "run", "--quiet", "--suite", str(suite), "--out",
@@ -242,3 +242,18 @@ def test_worker_names_an_unknown_option(solver):
                    "mode": "cold", "repeat": 1, "warmup": 1})
     assert res["status"] == "error"
     assert "unknown option(s) 'bogus'" in res["reason"]
+
+
+@pytest.mark.parametrize("status_rc, dirty", [(0, False), (128, None)], ids=["clean", "status-failed"])
+def test_git_state_unknown_when_git_status_fails(monkeypatch, status_rc, dirty):
+    """run.json's git.dirty: False only when `git status` said so; None when it failed."""
+    import subprocess as sp
+
+    from bench import environment
+
+    def fake_run(cmd, **kw):
+        rc = status_rc if "status" in cmd else 0
+        return sp.CompletedProcess(cmd, rc, stdout="abc123\n" if "rev-parse" in cmd else "", stderr="")
+
+    monkeypatch.setattr(environment.subprocess, "run", fake_run)
+    assert environment._git() == {"commit": "abc123", "branch": "abc123", "dirty": dirty}

@@ -8,6 +8,7 @@ from doubles import still_run
 from bench.cli import main
 from bench.scenario import COLUMNS, NO_WARM_START, check_run, run_scenario
 from problems.robots.scenarios import ScenarioError, load_scenario, scenario_names
+from problems.robots.stacks import StackError
 
 
 def test_shipped_scenarios():
@@ -51,7 +52,7 @@ def test_step_targets_follow_the_schedule():
 def test_scenario_file_errors(tmp_path):
     bad = tmp_path / "s.toml"
     bad.write_text('name = "s"\nstack = "arm_reach"\n[[events]]\ntask = "gripper"\n')
-    with pytest.raises(Exception, match="no task 'gripper'"):
+    with pytest.raises(StackError, match="no task .gripper."):
         load_scenario(bad)
     with pytest.raises(ScenarioError, match="unknown scenario 'dance'"):
         load_scenario("dance")
@@ -87,7 +88,7 @@ def test_cli_writes_csv_and_figures(tmp_path, capsys):
     for fig in ("fig1_solve_time.png", "fig2_time_activations.png", "fig3_joints_reference.png",
                 "fig4_task_errors.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
-    assert rc in (0, 1)  # 3 steps: the checks may not hold yet; the run itself succeeded
+    assert rc == 0  # (3 steps: not judged on final errors; the checks of these steps hold)
 
 
 def test_cli_list(capsys):
@@ -107,12 +108,10 @@ def test_cli_unknown_solver(tmp_path, capsys):
 
 
 def _solver_params(names):
+    """Every solver is a dependency of the project: one missing fails (registry.get), not skips."""
     from solvers import registry
 
-    known = registry.available()
-    return [pytest.param(n, id=n, marks=[] if n in known else
-                         pytest.mark.skip(reason=f"solver {n!r} is not registered on this branch"))
-            for n in names]
+    return [pytest.param(registry.get(n).name, id=n) for n in names]
 
 
 @pytest.mark.slow
@@ -123,9 +122,6 @@ def test_reach_checks_pass(solver):
     run = run_scenario(load_scenario("reach"), solver)
     checks = check_run(run)
     failed = [c for c in checks if not c.passed]
-    if solver == "reference" and any(c.name == "run completed" for c in failed):
-        pytest.xfail(f"reference stops mid-run: {failed[0].detail} (reported; problem saved in "
-                     "tests/problems/data/reference_error_talos_reach_step288.npz)")
     assert not failed, failed
 
 
@@ -174,7 +170,7 @@ def test_warm_start_modes_reach_the_solver(warm_solver, tmp_path, capsys):
     assert (run.records["warm_start"] == "none").all() and (run.records["activations"] == 1).all()
     rc = main(["scenario", "reach", "--solver", warm_solver, "--warm-start", "none", "stage", "time",
                "--steps", "2", "--out", str(tmp_path), "--plot"])
-    assert rc in (0, 1)
+    assert rc == 0
     for mode in ("none", "stage", "time"):
         df = pd.read_csv(tmp_path / f"reach_talos_fake-warm_{mode}.csv")
         assert (df["warm_start"] == mode).all()

@@ -72,10 +72,16 @@ def test_reference_on_a_talos_reach_step(fname):
     from pathlib import Path
 
     from problems.files import load
+    from problems.verify import verify
+    from solvers.hcod import HcodSolver
     from solvers.reference import ReferenceSolver
 
     h = load(Path(__file__).parent / "data" / fname)
     res = ReferenceSolver().solve(h)
-    if res.x is None or not np.all(np.isfinite(h.level_norms(res.x))):
-        pytest.xfail(f"reference fails on {fname}: {res.status} {res.reason} (reported to the lead)")
-    assert np.all(np.isfinite(res.x))
+    assert res.status == "optimal", res.reason
+    assert np.all(np.isfinite(res.x)) and np.max(np.abs(res.x)) < 10.0  # joint velocities, not 1e154
+    # judged against hcod (and, by hand, cascade-daqp / -quadprog, which agree with hcod to 1e-9):
+    # on the second file the reference leaves level 3 higher by 5e-11 relative and buys 2e-6 on
+    # level 4 near the singularity, so the two agree at the default profile's 1e-6, not at 1e-9
+    v = verify(h, HcodSolver().solve(h).x, res.x, rtol=1e-6)
+    assert v.equal, v

@@ -97,3 +97,13 @@ def test_x_finite_is_the_callers_word_and_not_a_field():
     r = SolveResult(x=np.array([1.0, np.nan]), status="optimal", x_finite=True)
     assert r.status == "optimal" and "x_finite" not in {f.name for f in dataclasses.fields(r)}
     assert SolveResult(x=np.array([1.0, np.nan]), status="optimal").status == "numerical_failure"
+
+
+def test_every_solver_of_the_project_is_installed():
+    """Every backend is a dependency in pyproject.toml: a broken install fails here instead of
+    the tests parametrized over the installed solvers quietly running fewer cases."""
+    from solvers import _qp_backends as tables
+
+    assert registry.missing() == {}
+    assert {f"cascade-{b}" for b in tables.BACKENDS} | {"hcod", "reference", "cascade-cvxpy"} <= set(
+        registry.available())
