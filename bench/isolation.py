@@ -270,9 +270,9 @@ def _die_with_parent() -> None:
             why = f"prctl failed, errno {ctypes.get_errno()}" if rc != 0 else ""
         except (OSError, AttributeError) as err:  # no glibc
             why = f"{type(err).__name__}: {err}"
-        if why:  # (into worker.log)
-            print(f"hikbench worker: not killed with its parent ({why}); an orphan ends at EOF on stdin",
-                  file=sys.stderr)
+        if why:  # (stderr: OUT/worker.log under `hikbench run`)
+            print(f"hikbench worker: not killed with its parent ({why}); an orphaned worker ends when "
+                  "it next reads its closed stdin, one in a hanging solve does not", file=sys.stderr)
 
 
 def _child_main() -> None:

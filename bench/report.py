@@ -17,7 +17,7 @@ import pandas as pd
 from bench import plots
 from bench.environment import read_run_json
 from bench.results import read_results
-from bench.shgeom import SHIFT_S, charged_times, shifted_geometric_mean
+from bench.shgeom import SHIFT_S, charged_times, shifted_geometric_mean, timed
 
 __all__ = ["write_report", "solver_label"]
 
@@ -192,7 +192,7 @@ def write_report(run_dir) -> Path:
         # whose times are all NaN, unstack fills the grid, both sorted): a solver without a
         # verified row shows "-" rather than dropping out of the table
         ran = ran.assign(group=ran["problem"].str.replace(r"/seed=\d+$", "", regex=True),
-                         t=ran["time_median_s"].where(ran["verified"].eq(True)))
+                         t=ran["time_median_s"].where(timed(ran, zero_ok=True)))
         med = ran.groupby(["group", "label"])["t"].median().unstack("label")
         L += _table(f"Median {mode} time per problem over its seeds [us] (verified rows; the speed table; "
                     "- = no verified row)", ["problem", *med.columns],
@@ -241,7 +241,7 @@ def write_report(run_dir) -> Path:
     for mode in ("cold", "warm"):
         d = df[df["mode"] == mode]
         for what, slug, g in _profile_groups(d):
-            t = g.assign(t=g["time_median_s"].where(g["verified"].eq(True))).pivot_table(
+            t = g.assign(t=g["time_median_s"].where(timed(g))).pivot_table(
                 index="problem", columns="label", values="t", aggfunc="first", dropna=False)
             p = plots.plot_profiles(t, plot_dir / f"performance_profile_{mode}{slug}.png",
                                     f"Performance profiles (Dolan-More), {mode} solves; failures never reach 1"

@@ -19,15 +19,15 @@ import traceback
 
 import numpy as np
 
+from solvers import registry
 from solvers.base import ERROR, SolveResult
 
 __all__ = ["execute", "solver_factory", "solver_info"]
 
 
-def solver_info(spec: str, name: str = ""):
+def solver_info(spec: str, name: str = "") -> registry.SolverInfo:
     """The :class:`~solvers.registry.SolverInfo` of a registry name, or one made
     for a ``module:Class`` spec (its factory the object, no default options)."""
-    from solvers import registry
     if ":" in spec:
         from bench.problemset import load_object
         return registry.SolverInfo(name or spec, "", load_object(spec))
@@ -37,7 +37,6 @@ def solver_info(spec: str, name: str = ""):
 def solver_factory(spec: str, options: dict):
     """A zero-argument callable building a fresh solver with ``options``
     (:func:`solvers.registry.build`: option names checked against the factory)."""
-    from solvers import registry
     info = solver_info(spec)
     return lambda: registry.build(info, **options)
 

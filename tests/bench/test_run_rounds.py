@@ -144,12 +144,13 @@ def test_rerun_in_rounds_replaces_each_row_once(tmp_path):
 
 def test_rounds_on_dask_workers_give_the_rows_of_a_serial_run(tmp_path):
     suite = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), spec("SegfaultSolver")],
-                        modes=("cold",), repeat=4)
+                        modes=("cold",), repeat=4, timeout=60.0)  # (2 workers on 2 cores: not about timeouts)
     assert _run("--suite", suite, "--out", tmp_path / "serial", "--rounds", 2) == 0
     assert _run("--suite", suite, "--out", tmp_path / "dask", "--rounds", 2, "--workers", 2) == 0
-    cols = [*KEY, "status", "verified", "repeat"]
+    cols = [*KEY, "status", "verified", "repeat", "reason"]
     a, b = (read_results(tmp_path / d)[cols].sort_values(list(KEY)).reset_index(drop=True)
             for d in ("serial", "dask"))
     pd.testing.assert_frame_equal(a, b)
     assert set(b["status"]) == {"optimal", "crashed"}
+    assert b.loc[b["status"] == "crashed", "reason"].str.endswith("(in round 1 of 2)").all()
     assert (b.loc[b["status"] == "optimal", "repeat"] == 4).all()
