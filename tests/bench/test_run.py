@@ -10,7 +10,7 @@ import time
 from pathlib import Path
 
 import pytest
-from doubles import spec, write_suite
+from doubles import spec, tiny, write_suite
 
 from bench.cli import main
 from bench.columns import KEY, names
@@ -93,8 +93,6 @@ def test_hang_and_segfault_become_rows(tmp_path):
 def test_a_crashed_worker_leaves_no_open_pipe():
     """The crash path closes the dead worker's pipes (not left to the garbage
     collector, which warns about unclosed files)."""
-    from doubles import tiny
-
     from bench.isolation import IsolatedWorker
 
     w = IsolatedWorker()
@@ -190,8 +188,6 @@ def test_columns_command_documents_every_column(capsys):
 def test_first_solve_allowance(tmp_path):
     """A solver whose first solve in a process is slow (JIT) gets the
     first-solve allowance; a hang after it gets only the job timeout."""
-    from doubles import tiny
-
     from bench.isolation import IsolatedWorker
 
     h = tiny()
@@ -234,8 +230,6 @@ def test_worker_dies_with_a_killed_run(tmp_path):
 def test_worker_names_an_unknown_option(solver):
     """A job's options go through registry.build for registered and module:Class
     solvers alike: an unknown name is the job's error, naming it."""
-    from doubles import tiny
-
     from bench.worker import execute
 
     res = execute({"kind": "solve", "hierarchy": tiny(), "solver": solver, "options": {"bogus": 1},
