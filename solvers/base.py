@@ -124,6 +124,14 @@ class Solver(abc.ABC):
         equality-only or with inequalities) would otherwise compile inside a
         later job's timeout. Default: nothing."""
 
+    def check_hierarchy(self, hierarchy: object) -> None:
+        """The boundary of :meth:`solve` from Python: ``hierarchy`` must be a
+        :class:`~problems.hierarchy.Hierarchy` (every CLI path builds one).
+        Raises TypeError naming the solver and what it got."""
+        if not isinstance(hierarchy, Hierarchy):
+            raise TypeError(f"{self.name or type(self).__name__}.solve expects a problems.hierarchy.Hierarchy "
+                            f"(e.g. Hierarchy.from_levels), got {type(hierarchy).__name__}")
+
     def unsupported(self, hierarchy: Hierarchy, why: str) -> SolveResult:
         return SolveResult(x=None, status=UNSUPPORTED, reason=f"{self.name}: {why}",
                            iterations_per_level=(0,) * hierarchy.depth)

@@ -177,6 +177,7 @@ class CascadeBase(Solver):
         raise NotImplementedError
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        self.check_hierarchy(hierarchy)
         h = hierarchy
         n = h.n
         x = np.zeros(n)

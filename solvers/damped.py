@@ -159,6 +159,7 @@ class _Stacked(Solver):
         raise NotImplementedError
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        self.check_hierarchy(hierarchy)
         h = hierarchy
         rows = ~h.is_free
         side = np.zeros(h.rows, dtype=np.int8)
@@ -214,6 +215,7 @@ class Weighted(_Stacked):
         return c[h.level]
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        self.check_hierarchy(hierarchy)
         if self.weights is not None and self.weights.size != hierarchy.depth:
             return self.unsupported(hierarchy, f"option weights has {self.weights.size} entries, the "
                                                f"hierarchy has {hierarchy.depth} levels")
@@ -256,6 +258,7 @@ class DLSLiegeois(Solver):
         self.tol = check_number(self.name, "tol", tol, low=0, low_open=True)
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        self.check_hierarchy(hierarchy)
         h = hierarchy
         box = box_limits(h)
         if box is None:

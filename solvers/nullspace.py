@@ -135,6 +135,7 @@ class _EqualityOnly(Solver):
         self.rank_rtol = check_number(self.name, "rank_rtol", rank_rtol, low=0, high=1, high_open=True)
 
     def _check(self, h: Hierarchy) -> SolveResult | None:
+        self.check_hierarchy(h)
         if h.has_inequalities:
             ineq = np.flatnonzero(~h.is_equality)
             k = int(h.level[ineq[0]])

@@ -389,6 +389,7 @@ class ReferenceSolver(Solver):
     supports_inequalities = True
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        self.check_hierarchy(hierarchy)
         try:
             if hierarchy.has_inequalities:
                 x, info = cascade_reference(hierarchy)

@@ -143,6 +143,7 @@ __all__ = ["SOLVERS", "WARM_STARTS", "HcodSolver", "warmup"]
 
 WARM_STARTS = ("none", "stage", "time")
 _NAN = float("nan")  # (build_time_s, solve_time_s: not separated)
+_NONE = object()  # (no hierarchy bound yet)
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
 _eq_run = None  # solvers.hcod._equality.eq_run, imported on the first solve (numba compiles then)
 _ineq = None  # (._kernel.hcod_solve, ._setup), imported on the first solve with inequalities
@@ -181,10 +182,12 @@ class HcodSolver(Solver):
         self.min_norm = check_bool("hcod", "min_norm", min_norm)
         # rank, feasibility (warm start), multiplier noise floor, zero slack at freeze
         self._prm = np.array([self.rank_rtol, 1e-9, 1e-13, 1e-11])
-        self._h = None  # the hierarchy bound to the workspaces (see _bind)
+        # the hierarchy bound to the workspaces (see _bind) and the last equality-only one (skips
+        # the checks on a re-solve); _NONE until then, so that solve(None) meets the type check
+        self._h = _NONE
         self._key = None  # its shape: the warm-start record is kept while it stays the same
         self._ws = None
-        self._eq_h = None  # last equality-only hierarchy (skips the checks on a re-solve)
+        self._eq_h = _NONE
         self._run = None  # closure solving the bound hierarchy (see _bind)
 
     def reset(self) -> None:
@@ -278,6 +281,7 @@ class HcodSolver(Solver):
             return self._run()
         if hierarchy is self._eq_h:
             return self._solve_equality(hierarchy)
+        self.check_hierarchy(hierarchy)  # (after the re-solve paths: they hold a Hierarchy)
         if hierarchy.n == 0 or hierarchy.rows == 0:
             return SolveResult(x=np.zeros(hierarchy.n), status=OPTIMAL, flops=0,
                                iterations_per_level=(0,) * hierarchy.depth)
@@ -292,7 +296,7 @@ class HcodSolver(Solver):
                 from solvers.hcod._equality import eq_run as _eq_run
             self._eq_h = hierarchy
             return self._solve_equality(hierarchy)
-        self._eq_h = None
+        self._eq_h = _NONE
         return self._bind(hierarchy)()
 
 

@@ -107,3 +107,21 @@ def test_every_solver_of_the_project_is_installed():
     assert registry.missing() == {}
     assert {f"cascade-{b}" for b in tables.BACKENDS} | {"hcod", "reference", "cascade-cvxpy"} <= set(
         registry.available())
+
+
+@pytest.mark.parametrize("name", sorted(registry.available()))
+@pytest.mark.parametrize("bad", [None, np.eye(2), "tiny.npz"], ids=["none", "ndarray", "str"])
+def test_solve_of_a_non_hierarchy_names_the_solver_and_the_expected_type(name, bad):
+    """The Python boundary of solve(): a TypeError naming the solver, the expected type and
+    what it got -- before any solve and after one (hcod's re-solve paths compare identities)."""
+    from problems.hierarchy import Hierarchy, Level
+
+    solver = registry.create(name)
+    msg = rf"^{name}\.solve expects a problems\.hierarchy\.Hierarchy .*got {type(bad).__name__}$"
+    with pytest.raises(TypeError, match=msg):
+        solver.solve(bad)
+    h = Hierarchy.from_levels([Level(np.eye(2), -np.ones(2), np.ones(2)),
+                               Level.equality(np.ones((1, 2)), [0.5])], n=2)
+    assert solver.solve(h).status in ("optimal", "unsupported")
+    with pytest.raises(TypeError, match=msg):
+        solver.solve(bad)
