@@ -2,16 +2,19 @@
 whose status is not optimal are marked (and counted in the legend) in Figs. 1 and 2."""
 
 import matplotlib.axes
+import pytest
 from doubles import still_run
 
 from bench.scenario_plots import plot_runs
 from problems.robots.scenarios import load_scenario
 
 
-def test_event_lines_of_later_events_are_not_drawn(tmp_path, monkeypatch):
+@pytest.mark.parametrize("steps", [10, 310], ids=["run-ends-before-the-event", "run-covers-the-event"])
+def test_event_lines_are_drawn_within_the_run_only(tmp_path, monkeypatch, steps):
+    """An event (the reach scenario's target switch at 3 s) gets a line in Figs. 3 and 4 when the
+    run reaches it, none when the run ends before it."""
     sc = load_scenario("reach")
-    steps = 10
-    assert sc.event_times() and min(sc.event_times()) > steps * sc.dt  # the event comes after the run
+    assert sc.event_times() == [3.0]  # (the scenario file: a run of 10 steps ends before it)
     drawn = []
     real = matplotlib.axes.Axes.axvline
 
@@ -22,7 +25,12 @@ def test_event_lines_of_later_events_are_not_drawn(tmp_path, monkeypatch):
     monkeypatch.setattr(matplotlib.axes.Axes, "axvline", spy)
     paths = plot_runs([still_run(sc, steps)], tmp_path)
     assert all(p.exists() for p in paths)
+    end = (steps - 1) * sc.dt  # (the last step's time)
     assert [x for x in drawn if x > steps * sc.dt] == [], f"event lines past the run's end: {drawn}"
+    if end >= 3.0:
+        assert drawn and set(drawn) == {3.0}, drawn  # (Fig. 3 once, Fig. 4 once per task panel)
+    else:
+        assert drawn == []
 
 
 def test_steps_that_are_not_optimal_are_marked(tmp_path, monkeypatch):

@@ -24,9 +24,10 @@ def test_sixth_order_meets_its_seven_conditions(p0, p1, tau, pv):
 
 
 def test_progress_and_bump_shapes():
-    assert progress()(0.5) == pytest.approx(0.5)
+    assert progress()(0.5) == pytest.approx(0.5, rel=1e-12)
     b = bump(0.5)
-    assert b(0.5) == pytest.approx(1.0) and max(b(t) for t in np.linspace(0, 1, 101)) == pytest.approx(1.0)
+    assert b(0.5) == pytest.approx(1.0, rel=1e-12) and max(b(t) for t in np.linspace(0, 1, 101)) == pytest.approx(
+        1.0, rel=1e-12)
 
 
 def test_via_point_must_be_inside():
@@ -39,7 +40,7 @@ def test_pose_segment_velocity_matches_finite_differences():
     T1 = pin.SE3(T0.rotation @ pin.rpy.rpyToMatrix(0.0, 0.0, 0.4), np.array([0.2, -0.1, 0.0]))
     seg = PoseSegment(1.0, 2.0, T0, T1, apex=np.array([0.0, 0.0, 0.05]), tau_apex=0.4)
     assert seg(1.0)[0].isApprox(T0) and seg(3.0)[0].isApprox(T1)
-    assert seg(1.8)[0].translation[2] == pytest.approx(0.05)  # apex at tau = 0.4
+    assert seg(1.8)[0].translation[2] == pytest.approx(0.05, rel=1e-12)  # apex at tau = 0.4
     h = 1e-6
     for t in (1.3, 1.9, 2.6):
         Tm, nu = seg(t)

@@ -377,7 +377,6 @@ def test_flops_of_the_paper_example():
     for k in range(6):
         m_f = m - k * n
         terms += n * (m * m - m_f * m_f) + 2 * n * n * m_f + 1.5 * (m - m_f) ** 2
-    assert terms == pytest.approx(39_042)
     assert 26_900 <= res.flops <= terms
     deep = HcodSolver().solve(G.equality_stack(36, 24, 6, seed=0))
     assert deep.flops == res.flops  # levels after saturation cost nothing
@@ -614,7 +613,10 @@ def test_conditioning_sweep(capsys):
     dependent); well-conditioned ones (cond 1, unscaled rows) equal to the reference at 1e-9 (or
     lexicographically lower, a reference that missed the optimum); ill-conditioned ones never
     worse than the reference at the top level beyond 1e-7 (lower levels may differ either way:
-    README, "Limitations"). The tally is printed (``-s``)."""
+    README, "Limitations"). The tally is printed (``-s``). Over the ill-conditioned solves,
+    ``hcod`` failures and reference-lower verdicts are bounded at 4x the rates of README's
+    3000-problem tally (24 and 138 of 5014: 0.5 % and 2.8 %), so that a change which makes them
+    common fails here instead of only moving the printed counts."""
     tally = Counter()
     for trial in range(int(os.environ.get("HIKBENCH_SWEEP", "300"))):
         h, perturbed, kw = _sweep_problem(trial)
@@ -644,6 +646,13 @@ def test_conditioning_sweep(capsys):
         print()
         for key in sorted(tally):
             print(f"  {key[0]:32s} {key[1]:16s} {tally[key]:5d}")
+    ill = Counter()
+    for (group, verdict), count in tally.items():
+        if not group.startswith("well"):
+            ill[verdict] += count
+            ill["solves"] += count
+    assert ill["hcod failure"] <= max(2, 4 * 24 / 5014 * ill["solves"]), ill
+    assert ill["reference lower"] <= max(2, 4 * 138 / 5014 * ill["solves"]), ill
 
 
 @pytest.mark.parametrize("shape", [(7,), (3, 5)], ids=["1d", "2d"])
