@@ -99,7 +99,9 @@ class SolveResult:
 class Solver(abc.ABC):
     """Base of every solver.
 
-    Subclasses set the class attributes and implement :meth:`solve`. Options are
+    Subclasses set the class attributes and implement :meth:`solve`, which
+    starts with ``self.check_hierarchy(hierarchy)`` (a TypeError for anything
+    but a Hierarchy passed from Python). Options are
     keyword arguments of ``__init__``; a wrong option raises
     :class:`~problems.errors.SolverOptionError` at construction.
     """
@@ -125,12 +127,15 @@ class Solver(abc.ABC):
         later job's timeout. Default: nothing."""
 
     def check_hierarchy(self, hierarchy: object) -> None:
-        """The boundary of :meth:`solve` from Python: ``hierarchy`` must be a
-        :class:`~problems.hierarchy.Hierarchy` (every CLI path builds one).
-        Raises TypeError naming the solver and what it got."""
+        """The type check at the start of :meth:`solve`: ``hierarchy`` must be a
+        :class:`~problems.hierarchy.Hierarchy` (every CLI path builds one; a
+        call from Python may pass anything). Raises TypeError naming the
+        solver, the expected type and the type it got."""
         if not isinstance(hierarchy, Hierarchy):
+            t = type(hierarchy)
+            got = t.__qualname__ if t.__module__ == "builtins" else f"{t.__module__}.{t.__qualname__}"
             raise TypeError(f"{self.name or type(self).__name__}.solve expects a problems.hierarchy.Hierarchy "
-                            f"(e.g. Hierarchy.from_levels), got {type(hierarchy).__name__}")
+                            f"(e.g. Hierarchy.from_levels), got {got}")
 
     def unsupported(self, hierarchy: Hierarchy, why: str) -> SolveResult:
         return SolveResult(x=None, status=UNSUPPORTED, reason=f"{self.name}: {why}",

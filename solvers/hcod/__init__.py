@@ -143,7 +143,7 @@ __all__ = ["SOLVERS", "WARM_STARTS", "HcodSolver", "warmup"]
 
 WARM_STARTS = ("none", "stage", "time")
 _NAN = float("nan")  # (build_time_s, solve_time_s: not separated)
-_NONE = object()  # (no hierarchy bound yet)
+_NONE = object()  # (matches no solve() argument, unlike None)
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
 _eq_run = None  # solvers.hcod._equality.eq_run, imported on the first solve (numba compiles then)
 _ineq = None  # (._kernel.hcod_solve, ._setup), imported on the first solve with inequalities

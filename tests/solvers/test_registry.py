@@ -109,19 +109,37 @@ def test_every_solver_of_the_project_is_installed():
         registry.available())
 
 
-@pytest.mark.parametrize("name", sorted(registry.available()))
-@pytest.mark.parametrize("bad", [None, np.eye(2), "tiny.npz"], ids=["none", "ndarray", "str"])
-def test_solve_of_a_non_hierarchy_names_the_solver_and_the_expected_type(name, bad):
+
+# (a static list: registry.available() at collection would import every backend for any -k run;
+# test_every_solver_of_the_project_is_installed checks that they are all there)
+_ALL = ("hcod", "reference", "cascade-cvxpy", *(f"cascade-{b}" for b in ("osqp", "proxqp", "clarabel", "daqp",
+        "quadprog", "piqp", "highs")), "nullspace-svd", "nullspace-cod", "pinv-all", "weighted", "dls",
+        "dls-liegeois")
+
+
+def test_the_static_list_is_every_registered_solver():
+    assert set(_ALL) == set(registry.available())
+
+
+@pytest.mark.parametrize("name", _ALL)
+@pytest.mark.parametrize("bad, got", [(None, "NoneType"), (np.eye(2), "numpy.ndarray"), ("tiny.npz", "str")],
+                         ids=["none", "ndarray", "str"])
+@pytest.mark.parametrize("kind", ["inequalities", "equalities"])
+def test_solve_of_a_non_hierarchy_names_the_solver_and_the_expected_type(name, bad, got, kind):
     """The Python boundary of solve(): a TypeError naming the solver, the expected type and
-    what it got -- before any solve and after one (hcod's re-solve paths compare identities)."""
+    what it got -- before any solve and after one (hcod's re-solve paths compare identities,
+    one for each kind of hierarchy)."""
+    import re
+
     from problems.hierarchy import Hierarchy, Level
 
     solver = registry.create(name)
-    msg = rf"^{name}\.solve expects a problems\.hierarchy\.Hierarchy .*got {type(bad).__name__}$"
+    msg = rf"^{re.escape(name)}\.solve expects a problems\.hierarchy\.Hierarchy .*got {re.escape(got)}$"
     with pytest.raises(TypeError, match=msg):
         solver.solve(bad)
-    h = Hierarchy.from_levels([Level(np.eye(2), -np.ones(2), np.ones(2)),
-                               Level.equality(np.ones((1, 2)), [0.5])], n=2)
+    top = (Level(np.eye(2), -np.ones(2), np.ones(2)) if kind == "inequalities"
+           else Level.equality(np.array([[1.0, -1.0]]), [0.1]))
+    h = Hierarchy.from_levels([top, Level.equality(np.ones((1, 2)), [0.5])], n=2)
     assert solver.solve(h).status in ("optimal", "unsupported")
     with pytest.raises(TypeError, match=msg):
         solver.solve(bad)
