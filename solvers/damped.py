@@ -63,7 +63,6 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from problems.errors import SolverOptionError
 from problems.hierarchy import Hierarchy
 from solvers.base import INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, SolveResult, Solver
 from solvers.registry import SolverInfo, check_int, check_number, check_numbers
@@ -155,12 +154,19 @@ class _Stacked(Solver):
     def _row_weights(self, h: Hierarchy) -> np.ndarray:
         return np.ones(h.rows)
 
+    def _declines(self, h: Hierarchy) -> str | None:
+        """Why the solver cannot take h with its options (None: it can)."""
+        return None
+
     def _step(self, J, e, c) -> np.ndarray:
         raise NotImplementedError
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
         self.check_hierarchy(hierarchy)
         h = hierarchy
+        why = self._declines(h)
+        if why is not None:
+            return self.unsupported(h, why)
         rows = ~h.is_free
         side = np.zeros(h.rows, dtype=np.int8)
         side[rows & h.is_equality] = 1
@@ -205,21 +211,13 @@ class Weighted(_Stacked):
                                                                   what="one weight per level")
 
     def _row_weights(self, h: Hierarchy) -> np.ndarray:
-        if self.weights is None:
-            c = self.ratio ** np.arange(h.depth, dtype=float)
-        else:
-            if self.weights.size != h.depth:
-                raise SolverOptionError(f"{self.name}: option weights has {self.weights.size} entries: "
-                                        f"expected one per level ({h.depth})")
-            c = self.weights
-        return c[h.level]
+        c = self.ratio ** np.arange(h.depth, dtype=float) if self.weights is None else self.weights
+        return c[h.level]  # (one weight per level: _declines checked the count)
 
-    def solve(self, hierarchy: Hierarchy) -> SolveResult:
-        self.check_hierarchy(hierarchy)
-        if self.weights is not None and self.weights.size != hierarchy.depth:
-            return self.unsupported(hierarchy, f"option weights has {self.weights.size} entries, the "
-                                               f"hierarchy has {hierarchy.depth} levels")
-        return super().solve(hierarchy)
+    def _declines(self, h: Hierarchy) -> str | None:
+        if self.weights is not None and self.weights.size != h.depth:
+            return f"option weights has {self.weights.size} entries, the hierarchy has {h.depth} levels"
+        return None
 
     def _step(self, J, e, c):
         JtC = J.T * c  # (n, m): J^T C
