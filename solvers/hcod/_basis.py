@@ -9,7 +9,11 @@ chosen by the kernel at the start of each solve:
   ``Mf[:, p:]``). While ``W`` is still the identity of the solve's start
   (flag ``qi[Q_ID]``, as in the factored form: until the first update, e.g.
   the first level with objective rows when nothing above is active) the
-  projections of eq. 19 are copies;
+  projections of eq. 19 are copies. Bound rows (a box) entering then keep
+  it a permutation of the identity's columns (swaps, no multiply-add:
+  :func:`._explicit.insert_row`); the products are gathers and scatters,
+  and a level's reflectors are pushed on order ``n - p`` instead of n, until
+  the first general update;
 - *factored* (:mod:`._factored`: warm re-solves from a recorded active set,
   sec. XI, from ``LAZY_MIN_N`` variables on, until a level iterates more than
   ``LAZY_MAX_ITER`` times: then the queue is flushed and ``W`` stays explicit
@@ -35,13 +39,16 @@ from __future__ import annotations
 from numba import njit
 
 from solvers.hcod import _explicit, _factored
+from solvers.hcod._factored import Q_ID
 from solvers.hcod._linalg import FASTMATH
 
 __all__ = [
     "LAZY_MAX_ITER",
     "LAZY_MIN_N",
     "basis_explicit",
+    "basis_head",
     "basis_n",
+    "basis_permuted",
     "basis_reset",
     "basis_rows",
     "basis_t",
@@ -76,6 +83,14 @@ def basis_reset(lazy, Wt, qi):
         _explicit.reset(Wt, qi)
 
 
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def basis_permuted(lazy, qi):
+    """``W`` explicit and a permutation of the identity's columns (the
+    identity included): bound rows then enter by swaps of its columns, with
+    no multiply-add (:func:`._explicit.insert_row`)."""
+    return not lazy and qi[Q_ID] != 0
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def basis_explicit(Wt, qv, qi, sv, sv2):
     """The factored ``W`` made explicit (the queue flushed into ``W0``, which
@@ -90,7 +105,7 @@ def basis_t(lazy, Wt, qv, qi, x, c0, c1, sv, sv2):
     undefined)."""
     if lazy:
         return _factored.basis_t(Wt, qv, qi, x, c0, c1, sv, sv2)
-    return _explicit.basis_t(Wt, x, c0, c1, sv)
+    return _explicit.basis_t(Wt, qi, x, c0, c1, sv)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -98,7 +113,18 @@ def basis_n(lazy, Wt, qv, qi, x, c0, c1, sv, sv2):
     """``x <- W x`` for x (n,) zero outside ``c0:c1`` (e.g. ``Z z``, eq. 31)."""
     if lazy:
         return _factored.basis_n(Wt, qv, qi, x, c0, c1, sv, sv2)
-    return _explicit.basis_n(Wt, x, c0, c1, sv)
+    return _explicit.basis_n(Wt, qi, x, c0, c1, sv)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def basis_head(lazy, A, i, bcol, bval, Wt, qi, p, out):
+    """``out[:p] = W[:, :p]^T a`` for the row ``a = A[i]`` when explicit (the
+    coordinates of a frozen row on the working rows' columns: a column of
+    ``R``); when factored, out holds the whole projection ``W^T a`` already
+    (``Mf``) and is left as it is. Returns flops."""
+    if lazy:
+        return 0
+    return _explicit.head(A, i, bcol, bval, Wt, qi, p, out)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -111,10 +137,13 @@ def basis_rows(lazy, A, rows, j0, j1, bcol, bval, Wt, qv, qi, M, p, sv, sv2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, sv, sv2):
+def push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, qbf, sv, sv2):
     """``W[:, p:] <- W[:, p:] H_0 ... H_{r-1}`` (eq. 23), reflector t =
-    ``I - beta[t] v v^T`` with ``v = Mr[t, t:n-p]`` on the columns ``p + t:``."""
+    ``I - beta[t] v v^T`` with ``v = Mr[t, t:n-p]`` on the columns ``p + t:``.
+    qbf (>= (n - p)^2) flat scratch."""
     if not lazy:
+        if qi[Q_ID] == _explicit.W_PERMUTED and r > 0:
+            return _explicit.apply_reflectors_to_permuted(Wt, qi, p, Mr, beta, r, qbf, sv, sv2)
         return _explicit.apply_reflectors_to_basis(Wt, qi, p, Mr, beta, r, sv, sv2)
     nf = Wt.shape[0] - p
     fl = 0
@@ -160,4 +189,4 @@ def multipliers(lazy, R, p, g, nu, h, Wt, qv, qi, sv, sv2):
     (n,) may be overwritten, h (n,) scratch."""
     if lazy:
         return _factored.multipliers(R, p, g, nu, Wt, qv, qi, sv, sv2)
-    return _explicit.multipliers(Wt, R, p, g, h, nu)
+    return _explicit.multipliers(Wt, qi, R, p, g, h, nu)

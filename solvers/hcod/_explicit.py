@@ -18,7 +18,9 @@ Every routine returns its multiply-adds (the flop counter of
 
 Rows are read from ``A`` (m, n); a *bound row* (one nonzero, e.g. a box row
 ``e_i``) has ``bcol[i] >= 0`` and coefficient ``bval[i]``: its products cost
-O(1) instead of O(n).
+O(1) instead of O(n). Bound rows entering W = I keep it a permutation of the
+identity's columns (:func:`_swap_in`): until the first general update the
+products gather and scatter (flag ``W_PERMUTED``).
 """
 
 from __future__ import annotations
@@ -28,13 +30,14 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod._factored import Q_ID
+from solvers.hcod._factored import Q_ID, QH
 from solvers.hcod._linalg import (
     BLAS_MIN_N,
     BLAS_MIN_ROWS,
     BLAS_MIN_WORK,
     FASTMATH,
     householder,
+    matrix_view,
     qr_rows,
     reflect_cols,
     retriangulate,
@@ -55,6 +58,10 @@ __all__ = [
 ]
 
 _FM = set(FASTMATH)
+#: ``qi[Q_ID]``: 1 while ``W`` is the identity, 2 while it is a permutation of its columns
+#: (bound rows entered by swaps, :func:`_swap_in`), with ``perm`` at ``qi[QH:QH + n]`` (column j of
+#: W is ``e_perm[j]``) and its inverse at ``qi[QH + n:QH + 2 n]``; 0 otherwise
+W_IDENTITY, W_PERMUTED = 1, 2
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -65,6 +72,38 @@ def reset(Wt, qi):
     for c in range(Wt.shape[0]):
         Wt[c, c] = 1.0
     qi[Q_ID] = 1
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def _swap_in(Wt, qi, c, p):
+    """The bound row on variable c enters at column p of ``W`` while ``W`` is
+    a permutation of the identity's columns (``qi[Q_ID]`` != 0): ``W^T e_c =
+    e_pos`` with ``pos = perm^-1(c)``, and the Householder reflector that maps
+    it to ``e_p`` can be the swap of W's columns p and pos (``v = e_p -
+    e_pos``, ``beta = 1``), which keeps W a permutation. Returns pos (W's
+    columns swapped when pos > p), or -1 when ``pos < p`` (the row is a
+    combination of the working rows: refused, W unchanged)."""
+    n = Wt.shape[0]
+    if qi[Q_ID] == W_IDENTITY:
+        for j in range(n):
+            qi[QH + j] = j
+            qi[QH + n + j] = j
+        qi[Q_ID] = W_PERMUTED
+    pos = qi[QH + n + c]
+    if pos < p:
+        return -1
+    if pos > p:
+        cp = qi[QH + p]
+        # (rows p and pos of Wt are the unit vectors e_cp and e_c)
+        Wt[p, cp] = 0.0
+        Wt[p, c] = 1.0
+        Wt[pos, c] = 0.0
+        Wt[pos, cp] = 1.0
+        qi[QH + p] = c
+        qi[QH + pos] = cp
+        qi[QH + n + c] = p
+        qi[QH + n + cp] = pos
+    return pos
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -85,10 +124,38 @@ def wt_times_row(A, i, bcol, bval, Wt, out):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def basis_t(Wt, x, c0, c1, sv):
+def head(A, i, bcol, bval, Wt, qi, p, out):
+    """``out[:p] = W[:, :p]^T a`` for the row ``a = A[i]`` (a gather while W
+    is a permutation). Returns flops."""
+    b = bcol[i]
+    if qi[Q_ID] == W_PERMUTED:
+        for l in range(p):
+            c = qi[QH + l]
+            out[l] = A[i, c] if b < 0 else (bval[i] if c == b else 0.0)
+        return 0
+    if b >= 0:
+        v = bval[i]
+        for l in range(p):
+            out[l] = v * Wt[l, b]
+        return p
+    ra = A[i]
+    for l in range(p):
+        out[l] = vdot(Wt[l], ra)
+    return Wt.shape[0] * p
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def basis_t(Wt, qi, x, c0, c1, sv):
     """``x[c0:c1] <- (W^T x)[c0:c1]`` (x (n,); the columns ``W[:, c0:c1]``
-    only, the other entries of x are left as they were). sv (n,) scratch.
-    Returns flops."""
+    only, the other entries of x are left as they were; a gather while W
+    is a permutation). sv (n,) scratch. Returns flops."""
+    if qi[Q_ID] != 0:
+        if qi[Q_ID] == W_PERMUTED:
+            for c in range(c0, c1):
+                sv[c] = x[qi[QH + c]]
+            for c in range(c0, c1):
+                x[c] = sv[c]
+        return 0
     for c in range(c0, c1):
         sv[c] = vdot(Wt[c], x)
     for c in range(c0, c1):
@@ -97,9 +164,17 @@ def basis_t(Wt, x, c0, c1, sv):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def basis_n(Wt, x, c0, c1, sv):
-    """``x <- W[:, c0:c1] x[c0:c1]`` (x (n,)), e.g. ``Z z`` for ``c0 = p``.
-    sv (n,) scratch. Returns flops."""
+def basis_n(Wt, qi, x, c0, c1, sv):
+    """``x <- W[:, c0:c1] x[c0:c1]`` (x (n,), zero outside ``c0:c1``), e.g.
+    ``Z z`` for ``c0 = p``; a scatter while W is a permutation. sv (n,)
+    scratch. Returns flops."""
+    if qi[Q_ID] != 0:
+        if qi[Q_ID] == W_PERMUTED:
+            sv[:] = 0.0
+            for c in range(c0, c1):
+                sv[qi[QH + c]] = x[c]
+            x[:] = sv
+        return 0
     sv[:] = 0.0
     for c in range(c0, c1):
         vaxpy(x[c], Wt[c], sv)
@@ -161,6 +236,30 @@ def apply_reflectors_to_basis(Wt, qi, p, Mr, beta, r, sv, sv2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def apply_reflectors_to_permuted(Wt, qi, p, Mr, beta, r, qbf, sv, sv2):
+    """:func:`apply_reflectors_to_basis` while ``W`` is a permutation (see
+    :func:`_swap_in`): ``W[:, p:]`` is zero but for the identity on its rows
+    ``perm[p:]``, so ``W[:, p:] H`` is H on those rows. H is accumulated on the
+    identity of order ``nf = n - p`` (the flat scratch ``qbf``, >= nf^2; 2 nf^2
+    multiply-adds per reflector instead of 2 n nf) and scattered. Returns flops."""
+    n = Wt.shape[0]
+    nf = n - p
+    C = matrix_view(qbf, nf, nf)
+    C[:, :] = 0.0
+    for c in range(nf):
+        C[c, c] = 1.0
+    fl = apply_reflectors_to_basis(C, qi, 0, Mr, beta, r, sv[:nf], sv2[:nf])  # C = H^T (clears the flag)
+    perm = qi[QH + p:QH + n]
+    for j in range(nf):
+        w = Wt[p + j]
+        w[:] = 0.0
+        cj = C[j]
+        for e in range(nf):
+            w[perm[e]] = cj[e]
+    return fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def insert_row(A, i, bcol, bval, Wt, qi, R, p, thr, q, sv):
     """Add row ``a = A[i]`` to the working constraints by one Householder
     update of ``W`` (sec. IX: the decomposition is updated, not recomputed):
@@ -174,6 +273,24 @@ def insert_row(A, i, bcol, bval, Wt, qi, R, p, thr, q, sv):
     n = Wt.shape[0]
     if p >= n:
         return False, 0, 0.0
+    if qi[Q_ID] != 0 and bcol[i] >= 0:
+        # W a permutation, a bound row: the swap (_swap_in); R's column is (0, bval)
+        b = bval[i]
+        if not abs(b) > thr:
+            return False, 0, 0.0
+        pos = _swap_in(Wt, qi, bcol[i], p)
+        if pos < 0:
+            return False, 0, 0.0
+        for c in range(p):
+            R[c, p] = 0.0
+        R[p, p] = b
+        qz = q[p:]
+        qz[:] = 0.0
+        if pos == p:
+            return True, 0, 0.0
+        qz[0] = 1.0
+        qz[pos - p] = -1.0
+        return True, 0, 1.0
     fl = wt_times_row(A, i, bcol, bval, Wt, q)
     qz = q[p:]
     nrm = math.sqrt(vdot(qz, qz))
@@ -197,6 +314,24 @@ def insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, lnorm, rowlev, 
     ``W[:, p:]`` together (:func:`apply_reflectors_to_basis`). ``cok[j]`` = 1 when row j entered.
     Shapes: Qb (>= m, n), bq (>= m), sv, sv2 (n,) scratch. Returns (t, flops)."""
     fl = 0
+    if qi[Q_ID] != 0:
+        allb = True
+        for j in range(m):
+            allb = allb and bcol[cand[j]] >= 0
+        if allb:
+            # W a permutation, bound rows: swaps (_swap_in), R's columns (0, bval)
+            t = 0
+            for j in range(m):
+                i = cand[j]
+                b = bval[i]
+                cok[j] = 0
+                if abs(b) > rank_rtol * lnorm[rowlev[i]] and _swap_in(Wt, qi, bcol[i], p + t) >= 0:
+                    for c in range(p + t):
+                        R[c, p + t] = 0.0
+                    R[p + t, p + t] = b
+                    cok[j] = 1
+                    t += 1
+            return t, 0
     for j in range(m):
         fl += wt_times_row(A, cand[j], bcol, bval, Wt, Qb[j])
     t, f = qr_rows(Qb, cand, m, p, rank_rtol, lnorm, rowlev, R, bq, cok)
@@ -220,16 +355,22 @@ def delete_row(j, Wt, qi, R, p, widx, wside, cs):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def multipliers(Wt, R, p, g, h, nu):
+def multipliers(Wt, qi, R, p, g, h, nu):
     """Multipliers of the working constraints (eq. 39):
     ``C^T nu = -g`` solved as ``R nu = -W[:, :p]^T g``; g (n,) is the gradient
     ``J_k^T w_k`` of the level's objective. Returns flops."""
     n = Wt.shape[0]
-    for c in range(p):
-        h[c] = vdot(Wt[c], g)
+    fl = p * p // 2
+    if qi[Q_ID] == W_PERMUTED:
+        for c in range(p):
+            h[c] = g[qi[QH + c]]
+    else:
+        for c in range(p):
+            h[c] = vdot(Wt[c], g)
+        fl += n * p
     for c in range(p - 1, -1, -1):
         nu[c] = (-h[c] - vdot(R[c, c + 1:p], nu[c + 1:p])) / R[c, c]
-    return n * p + p * p // 2
+    return fl
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -240,6 +381,21 @@ def project_into(A, Olist, j0, j1, bcol, bval, Wt, qi, p, Mf):
     set at a solve's start, cleared by every update above). Returns flops."""
     n = Wt.shape[0]
     fl = 0
+    if qi[Q_ID] == W_PERMUTED:
+        perm = qi[QH + p:QH + n]  # (column p + c of W is e_perm[c])
+        for j in range(j0, j1):
+            i = Olist[j]
+            mj = Mf[j, p:]
+            b = bcol[i]
+            if b >= 0:
+                v = bval[i]
+                for c in range(n - p):
+                    mj[c] = v if perm[c] == b else 0.0
+            else:
+                ra = A[i]
+                for c in range(n - p):
+                    mj[c] = ra[perm[c]]
+        return 0
     if qi[Q_ID] != 0:
         for j in range(j0, j1):
             i = Olist[j]

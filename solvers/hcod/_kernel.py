@@ -41,7 +41,9 @@ from solvers.hcod._basis import (
     LAZY_MAX_ITER,
     LAZY_MIN_N,
     basis_explicit,
+    basis_head,
     basis_n,
+    basis_permuted,
     basis_reset,
     basis_rows,
     basis_t,
@@ -203,7 +205,8 @@ def hcod_solve(fw, iw):
     lnorm = fw[foff[19]:fend[19]]
     hist_du = matrix_view(fw[foff[20]:fend[20]], D, n)
     Mf = matrix_view(fw[foff[21]:fend[21]], mmax, n)
-    Qb = matrix_view(fw[foff[22]:fend[22]], n, n)
+    Qbf = fw[foff[22]:fend[22]]  # (flat: scratch of push_reflectors too)
+    Qb = matrix_view(Qbf, n, n)
     bq = fw[foff[23]:fend[23]]
     sv = fw[foff[24]:foff[24] + n]  # two scratch vectors (n,)
     sv2 = fw[foff[24] + n:fend[24]]
@@ -362,18 +365,23 @@ def hcod_solve(fw, iw):
                 at_jump = at_jump and tau == 1.0
                 for c in range(n):
                     u[c] += tau * ps[c]
-                # Delta^+ A: rows the level activated at the previous call
+                # Delta^+ A: rows the level activated at the previous call. A level of a jump
+                # inserts none (level jm inserts its rows) but, while W is a permutation of the
+                # identity's columns, the bound rows of level jm's record: they enter by swaps of
+                # W's columns (._basis), and the levels down to jm then work on fewer columns
+                pre = jump and basis_permuted(lazy, qi)
                 p_in = p
                 m_in = 0
-                for i in range(s0 if not jump else 0):  # (a jump: level jm inserts its rows)
-                    sd = hist_side[k, i]
-                    if (hist_state[k, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0
+                for i in range(s0 if not jump or pre else 0):
+                    sd = hist_side[rk, i]
+                    if (hist_state[rk, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0
+                            and (not jump or bcol[i] >= 0)
                             and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf) and m_in < n):  # (<= n: WORK rows)
                         # the level whose record drops the row (D: none); rows that leave
                         # sooner enter later: a row deleted sits behind fewer rows (fewer
                         # Givens rotations in delete_row). Insertion sort, descending, the keys
                         # kept in cok until insert_rows overwrites it with its accept flags.
-                        dl = k + 1
+                        dl = rk + 1
                         while dl < D and hist_valid[dl] != 0 and hist_state[dl, i] == WORK:
                             dl += 1
                         j = m_in
@@ -391,7 +399,7 @@ def hcod_solve(fw, iw):
                     for j in range(m_in):
                         if cok[j]:
                             i = cand[j]
-                            sd = hist_side[k, i]
+                            sd = hist_side[rk, i]
                             widx[p] = i
                             wside[p] = sd
                             p += 1
@@ -842,7 +850,7 @@ def hcod_solve(fw, iw):
                         hist_valid[kk] = 0
                 break
             elif not has_ineq:
-                fl += push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, sv, sv2)
+                fl += push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, Qbf, sv, sv2)
                 for j in range(nO):
                     state[Olist[piv[j]]] = WORK if j < r else IMPLIED
                 p += r
@@ -859,17 +867,14 @@ def hcod_solve(fw, iw):
                     # Mf (Mf[j] = W^T a_j); the other rows are combinations of them
                     for t in range(r):
                         mt_ = Mf[piv[t]]
-                        if not lazy:  # (Mf holds the projection on Z only: W[:, :p]^T a)
-                            i = Olist[piv[t]]
-                            for l in range(p):
-                                mt_[l] = row_dot(A[i], bcol[i], bval[i], Wt[l])
-                            fl += n * p
+                        # (explicit: Mf holds the projection on Z only, W[:, :p]^T a is computed)
+                        fl += basis_head(lazy, A, Olist[piv[t]], bcol, bval, Wt, qi, p, mt_)
                         for l in range(p):
                             R[l, p + t] = mt_[l]
                         for l in range(t):
                             R[p + l, p + t] = Mr[t, l]
                         R[p + t, p + t] = diag[t]
-                    fl += push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, sv, sv2)
+                    fl += push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, Qbf, sv, sv2)
                 for j in range(nO):
                     i = Olist[piv[j]]
                     av = row_dot(A[i], bcol[i], bval[i], u)

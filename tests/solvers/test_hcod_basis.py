@@ -12,15 +12,19 @@ import pytest
 
 from solvers.hcod._basis import (
     LAZY_MIN_N,
+    basis_head,
     basis_n,
+    basis_permuted,
     basis_reset,
     basis_rows,
     basis_t,
     delete_row,
     insert_row,
     insert_rows,
+    multipliers,
     push_reflectors,
 )
+from solvers.hcod._explicit import W_IDENTITY, W_PERMUTED
 from solvers.hcod._factored import Q_ID, Q_M, QH, basis_row, flush, queue_sizes
 
 ATOL = 1e-11
@@ -71,7 +75,7 @@ class Basis:
 
     def push(self, Mr, beta, r):
         """The reflectors of a COD on the free columns (eq. 23)."""
-        push_reflectors(*self.wq(), self.p, Mr, beta, r, self.sv, self.sv2)
+        push_reflectors(*self.wq(), self.p, Mr, beta, r, np.zeros(self.n * self.n), self.sv, self.sv2)
 
     def W(self) -> np.ndarray:
         """W column by column, by products (W e_c; through the queue when factored)."""
@@ -272,3 +276,105 @@ def test_explicit_identity_flag(update):
     M, fl = _projections(b, rows)
     assert fl > 0
     np.testing.assert_allclose(M[:, b.p:], (b.A @ W)[:, b.p:], rtol=0, atol=ATOL * n)
+
+
+def _bound_rows(b: Basis) -> list[int]:
+    """The bound rows of b on distinct variables, in row order."""
+    seen, rows = set(), []
+    for i in np.flatnonzero(b.bcol >= 0):
+        if b.bcol[i] not in seen:
+            seen.add(int(b.bcol[i]))
+            rows.append(int(i))
+    return rows
+
+
+def _dense_copy(b: Basis) -> Basis:
+    """The same basis with the permutation flag cleared: every product reads W."""
+    d = Basis(b.n, 1, np.random.default_rng(0), lazy=False)
+    for name in ("A", "bcol", "bval", "R", "widx", "Wt", "qi"):
+        setattr(d, name, getattr(b, name).copy())
+    d.qi[Q_ID] = 0
+    d.p = b.p
+    return d
+
+
+@pytest.mark.parametrize("blocked", [False, True], ids=["one-at-a-time", "insert_rows"])
+def test_bound_rows_enter_an_identity_basis_by_swaps(blocked):
+    """Bound rows entering an explicit W = I: the Householder reflector that maps
+    W^T e_c = e_pos to e_p can be the swap of W's columns p and pos, so W stays a
+    permutation (flag W_PERMUTED), R's column is (0, bval) and no multiply-add is
+    spent; a second bound row on a variable already working is refused (W^T e_c
+    has nothing left on Z). The products gather and scatter, equal to the dense
+    ones; the first general update leaves the permutation."""
+    n = 10
+    rng = np.random.default_rng(7)
+    b = Basis(n, 40, rng, lazy=False)
+    rows = _bound_rows(b)[:4]
+    dup, c = 3, b.bcol[rows[1]]  # (row 3: a bound row on the variable of rows[1])
+    b.A[dup] = 0.0
+    b.A[dup, c] = b.bval[dup] = -1.5
+    b.bcol[dup] = c
+    assert b.qi[Q_ID] == W_IDENTITY and basis_permuted(False, b.qi) and not basis_permuted(True, b.qi)
+    if blocked:
+        cand = np.array([*rows[:2], dup, *rows[2:]], dtype=np.int64)
+        cok = np.zeros(len(cand), dtype=np.int64)
+        t, fl = insert_rows(False, b.A, cand, len(cand), b.bcol, b.bval, b.R, 0, 1e-10, np.ones(1),
+                            np.zeros(len(b.A), dtype=np.int64), np.zeros((len(cand), n)), np.zeros(len(cand)), cok,
+                            *b.args())
+        assert cok.tolist() == [1, 1, 0, 1, 1] and t == 4 and fl == 0
+        b.widx[:4] = rows
+        b.p = 4
+    else:
+        for i in rows[:2]:
+            assert b.insert(i)
+        ok, fl, _ = insert_row(False, b.A, dup, b.bcol, b.bval, b.R, b.p, 1e-10, b.q, *b.args())
+        assert not ok and fl == 0
+        for i in rows[2:]:
+            assert b.insert(i)
+    assert b.qi[Q_ID] == W_PERMUTED
+    W = b.check()  # (orthonormal, W R = C^T, products and projections: gathers and scatters)
+    assert set(np.abs(W).ravel().tolist()) == {0.0, 1.0}
+    np.testing.assert_array_equal(np.triu(b.R[:4, :4]), np.diag(b.bval[rows]))
+    M, fl = _projections(b, np.arange(len(b.A), dtype=np.int64))
+    assert fl == 0
+    np.testing.assert_array_equal(M[:, b.p:], (b.A @ W)[:, b.p:])
+    d = _dense_copy(b)
+    g = rng.standard_normal(n)
+    nu, nu_d = np.zeros(n), np.zeros(n)
+    multipliers(False, b.R, b.p, g.copy(), nu, np.zeros(n), *b.args())
+    multipliers(False, d.R, d.p, g.copy(), nu_d, np.zeros(n), *d.args())
+    np.testing.assert_allclose(nu[:b.p], nu_d[:b.p], rtol=1e-14, atol=0)
+    for i in (0, 1, rows[0]):  # a bound row, a general row, a working bound row
+        h, h_d = np.zeros(n), np.zeros(n)
+        assert basis_head(False, b.A, i, b.bcol, b.bval, b.Wt, b.qi, b.p, h) == 0
+        basis_head(False, d.A, i, d.bcol, d.bval, d.Wt, d.qi, d.p, h_d)
+        np.testing.assert_allclose(h[:b.p], h_d[:b.p], rtol=0, atol=1e-15)
+        np.testing.assert_allclose(h[:b.p], (b.A[i] @ W)[:b.p], rtol=0, atol=1e-15)
+    assert b.insert(1)  # a general row: a dense reflector
+    assert b.qi[Q_ID] == 0
+    b.check()
+
+
+@pytest.mark.parametrize("r", [1, 2, 3], ids=["one", "a-pair", "a-pair-and-one"])
+def test_push_onto_a_permuted_basis(r):
+    """A level's COD reflectors pushed onto W[:, p:] while W is a permutation: H
+    accumulated on the identity of order n - p and scattered equals the dense
+    product W[:, p:] H (the flag is cleared; fewer multiply-adds)."""
+    n = 9
+    rng = np.random.default_rng(r)
+    b = Basis(n, 40, rng, lazy=False)
+    for i in _bound_rows(b)[:3]:
+        assert b.insert(i)
+    assert b.qi[Q_ID] == W_PERMUTED
+    d = _dense_copy(b)
+    p, nf = b.p, n - b.p
+    Mr, beta = np.zeros((r, nf)), np.zeros(r)
+    for t in range(r):
+        v = rng.standard_normal(nf - t)
+        Mr[t, t:], beta[t] = v, 2.0 / (v @ v)
+    b.sv[:] = b.sv2[:] = np.nan  # (scratch: nothing read from it)
+    fl = push_reflectors(False, b.Wt, b.qv, b.qi, p, Mr, beta, r, np.full(n * n, np.nan), b.sv, b.sv2)
+    fl_d = push_reflectors(False, d.Wt, d.qv, d.qi, p, Mr, beta, r, np.zeros(n * n), d.sv, d.sv2)
+    assert b.qi[Q_ID] == 0 and fl == 2 * nf * nf * r < fl_d
+    np.testing.assert_allclose(b.Wt, d.Wt, rtol=0, atol=1e-15)
+    b.check()
