@@ -107,20 +107,20 @@ def _swap_in(Wt, qi, c, p):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def wt_times_row(A, i, bcol, bval, Wt, out):
-    """``out = W^T a`` for the row ``a = A[i]`` (``out[c] = Wt[c] @ a``; a
-    gather of column ``bcol[i]`` of ``Wt`` for a bound row). Returns flops."""
-    n = Wt.shape[0]
+def wt_times_row(A, i, bcol, bval, Wt, out, m):
+    """``out[:m] = W[:, :m]^T a`` for the row ``a = A[i]`` (``out[c] = Wt[c] @
+    a``; a gather of column ``bcol[i]`` of ``Wt`` for a bound row). Returns
+    flops."""
     b = bcol[i]
     if b >= 0:
         v = bval[i]
-        for c in range(n):
+        for c in range(m):
             out[c] = v * Wt[c, b]
-        return n
+        return m
     ra = A[i]
-    for c in range(n):
+    for c in range(m):
         out[c] = vdot(Wt[c], ra)
-    return n * n
+    return Wt.shape[0] * m
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -133,15 +133,7 @@ def head(A, i, bcol, bval, Wt, qi, p, out):
             c = qi[QH + l]
             out[l] = A[i, c] if b < 0 else (bval[i] if c == b else 0.0)
         return 0
-    if b >= 0:
-        v = bval[i]
-        for l in range(p):
-            out[l] = v * Wt[l, b]
-        return p
-    ra = A[i]
-    for l in range(p):
-        out[l] = vdot(Wt[l], ra)
-    return Wt.shape[0] * p
+    return wt_times_row(A, i, bcol, bval, Wt, out, p)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -291,7 +283,7 @@ def insert_row(A, i, bcol, bval, Wt, qi, R, p, thr, q, sv):
         qz[0] = 1.0
         qz[pos - p] = -1.0
         return True, 0, 1.0
-    fl = wt_times_row(A, i, bcol, bval, Wt, q)
+    fl = wt_times_row(A, i, bcol, bval, Wt, q, n)
     qz = q[p:]
     nrm = math.sqrt(vdot(qz, qz))
     if not nrm > thr:
@@ -333,7 +325,7 @@ def insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, lnorm, rowlev, 
                     t += 1
             return t, 0
     for j in range(m):
-        fl += wt_times_row(A, cand[j], bcol, bval, Wt, Qb[j])
+        fl += wt_times_row(A, cand[j], bcol, bval, Wt, Qb[j], Wt.shape[0])
     t, f = qr_rows(Qb, cand, m, p, rank_rtol, lnorm, rowlev, R, bq, cok)
     fl += f
     if t > 0:
