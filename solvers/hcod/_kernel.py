@@ -367,16 +367,20 @@ def hcod_solve(fw, iw):
                     u[c] += tau * ps[c]
                 # Delta^+ A: rows the level activated at the previous call. A level of a jump
                 # inserts none (level jm inserts its rows) but, while W is a permutation of the
-                # identity's columns, the bound rows of level jm's record: they enter by swaps of
+                # identity's columns, the bound rows of level jm's record that the jump point
+                # meets at their bound (to its rounding floor: their correction below moves u by
+                # rounding only, and no row above can become infeasible): they enter by swaps of
                 # W's columns (._basis), and the levels down to jm then work on fewer columns
                 pre = jump and basis_permuted(lazy, qi)
+                unorm = _norm(u) if pre else 0.0
                 p_in = p
                 m_in = 0
                 for i in range(s0 if not jump or pre else 0):
                     sd = hist_side[rk, i]
                     if (hist_state[rk, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0
-                            and (not jump or bcol[i] >= 0)
-                            and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf) and m_in < n):  # (<= n: WORK rows)
+                            and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf) and m_in < n  # (<= n: WORK rows)
+                            and (not jump or (bcol[i] >= 0 and abs(bval[i] * u[bcol[i]] - (up[i] if sd > 0 else lo[i]))
+                                              <= _floor(rnorm[i], unorm, up[i] if sd > 0 else lo[i], dual_rtol)))):
                         # the level whose record drops the row (D: none); rows that leave
                         # sooner enter later: a row deleted sits behind fewer rows (fewer
                         # Givens rotations in delete_row). Insertion sort, descending, the keys

@@ -217,6 +217,34 @@ def test_time_warm_start_record_is_a_fixed_point_of_a_repeated_problem(n, seed):
         assert verify(h, res.x, cold.x, rtol=RTOL).equal
 
 
+def test_jump_inserts_early_only_bound_rows_met_at_the_jump_point():
+    """A jump's levels insert the bound rows of its last level's record early (while W is a
+    permutation, ._explicit) only where the jump point meets them at their bound: their
+    correction then moves u by rounding, and no level of the jump can fall back to cold. Here
+    the upper bound on x0 (level 1) moves from 1 to 1.1 under a re-solve that jumps over
+    levels 0-2: one level falls back (the jump's first), as without the early insertion,
+    and the next re-solve of the moved problem none. (Inserting x0 <= 1.1 early moved u off
+    the jump point at level 2: two levels fell back, then one more at the next call.)"""
+    n = 4
+
+    def problem(ub0):
+        return Hierarchy.from_levels([
+            Level(np.ones((1, n)), [-np.inf], [2.05]),
+            Level(np.eye(n), -np.ones(n), np.array([ub0, 1.0, 1.0, 1.0])),
+            Level.equality(np.array([[1.0, -1.0, 0.0, 0.0]]), [0.0]),
+            Level.equality(np.array([[1.0, 0.0, 0.0, 0.0]]), [5.0]),
+        ], n=n)
+
+    s = HcodSolver(warm_start="time")
+    fallbacks = []
+    for h in [problem(1.0)] * 2 + [problem(1.1)] * 3:
+        res = s.solve(h)
+        assert res.status == OPTIMAL, res.reason
+        assert verify(h, res.x, reference_solution(h), rtol=RTOL).equal
+        fallbacks.append(res.info.get("warm_fallback_levels", 0))
+    assert fallbacks == [0, 0, 1, 0, 0]
+
+
 def drifting(h: Hierarchy, drift: float, seed: int, steps: int = 8):
     """A trajectory from h: at each step A's nonzeros and the finite bounds move by
     ``drift`` N(0, 1) (equality rows stay equalities, upper >= lower)."""

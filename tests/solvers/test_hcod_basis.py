@@ -330,7 +330,17 @@ def test_bound_rows_enter_an_identity_basis_by_swaps(blocked):
         ok, fl, _ = insert_row(False, b.A, dup, b.bcol, b.bval, b.R, b.p, 1e-10, b.q, *b.args())
         assert not ok and fl == 0
         for i in rows[2:]:
-            assert b.insert(i)
+            # the returned reflector (q[p:], beta) carries a projected row W^T a on to the new W
+            # (the kernel's mf_reflect on its objective rows): the swap of entries p and pos
+            m_old = b.A[1] @ b.W()
+            p0 = b.p
+            ok, fl, bt = insert_row(False, b.A, i, b.bcol, b.bval, b.R, p0, 1e-10, b.q, *b.args())
+            assert ok and fl == 0
+            b.widx[p0] = i
+            b.p += 1
+            v = b.q[p0:]
+            np.testing.assert_allclose(m_old[p0:] - bt * v * (v @ m_old[p0:]), (b.A[1] @ b.W())[p0:], rtol=0,
+                                       atol=1e-15)
     assert b.qi[Q_ID] == W_PERMUTED
     W = b.check()  # (orthonormal, W R = C^T, products and projections: gathers and scatters)
     assert set(np.abs(W).ravel().tolist()) == {0.0, 1.0}
@@ -350,8 +360,10 @@ def test_bound_rows_enter_an_identity_basis_by_swaps(blocked):
         basis_head(False, d.A, i, d.bcol, d.bval, d.Wt, d.qi, d.p, h_d)
         np.testing.assert_allclose(h[:b.p], h_d[:b.p], rtol=0, atol=1e-15)
         np.testing.assert_allclose(h[:b.p], (b.A[i] @ W)[:b.p], rtol=0, atol=1e-15)
-    assert b.insert(1)  # a general row: a dense reflector
+    b.delete(1)  # Givens rotations of W's columns: no longer a permutation
     assert b.qi[Q_ID] == 0
+    b.check()
+    assert b.insert(1)  # a general row: a dense reflector
     b.check()
 
 
@@ -368,10 +380,10 @@ def test_push_onto_a_permuted_basis(r):
     assert b.qi[Q_ID] == W_PERMUTED
     d = _dense_copy(b)
     p, nf = b.p, n - b.p
-    Mr, beta = np.zeros((r, nf)), np.zeros(r)
+    Mr, beta = np.full((r, n), np.nan), np.zeros(r)  # (rows of width n, as the kernel's: read to nf only)
     for t in range(r):
         v = rng.standard_normal(nf - t)
-        Mr[t, t:], beta[t] = v, 2.0 / (v @ v)
+        Mr[t, t:nf], beta[t] = v, 2.0 / (v @ v)
     b.sv[:] = b.sv2[:] = np.nan  # (scratch: nothing read from it)
     fl = push_reflectors(False, b.Wt, b.qv, b.qi, p, Mr, beta, r, np.full(n * n, np.nan), b.sv, b.sv2)
     fl_d = push_reflectors(False, d.Wt, d.qv, d.qi, p, Mr, beta, r, np.zeros(n * n), d.sv, d.sv2)
