@@ -75,15 +75,20 @@ def reset(Wt, qi):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _swap_in(Wt, qi, c, p):
-    """The bound row on variable c enters at column p of ``W`` while ``W`` is
-    a permutation of the identity's columns (``qi[Q_ID]`` != 0): ``W^T e_c =
-    e_pos`` with ``pos = perm^-1(c)``, and the Householder reflector that maps
-    it to ``e_p`` can be the swap of W's columns p and pos (``v = e_p -
-    e_pos``, ``beta = 1``), which keeps W a permutation. Returns pos (W's
-    columns swapped when pos > p), or -1 when ``pos < p`` (the row is a
-    combination of the working rows: refused, W unchanged)."""
+def _swap_in(Wt, qi, R, i, bcol, bval, p, thr):
+    """The bound row i (on variable ``c = bcol[i]``) enters at column p of ``W``
+    while ``W`` is a permutation of the identity's columns (``qi[Q_ID]`` !=
+    0): ``W^T a = bval e_pos`` with ``pos = perm^-1(c)``, and the Householder
+    reflector that maps it to ``e_p`` can be the swap of W's columns p and pos
+    (``v = e_p - e_pos``, ``beta = 1``), which keeps W a permutation; R's
+    column is ``(0, bval)``. Returns pos (W's columns swapped when pos > p),
+    or -1 when the row is refused, as :func:`insert_row`'s rank test would:
+    ``|bval| <= thr``, or ``pos < p`` (a combination of the working rows)."""
     n = Wt.shape[0]
+    c = bcol[i]
+    b = bval[i]
+    if not abs(b) > thr:
+        return -1
     if qi[Q_ID] == W_IDENTITY:
         for j in range(n):
             qi[QH + j] = j
@@ -103,6 +108,9 @@ def _swap_in(Wt, qi, c, p):
         qi[QH + pos] = cp
         qi[QH + n + c] = p
         qi[QH + n + cp] = pos
+    for r in range(p):
+        R[r, p] = 0.0
+    R[p, p] = b
     return pos
 
 
@@ -266,16 +274,10 @@ def insert_row(A, i, bcol, bval, Wt, qi, R, p, thr, q, sv):
     if p >= n:
         return False, 0, 0.0
     if qi[Q_ID] != 0 and bcol[i] >= 0:
-        # W a permutation, a bound row: the swap (_swap_in); R's column is (0, bval)
-        b = bval[i]
-        if not abs(b) > thr:
-            return False, 0, 0.0
-        pos = _swap_in(Wt, qi, bcol[i], p)
+        # W a permutation, a bound row: the swap (_swap_in), its reflector left in q[p:]
+        pos = _swap_in(Wt, qi, R, i, bcol, bval, p, thr)
         if pos < 0:
             return False, 0, 0.0
-        for c in range(p):
-            R[c, p] = 0.0
-        R[p, p] = b
         qz = q[p:]
         qz[:] = 0.0
         if pos == p:
@@ -311,18 +313,12 @@ def insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, lnorm, rowlev, 
         for j in range(m):
             allb = allb and bcol[cand[j]] >= 0
         if allb:
-            # W a permutation, bound rows: swaps (_swap_in), R's columns (0, bval)
+            # W a permutation, bound rows: swaps (_swap_in)
             t = 0
             for j in range(m):
                 i = cand[j]
-                b = bval[i]
-                cok[j] = 0
-                if abs(b) > rank_rtol * lnorm[rowlev[i]] and _swap_in(Wt, qi, bcol[i], p + t) >= 0:
-                    for c in range(p + t):
-                        R[c, p + t] = 0.0
-                    R[p + t, p + t] = b
-                    cok[j] = 1
-                    t += 1
+                cok[j] = _swap_in(Wt, qi, R, i, bcol, bval, p + t, rank_rtol * lnorm[rowlev[i]]) >= 0
+                t += cok[j]
             return t, 0
     for j in range(m):
         fl += wt_times_row(A, cand[j], bcol, bval, Wt, Qb[j], Wt.shape[0])

@@ -378,9 +378,11 @@ def hcod_solve(fw, iw):
                 for i in range(s0 if not jump or pre else 0):
                     sd = hist_side[rk, i]
                     if (hist_state[rk, i] == WORK and state[i] == INACTIVE and kind[i] == 1 and sd != 0
-                            and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf) and m_in < n  # (<= n: WORK rows)
-                            and (not jump or (bcol[i] >= 0 and abs(bval[i] * u[bcol[i]] - (up[i] if sd > 0 else lo[i]))
-                                              <= _floor(rnorm[i], unorm, up[i] if sd > 0 else lo[i], dual_rtol)))):
+                            and (up[i] < np.inf if sd > 0 else lo[i] > -np.inf) and m_in < n):  # (<= n: WORK rows)
+                        tg = up[i] if sd > 0 else lo[i]
+                        if jump and not (bcol[i] >= 0 and abs(bval[i] * u[bcol[i]] - tg)
+                                         <= _floor(rnorm[i], unorm, tg, dual_rtol)):
+                            continue
                         # the level whose record drops the row (D: none); rows that leave
                         # sooner enter later: a row deleted sits behind fewer rows (fewer
                         # Givens rotations in delete_row). Insertion sort, descending, the keys
