@@ -6,14 +6,13 @@ chosen by the kernel at the start of each solve:
   ``LAZY_MIN_N`` variables): every orthogonal factor is applied to ``W`` at
   once (``2 n L`` multiply-adds per reflector of length L); the products read
   only the columns they need (``Z`` for the projections of eq. 19, held in
-  ``Mf[:, p:]``). While ``W`` is still the identity of the solve's start
-  (flag ``qi[Q_ID]``, as in the factored form: until the first update, e.g.
-  the first level with objective rows when nothing above is active) the
-  projections of eq. 19 are copies. Bound rows (a box) entering then keep
-  it a permutation of the identity's columns (swaps, no multiply-add:
-  :func:`._explicit.insert_row`); the products are gathers and scatters,
-  and a level's reflectors are pushed on order ``n - p`` instead of n, until
-  the first general update;
+  ``Mf[:, p:]``). ``W`` starts as the identity, flagged a permutation of
+  its columns (``qi[Q_ID]``, as the factored form flags its ``W0 = I``), and
+  bound rows (a box) entering it keep it one (swaps, no multiply-add:
+  :func:`._explicit.insert_row`): the products are gathers and scatters
+  (of the first level with objective rows, when nothing above is active,
+  the projections of eq. 19 are copies), and a level's reflectors are
+  pushed on order ``n - p`` instead of n, until the first general update;
 - *factored* (:mod:`._factored`: warm re-solves from a recorded active set,
   sec. XI, from ``LAZY_MIN_N`` variables on, until a level iterates more than
   ``LAZY_MAX_ITER`` times: then the queue is flushed and ``W`` stays explicit
@@ -30,8 +29,9 @@ triangular. Every function returns its multiply-adds.
 
 Workspaces: ``Wt`` (n, n) W (or W0) stored by columns; ``qv``, ``qi`` the
 queue (:func:`._factored.queue_sizes`; in the explicit representation ``qv``
-is scratch and ``qi`` holds only the identity flag ``qi[Q_ID]``, cleared by
-each update of ``W`` in :mod:`._explicit`); sv, sv2 (n,) scratch.
+is scratch and ``qi`` holds the permutation flag ``qi[Q_ID]``, cleared by
+each general update of ``W`` in :mod:`._explicit`, and the permutation); sv,
+sv2 (n,) scratch.
 """
 
 from __future__ import annotations
@@ -76,7 +76,8 @@ _FM = set(FASTMATH)
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def basis_reset(lazy, Wt, qi):
     """``W = I`` (a solve's start): a flag when factored; explicit, the
-    identity written and flagged (the flag is cleared by the first update)."""
+    identity written and flagged a permutation (the flag is cleared by the
+    first general update)."""
     if lazy:
         _factored.basis_reset(qi)
     else:
@@ -142,7 +143,9 @@ def push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, qbf, sv, sv2):
     ``I - beta[t] v v^T`` with ``v = Mr[t, t:n-p]`` on the columns ``p + t:``.
     qbf (>= (n - p)^2) flat scratch."""
     if not lazy:
-        if qi[Q_ID] == _explicit.W_PERMUTED and r > 0:
+        # (p = 0: a permuted W with no working row is the identity itself, updated in place at the
+        # same cost without the accumulation's copy and scatter)
+        if qi[Q_ID] != 0 and r > 0 and p > 0:
             return _explicit.apply_reflectors_to_permuted(Wt, qi, p, Mr, beta, r, qbf, sv, sv2)
         return _explicit.apply_reflectors_to_basis(Wt, qi, p, Mr, beta, r, sv, sv2)
     nf = Wt.shape[0] - p

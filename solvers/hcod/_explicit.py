@@ -18,9 +18,10 @@ Every routine returns its multiply-adds (the flop counter of
 
 Rows are read from ``A`` (m, n); a *bound row* (one nonzero, e.g. a box row
 ``e_i``) has ``bcol[i] >= 0`` and coefficient ``bval[i]``: its products cost
-O(1) instead of O(n). Bound rows entering W = I keep it a permutation of the
-identity's columns (:func:`_swap_in`): until the first general update the
-products gather and scatter (flag ``W_PERMUTED``).
+O(1) instead of O(n). ``W = I`` at a solve's start, and bound rows entering
+it keep it a permutation of the identity's columns (:func:`_swap_in`): until
+the first general update the products gather and scatter (flag
+``W_PERMUTED``).
 """
 
 from __future__ import annotations
@@ -58,20 +59,24 @@ __all__ = [
 ]
 
 _FM = set(FASTMATH)
-#: ``qi[Q_ID]``: 1 while ``W`` is the identity, 2 while it is a permutation of its columns
-#: (bound rows entered by swaps, :func:`_swap_in`), with ``perm`` at ``qi[QH:QH + n]`` (column j of
-#: W is ``e_perm[j]``) and its inverse at ``qi[QH + n:QH + 2 n]``; 0 otherwise
-W_IDENTITY, W_PERMUTED = 1, 2
+#: ``qi[Q_ID]``: 1 while ``W`` is a permutation of the identity's columns (the identity of a solve's
+#: start, then bound rows entered by swaps, :func:`_swap_in`), with ``perm`` at ``qi[QH:QH + n]``
+#: (column j of W is ``e_perm[j]``) and its inverse at ``qi[QH + n:QH + 2 n]``; 0 otherwise
+W_PERMUTED = 1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def reset(Wt, qi):
-    """``W = I`` (a solve's start), written and flagged (``qi[Q_ID]``: the
-    projections are copies until the first update clears it)."""
+    """``W = I`` (a solve's start), written and flagged a permutation (the
+    identity's, ``qi[Q_ID]``: the products gather and scatter until the first
+    general update clears it)."""
+    n = Wt.shape[0]
     Wt[:, :] = 0.0
-    for c in range(Wt.shape[0]):
+    for c in range(n):
         Wt[c, c] = 1.0
-    qi[Q_ID] = 1
+        qi[QH + c] = c
+        qi[QH + n + c] = c
+    qi[Q_ID] = W_PERMUTED
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -89,11 +94,6 @@ def _swap_in(Wt, qi, R, i, bcol, bval, p, thr):
     b = bval[i]
     if not abs(b) > thr:
         return -1
-    if qi[Q_ID] == W_IDENTITY:
-        for j in range(n):
-            qi[QH + j] = j
-            qi[QH + n + j] = j
-        qi[Q_ID] = W_PERMUTED
     pos = qi[QH + n + c]
     if pos < p:
         return -1
@@ -136,7 +136,7 @@ def head(A, i, bcol, bval, Wt, qi, p, out):
     """``out[:p] = W[:, :p]^T a`` for the row ``a = A[i]`` (a gather while W
     is a permutation). Returns flops."""
     b = bcol[i]
-    if qi[Q_ID] == W_PERMUTED:
+    if qi[Q_ID] != 0:
         for l in range(p):
             c = qi[QH + l]
             out[l] = A[i, c] if b < 0 else (bval[i] if c == b else 0.0)
@@ -150,11 +150,10 @@ def basis_t(Wt, qi, x, c0, c1, sv):
     only, the other entries of x are left as they were; a gather while W
     is a permutation). sv (n,) scratch. Returns flops."""
     if qi[Q_ID] != 0:
-        if qi[Q_ID] == W_PERMUTED:
-            for c in range(c0, c1):
-                sv[c] = x[qi[QH + c]]
-            for c in range(c0, c1):
-                x[c] = sv[c]
+        for c in range(c0, c1):
+            sv[c] = x[qi[QH + c]]
+        for c in range(c0, c1):
+            x[c] = sv[c]
         return 0
     for c in range(c0, c1):
         sv[c] = vdot(Wt[c], x)
@@ -169,11 +168,10 @@ def basis_n(Wt, qi, x, c0, c1, sv):
     ``Z z`` for ``c0 = p``; a scatter while W is a permutation. sv (n,)
     scratch. Returns flops."""
     if qi[Q_ID] != 0:
-        if qi[Q_ID] == W_PERMUTED:
-            sv[:] = 0.0
-            for c in range(c0, c1):
-                sv[qi[QH + c]] = x[c]
-            x[:] = sv
+        sv[:] = 0.0
+        for c in range(c0, c1):
+            sv[qi[QH + c]] = x[c]
+        x[:] = sv
         return 0
     sv[:] = 0.0
     for c in range(c0, c1):
@@ -192,9 +190,9 @@ def apply_reflectors_to_basis(Wt, qi, p, Mr, beta, r, sv, sv2):
     ``s2 -= beta_i (v_{i+1} . v_i) s1`` (reflector i acts first), one pass for
     the update (:func:`._linalg.reflect_cols_pair` does the same on a pair of
     vectors; this loop on the rows of Mr, the product ``v_{i+1} . v_i`` taken
-    in the first pass, is ~0.3 us faster on IK-like warm n=20). After it, ``W[:, p:p+r]`` spans the projected level and
-    ``W[:, p+r:]`` is ``Z_k``. Clears the identity flag ``qi[Q_ID]`` when r >
-    0. sv, sv2 (n,) are scratch. Returns flops."""
+    in the first pass, is ~0.3 us faster on IK-like warm n=20). After it,
+    ``W[:, p:p+r]`` spans the projected level and ``W[:, p+r:]`` is ``Z_k``.
+    Clears the permutation flag ``qi[Q_ID]`` when r > 0. sv, sv2 (n,) are scratch. Returns flops."""
     n = Wt.shape[0]
     nf = n - p
     if r > 0:
@@ -334,7 +332,7 @@ def delete_row(j, Wt, qi, R, p, widx, wside, cs):
     """Remove working row j (0 <= j < p): drop column j of R and restore the
     triangle by Givens rotations of R's rows (:func:`._linalg.retriangulate`),
     applied to W's columns too (``W R`` is unchanged). ``widx``/``wside``
-    shift; cs (>= 2 p) scratch. Clears the identity flag ``qi[Q_ID]``.
+    shift; cs (>= 2 p) scratch. Clears the permutation flag ``qi[Q_ID]``.
     Returns flops; the caller decrements p."""
     qi[Q_ID] = 0
     if j >= p - 1:
@@ -349,7 +347,7 @@ def multipliers(Wt, qi, R, p, g, h, nu):
     ``J_k^T w_k`` of the level's objective. Returns flops."""
     n = Wt.shape[0]
     fl = p * p // 2
-    if qi[Q_ID] == W_PERMUTED:
+    if qi[Q_ID] != 0:
         for c in range(p):
             h[c] = g[qi[QH + c]]
     else:
@@ -364,12 +362,13 @@ def multipliers(Wt, qi, R, p, g, h, nu):
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def project_into(A, Olist, j0, j1, bcol, bval, Wt, qi, p, Mf):
     """``Mf[j, p:] = A[Olist[j]] @ W[:, p:]`` for j0 <= j < j1: the objective rows
-    projected on Z (eq. 19), kept up to date across iterations; copies of
-    ``A[Olist[j], p:]`` while ``W`` is flagged the identity (``qi[Q_ID]``,
-    set at a solve's start, cleared by every update above). Returns flops."""
+    projected on Z (eq. 19), kept up to date across iterations; gathers of
+    ``A[Olist[j]]`` while ``W`` is flagged a permutation (``qi[Q_ID]``: the
+    identity at a solve's start, cleared by every general update above).
+    Returns flops."""
     n = Wt.shape[0]
     fl = 0
-    if qi[Q_ID] == W_PERMUTED:
+    if qi[Q_ID] != 0:
         perm = qi[QH + p:QH + n]  # (column p + c of W is e_perm[c])
         for j in range(j0, j1):
             i = Olist[j]
@@ -383,20 +382,6 @@ def project_into(A, Olist, j0, j1, bcol, bval, Wt, qi, p, Mf):
                 ra = A[i]
                 for c in range(n - p):
                     mj[c] = ra[perm[c]]
-        return 0
-    if qi[Q_ID] != 0:
-        for j in range(j0, j1):
-            i = Olist[j]
-            mj = Mf[j, p:]
-            b = bcol[i]
-            if b >= 0:
-                mj[:] = 0.0
-                if b >= p:
-                    mj[b - p] = bval[i]
-            else:
-                ra = A[i, p:]
-                for c in range(n - p):
-                    mj[c] = ra[c]
         return 0
     ng = 0
     for j in range(j0, j1):

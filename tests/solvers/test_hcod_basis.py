@@ -24,7 +24,7 @@ from solvers.hcod._basis import (
     multipliers,
     push_reflectors,
 )
-from solvers.hcod._explicit import W_IDENTITY, W_PERMUTED
+from solvers.hcod._explicit import W_PERMUTED
 from solvers.hcod._factored import Q_ID, Q_M, QH, basis_row, flush, queue_sizes
 
 ATOL = 1e-11
@@ -244,19 +244,20 @@ def _projections(b: Basis, rows: np.ndarray) -> tuple[np.ndarray, int]:
 
 @pytest.mark.parametrize("update", ["push", "insert", "insert_rows"])
 def test_explicit_identity_flag(update):
-    """An explicit W starts flagged the identity: the projections (eq. 19) are
-    copies of the rows (no multiply-adds); a refused row leaves the flag, the
-    first update clears it and the products read W again."""
+    """An explicit W starts as the identity, flagged a permutation (of the identity's
+    columns): the projections (eq. 19) are copies of the rows (no multiply-adds); a
+    refused row leaves the flag, the first general update clears it and the products
+    read W again."""
     n = 8
     rng = np.random.default_rng(11)
     b = Basis(n, 12, rng, lazy=False)
     rows = np.arange(12, dtype=np.int64)  # general rows and bound rows (every fifth)
-    assert b.qi[Q_ID] == 1
+    assert b.qi[Q_ID] == W_PERMUTED
     M, fl = _projections(b, rows)
     assert fl == 0
     np.testing.assert_array_equal(M, b.A)
     ok, _, _ = insert_row(False, b.A, 1, b.bcol, b.bval, b.R, b.p, 1e30, b.q, *b.args())  # refused
-    assert not ok and b.qi[Q_ID] == 1
+    assert not ok and b.qi[Q_ID] == W_PERMUTED
     if update == "push":
         Mr = rng.standard_normal((2, n))
         beta = 2.0 / np.array([Mr[0] @ Mr[0], Mr[1, 1:] @ Mr[1, 1:]])
@@ -314,7 +315,7 @@ def test_bound_rows_enter_an_identity_basis_by_swaps(blocked):
     b.A[dup] = 0.0
     b.A[dup, c] = b.bval[dup] = -1.5
     b.bcol[dup] = c
-    assert b.qi[Q_ID] == W_IDENTITY and basis_permuted(False, b.qi) and not basis_permuted(True, b.qi)
+    assert b.qi[Q_ID] == W_PERMUTED and basis_permuted(False, b.qi) and not basis_permuted(True, b.qi)
     if blocked:
         cand = np.array([*rows[:2], dup, *rows[2:]], dtype=np.int64)
         cok = np.zeros(len(cand), dtype=np.int64)
