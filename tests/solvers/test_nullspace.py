@@ -139,7 +139,8 @@ def test_flop_formula_terms():
 
 
 @pytest.mark.parametrize("name, fn", [("nullspace-svd", flops_svd_recursion),
-                                      ("nullspace-cod", flops_cod_recursion)])
+                                      ("nullspace-cod", flops_cod_recursion)],
+                         ids=["nullspace-svd", "nullspace-cod"])
 def test_solvers_report_flops(name, fn):
     h = g.equality_stack(36, 6, 6, seed=0)
     assert registry.create(name).solve(h).flops == fn(36, [6] * 6)
