@@ -7,7 +7,7 @@ applicable / not reported".
 
 from __future__ import annotations
 
-__all__ = ["COLUMNS", "KEY", "JSON_COLUMNS", "names", "markdown"]
+__all__ = ["COLUMNS", "JSON_COLUMNS", "KEY", "markdown", "names"]
 
 #: (name, description), in CSV order
 COLUMNS: tuple[tuple[str, str], ...] = (

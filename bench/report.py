@@ -19,7 +19,7 @@ from bench.environment import read_run_json
 from bench.results import read_results
 from bench.shgeom import SHIFT_S, charged_times, shifted_geometric_mean, timed
 
-__all__ = ["write_report", "solver_label"]
+__all__ = ["solver_label", "write_report"]
 
 
 def _profile_groups(d: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:

@@ -27,8 +27,8 @@ import pandas as pd
 from bench.columns import JSON_COLUMNS, KEY, names
 from problems.errors import HikbenchError
 
-__all__ = ["ResultsWriter", "read_results", "finished_keys", "finished_rows", "backup", "compact",
-           "RESULTS", "parse_json_column"]
+__all__ = ["RESULTS", "ResultsWriter", "backup", "compact", "finished_keys", "finished_rows",
+           "parse_json_column", "read_results"]
 
 RESULTS = "results.csv"
 

@@ -14,7 +14,7 @@ import numpy as np
 from problems.errors import InvalidHierarchyError, ProblemFileError
 from problems.hierarchy import Hierarchy
 
-__all__ = ["save_npz", "load_npz", "load", "save"]
+__all__ = ["load", "load_npz", "save", "save_npz"]
 
 _REQUIRED = ("A", "lower", "upper", "level", "n")
 _NUMERIC = ("A", "lower", "upper", "x0")  # real numbers (level and n: integers, checked below)

@@ -21,16 +21,16 @@ change which constraints are active.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 import numpy as np
 
 from problems.errors import HikbenchError, UnknownFamilyError
 from problems.hierarchy import Hierarchy, Level
 
-__all__ = ["random_hierarchy", "equality_stack", "ik_like", "degenerate", "DEGENERATE_CASES",
-           "INEQUALITY_MIXES", "Family", "FAMILIES", "generate"]
+__all__ = ["DEGENERATE_CASES", "FAMILIES", "INEQUALITY_MIXES", "Family", "degenerate", "equality_stack",
+           "generate", "ik_like", "random_hierarchy"]
 
 INEQUALITY_MIXES = ("none", "one-sided", "two-sided", "mixed")
 

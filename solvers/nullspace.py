@@ -45,17 +45,17 @@ Kflops (COD all at once; paper 69.5).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg
 
 from problems.hierarchy import Hierarchy
-from solvers.base import NUMERICAL_FAILURE, OPTIMAL, SolveResult, Solver
+from solvers.base import NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
 from solvers.registry import SolverInfo, check_number
 
-__all__ = ["NullspaceSVD", "NullspaceCOD", "PinvAll", "flops_svd_recursion", "flops_cod_recursion",
-           "flops_svd_all_at_once", "flops_cod_all_at_once", "RANK_RTOL"]
+__all__ = ["RANK_RTOL", "NullspaceCOD", "NullspaceSVD", "PinvAll", "flops_cod_all_at_once",
+           "flops_cod_recursion", "flops_svd_all_at_once", "flops_svd_recursion"]
 
 RANK_RTOL = 1e-10  #: default rank threshold, relative to ||J_k||_2
 

@@ -43,11 +43,11 @@ import numpy as np
 
 from problems.errors import HikbenchError
 from problems.hierarchy import Hierarchy
-from solvers.base import ERROR, OPTIMAL, SolveResult, Solver
+from solvers.base import ERROR, OPTIMAL, Solver, SolveResult
 from solvers.registry import SolverInfo
 
-__all__ = ["nullspace_reference", "cascade_reference", "reference_solution", "ReferenceSolver",
-           "RANK_RTOL", "WIDEN_RTOL"]
+__all__ = ["RANK_RTOL", "WIDEN_RTOL", "ReferenceSolver", "cascade_reference", "nullspace_reference",
+           "reference_solution"]
 
 RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
 _ACTIVE_RTOL = 1e-7  #: a constraint within this (relative) distance of its bound is read as active

@@ -7,8 +7,16 @@ import pytest
 
 from problems import Hierarchy, HikbenchError, UnknownFamilyError
 from problems.analysis import level_structure
-from problems.generators import (DEGENERATE_CASES, FAMILIES, INEQUALITY_MIXES, degenerate, equality_stack,
-                                 generate, ik_like, random_hierarchy)
+from problems.generators import (
+    DEGENERATE_CASES,
+    FAMILIES,
+    INEQUALITY_MIXES,
+    degenerate,
+    equality_stack,
+    generate,
+    ik_like,
+    random_hierarchy,
+)
 
 
 def svd_rank(M: np.ndarray) -> int:

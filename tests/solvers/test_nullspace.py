@@ -13,8 +13,12 @@ from problems.errors import SolverOptionError
 from problems.verify import level_norms, level_scales, verify
 from solvers import registry
 from solvers.base import OPTIMAL, UNSUPPORTED
-from solvers.nullspace import (flops_cod_all_at_once, flops_cod_recursion, flops_svd_all_at_once,
-                               flops_svd_recursion)
+from solvers.nullspace import (
+    flops_cod_all_at_once,
+    flops_cod_recursion,
+    flops_svd_all_at_once,
+    flops_svd_recursion,
+)
 from solvers.reference import reference_solution
 
 STRICT = ("nullspace-svd", "nullspace-cod")
