@@ -188,10 +188,10 @@ def _csc(M: np.ndarray):
 # The QP only has to identify the active set: polishing is exact. The label of
 # the attempt that succeeded is recorded per stage.
 _QP_BACKENDS = (
-    ("clarabel", "clarabel", dict(tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10, tol_ktratio=1e-8,
-                                  max_iter=500, verbose=False)),
-    ("piqp", "piqp", dict(eps_abs=1e-10, eps_rel=1e-10, verbose=False)),
-    ("clarabel-default-tol", "clarabel", dict(max_iter=500, verbose=False)),
+    ("clarabel", "clarabel", {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10,
+                              "tol_ktratio": 1e-8, "max_iter": 500, "verbose": False}),
+    ("piqp", "piqp", {"eps_abs": 1e-10, "eps_rel": 1e-10, "verbose": False}),
+    ("clarabel-default-tol", "clarabel", {"max_iter": 500, "verbose": False}),
 )
 
 

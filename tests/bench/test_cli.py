@@ -63,8 +63,8 @@ def test_solve_soth_file(capsys, problem, tmp_path):
 def test_solve_user_errors(capsys, problem, tmp_path, argv, fragments):
     (tmp_path / "g.npz").write_bytes(b"garbage")
     (tmp_path / "b.soth").write_text("variable sizes 2")
-    names = dict(path=problem[1], missing=str(tmp_path / "none.npz"), garbage=str(tmp_path / "g.npz"),
-                 badsoth=str(tmp_path / "b.soth"))
+    names = {"path": problem[1], "missing": str(tmp_path / "none.npz"), "garbage": str(tmp_path / "g.npz"),
+             "badsoth": str(tmp_path / "b.soth")}
     code, _, err = run(capsys, *[a.format(**names) for a in argv])
     assert_user_error(code, err, *fragments)
 

@@ -66,7 +66,8 @@ def _write_npz(path, **arrays):
         np.savez(f, **arrays)
 
 
-GOOD = dict(A=np.eye(2), lower=np.zeros(2), upper=np.ones(2), level=np.array([0, 0]), n=np.int64(2))
+GOOD = {"A": np.eye(2), "lower": np.zeros(2), "upper": np.ones(2), "level": np.array([0, 0]),
+        "n": np.int64(2)}
 
 
 @pytest.mark.parametrize("arrays, error, message", [
