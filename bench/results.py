@@ -66,7 +66,7 @@ class ResultsWriter:
         new = not (self.path.exists() and self.path.stat().st_size)
         if not new:
             _check_header(self.path)
-        self._f = open(self.path, "a", newline="")
+        self._f = open(self.path, "a", newline="")  # noqa: SIM115 - held open for the run, closed by close()
         self._w = csv.DictWriter(self._f, fieldnames=names(), extrasaction="raise")
         if new:
             self._w.writeheader()
