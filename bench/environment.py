@@ -66,7 +66,8 @@ def _git() -> dict:
     root = Path(__file__).resolve().parent.parent
     def git(*args):  # its output, None when git failed (no repository, no git, timeout)
         try:
-            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=10)
+            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True,
+                                  timeout=10, check=False)  # (the return code is read below)
         except (OSError, subprocess.TimeoutExpired):
             return None
         return done.stdout.strip() if done.returncode == 0 else None

@@ -119,9 +119,9 @@ class Hierarchy:
                     f"{label} has shape {arr.shape} but A has {m} rows: expected {label} of shape ({m},)")
         if level_arr.dtype.kind not in "iub" and not (level_arr.dtype.kind == "f" or m == 0):
             raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
-        if m and level_arr.dtype.kind == "f":
-            if not np.all(np.isfinite(level_arr)) or np.any(level_arr != np.round(level_arr)):
-                raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
+        if m and level_arr.dtype.kind == "f" and (not np.all(np.isfinite(level_arr))
+                                                  or np.any(level_arr != np.round(level_arr))):
+            raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
         level_arr = level_arr.astype(np.int64)
         if names is not None:
             names = tuple(str(s) for s in names)

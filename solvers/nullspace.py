@@ -91,7 +91,7 @@ def flops_svd_recursion(n: int, rows_per_level: Sequence[int]) -> int:
         if r == 0:
             continue
         total += n * n * r + _rsvd_thin(n, r) + n * n * r + 2 * n * r + r * r + r
-    return int(round(total))
+    return round(total)
 
 
 def flops_cod_recursion(n: int, rows_per_level: Sequence[int]) -> int:
@@ -105,14 +105,14 @@ def flops_cod_recursion(n: int, rows_per_level: Sequence[int]) -> int:
         if r == 0:
             continue
         total += n * n * r + _qr(n, r, True) + n * n * r + 2 * n * r + r * r + r * r / 2
-    return int(round(total))
+    return round(total)
 
 
 def flops_svd_all_at_once(n: int, rows: int) -> int:
     """Flops of ``u = Jbar^+ ebar`` by SVD of the stacked (rows, n) matrix:
     R-SVD with full U and V ``4 p^2 q + 22 q^3`` + ``2 rows n + q^2`` (apply U^T, S^-1, V)."""
     q = min(rows, n)
-    return int(round(_rsvd_full(rows, n) + rows * q + q + n * q))
+    return round(_rsvd_full(rows, n) + rows * q + q + n * q)
 
 
 def flops_cod_all_at_once(n: int, rows: int) -> int:
@@ -122,7 +122,7 @@ def flops_cod_all_at_once(n: int, rows: int) -> int:
     (multiply-adds), p = max(rows, n), q = min(rows, n). 64.2 Kflops for
     36 x 36 where the paper prints 69.5: the paper's count is not given."""
     p, q = max(rows, n), min(rows, n)
-    return int(round(_qr(p, q, False) + p * q + q * q / 2))
+    return round(_qr(p, q, False) + p * q + q * q / 2)
 
 
 # ---------------------------------------------------------------- solvers

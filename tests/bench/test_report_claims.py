@@ -164,5 +164,5 @@ def test_times_from_several_hosts_are_normalised():
     out, note = normalise_hosts(df)
     np.testing.assert_allclose(out["time_median_s"], [1.0, 1.0, 1.0], rtol=1e-12)
     assert "host a" in note
-    same, note = normalise_hosts(df[df["host"] == "a"])
+    _, note = normalise_hosts(df[df["host"] == "a"])
     assert note.startswith("as measured")

@@ -64,7 +64,7 @@ def _pickled(h):
 def test_pickle_and_copy(dup):
     h = Hierarchy.from_levels([Level.equality(np.eye(2), [1, 2], "a"), Level(np.zeros((0, 2)), [], [])],
                               x0=[0.5, 0.25])
-    h.is_equality  # a cached property must not break pickling
+    _ = h.is_equality  # a cached property (filled here) must not break pickling
     g = dup(h)
     assert g == h
     assert not g.A.flags.writeable
