@@ -16,7 +16,7 @@ import time
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-__all__ = ["calibrate", "KERNEL"]
+__all__ = ["KERNEL", "calibrate"]
 
 KERNEL = "qr+matmul 64x64, 20 iterations, minimum of 7 (ns)"
 

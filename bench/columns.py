@@ -7,12 +7,12 @@ applicable / not reported".
 
 from __future__ import annotations
 
-__all__ = ["COLUMNS", "KEY", "JSON_COLUMNS", "names", "markdown"]
+__all__ = ["COLUMNS", "JSON_COLUMNS", "KEY", "markdown", "names"]
 
 #: (name, description), in CSV order
 COLUMNS: tuple[tuple[str, str], ...] = (
-    ("problem", "problem id: family/param=value,.../seed=S (the file OUT/problems/<id>.npz, each / of the id "
-                "written __)"),
+    ("problem", ("problem id: family/param=value,.../seed=S (the file OUT/problems/<id>.npz, each / of the "
+                 "id written __)")),
     ("family", "problem family (problems.generators.FAMILIES name, or module:function)"),
     ("params", "JSON dict of the family parameters given by the suite (defaults not repeated)"),
     ("seed", "generator seed"),
@@ -30,16 +30,16 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("strict", "True for strict-hierarchy solvers (judged against the lexicographic optimum)"),
     ("mode", "cold (fresh solver object per repetition) or warm (re-solve on one object)"),
     ("repeat", "timed repetitions (after the discarded warm-up; with rounds, over all of them)"),
-    ("status", "solver status (optimal, max_iterations, infeasible_level, numerical_failure, "
-               "unsupported, error) or harness status (timeout: killed after --timeout; "
-               "crashed: the worker process died, e.g. segfault)"),
+    ("status", ("solver status (optimal, max_iterations, infeasible_level, numerical_failure, "
+                "unsupported, error) or harness status (timeout: killed after --timeout; "
+                "crashed: the worker process died, e.g. segfault)")),
     ("reason", "detail for any status other than optimal"),
-    ("verified", "True when the level norms recomputed from x are lexicographically not worse than "
-                 "the reference's (tolerance from the suite's accuracy profile); False otherwise; "
-                 "empty when the reference itself failed"),
+    ("verified", ("True when the level norms recomputed from x are lexicographically not worse than "
+                  "the reference's (tolerance from the suite's accuracy profile); False otherwise; "
+                  "empty when the reference itself failed")),
     ("verdict_level", "first level whose norm differs from the reference beyond tolerance (empty: none)"),
-    ("verdict_side", "at verdict_level: 'worse' (solver higher than reference), 'better', "
-                     "'no x' (no solution), 'no reference'; empty when equal"),
+    ("verdict_side", ("at verdict_level: 'worse' (solver higher than reference), 'better', "
+                      "'no x' (no solution), 'no reference'; empty when equal")),
     ("verdict_diff", "solver norm - reference norm at verdict_level"),
     ("level_norms", "JSON list: ||v_k(x)||_2 per level, recomputed from x (problems.verify.level_norms)"),
     ("ref_level_norms", "JSON list: the same for the reference solution"),
@@ -55,9 +55,9 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("build_time_s", "time the solver reports for assembling matrices (last repetition), seconds"),
     ("solve_time_s", "time the solver (or an external program) reports for itself, seconds"),
     ("samples_ns", "JSON list: every timed repetition, nanoseconds (used by compare)"),
-    ("calib_ns", "calibration kernel time, ns (bench/calibration.py): around this row's timed solves when "
-                 "the suite sets calibrate_each_job, else at the start of the worker process (with rounds, the "
-                 "median of the rounds'); compare divides times by it"),
+    ("calib_ns", ("calibration kernel time, ns (bench/calibration.py): around this row's timed solves when "
+                  "the suite sets calibrate_each_job, else at the start of the worker process (with rounds, "
+                  "the median of the rounds'); compare divides times by it")),
     ("host", "host name of the worker"),
     ("worker", "worker id (pid@host serial, dask worker address with --workers/--scheduler)"),
     ("wall_s", "wall time of the whole job (warm-up + repetitions + transport; with rounds, their sum), seconds"),

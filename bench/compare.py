@@ -35,7 +35,7 @@ from bench.environment import read_run_json
 from bench.results import read_results
 from problems.errors import HikbenchError
 
-__all__ = ["compare_runs", "Comparison", "normalised_samples", "confirmed"]
+__all__ = ["Comparison", "compare_runs", "confirmed", "normalised_samples"]
 
 
 @dataclass

@@ -13,7 +13,7 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["environment", "utc_now", "PACKAGES", "read_run_json", "write_run_json"]
+__all__ = ["PACKAGES", "environment", "read_run_json", "utc_now", "write_run_json"]
 
 PACKAGES = ("hikbench", "numpy", "scipy", "pandas", "numba", "llvmlite", "threadpoolctl", "qpsolvers", "osqp",
             "proxsuite", "clarabel", "daqp", "quadprog", "piqp", "highspy", "cvxpy", "pin",
@@ -22,7 +22,7 @@ RUN_JSON = "run.json"
 
 
 def utc_now() -> str:
-    return _dt.datetime.now(_dt.timezone.utc).isoformat(timespec="seconds")
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
 
 
 def _versions() -> dict:
@@ -66,7 +66,8 @@ def _git() -> dict:
     root = Path(__file__).resolve().parent.parent
     def git(*args):  # its output, None when git failed (no repository, no git, timeout)
         try:
-            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True, timeout=10)
+            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True,
+                                  timeout=10, check=False)  # (the return code is read below)
         except (OSError, subprocess.TimeoutExpired):
             return None
         return done.stdout.strip() if done.returncode == 0 else None

@@ -220,7 +220,7 @@ class DaskExecutor:
         while not stop.wait(1.0):
             try:
                 n = len(self.client.nthreads())
-            except Exception as err:
+            except Exception as err:  # noqa: BLE001 - the watchdog never dies silently: see below
                 if isinstance(err, OSError) or stop.is_set() or self.client.status != "running":
                     return  # the client closed or the scheduler went away: the run is over
                 # any other failure leaves the run unguarded (a silent hang if the workers go): end it

@@ -27,6 +27,7 @@ daemonic Dask worker processes.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import pickle
 import select
@@ -140,16 +141,13 @@ class IsolatedWorker:
     def start(self) -> None:
         self.close()
         self._warmed = set()
-        err = open(self.log, "ab") if self.log else None
-        try:
+        # the child gets its own copy of the log's descriptor: ours is closed once it is started
+        with (open(self.log, "ab") if self.log else contextlib.nullcontext()) as err:
             # own session: a Ctrl-C in the terminal interrupts the run, not the solve (no bogus
             # `crashed` row); the child dies with its parent through PR_SET_PDEATHSIG (Linux)
             self.proc = subprocess.Popen([sys.executable, "-m", "bench.isolation"], stdin=subprocess.PIPE,
                                          stdout=subprocess.PIPE, stderr=err, env=self._env(),
                                          start_new_session=True)
-        finally:
-            if err is not None:
-                err.close()
         try:
             self.info = _read_frame(self.proc.stdout.fileno(), time.monotonic() + self.startup_timeout)
         except (_Timeout, _Closed) as exc:

@@ -17,8 +17,8 @@ import pandas as pd
 
 from bench.shgeom import loglog_fit, performance_profile, timed
 
-__all__ = ["sweeps", "plot_sweep", "plot_success", "plot_profiles", "plot_accuracy", "plot_cold_warm",
-           "loglog_slope"]
+__all__ = ["loglog_slope", "plot_accuracy", "plot_cold_warm", "plot_profiles", "plot_success", "plot_sweep",
+           "sweeps"]
 
 _STYLE = {"figsize": (9.5, 5.0), "dpi": 110}
 

@@ -21,7 +21,7 @@ import numpy as np
 from problems.errors import HikbenchError
 from problems.hierarchy import Hierarchy
 
-__all__ = ["ProblemSpec", "load_object", "generate", "problem_columns", "file_stem"]
+__all__ = ["ProblemSpec", "file_stem", "generate", "load_object", "problem_columns"]
 
 
 def load_object(spec: str):

@@ -19,7 +19,7 @@ from bench.environment import read_run_json
 from bench.results import read_results
 from bench.shgeom import SHIFT_S, charged_times, shifted_geometric_mean, timed
 
-__all__ = ["write_report", "solver_label"]
+__all__ = ["solver_label", "write_report"]
 
 
 def _profile_groups(d: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:
@@ -140,13 +140,13 @@ def write_report(run_dir) -> Path:
         ["BLAS", "; ".join(f"{t.get('internal_api')} {t.get('version')} ({t.get('num_threads')} threads)"
                            for t in env.get("blas", {}).get("threadpools",
                                                             [])) + "; solves timed at 1 thread"],
-        ["calibration kernel", f"{meta.get('calibration_ns', float('nan')) / 1e6:.3f} ms "
-                               f"({meta.get('calibration_kernel', '')})"],
+        ["calibration kernel", (f"{meta.get('calibration_ns', float('nan')) / 1e6:.3f} ms "
+                                f"({meta.get('calibration_kernel', '')})")],
         ["accuracy", json.dumps(meta.get("accuracy", {}))],
         ["rows", str(len(df))],
         ["times", norm_note],
-        ["runtime aggregate", f"shifted geometric mean, shift {SHIFT_S * 1e6:g} us; "
-                              f"unverified rows charged {penalty:g} s (the job timeout)"],
+        ["runtime aggregate", (f"shifted geometric mean, shift {SHIFT_S * 1e6:g} us; "
+                               f"unverified rows charged {penalty:g} s (the job timeout)")],
     ])
     L += _table("Package versions", ["package", "version"],
                 [[k, v if v else "not installed"] for k, v in sorted(env.get("versions", {}).items())])

@@ -27,8 +27,8 @@ import pandas as pd
 from bench.columns import JSON_COLUMNS, KEY, names
 from problems.errors import HikbenchError
 
-__all__ = ["ResultsWriter", "read_results", "finished_keys", "finished_rows", "backup", "compact",
-           "RESULTS", "parse_json_column"]
+__all__ = ["RESULTS", "ResultsWriter", "backup", "compact", "finished_keys", "finished_rows",
+           "parse_json_column", "read_results"]
 
 RESULTS = "results.csv"
 
@@ -66,7 +66,7 @@ class ResultsWriter:
         new = not (self.path.exists() and self.path.stat().st_size)
         if not new:
             _check_header(self.path)
-        self._f = open(self.path, "a", newline="")
+        self._f = open(self.path, "a", newline="")  # noqa: SIM115 - held open for the run, closed by close()
         self._w = csv.DictWriter(self._f, fieldnames=names(), extrasaction="raise")
         if new:
             self._w.writeheader()

@@ -21,7 +21,7 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-__all__ = ["shifted_geometric_mean", "timed", "charged_times", "performance_profile", "loglog_fit", "SHIFT_S"]
+__all__ = ["SHIFT_S", "charged_times", "loglog_fit", "performance_profile", "shifted_geometric_mean", "timed"]
 
 SHIFT_S = 1e-5  #: 10 us
 

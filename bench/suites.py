@@ -59,7 +59,7 @@ from bench.problemset import ProblemSpec, load_object
 from bench.worker import solver_info
 from problems.errors import HikbenchError, SolverNotFoundError
 
-__all__ = ["Suite", "SolverEntry", "Task", "load_suite", "builtin_suites", "resolve_solvers", "ACCURACY"]
+__all__ = ["ACCURACY", "SolverEntry", "Suite", "Task", "builtin_suites", "load_suite", "resolve_solvers"]
 
 SUITES_DIR = Path(__file__).with_name("suites")
 

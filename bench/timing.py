@@ -14,9 +14,9 @@ from __future__ import annotations
 
 import gc
 import time
+from collections.abc import Callable
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 from threadpoolctl import threadpool_limits
@@ -24,7 +24,7 @@ from threadpoolctl import threadpool_limits
 from problems.hierarchy import Hierarchy
 from solvers.base import Solver, SolveResult
 
-__all__ = ["Timing", "time_solves", "quiet_timing", "MODES"]
+__all__ = ["MODES", "Timing", "quiet_timing", "time_solves"]
 
 MODES = ("cold", "warm")
 

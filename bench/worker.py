@@ -86,7 +86,7 @@ def execute(job: dict, notify=None) -> dict:
         if calib:
             out["calib_ns"] = min(calib[0], calibrate(reps=3))  # around the timed solves
         return out
-    except Exception as err:
+    except Exception as err:  # noqa: BLE001 - a failing job costs its row (status error + reason)
         tb = traceback.extract_tb(err.__traceback__)
         where = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
         return {**base, "status": ERROR, "reason": f"{type(err).__name__}: {err}{where}", "x": None,

@@ -27,7 +27,7 @@ import numpy as np
 
 from problems.hierarchy import Hierarchy
 
-__all__ = ["LevelStructure", "level_structure", "RANK_RTOL"]
+__all__ = ["RANK_RTOL", "LevelStructure", "level_structure"]
 
 RANK_RTOL = 1e-10  #: singular values <= RANK_RTOL * ||A_k||_2 count as zero
 

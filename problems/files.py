@@ -14,7 +14,7 @@ import numpy as np
 from problems.errors import InvalidHierarchyError, ProblemFileError
 from problems.hierarchy import Hierarchy
 
-__all__ = ["save_npz", "load_npz", "load", "save"]
+__all__ = ["load", "load_npz", "save", "save_npz"]
 
 _REQUIRED = ("A", "lower", "upper", "level", "n")
 _NUMERIC = ("A", "lower", "upper", "x0")  # real numbers (level and n: integers, checked below)
@@ -31,8 +31,8 @@ def _array(z, key: str, path) -> np.ndarray:
 
 def save_npz(h: Hierarchy, path: str | os.PathLike) -> None:
     """Write h to ``path`` (``.npz``, uncompressed)."""
-    arrays = dict(A=h.A, lower=h.lower, upper=h.upper, level=h.level, n=np.int64(h.n),
-                  names=np.array(h.names, dtype=str))
+    arrays = {"A": h.A, "lower": h.lower, "upper": h.upper, "level": h.level, "n": np.int64(h.n),
+              "names": np.array(h.names, dtype=str)}
     if h.x0 is not None:
         arrays["x0"] = h.x0
     try:

@@ -21,16 +21,16 @@ change which constraints are active.
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Callable, Sequence
 
 import numpy as np
 
 from problems.errors import HikbenchError, UnknownFamilyError
 from problems.hierarchy import Hierarchy, Level
 
-__all__ = ["random_hierarchy", "equality_stack", "ik_like", "degenerate", "DEGENERATE_CASES",
-           "INEQUALITY_MIXES", "Family", "FAMILIES", "generate"]
+__all__ = ["DEGENERATE_CASES", "FAMILIES", "INEQUALITY_MIXES", "Family", "degenerate", "equality_stack",
+           "generate", "ik_like", "random_hierarchy"]
 
 INEQUALITY_MIXES = ("none", "one-sided", "two-sided", "mixed")
 
@@ -339,20 +339,21 @@ class Family:
 
 FAMILIES: dict[str, Family] = {f.name: f for f in (
     Family("equality", "equality levels, A and targets N(0,1), full rank unless rank is given",
-           equality_stack, dict(n=36, depth=6, rows=6, rank=None)),
+           equality_stack, {"n": 36, "depth": 6, "rows": 6, "rank": None}),
     Family("dof-sweep", "equality stack at fixed depth and task size, sweeping the DOF n",
-           equality_stack, dict(n=36, depth=5, rows=6, rank=None),
-           sweep=dict(n=[12, 18, 24, 36, 50, 80, 120])),
+           equality_stack, {"n": 36, "depth": 5, "rows": 6, "rank": None},
+           sweep={"n": [12, 18, 24, 36, 50, 80, 120]}),
     Family("depth-sweep", "equality stack at fixed DOF, sweeping the depth past saturation",
-           equality_stack, dict(n=36, depth=6, rows=6, rank=None),
-           sweep=dict(depth=[1, 2, 3, 4, 6, 8, 12, 16, 24])),
+           equality_stack, {"n": 36, "depth": 6, "rows": 6, "rank": None},
+           sweep={"depth": [1, 2, 3, 4, 6, 8, 12, 16, 24]}),
     Family("ik-like", "box, 6 equalities, 2n/3 one-sided rows, 6 conflicting equalities, posture",
-           ik_like, dict(n=20), sweep=dict(n=[20, 40, 80])),
+           ik_like, {"n": 20}, sweep={"n": [20, 40, 80]}),
     Family("random", "random hierarchy: ranks, conflicts, inequality mix, conditioning, row scaling",
-           random_hierarchy, dict(n=20, depth=4, rows=5, rank=None, shared_rank=0, inequality="mixed",
-                                  box=True, box_bound=1.0, equality_fraction=0.0, cond=1.0, row_scale=1.0)),
+           random_hierarchy, {"n": 20, "depth": 4, "rows": 5, "rank": None, "shared_rank": 0,
+                              "inequality": "mixed", "box": True, "box_bound": 1.0, "equality_fraction": 0.0,
+                              "cond": 1.0, "row_scale": 1.0}),
     Family("degenerate", "degenerate cases: " + ", ".join(DEGENERATE_CASES),
-           degenerate, dict(case="rank_deficient", n=12), sweep=dict(case=list(DEGENERATE_CASES))),
+           degenerate, {"case": "rank_deficient", "n": 12}, sweep={"case": list(DEGENERATE_CASES)}),
 )}
 
 

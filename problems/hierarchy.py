@@ -18,9 +18,9 @@ validated once at construction. Every validation error is an
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Iterable, Sequence
 
 import numpy as np
 
@@ -53,7 +53,7 @@ class Level:
     name: str = ""
 
     @classmethod
-    def equality(cls, A, b, name: str = "") -> "Level":
+    def equality(cls, A, b, name: str = "") -> Level:
         """Equality rows ``A x = b``."""
         b = np.asarray(b, dtype=float)
         return cls(np.asarray(A, dtype=float), b, b.copy(), name)
@@ -92,7 +92,7 @@ class Hierarchy:
         of ``[0, depth)``. The message names the level and the row.
     """
 
-    __slots__ = ("A", "lower", "upper", "level", "n", "depth", "names", "x0", "__dict__")
+    __slots__ = ("A", "__dict__", "depth", "level", "lower", "n", "names", "upper", "x0")
 
     def __init__(self, A, lower, upper, level, n: int | None = None, depth: int | None = None,
                  names: Sequence[str] | None = None, x0=None):
@@ -119,9 +119,9 @@ class Hierarchy:
                     f"{label} has shape {arr.shape} but A has {m} rows: expected {label} of shape ({m},)")
         if level_arr.dtype.kind not in "iub" and not (level_arr.dtype.kind == "f" or m == 0):
             raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
-        if m and level_arr.dtype.kind == "f":
-            if not np.all(np.isfinite(level_arr)) or np.any(level_arr != np.round(level_arr)):
-                raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
+        if m and level_arr.dtype.kind == "f" and (not np.all(np.isfinite(level_arr))
+                                                  or np.any(level_arr != np.round(level_arr))):
+            raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
         level_arr = level_arr.astype(np.int64)
         if names is not None:
             names = tuple(str(s) for s in names)
@@ -178,7 +178,7 @@ class Hierarchy:
 
     # -- construction helpers -------------------------------------------------
     @classmethod
-    def from_levels(cls, levels: Iterable[Level], n: int | None = None, x0=None) -> "Hierarchy":
+    def from_levels(cls, levels: Iterable[Level], n: int | None = None, x0=None) -> Hierarchy:
         """Stack :class:`Level` objects, the first one the highest priority."""
         levels = list(levels)
         if n is None:
@@ -281,7 +281,7 @@ class Hierarchy:
     def rows_per_level(self) -> np.ndarray:
         return np.diff(self.starts)
 
-    def with_bounds(self, lower, upper) -> "Hierarchy":
+    def with_bounds(self, lower, upper) -> Hierarchy:
         """The same rows with new bounds (a new time step of a trajectory)."""
         return Hierarchy(self.A, lower, upper, self.level, n=self.n, depth=self.depth,
                          names=self.names, x0=self.x0)

@@ -69,12 +69,13 @@ from __future__ import annotations
 
 import math
 import os
+
 import numpy as np
 
 from problems.errors import InvalidHierarchyError, ProblemFileError
 from problems.hierarchy import Hierarchy
 
-__all__ = ["to_soth_text", "from_soth_text", "save_soth", "load_soth", "soth_order", "NO_BOUND"]
+__all__ = ["NO_BOUND", "from_soth_text", "load_soth", "save_soth", "soth_order", "to_soth_text"]
 
 NO_BOUND = 1e25  #: magnitude written for a missing side; |bound| >= NO_BOUND reads as no bound
 

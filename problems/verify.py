@@ -22,7 +22,7 @@ import numpy as np
 from problems.errors import HikbenchError
 from problems.hierarchy import Hierarchy
 
-__all__ = ["violation", "level_norms", "level_scales", "compare_lexicographic", "Verdict", "verify"]
+__all__ = ["Verdict", "compare_lexicographic", "level_norms", "level_scales", "verify", "violation"]
 
 
 def _check_x(h: Hierarchy, x) -> np.ndarray:

@@ -2,7 +2,7 @@
 (:class:`solvers.base.Solver`), one result type (:class:`solvers.base.SolveResult`)
 and a registry (:mod:`solvers.registry`). Imports ``problems``, never ``bench``."""
 
-from solvers.base import STATUSES, SolveResult, Solver
+from solvers.base import STATUSES, Solver, SolveResult
 from solvers.registry import SolverInfo, available, create, get
 
-__all__ = ["Solver", "SolveResult", "STATUSES", "SolverInfo", "available", "create", "get"]
+__all__ = ["STATUSES", "SolveResult", "Solver", "SolverInfo", "available", "create", "get"]

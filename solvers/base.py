@@ -17,8 +17,8 @@ import numpy as np
 
 from problems.hierarchy import Hierarchy
 
-__all__ = ["Solver", "SolveResult", "STATUSES", "OPTIMAL", "MAX_ITERATIONS", "INFEASIBLE_LEVEL",
-           "NUMERICAL_FAILURE", "UNSUPPORTED", "TIMEOUT", "CRASHED", "ERROR"]
+__all__ = ["CRASHED", "ERROR", "INFEASIBLE_LEVEL", "MAX_ITERATIONS", "NUMERICAL_FAILURE", "OPTIMAL",
+           "STATUSES", "TIMEOUT", "UNSUPPORTED", "SolveResult", "Solver"]
 
 OPTIMAL = "optimal"                      #: every level solved to the solver's accuracy
 MAX_ITERATIONS = "max_iterations"        #: an iteration cap was hit; x is the last iterate

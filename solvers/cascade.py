@@ -56,11 +56,18 @@ import scipy.sparse as spa
 from problems.errors import SolverOptionError
 from problems.hierarchy import Hierarchy
 from solvers import _qp_backends as tables
-from solvers.base import (ERROR, INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL,
-                          SolveResult, Solver)
+from solvers.base import (
+    ERROR,
+    INFEASIBLE_LEVEL,
+    MAX_ITERATIONS,
+    NUMERICAL_FAILURE,
+    OPTIMAL,
+    Solver,
+    SolveResult,
+)
 from solvers.registry import SolverInfo, check_choice, check_int, check_number
 
-__all__ = ["CascadeBase", "QPSolversCascade", "FREEZE_MODES", "freeze_level", "level_qp"]
+__all__ = ["FREEZE_MODES", "CascadeBase", "QPSolversCascade", "freeze_level", "level_qp"]
 
 FREEZE_MODES = ("shift", "equality", "relaxed")
 

@@ -64,10 +64,10 @@ import numpy as np
 import scipy.linalg
 
 from problems.hierarchy import Hierarchy
-from solvers.base import INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, SolveResult, Solver
+from solvers.base import INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
 from solvers.registry import SolverInfo, check_int, check_number, check_numbers
 
-__all__ = ["Weighted", "DLS", "DLSLiegeois", "liegeois_gradient", "box_limits", "box_excess", "BOX_RTOL"]
+__all__ = ["BOX_RTOL", "DLS", "DLSLiegeois", "Weighted", "box_excess", "box_limits", "liegeois_gradient"]
 
 #: dls-liegeois: x may leave a limit by ``BOX_RTOL (1 + |limit|)`` and still be ``optimal``
 BOX_RTOL = 1e-9

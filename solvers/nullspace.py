@@ -45,17 +45,17 @@ Kflops (COD all at once; paper 69.5).
 
 from __future__ import annotations
 
-from typing import Sequence
+from collections.abc import Sequence
 
 import numpy as np
 import scipy.linalg
 
 from problems.hierarchy import Hierarchy
-from solvers.base import NUMERICAL_FAILURE, OPTIMAL, SolveResult, Solver
+from solvers.base import NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
 from solvers.registry import SolverInfo, check_number
 
-__all__ = ["NullspaceSVD", "NullspaceCOD", "PinvAll", "flops_svd_recursion", "flops_cod_recursion",
-           "flops_svd_all_at_once", "flops_cod_all_at_once", "RANK_RTOL"]
+__all__ = ["RANK_RTOL", "NullspaceCOD", "NullspaceSVD", "PinvAll", "flops_cod_all_at_once",
+           "flops_cod_recursion", "flops_svd_all_at_once", "flops_svd_recursion"]
 
 RANK_RTOL = 1e-10  #: default rank threshold, relative to ||J_k||_2
 
@@ -91,7 +91,7 @@ def flops_svd_recursion(n: int, rows_per_level: Sequence[int]) -> int:
         if r == 0:
             continue
         total += n * n * r + _rsvd_thin(n, r) + n * n * r + 2 * n * r + r * r + r
-    return int(round(total))
+    return round(total)
 
 
 def flops_cod_recursion(n: int, rows_per_level: Sequence[int]) -> int:
@@ -105,14 +105,14 @@ def flops_cod_recursion(n: int, rows_per_level: Sequence[int]) -> int:
         if r == 0:
             continue
         total += n * n * r + _qr(n, r, True) + n * n * r + 2 * n * r + r * r + r * r / 2
-    return int(round(total))
+    return round(total)
 
 
 def flops_svd_all_at_once(n: int, rows: int) -> int:
     """Flops of ``u = Jbar^+ ebar`` by SVD of the stacked (rows, n) matrix:
     R-SVD with full U and V ``4 p^2 q + 22 q^3`` + ``2 rows n + q^2`` (apply U^T, S^-1, V)."""
     q = min(rows, n)
-    return int(round(_rsvd_full(rows, n) + rows * q + q + n * q))
+    return round(_rsvd_full(rows, n) + rows * q + q + n * q)
 
 
 def flops_cod_all_at_once(n: int, rows: int) -> int:
@@ -122,7 +122,7 @@ def flops_cod_all_at_once(n: int, rows: int) -> int:
     (multiply-adds), p = max(rows, n), q = min(rows, n). 64.2 Kflops for
     36 x 36 where the paper prints 69.5: the paper's count is not given."""
     p, q = max(rows, n), min(rows, n)
-    return int(round(_qr(p, q, False) + p * q + q * q / 2))
+    return round(_qr(p, q, False) + p * q + q * q / 2)
 
 
 # ---------------------------------------------------------------- solvers

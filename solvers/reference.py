@@ -43,11 +43,11 @@ import numpy as np
 
 from problems.errors import HikbenchError
 from problems.hierarchy import Hierarchy
-from solvers.base import ERROR, OPTIMAL, SolveResult, Solver
+from solvers.base import ERROR, OPTIMAL, Solver, SolveResult
 from solvers.registry import SolverInfo
 
-__all__ = ["nullspace_reference", "cascade_reference", "reference_solution", "ReferenceSolver",
-           "RANK_RTOL", "WIDEN_RTOL"]
+__all__ = ["RANK_RTOL", "WIDEN_RTOL", "ReferenceSolver", "cascade_reference", "nullspace_reference",
+           "reference_solution"]
 
 RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
 _ACTIVE_RTOL = 1e-7  #: a constraint within this (relative) distance of its bound is read as active
@@ -188,10 +188,10 @@ def _csc(M: np.ndarray):
 # The QP only has to identify the active set: polishing is exact. The label of
 # the attempt that succeeded is recorded per stage.
 _QP_BACKENDS = (
-    ("clarabel", "clarabel", dict(tol_gap_abs=1e-10, tol_gap_rel=1e-10, tol_feas=1e-10, tol_ktratio=1e-8,
-                                  max_iter=500, verbose=False)),
-    ("piqp", "piqp", dict(eps_abs=1e-10, eps_rel=1e-10, verbose=False)),
-    ("clarabel-default-tol", "clarabel", dict(max_iter=500, verbose=False)),
+    ("clarabel", "clarabel", {"tol_gap_abs": 1e-10, "tol_gap_rel": 1e-10, "tol_feas": 1e-10,
+                              "tol_ktratio": 1e-8, "max_iter": 500, "verbose": False}),
+    ("piqp", "piqp", {"eps_abs": 1e-10, "eps_rel": 1e-10, "verbose": False}),
+    ("clarabel-default-tol", "clarabel", {"max_iter": 500, "verbose": False}),
 )
 
 

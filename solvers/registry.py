@@ -16,18 +16,18 @@ from __future__ import annotations
 import importlib
 import inspect
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import metadata
 from numbers import Integral, Real
-from typing import Callable
 
 import numpy as np
 
 from problems.errors import SolverNotFoundError, SolverOptionError
 from solvers.base import Solver
 
-__all__ = ["SolverInfo", "available", "get", "build", "create", "missing", "option_names", "check_number", "check_bool",
-           "check_int", "check_numbers", "check_choice"]
+__all__ = ["SolverInfo", "available", "build", "check_bool", "check_choice", "check_int", "check_number",
+           "check_numbers", "create", "get", "missing", "option_names"]
 
 _BUILTIN_MODULES: tuple[str, ...] = (
     "solvers.reference",

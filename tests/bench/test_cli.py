@@ -63,14 +63,14 @@ def test_solve_soth_file(capsys, problem, tmp_path):
 def test_solve_user_errors(capsys, problem, tmp_path, argv, fragments):
     (tmp_path / "g.npz").write_bytes(b"garbage")
     (tmp_path / "b.soth").write_text("variable sizes 2")
-    names = dict(path=problem[1], missing=str(tmp_path / "none.npz"), garbage=str(tmp_path / "g.npz"),
-                 badsoth=str(tmp_path / "b.soth"))
+    names = {"path": problem[1], "missing": str(tmp_path / "none.npz"), "garbage": str(tmp_path / "g.npz"),
+             "badsoth": str(tmp_path / "b.soth")}
     code, _, err = run(capsys, *[a.format(**names) for a in argv])
     assert_user_error(code, err, *fragments)
 
 
 # ---------------------------------------------------------------- generate
-@pytest.mark.parametrize("fmt, ext", [("npz", ".npz"), ("soth", ".soth")])
+@pytest.mark.parametrize("fmt, ext", [("npz", ".npz"), ("soth", ".soth")], ids=["npz", "soth"])
 def test_generate_writes_loadable_deterministic_files(capsys, tmp_path, fmt, ext):
     out_dir = tmp_path / "gen"
     code, out, err = run(capsys, "generate", "random", "--seed", "4", "--seeds", "2", "--param", "n=6",
@@ -167,7 +167,8 @@ def test_export_user_errors(capsys, problem, tmp_path, argv, fragments):
 
 
 # -------------------------------------------------------------------- list
-@pytest.mark.parametrize("what, expected", [("solvers", "reference"), ("families", "ik-like"), ("robots", "talos")])
+@pytest.mark.parametrize("what, expected", [("solvers", "reference"), ("families", "ik-like"), ("robots", "talos")],
+                         ids=["solvers", "families", "robots"])
 def test_list(capsys, what, expected):
     code, out, _ = run(capsys, "list", what)
     assert code == 0

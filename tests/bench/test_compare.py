@@ -16,9 +16,9 @@ def _frame(samples: dict, calib=1_000_000, verified=True, host="h"):
     rows = []
     for (problem, solver), s in samples.items():
         s = np.asarray(s, dtype=np.int64)
-        rows.append(dict(problem=problem, solver=solver, settings="default", mode="cold", status="optimal",
-                         verified=verified, time_median_s=float(np.median(s)) * 1e-9,
-                         samples_ns=json.dumps(s.tolist()), calib_ns=calib, host=host))
+        rows.append({"problem": problem, "solver": solver, "settings": "default", "mode": "cold",
+                     "status": "optimal", "verified": verified, "time_median_s": float(np.median(s)) * 1e-9,
+                     "samples_ns": json.dumps(s.tolist()), "calib_ns": calib, "host": host})
     return pd.DataFrame(rows)
 
 

@@ -3,7 +3,6 @@
 from pathlib import Path
 
 import pandas as pd
-
 from doubles import spec, write_suite
 
 from bench.cli import main

@@ -206,11 +206,11 @@ def test_first_solve_allowance(tmp_path):
 
 def test_worker_dies_with_a_killed_run(tmp_path):
     """SIGKILL of the parent during a hanging solve leaves no orphan worker."""
-    code = ("import sys, time; sys.path.insert(0, %r)\n"
+    code = (f"import sys, time; sys.path.insert(0, {str(Path(__file__).parent)!r})\n"
             "from bench.isolation import IsolatedWorker\nfrom doubles import tiny, spec\n"
             "w = IsolatedWorker(); w.start(); print(w.proc.pid, flush=True)\n"
             "w.run({'kind': 'solve', 'hierarchy': tiny(), 'solver': spec('HangSolver'), 'options': {},"
-            " 'mode': 'cold', 'repeat': 1, 'warmup': 1}, timeout=60)\n") % str(Path(__file__).parent)
+            " 'mode': 'cold', 'repeat': 1, 'warmup': 1}, timeout=60)\n")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
     with subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, text=True, env=env) as proc:
         child = int(proc.stdout.readline())

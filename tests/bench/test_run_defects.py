@@ -143,8 +143,8 @@ def test_bad_suite_values_are_one_line_errors(tmp_path, capsys, text, message):
     ([SLEEP], {"solver": "sleep", "name": "slow", "options": {"dleay": 0.1}},
      "[[settings]] 'slow': solver 'sleep': unknown option(s) 'dleay'; allowed options: delay"),
     ([SLEEP], {"solver": "sleep", "name": "slow", "options": {"delay": "abc"}},
-     "[[settings]] 'slow': solver 'sleep' rejected its options {'delay': 'abc'}: ValueError: could not convert "
-     "string to float: 'abc'"),
+     ("[[settings]] 'slow': solver 'sleep' rejected its options {'delay': 'abc'}: ValueError: could not "
+      "convert string to float: 'abc'")),
     (["hcod"], {"solver": "hcdo", "name": "x", "options": {}},
      "[[settings]] 'x': solver 'hcdo' is not one of the suite's solvers (hcod)"),
 ], ids=["registry-unknown-name", "registry-bad-value", "class-unknown-name", "class-bad-value",

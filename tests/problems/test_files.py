@@ -66,7 +66,8 @@ def _write_npz(path, **arrays):
         np.savez(f, **arrays)
 
 
-GOOD = dict(A=np.eye(2), lower=np.zeros(2), upper=np.ones(2), level=np.array([0, 0]), n=np.int64(2))
+GOOD = {"A": np.eye(2), "lower": np.zeros(2), "upper": np.ones(2), "level": np.array([0, 0]),
+        "n": np.int64(2)}
 
 
 @pytest.mark.parametrize("arrays, error, message", [
@@ -196,13 +197,14 @@ def test_soth_no_bound_threshold(bound, read_as):
     ("variable length 2", r"line 1: expected 'size', got 'length'"),
     ("variable size two", r"line 1: expected the number of variables n \(a nonnegative integer\), got 'two'"),
     ("variable size -2", r"expected the number of variables n \(a nonnegative integer\), got '-2'"),
-    ("variable size 2\n\nlevel\nequalities 1\n1 2\n", r"line 5: expected level 0, equality row 0: "
-                                                       r"the target b after 2 coefficients, got end of file"),
-    ("variable size 2\nlevel\nequalities 1\n1 x 3\n", r"line 4: expected level 0, equality row 0: "
-                                                      r"coefficient a_2 of 2 \(a number\), got 'x'"),
+    ("variable size 2\n\nlevel\nequalities 1\n1 2\n", (r"line 5: expected level 0, equality row 0: "
+                                                        r"the target b after 2 coefficients, "
+                                                        r"got end of file")),
+    ("variable size 2\nlevel\nequalities 1\n1 x 3\n", (r"line 4: expected level 0, equality row 0: "
+                                                       r"coefficient a_2 of 2 \(a number\), got 'x'")),
     ("variable size 2\nlevel\nequalities 0\ninequalities 1\n1 2 nan 3\nend",
-     r"line 5: expected level 0, inequality row 0: the lower bound after 2 coefficients "
-     r"\(a number, not NaN\)"),
+     (r"line 5: expected level 0, inequality row 0: the lower bound after 2 coefficients "
+      r"\(a number, not NaN\)")),
     ("variable size 1\nlevel\nequalities 0\nineq 0\nend", r"line 4: expected 'inequalities', got 'ineq'"),
     ("variable size 1\nlevel\nequalities 1.5", r"line 3: expected level 0: the number of equality rows"),
     ("variable size 1\nlevel\nequalities 0\ninequalities 0\n",

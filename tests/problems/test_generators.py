@@ -7,8 +7,16 @@ import pytest
 
 from problems import Hierarchy, HikbenchError, UnknownFamilyError
 from problems.analysis import level_structure
-from problems.generators import (DEGENERATE_CASES, FAMILIES, INEQUALITY_MIXES, degenerate, equality_stack,
-                                 generate, ik_like, random_hierarchy)
+from problems.generators import (
+    DEGENERATE_CASES,
+    FAMILIES,
+    INEQUALITY_MIXES,
+    degenerate,
+    equality_stack,
+    generate,
+    ik_like,
+    random_hierarchy,
+)
 
 
 def svd_rank(M: np.ndarray) -> int:
@@ -60,7 +68,7 @@ def test_box_is_level_zero_and_tasks_keep_their_structure():
     assert ranks_and_conflicts(h, first=1) == [(3, 0), (2, 1)]
 
 
-@pytest.mark.parametrize("cond", [1.0, 10.0, 1e6])
+@pytest.mark.parametrize("cond", [1.0, 10.0, 1e6], ids=["cond1", "cond10", "cond1e6"])
 def test_random_hierarchy_condition_number(cond):
     h = random_hierarchy(10, 3, 4, cond=cond, seed=5)
     for k in range(h.depth):
@@ -88,7 +96,8 @@ def test_random_hierarchy_inequality_mix(inequality, check):
     assert not h.is_free.any()
 
 
-@pytest.mark.parametrize("fraction, expected", [(0.0, 0.0), (1.0, 1.0), (0.4, 0.4)])
+@pytest.mark.parametrize("fraction, expected", [(0.0, 0.0), (1.0, 1.0), (0.4, 0.4)],
+                         ids=["fraction0", "fraction1", "fraction0.4"])
 def test_equality_fraction(fraction, expected):
     h = random_hierarchy(10, 5, 40, rank=10, inequality="mixed", equality_fraction=fraction, seed=0)
     np.testing.assert_allclose(h.is_equality.mean(), expected, atol=0.1)
@@ -117,7 +126,7 @@ def test_depth_sweep_goes_past_saturation():
     assert ranks_and_conflicts(h)[-1][1] == d["rows"]  # the last level is entirely decided above
 
 
-@pytest.mark.parametrize("n", [7, 30])
+@pytest.mark.parametrize("n", [7, 30], ids=lambda n: f"n{n}")
 def test_equality_stack(n):
     h = equality_stack(n, 4, 5, seed=1)
     assert not h.has_inequalities

@@ -88,11 +88,11 @@ def test_level_scales_by_hand():
     # level 0 decides even though a is far worse below: 0.9 < 1.0 -> a lower, difference -0.1
     ([0.9, 100.0], [1.0, 0.0], {}, 0, "a", 0.9 - 1.0),
     # 1e-6 apart: tolerance 1e-9 * 1e4 = 1e-5 -> equal ...
-    ([1.0], [1.0 + 1e-6], dict(scales=[1e4]), None, None, 0.0),
+    ([1.0], [1.0 + 1e-6], {"scales": [1e4]}, None, None, 0.0),
     # ... but with scale 1 the tolerance is 1e-9 -> b is worse (higher), a lower, difference -1e-6
-    ([1.0], [1.0 + 1e-6], dict(scales=[1.0]), 0, "a", 1.0 - (1.0 + 1e-6)),
+    ([1.0], [1.0 + 1e-6], {"scales": [1.0]}, 0, "a", 1.0 - (1.0 + 1e-6)),
     # atol adds to the tolerance: 1e-6 <= 0 + 2e-6 -> equal
-    ([1.0], [1.0 + 1e-6], dict(rtol=0.0, atol=2e-6), None, None, 0.0),
+    ([1.0], [1.0 + 1e-6], {"rtol": 0.0, "atol": 2e-6}, None, None, 0.0),
     # NaN is worse than any number: a = NaN at level 1 -> b lower
     ([0.0, np.nan], [0.0, 7.0], {}, 1, "b", np.nan),
     ([0.0, 7.0], [0.0, np.nan], {}, 1, "a", np.nan),
@@ -109,7 +109,7 @@ def test_compare_lexicographic_by_hand(a, b, kwargs, level, lower, difference):
 
 @pytest.mark.parametrize("a, b, kwargs, message", [
     ([1.0, 2.0], [1.0], {}, r"norm vectors must have the same 1-D shape; got \(2,\) and \(1,\)"),
-    ([1.0], [1.0], dict(scales=[1.0, 2.0]), r"scales has shape \(2,\): expected \(1,\)"),
+    ([1.0], [1.0], {"scales": [1.0, 2.0]}, r"scales has shape \(2,\): expected \(1,\)"),
 ], ids=["shapes", "scales"])
 def test_compare_lexicographic_bad_input(a, b, kwargs, message):
     with pytest.raises(HikbenchError, match=message):

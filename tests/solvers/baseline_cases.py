@@ -3,7 +3,7 @@ cascades cost a few ms per level)."""
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 
@@ -34,12 +34,12 @@ BIG_CASES = tuple(BIG_CASE_BUILDERS)
 EQUALITY_CASES = ("rand-eq", "deg-saturated")
 
 
-@lru_cache(maxsize=None)
+@cache
 def case(name: str) -> Hierarchy:
     return CASE_BUILDERS[name]()
 
 
-@lru_cache(maxsize=None)
+@cache
 def reference(name: str) -> np.ndarray:
     return reference_solution(case(name))
 

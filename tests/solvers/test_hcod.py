@@ -132,7 +132,7 @@ def test_degenerate_cases(case):
         check(G.degenerate(case, n=12, seed=seed), rtol=rtol)
 
 
-@pytest.mark.parametrize("n", [8, 20])
+@pytest.mark.parametrize("n", [8, 20], ids=lambda n: f"n{n}")
 def test_ik_like(n):
     for seed in range(2):
         check(G.ik_like(n, seed), rtol=RTOL)
@@ -195,8 +195,8 @@ def test_warm_start_modes_agree(mode):
         assert res.activations == res.deactivations == 0
 
 
-@pytest.mark.parametrize("n", [20, 40])
-@pytest.mark.parametrize("seed", range(5))
+@pytest.mark.parametrize("n", [20, 40], ids=lambda n: f"n{n}")
+@pytest.mark.parametrize("seed", range(5), ids=lambda s: f"seed{s}")
 def test_time_warm_start_record_is_a_fixed_point_of_a_repeated_problem(n, seed):
     """The benchmark's warm mode: one object re-solving the same IK-like problem. The record
     of the last call (sec. XI) must lead every later call straight to the optimum: one LSE per
@@ -289,7 +289,7 @@ def test_warm_start_along_a_trajectory(make, drift):
 
 
 @pytest.mark.parametrize("min_norm", [True, False], ids=["min_norm", "no_min_norm"])
-@pytest.mark.parametrize("drift", [1e-4, 1e-2])
+@pytest.mark.parametrize("drift", [1e-4, 1e-2], ids=["drift1e-4", "drift1e-2"])
 def test_warm_start_along_badly_scaled_trajectories(drift, min_norm):
     """Rows 1e-4 the size of their level's others, the problem drifting: every `time` solve
     matches a cold one. (A record rewrite that made rows leave through the multipliers lost
@@ -464,7 +464,7 @@ def test_reset_and_warmup():
     np.testing.assert_allclose(again.x, cold.x, atol=1e-12)
 
 
-@pytest.mark.parametrize("seed", range(3))
+@pytest.mark.parametrize("seed", range(3), ids=lambda s: f"seed{s}")
 def test_degenerate_vertex(seed):
     """Many inequality rows through the start point u = 0 (a degenerate vertex:
     steps of length 0, ties): no cycling, the reference optimum."""
@@ -502,7 +502,7 @@ def test_row_held_at_its_bound_by_the_working_rows_does_not_block(warm_start):
     check(h, RTOL, solver=HcodSolver(warm_start=warm_start))
 
 
-@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("seed", range(4), ids=lambda s: f"seed{s}")
 def test_min_norm_x_matches_reference_with_inequalities(seed):
     """Levels that leave freedom (12 DOF, 2 levels of 3 rows, under a box): x is
     the minimum-norm lexicographic optimum, like the reference's final stage."""

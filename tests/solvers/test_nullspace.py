@@ -13,8 +13,12 @@ from problems.errors import SolverOptionError
 from problems.verify import level_norms, level_scales, verify
 from solvers import registry
 from solvers.base import OPTIMAL, UNSUPPORTED
-from solvers.nullspace import (flops_cod_all_at_once, flops_cod_recursion, flops_svd_all_at_once,
-                               flops_svd_recursion)
+from solvers.nullspace import (
+    flops_cod_all_at_once,
+    flops_cod_recursion,
+    flops_svd_all_at_once,
+    flops_svd_recursion,
+)
 from solvers.reference import reference_solution
 
 STRICT = ("nullspace-svd", "nullspace-cod")
@@ -139,7 +143,8 @@ def test_flop_formula_terms():
 
 
 @pytest.mark.parametrize("name, fn", [("nullspace-svd", flops_svd_recursion),
-                                      ("nullspace-cod", flops_cod_recursion)])
+                                      ("nullspace-cod", flops_cod_recursion)],
+                         ids=["nullspace-svd", "nullspace-cod"])
 def test_solvers_report_flops(name, fn):
     h = g.equality_stack(36, 6, 6, seed=0)
     assert registry.create(name).solve(h).flops == fn(36, [6] * 6)

@@ -52,7 +52,7 @@ def enumerate_qp(P, G_eq, h_eq, G_in, h_in):
     nz = P.shape[0]
     r_eq = np.linalg.matrix_rank(G_eq) if G_eq.shape[0] else 0
     best_value, best_z = -INF, None
-    for size in range(0, min(len(h_in), nz - r_eq) + 1):
+    for size in range(min(len(h_in), nz - r_eq) + 1):
         for W in combinations(range(len(h_in)), size):
             M = np.vstack([G_eq, G_in[list(W)]])
             hM = np.concatenate([h_eq, h_in[list(W)]])

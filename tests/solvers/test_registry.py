@@ -55,15 +55,15 @@ def test_create_passes_defaults_and_options(fake_registry):
 
 
 @pytest.mark.parametrize("name, options, error, message", [
-    ("test-opt", dict(tolerance=1.0), SolverOptionError,
+    ("test-opt", {"tolerance": 1.0}, SolverOptionError,
      r"solver 'test-opt': unknown option\(s\) 'tolerance'; allowed options: tol, max_iter"),
-    ("reference", dict(tol=1.0), SolverOptionError,
+    ("reference", {"tol": 1.0}, SolverOptionError,
      r"solver 'reference': unknown option\(s\) 'tol'; allowed options: none"),
-    ("test-opt", dict(tol=-1.0), SolverOptionError, r"test-opt: tol must be > 0; got -1.0"),
+    ("test-opt", {"tol": -1.0}, SolverOptionError, r"test-opt: tol must be > 0; got -1.0"),
     # a TypeError raised inside a constructor is a bug, not a bad option: it propagates unchanged
     ("test-broken", {}, TypeError, r"a bug inside the constructor"),
     # a factory taking **options validates names itself
-    ("test-kwargs", dict(bogus=1), TypeError, r"unexpected keyword argument 'bogus'"),
+    ("test-kwargs", {"bogus": 1}, TypeError, r"unexpected keyword argument 'bogus'"),
     ("nope", {}, SolverNotFoundError, r"unknown solver 'nope' \(found solvers: .*reference"),
 ], ids=["unknown option", "no options", "bad value", "constructor bug", "kwargs factory", "unknown solver"])
 def test_create_errors(fake_registry, name, options, error, message):
