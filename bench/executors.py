@@ -218,15 +218,21 @@ class DaskExecutor:
         since = None
         warned = False
         while not stop.wait(1.0):
+            asked = ""
             try:
                 n = len(self.client.nthreads())
             except Exception as err:  # noqa: BLE001 - the watchdog never dies silently: see below
-                if isinstance(err, OSError) or stop.is_set() or self.client.status != "running":
-                    return  # the client closed or the scheduler went away: the run is over
-                # any other failure leaves the run unguarded (a silent hang if the workers go): end it
-                self._abort(futures, lost, f"the watchdog could not ask the cluster for its workers "
-                                           f"({type(err).__name__}: {err})")
-                return
+                if stop.is_set() or self.client.status != "running":
+                    return  # the client closed or the scheduler went away: the run is over (_collect raises)
+                if not isinstance(err, OSError):
+                    # any other failure leaves the run unguarded (a silent hang if the workers go): end it
+                    self._abort(futures, lost, f"the watchdog could not ask the cluster for its workers "
+                                               f"({type(err).__name__}: {err})")
+                    return
+                # a connection error while the client runs counts as no worker: a passing one ends
+                # within the grace, a lasting one is met as a cluster without workers
+                n = 0
+                asked = f" (it could not be asked: {type(err).__name__}: {err})"
             if n:
                 since = None
                 continue
@@ -234,12 +240,12 @@ class DaskExecutor:
             if time.monotonic() - since < NO_WORKER_GRACE:
                 continue
             if self.cluster is not None:
-                self._abort(futures, lost, f"the local Dask cluster has had no worker for {NO_WORKER_GRACE:g} s "
-                                           f"(its worker processes died and were not restarted)")
+                self._abort(futures, lost, f"the local Dask cluster has had no worker for {NO_WORKER_GRACE:g} s"
+                                           + (asked or " (its worker processes died and were not restarted)"))
                 return
             if not warned:
-                print(f"hikbench: {self.name} has had no worker for {NO_WORKER_GRACE:g} s; {len(futures)} jobs "
-                      f"wait for one (Ctrl-C stops the run; the rows written so far are kept)",
+                print(f"hikbench: {self.name} has had no worker for {NO_WORKER_GRACE:g} s{asked}; {len(futures)} "
+                      f"jobs wait for one (Ctrl-C stops the run; the rows written so far are kept)",
                       file=sys.stderr, flush=True)
                 warned = True
 

@@ -127,6 +127,26 @@ def test_a_watchdog_that_cannot_ask_for_workers_ends_the_run_with_an_error(monke
         ex.close()
 
 
+def test_a_watchdog_whose_polls_fail_by_connection_errors_ends_the_run_with_an_error(monkeypatch):
+    """A connection error in the watchdog's poll while the client still ran ended the watchdog
+    without a word: the rest of the run went unguarded."""
+    import bench.executors
+    from problems.errors import HikbenchError
+
+    monkeypatch.setattr(bench.executors, "NO_WORKER_GRACE", 1.0)
+    ex = DaskExecutor(workers=1)
+    try:
+        def refused():
+            raise ConnectionResetError("reset by peer")
+        monkeypatch.setattr(ex.client, "nthreads", refused)
+        with pytest.raises(HikbenchError, match=r"the local Dask cluster has had no worker for 1 s \(it could not "
+                                                r"be asked: ConnectionResetError: reset by peer\).*run the same"):
+            list(ex.map([(0, {**_solve_job(spec("SleepSolver")), "options": {"delay": 5.0}}, 30.0)]))
+    finally:
+        monkeypatch.undo()
+        ex.close()
+
+
 def test_an_external_cluster_without_workers_is_waited_for_with_a_warning(monkeypatch, capsys):
     """A cluster whose workers all left mid-run: the run waited without a word."""
     from distributed import LocalCluster
