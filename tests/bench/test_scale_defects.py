@@ -109,38 +109,26 @@ def test_a_local_cluster_left_without_workers_ends_the_run_with_an_error(monkeyp
         ex.close()
 
 
-def test_a_watchdog_that_cannot_ask_for_workers_ends_the_run_with_an_error(monkeypatch):
-    """An unexpected error in the watchdog's poll killed only its thread: the run went on
-    unguarded (a local cluster losing its workers would then hang)."""
-    from problems.errors import HikbenchError
-
-    ex = DaskExecutor(workers=1)
-    try:
-        def broken():
-            raise ValueError("no answer")
-        monkeypatch.setattr(ex.client, "nthreads", broken)
-        with pytest.raises(HikbenchError, match=r"the watchdog could not ask the cluster for its workers "
-                                                r"\(ValueError: no answer\).*run the same command again"):
-            list(ex.map([(0, {**_solve_job(spec("SleepSolver")), "options": {"delay": 5.0}}, 30.0)]))
-    finally:
-        monkeypatch.undo()
-        ex.close()
-
-
-def test_a_watchdog_whose_polls_fail_by_connection_errors_ends_the_run_with_an_error(monkeypatch):
-    """A connection error in the watchdog's poll while the client still ran ended the watchdog
-    without a word: the rest of the run went unguarded."""
+@pytest.mark.parametrize("error, message", [
+    (ValueError("no answer"), r"the watchdog could not ask the cluster for its workers \(ValueError: no answer\)"),
+    (ConnectionResetError("reset by peer"), (r"the local Dask cluster has had no worker for 1 s \(it could not "
+                                             r"be asked: ConnectionResetError: reset by peer\)")),
+], ids=["unexpected-error", "connection-error"])
+def test_a_watchdog_whose_polls_fail_ends_the_run_with_an_error(monkeypatch, error, message):
+    """An error in the watchdog's poll ended only its thread (an unexpected one), or the
+    watchdog without a word (a connection error while the client still ran): the run went on
+    unguarded (a local cluster losing its workers would then hang). A connection error counts as
+    no worker, for the grace."""
     import bench.executors
     from problems.errors import HikbenchError
 
     monkeypatch.setattr(bench.executors, "NO_WORKER_GRACE", 1.0)
     ex = DaskExecutor(workers=1)
     try:
-        def refused():
-            raise ConnectionResetError("reset by peer")
-        monkeypatch.setattr(ex.client, "nthreads", refused)
-        with pytest.raises(HikbenchError, match=r"the local Dask cluster has had no worker for 1 s \(it could not "
-                                                r"be asked: ConnectionResetError: reset by peer\).*run the same"):
+        def broken():
+            raise error
+        monkeypatch.setattr(ex.client, "nthreads", broken)
+        with pytest.raises(HikbenchError, match=message + r".*run the same command again"):
             list(ex.map([(0, {**_solve_job(spec("SleepSolver")), "options": {"delay": 5.0}}, 30.0)]))
     finally:
         monkeypatch.undo()
