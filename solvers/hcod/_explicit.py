@@ -42,6 +42,7 @@ from solvers.hcod._linalg import (
     qr_rows,
     reflect_cols,
     retriangulate,
+    solve_upper,
     vaxpy,
     vdot,
 )
@@ -349,13 +350,12 @@ def multipliers(Wt, qi, R, p, g, h, nu):
     fl = p * p // 2
     if qi[Q_ID] != 0:
         for c in range(p):
-            h[c] = g[qi[QH + c]]
+            h[c] = -g[qi[QH + c]]
     else:
         for c in range(p):
-            h[c] = vdot(Wt[c], g)
+            h[c] = -vdot(Wt[c], g)
         fl += n * p
-    for c in range(p - 1, -1, -1):
-        nu[c] = (-h[c] - vdot(R[c, c + 1:p], nu[c + 1:p])) / R[c, c]
+    solve_upper(R, p, h, nu)
     return fl
 
 

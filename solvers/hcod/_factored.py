@@ -65,6 +65,7 @@ from solvers.hcod._linalg import (
     reflect_rows,
     retriangulate,
     rotate_cols,
+    solve_upper,
     vaxpy,
     vdot,
     vreflect,
@@ -546,6 +547,7 @@ def multipliers(R, p, g, nu, Wt, qv, qi, sv, sv2):
     ``J_k^T w_k`` of the level's objective (overwritten by ``W^T g``).
     Returns flops."""
     fl = basis_t(Wt, qv, qi, g, 0, p, sv, sv2)
-    for c in range(p - 1, -1, -1):
-        nu[c] = (-g[c] - vdot(R[c, c + 1:p], nu[c + 1:p])) / R[c, c]
+    for c in range(p):
+        g[c] = -g[c]
+    solve_upper(R, p, g, nu)
     return fl + p * p // 2

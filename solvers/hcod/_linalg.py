@@ -401,6 +401,20 @@ def cod_append(Mr, j, nf, thr, r, rows, diag, beta):
     return r + 1, fl, nrm < WEAK_PIVOT * rn
 
 
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def solve_upper(R, p, h, x):
+    """``x = R[:p, :p]^-1 h[:p]`` for the upper triangular ``R`` (p*p/2
+    multiply-adds), by columns: once ``x[c]`` is known its term leaves the rows
+    above at once. The chain from one unknown to the next is then one fma and
+    one division; by rows (dot products) it would be a whole reduction, and
+    these solves are short (p <= n). h (>= p,) is overwritten."""
+    for c in range(p - 1, -1, -1):
+        v = h[c] / R[c, c]
+        x[c] = v
+        for l in range(c):
+            h[l] -= v * R[l, c]
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def solve_lower(Mr, diag, nO, r, bvec, Lb, y):
     """Least-squares solve of the second half of the COD (19):
@@ -412,11 +426,12 @@ def solve_lower(Mr, diag, nO, r, bvec, Lb, y):
     overwritten. Returns flops."""
     fl = 0
     if r == nO:
-        for i in range(r):
-            s = bvec[i]
-            for l in range(i):
-                s -= Mr[i, l] * y[l]
-            y[i] = s / diag[i]
+        # forward substitution by columns (see solve_upper): bvec is overwritten
+        for l in range(r):
+            v = bvec[l] / diag[l]
+            y[l] = v
+            for i in range(l + 1, r):
+                bvec[i] -= Mr[i, l] * v
         return r * r // 2 + r
     for l in range(r):
         for j in range(nO):
@@ -435,11 +450,11 @@ def solve_lower(Mr, diag, nO, r, bvec, Lb, y):
         vreflect(bt, vl, bvec[l:nO])
         Lb[l, l] = alpha
         fl += 2 * (r - l) * (nO - l) + 2 * (nO - l)
+    # L_k^T y = (V_k^T c)[:r] by columns (see solve_upper): row l of Lb is column l of L_k^T
     for l in range(r - 1, -1, -1):
-        s = bvec[l]
-        for l2 in range(l + 1, r):
-            s -= Lb[l2, l] * y[l2]
-        y[l] = s / Lb[l, l]
+        v = bvec[l] / Lb[l, l]
+        y[l] = v
+        vaxpy(-v, Lb[l, :l], bvec[:l])
     return fl + r * r // 2
 
 
