@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from solvers.hcod._linalg import WEAK_PIVOT, apply_reflectors, cod, cod_append, solve_lower
+from solvers.hcod._linalg import WEAK_PIVOT, apply_reflectors, cod, cod_append, solve_lower, solve_upper
 
 ATOL = 1e-11
 THR = 1e-10
@@ -169,3 +169,21 @@ def test_appending_matches_the_decomposition_from_scratch(nO, nf, data):
     b = np.random.default_rng(0).standard_normal(nO)
     scale = 1.0 + np.abs(ref.step(b)).max()
     np.testing.assert_allclose(inc.step(b), ref.step(b), rtol=0, atol=1e-8 * scale)
+
+
+@pytest.mark.parametrize("p, n", [(1, 1), (2, 5), (7, 7), (12, 20)], ids=["1x1", "2-of-5", "7x7", "12-of-20"])
+def test_solve_upper_solves_the_leading_triangle(p, n):
+    """solve_upper (the multipliers' back substitution, eq. 39) solves ``R[:p, :p] x = h``
+    and reads nothing outside the upper triangle of ``R[:p, :p]`` (the rest of R holds NaN here)."""
+    rng = np.random.default_rng(p * n)
+    R = np.full((n, n), np.nan)
+    T = np.triu(rng.standard_normal((p, p)))
+    T[np.diag_indices(p)] = rng.uniform(0.5, 2.0, p) * rng.choice([-1.0, 1.0], p)
+    R[:p, :p] = np.where(np.triu(np.ones((p, p))) > 0, T, np.nan)
+    h = np.full(n, np.nan)
+    h[:p] = rng.standard_normal(p)
+    x = np.full(n, np.nan)
+    expected = np.linalg.solve(T, h[:p])
+    solve_upper(R, p, h, x)
+    np.testing.assert_allclose(x[:p], expected, rtol=1e-12, atol=1e-12)
+    assert np.isnan(x[p:]).all()
