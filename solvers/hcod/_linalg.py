@@ -422,11 +422,12 @@ def solve_lower(Mr, diag, nO, r, bvec, Lb, y):
     ``L[j, l] = R[l, j]`` (from :func:`cod`) and ``c = bvec[:nO]`` (the
     permuted residual ``e_k - J_k u``). When r == nO, L is lower triangular
     and this is a forward substitution; otherwise L is reduced by Householder
-    (``L = V_k [L_k; 0]``, eq. 19) in the scratch ``Lb`` (r, nO), and bvec is
-    overwritten. Returns flops."""
+    (``L = V_k [L_k; 0]``, eq. 19) in the scratch ``Lb`` (r, nO). Both
+    substitutions go by columns (:func:`solve_upper`); bvec is overwritten.
+    Returns flops."""
     fl = 0
     if r == nO:
-        # forward substitution by columns (see solve_upper): bvec is overwritten
+        # forward substitution by columns
         for l in range(r):
             v = bvec[l] / diag[l]
             y[l] = v
@@ -450,7 +451,8 @@ def solve_lower(Mr, diag, nO, r, bvec, Lb, y):
         vreflect(bt, vl, bvec[l:nO])
         Lb[l, l] = alpha
         fl += 2 * (r - l) * (nO - l) + 2 * (nO - l)
-    # L_k^T y = (V_k^T c)[:r] by columns (see solve_upper): row l of Lb is column l of L_k^T
+    # L_k y = (V_k^T c)[:r] (L_k upper triangular here, from the QR of L) by columns (see
+    # solve_upper): Lb[l, :l] is column l of L_k above its diagonal
     for l in range(r - 1, -1, -1):
         v = bvec[l] / Lb[l, l]
         y[l] = v
