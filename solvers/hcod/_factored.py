@@ -544,7 +544,7 @@ def delete_row(j, R, p, widx, wside, M, nM, Wt, qv, qi, sv, sv2):
 def multipliers(R, p, g, nu, Wt, qv, qi, sv, sv2):
     """Multipliers of the working constraints (eq. 39):
     ``C^T nu = -g`` solved as ``R nu = -W[:, :p]^T g``; g (n,) is the gradient
-    ``J_k^T w_k`` of the level's objective (overwritten by ``W^T g``).
+    ``J_k^T w_k`` of the level's objective (overwritten: scratch of the solve).
     Returns flops."""
     fl = basis_t(Wt, qv, qi, g, 0, p, sv, sv2)
     for c in range(p):
