@@ -143,11 +143,7 @@ def push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, qbf, sv, sv2):
     ``I - beta[t] v v^T`` with ``v = Mr[t, t:n-p]`` on the columns ``p + t:``.
     qbf (>= (n - p)^2) flat scratch."""
     if not lazy:
-        # (p = 0: a permuted W with no working row is the identity itself, updated in place at the
-        # same cost without the accumulation's copy and scatter)
-        if qi[Q_ID] != 0 and r > 0 and p > 0:
-            return _explicit.apply_reflectors_to_permuted(Wt, qi, p, Mr, beta, r, qbf, sv, sv2)
-        return _explicit.apply_reflectors_to_basis(Wt, qi, p, Mr, beta, r, sv, sv2)
+        return _explicit.push_reflectors(Wt, qi, p, Mr, beta, r, qbf, sv, sv2)
     nf = Wt.shape[0] - p
     fl = 0
     for t in range(r):

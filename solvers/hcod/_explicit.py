@@ -56,6 +56,7 @@ __all__ = [
     "insert_rows",
     "multipliers",
     "project_into",
+    "push_reflectors",
     "reset",
 ]
 
@@ -256,6 +257,20 @@ def apply_reflectors_to_permuted(Wt, qi, p, Mr, beta, r, qbf, sv, sv2):
         for e in range(nf):
             w[perm[e]] = cj[e]
     return fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def push_reflectors(Wt, qi, p, Mr, beta, r, qbf, sv, sv2):
+    """``W[:, p:] <- W[:, p:] H_0 ... H_{r-1}`` (eq. 23) by the cheaper of the
+    two routines: accumulated on order ``n - p`` and scattered
+    (:func:`apply_reflectors_to_permuted`) while ``W`` is a permutation with
+    working rows (p > 0); else on ``W`` itself
+    (:func:`apply_reflectors_to_basis`). With p = 0 a permuted ``W`` is the
+    identity, updated in place at the same cost without the accumulation's
+    copy and scatter. qbf (>= (n - p)^2) flat scratch. Returns flops."""
+    if qi[Q_ID] != 0 and r > 0 and p > 0:
+        return apply_reflectors_to_permuted(Wt, qi, p, Mr, beta, r, qbf, sv, sv2)
+    return apply_reflectors_to_basis(Wt, qi, p, Mr, beta, r, sv, sv2)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
