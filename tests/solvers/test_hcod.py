@@ -203,7 +203,7 @@ def test_time_warm_start_record_is_a_fixed_point_of_a_repeated_problem(n, seed):
     level, nothing activated or deactivated, no level falling back to cold. (A record rewritten
     to one step to a later level's optimum broke this: 20 iterations and a fallback level at
     n = 20, seed 2, while recorded objective rows that the step left strictly inside their
-    bounds still entered the objective; see README, the `time` warm start.)"""
+    bounds still entered the objective; see solvers/hcod/NOTES.md, the `time` warm start.)"""
     h = G.ik_like(n, seed)
     s = HcodSolver(warm_start="time")
     cold = s.solve(h)
@@ -294,7 +294,7 @@ def test_warm_start_along_badly_scaled_trajectories(drift, min_norm):
     """Rows 1e-4 the size of their level's others, the problem drifting: every `time` solve
     matches a cold one. (A record rewrite that made rows leave through the multipliers lost
     such rows under the level's noise floor: 24 of the 320 solves of
-    the four cases disagreed; see README, the `time` warm start.)"""
+    the four cases disagreed; see solvers/hcod/NOTES.md, the `time` warm start.)"""
     for seed in range(10):
         s = HcodSolver(warm_start="time", min_norm=min_norm)
         for t, ht in enumerate(drifting(G.degenerate("badly_scaled", 12, seed), drift, seed)):
@@ -351,8 +351,9 @@ def test_time_warm_start_known_wrong_on_badly_scaled_drift():
     """Drift 1e-3 on badly_scaled seed 3: step 4 of the `time` trajectory ends worse than a
     cold solve (step 2 did too while met rows counted at their whole rounding floor): known, a
     row 1e-8 the size of its level's others keeps a residual that a cold solve removes (its
-    force is under the multiplier noise floor; README, the time warm start). Asserted as it is,
-    every status optimal: the day step 4 agrees this fails, and the README's known wrong answers go."""
+    force is under the multiplier noise floor; solvers/hcod/NOTES.md, the `time` warm start).
+    Asserted as it is, every status optimal: the day step 4 agrees this fails, and the known wrong
+    answers of README and NOTES.md go."""
     s = HcodSolver(warm_start="time", min_norm=False)
     agree = []
     for ht in drifting(G.degenerate("badly_scaled", 12, 3), 1e-3, 3, steps=5):
