@@ -1,10 +1,11 @@
-"""``hikbench solve FILE --solver NAME [--repeat R] [--warm] [--json]``."""
+"""``hikbench solve FILE --solver NAME|module:Class [--repeat R] [--warm] [--json]``."""
 
 from __future__ import annotations
 
 import json
 import math
 
+from bench.worker import solver_info
 from problems.errors import HikbenchError
 from problems.files import load
 from problems.verify import level_norms
@@ -15,7 +16,9 @@ HELP = "solve one problem file with one solver and print the result"
 
 def add_arguments(p) -> None:
     p.add_argument("file", help="problem file (.npz or SOTH text)")
-    p.add_argument("--solver", default="reference", help="solver name (see `hikbench list solvers`)")
+    p.add_argument("--solver", default="reference",
+                   help="solver name (see `hikbench list solvers`), or module:Class / file.py:Class "
+                        "(a Solver subclass of your own: README, \"Adding a solver\")")
     p.add_argument("--repeat", type=int, default=1, help="timed repetitions (default 1)")
     p.add_argument("--warm", action="store_true",
                    help="time re-solves on one solver object that already solved the problem once")
@@ -49,8 +52,9 @@ def run(args) -> int:
         raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
     h = load(args.file)
     options = parse_options(args.option)
-    registry.create(args.solver, **options)  # validate name and options before timing
-    timing = time_solves(lambda: registry.create(args.solver, **options), h, repeat=args.repeat,
+    info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
+    registry.build(info, **options)  # validate name and options before timing
+    timing = time_solves(lambda: registry.build(info, **options), h, repeat=args.repeat,
                          mode="warm" if args.warm else "cold")
     res = timing.result
     norms = level_norms(h, res.x).tolist() if res.x is not None else None

@@ -1,0 +1,93 @@
+"""A solver of one's own (README, "Adding a solver"): the template in
+bench/examples/pinv_recursion.py through `hikbench solve`, `hikbench run` and a
+package's entry point, without touching the registry."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import tomli_w
+from clitools import assert_user_error, run
+
+from bench.cli import main
+from bench.results import read_results
+from problems import generators as G
+from problems.files import save_npz
+from solvers.reference import reference_solution
+
+ROOT = Path(__file__).resolve().parents[2]
+EXAMPLE = ROOT / "bench" / "examples" / "pinv_recursion.py"
+SPEC = f"{EXAMPLE}:PinvRecursion"
+
+
+@pytest.fixture
+def equality_file(tmp_path):
+    h = G.equality_stack(12, 3, 3, seed=0)
+    path = tmp_path / "eq.npz"
+    save_npz(h, path)
+    return h, path
+
+
+def test_solve_command_takes_a_module_class(capsys, equality_file):
+    h, path = equality_file
+    code, out, err = run(capsys, "solve", path, "--solver", SPEC, "--option", "rcond=1e-12", "--json")
+    assert code == 0, err
+    res = json.loads(out)
+    assert res["solver"] == SPEC and res["status"] == "optimal"
+    np.testing.assert_allclose(res["x"], reference_solution(h), rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("solver, option, fragment", [
+    (f"{EXAMPLE}:Nope", [], "has no attribute 'Nope'"),
+    (SPEC, ["--option", "rcond=2"], "pinv-recursion: option rcond=2 is not allowed; expected a finite number"),
+    (SPEC, ["--option", "tol=1"], "unknown option(s) 'tol'; allowed options: rcond"),
+], ids=["no such class", "option value", "option name"])
+def test_solve_command_names_what_is_wrong_with_a_module_class(capsys, equality_file, solver, option, fragment):
+    code, _, err = run(capsys, "solve", equality_file[1], "--solver", solver, *option)
+    assert_user_error(code, err, fragment)
+
+
+def test_a_run_verifies_it_and_leaves_out_what_it_declines(tmp_path):
+    """Equality stacks: verified against the reference, cold only (no warm start);
+    IK-like (inequalities): `unsupported`, not a failure."""
+    suite = tmp_path / "mine.toml"
+    suite.write_bytes(tomli_w.dumps({
+        "repeat": 2, "warmup": 1, "timeout": 60.0, "modes": ["cold", "warm"], "solvers": [SPEC],
+        "problems": [{"family": "equality", "grid": {"n": [10], "depth": [3], "rows": [3]}, "seeds": [0, 1]},
+                     {"family": "ik-like", "grid": {"n": [9]}, "seeds": [0]}]}).encode())
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "out")]) == 0
+    df = read_results(tmp_path / "out")
+    assert set(df["solver"]) == {"pinv-recursion"} and set(df["mode"]) == {"cold"}
+    eq, ik = df[df["family"] == "equality"], df[df["family"] == "ik-like"]
+    assert len(eq) == 2 and set(eq["status"]) == {"optimal"} and set(eq["verified"]) == {True}
+    assert len(ik) == 1 and ik["status"].tolist() == ["unsupported"]
+    assert ik["reason"].tolist() == ["pinv-recursion: equality rows only"]
+
+
+def test_an_entry_point_gives_it_a_registry_name(tmp_path, equality_file):
+    """A distribution declaring ``[project.entry-points."hikbench.solvers"]`` (here its
+    installed metadata, on PYTHONPATH) adds the solver under its name, as a built-in."""
+    site = tmp_path / "site"
+    dist = site / "pinv_demo-0.1.dist-info"
+    dist.mkdir(parents=True)
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: pinv-demo\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text("[hikbench.solvers]\npinv = pinv_recursion:SOLVERS\n")
+    shutil.copy(EXAMPLE, site / "pinv_recursion.py")
+    env = {"PATH": "/usr/bin:/bin", "PYTHONPATH": str(site), "OPENBLAS_NUM_THREADS": "1"}
+
+    def hikbench(*argv):
+        return subprocess.run([sys.executable, "-m", "bench", *map(str, argv)], capture_output=True, text=True,
+                              env=env, cwd=tmp_path, timeout=300, check=False)
+
+    listed = hikbench("list", "solvers")
+    assert listed.returncode == 0, listed.stderr
+    assert any(line.split()[:1] == ["pinv-recursion"] for line in listed.stdout.splitlines()), listed.stdout
+    solved = hikbench("solve", equality_file[1], "--solver", "pinv-recursion", "--json")
+    assert solved.returncode == 0, solved.stderr
+    res = json.loads(solved.stdout)
+    assert res["status"] == "optimal"
+    np.testing.assert_allclose(res["x"], reference_solution(equality_file[0]), rtol=0, atol=1e-12)
