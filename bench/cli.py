@@ -33,7 +33,12 @@ COMMANDS: dict[str, str] = {
 
 
 class UsageError(HikbenchError):
-    """A command line argparse rejects (unknown option, missing argument)."""
+    """A command line argparse rejects (unknown option, missing argument);
+    ``prog`` is the (sub-)command whose line it is: ``hikbench solve``."""
+
+    def __init__(self, message: str, prog: str = "hikbench"):
+        super().__init__(f"{message} (see `{prog} --help`)")
+        self.prog = prog
 
 
 class _Parser(argparse.ArgumentParser):
@@ -41,7 +46,7 @@ class _Parser(argparse.ArgumentParser):
     so that main() reports it like any user error: one line, exit code 2."""
 
     def error(self, message: str):
-        raise UsageError(f"{message} (see `{self.prog} --help`)")
+        raise UsageError(message, self.prog)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -60,9 +65,11 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code (0 ok, 1 a check failed, 2 user error)."""
     parser = build_parser()
     try:
-        args = parser.parse_args(argv)
+        args, extra = parser.parse_known_args(argv)
+        if extra:  # (parse_args would name the top-level parser, not the sub-command)
+            raise UsageError(f"unrecognized arguments: {' '.join(extra)}", f"hikbench {args.command}")
     except UsageError as err:
-        print(f"hikbench: error: {_one_line(err)}", file=sys.stderr)
+        print(f"{err.prog}: error: {_one_line(err)}", file=sys.stderr)
         return 2
     except SystemExit as stop:  # --help / --version print and stop
         return stop.code if isinstance(stop.code, int) else 0

@@ -98,7 +98,7 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
             verdict = "NEWLY FAILING"
         elif np.isfinite(ratio) and ratio > threshold and ratio_min > threshold and p < alpha:
             verdict = "SLOWER"
-        elif np.isfinite(ratio) and ratio < 1 / threshold and \
+        elif np.isfinite(ratio) and ratio < 1 / threshold and ratio_min < 1 / threshold and \
                 (p_less := float(mannwhitneyu(ns, bs, alternative="less").pvalue)) < alpha:
             verdict = "faster"
             p = p_less  # (the p-value shown is that of the verdict's direction)

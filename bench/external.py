@@ -17,7 +17,8 @@ time of the whole process. A non-zero exit code gives status ``error`` with the
 end of stderr; exceeding the job timeout gives ``timeout``; an output that
 breaks the protocol (no ``x`` or a wrong shape, ``solve_time_s`` not a finite
 number >= 0, ``iterations`` not an integer >= 0, an unknown ``status``) gives
-``error`` with a reason naming the field. Each repetition is a fresh process,
+``error`` with a reason naming the field; an ``x`` holding NaN or inf that
+the program calls optimal gives ``numerical_failure``. Each repetition is a fresh process,
 so external solvers run in ``cold`` mode only.
 """
 
@@ -36,7 +37,7 @@ import numpy as np
 
 from bench.isolation import kill_session
 from problems.errors import HikbenchError
-from solvers.base import CRASHED, ERROR, OPTIMAL, STATUSES, TIMEOUT
+from solvers.base import CRASHED, ERROR, NUMERICAL_FAILURE, OPTIMAL, STATUSES, TIMEOUT
 
 __all__ = ["parse_external", "run_external"]
 
@@ -166,6 +167,8 @@ def _check_output(out, n: int) -> tuple[dict, str]:
     elif (isinstance(it, bool) or not isinstance(it, (int, float)) or not math.isfinite(it)
           or it != int(it) or it < 0):
         return {}, f'"iterations" must be an integer >= 0 or absent; got {it!r}'
-    reason = out.get("reason", "")
+    reason = "" if out.get("reason") is None else str(out["reason"])
+    if status == OPTIMAL and not np.isfinite(x).all():  # never NaN silently (as solvers.base.SolveResult)
+        status, reason = NUMERICAL_FAILURE, (reason + "; " if reason else "") + "x holds NaN or inf"
     return {"x": x, "solve_time_s": None if t is None else float(t), "iterations": int(it),
-            "status": status, "reason": "" if reason is None else str(reason)}, ""
+            "status": status, "reason": reason}, ""

@@ -109,8 +109,19 @@ def finished_rows(out_dir) -> dict[tuple, str]:
     path = Path(out_dir) / RESULTS
     if not path.exists():
         return {}
-    return {tuple(r[k] for k in KEY): r.get("options") or "{}"
-            for r in csv.DictReader(io.StringIO(_complete_text(path)))}
+    return {tuple(r[k] for k in KEY): r.get("options") or "{}" for r in _complete_rows(path)}
+
+
+def _complete_rows(path: Path) -> list[dict]:
+    """The complete rows of results.csv as dicts of strings; a HikbenchError
+    for a header line among them (rows appended after it, or kept by
+    :func:`compact`, would be read back as strings: refused, not grown)."""
+    rows = list(csv.DictReader(io.StringIO(_complete_text(path))))
+    for i, r in enumerate(rows, start=1):
+        if tuple(r[k] for k in KEY) == KEY:
+            raise HikbenchError(f"{path}: data row {i} is a second header line (two files concatenated?): "
+                                f"remove it, or use another --out")
+    return rows
 
 
 def backup(out_dir) -> Path | None:
@@ -143,7 +154,7 @@ def compact(out_dir) -> int:
     if not path.exists() or not path.stat().st_size:
         return 0
     _check_header(path)
-    rows = list(csv.DictReader(io.StringIO(_complete_text(path))))
+    rows = _complete_rows(path)
     last = {tuple(r[k] for k in KEY): i for i, r in enumerate(rows)}
     if len(last) == len(rows):
         return 0
@@ -163,6 +174,30 @@ def parse_json_column(series: pd.Series) -> pd.Series:
     return series.map(lambda s: json.loads(s) if isinstance(s, str) and s else None)
 
 
+NUMERIC_COLUMNS = ("seed", "n", "depth", "rows", "eq_rows", "ineq_rows", "rank", "repeat", "verdict_level",
+                   "verdict_diff", "x_norm", "iterations", "activations", "deactivations", "flops",
+                   "time_median_s", "time_min_s", "time_p95_s", "build_time_s", "solve_time_s", "calib_ns",
+                   "wall_s")
+
+
+def _check_numbers(df: pd.DataFrame, path: Path) -> None:
+    """A number column holding anything but numbers (a file edited or two files
+    concatenated, header and all) is an error naming its first such row, not a
+    TypeError later in a median."""
+    for c in NUMERIC_COLUMNS:
+        if c not in df or pd.api.types.is_numeric_dtype(df[c]):
+            continue
+        bad = pd.to_numeric(df[c], errors="coerce").isna() & df[c].notna()
+        if not bad.any():
+            continue
+        i = int(bad.to_numpy().argmax())
+        value = df[c].iloc[i]
+        if value == c:
+            raise HikbenchError(f"{path}: data row {i + 1} is a second header line (two files concatenated?): "
+                                f"remove it")
+        raise HikbenchError(f"{path}: data row {i + 1}: column {c!r} holds {value!r}, not a number")
+
+
 def read_results(run_dir) -> pd.DataFrame:
     """OUT/results.csv as a DataFrame (JSON columns left as strings), its
     complete rows only (a row being written is not read half)."""
@@ -175,6 +210,7 @@ def read_results(run_dir) -> pd.DataFrame:
              "family": str, "host": str, "worker": str, **{c: str for c in JSON_COLUMNS}}
     # complete lines only: a run still writing (or killed mid-row) leaves a partial last row
     df = pd.read_csv(io.StringIO(_complete_text(path)), dtype=dtype, keep_default_na=True)
+    _check_numbers(df, path)
     for c in JSON_COLUMNS:
         if c in df:
             df[c] = df[c].fillna("")

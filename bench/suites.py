@@ -339,7 +339,7 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
 
 
 def _entry_for_object(spec: str) -> SolverEntry:
-    obj = load_object(spec)
+    obj = solver_info(spec).factory
     mod, _, attr = spec.rpartition(":")
     if mod.endswith(".py") and not Path(mod).is_absolute():  # the workers (Dask) may run in another directory
         spec = f"{Path(mod).resolve()}:{attr}"
@@ -385,19 +385,28 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
     missing = registry.missing()
     entries: list[SolverEntry] = []
     skipped: dict[str, str] = {}
-    seen = set()
+    seen: dict[tuple[str, str], str] = {}  # (name, settings) -> spec
 
     def add(e: SolverEntry):
-        if (e.solver, e.settings) not in seen:
-            seen.add((e.solver, e.settings))
+        key = (e.solver, e.settings)
+        if key not in seen:
+            seen[key] = e.spec
             entries.append(e)
+        elif seen[key] != e.spec:  # two solvers whose rows would share one key of results.csv
+            raise SuiteError(f"{where}: two solvers are named {e.solver!r}: {seen[key]} and {e.spec} "
+                             f"(a module:Class solver is named by its attribute `name`: give it one of its own)")
 
     for pat in patterns:
         if pat.startswith("external:"):
             from bench.external import parse_external
             add(parse_external(pat))
         elif ":" in pat:
-            add(_entry_for_object(pat))
+            e = _entry_for_object(pat)
+            if (e.solver in missing or e.solver in avail  # (e.g. inherited)
+                    and avail[e.solver].factory is not load_object(pat)):
+                raise SuiteError(f"{where}: solver {pat!r} is named {e.solver!r} (its attribute `name`), the name "
+                                 f"of a registered solver, whose rows it would take: give it a name of its own")
+            add(e)
         elif any(c in pat for c in "*?["):
             matched = [n for n in avail if fnmatch.fnmatchcase(n, pat)]
             if not matched:

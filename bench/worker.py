@@ -13,6 +13,7 @@ inject hanging or crashing solvers without touching the registry.
 
 from __future__ import annotations
 
+import gc
 import os
 import socket
 import traceback
@@ -24,13 +25,21 @@ from solvers.base import ERROR, SolveResult
 
 __all__ = ["execute", "solver_factory", "solver_info"]
 
+_frozen: set[str] = set()  # solvers whose first solve in this process is behind gc.freeze()
+
 
 def solver_info(spec: str, name: str = "") -> registry.SolverInfo:
     """The :class:`~solvers.registry.SolverInfo` of a registry name, or one made
     for a ``module:Class`` spec (its factory the object, no default options)."""
     if ":" in spec:
         from bench.problemset import load_object
-        return registry.SolverInfo(name or spec, "", load_object(spec))
+        from problems.errors import HikbenchError
+
+        obj = load_object(spec)
+        if not callable(obj) or (isinstance(obj, type) and not callable(getattr(obj, "solve", None))):
+            raise HikbenchError(f"{spec!r} is not a solver: expected a class with a solve(hierarchy) method "
+                                f"(a solvers.base.Solver subclass) or a factory returning one")
+        return registry.SolverInfo(name or spec, "", obj)
     return registry.get(spec)
 
 
@@ -74,6 +83,14 @@ def execute(job: dict, notify=None) -> dict:
         if callable(getattr(first, "warmup", None)):  # (module:Class solvers need not derive from Solver)
             first.warmup()
         first.solve(h)
+        if job["solver"] not in _frozen:
+            # The first solve of a solver in this process compiles (numba) or imports what it
+            # needs: some 480K long-lived objects after hcod's kernels, which the gc.collect()
+            # before each job's timing (bench.timing.quiet_timing) would walk again: 0.3 s per
+            # job of every solver after it. Frozen once, the collector skips them.
+            gc.collect()
+            gc.freeze()
+            _frozen.add(job["solver"])
         if notify is not None:
             notify()
         calib = []

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import math
+import sys
+import threading
 
 from bench.worker import solver_info
 from problems.errors import HikbenchError
@@ -17,8 +19,8 @@ HELP = "solve one problem file with one solver and print the result"
 def add_arguments(p) -> None:
     p.add_argument("file", help="problem file (.npz or SOTH text)")
     p.add_argument("--solver", default="reference",
-                   help="solver name (see `hikbench list solvers`), or module:Class / file.py:Class "
-                        "(a Solver subclass of your own: README, \"Adding a solver\")")
+                   help="solver name (see `hikbench list solvers`; default: reference), or module:Class / "
+                        "file.py:Class (a Solver subclass of your own: README, \"Adding a solver\")")
     p.add_argument("--repeat", type=int, default=1, help="timed repetitions (default 1)")
     p.add_argument("--warm", action="store_true",
                    help="time re-solves on one solver object that already solved the problem once")
@@ -45,6 +47,24 @@ def _finite_or_none(v: float):
     return v if math.isfinite(v) else None
 
 
+NOTE_AFTER_S = 3.0  # a warm-up still running then gets a note on stderr
+
+
+def _warm_up(solver, name: str) -> None:
+    """The solver's ``warmup()`` (hcod: compile its kernels, ~70 s without numba's
+    cache), untimed, with a note on stderr when it takes longer than NOTE_AFTER_S."""
+    if not callable(getattr(solver, "warmup", None)):
+        return
+    note = threading.Timer(NOTE_AFTER_S, lambda: print(
+        f"note: {name}: preparing its first solve in this process (hcod compiles its numba kernels once, "
+        f"about 70 s, then loads them from numba's cache)...", file=sys.stderr, flush=True))
+    note.start()
+    try:
+        solver.warmup()
+    finally:
+        note.cancel()
+
+
 def run(args) -> int:
     from bench.timing import time_solves
 
@@ -53,7 +73,11 @@ def run(args) -> int:
     h = load(args.file)
     options = parse_options(args.option)
     info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
-    registry.build(info, **options)  # validate name and options before timing
+    solver = registry.build(info, **options)  # validate name and options before timing
+    _warm_up(solver, args.solver)
+    if args.warm and not getattr(solver, "supports_warm_start", False):
+        print(f"note: {args.solver} has no warm start: --warm times re-solves that redo a cold solve's work",
+              file=sys.stderr)
     timing = time_solves(lambda: registry.build(info, **options), h, repeat=args.repeat,
                          mode="warm" if args.warm else "cold")
     res = timing.result

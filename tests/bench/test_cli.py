@@ -36,6 +36,15 @@ def test_solve_json(capsys, problem, extra):
     np.testing.assert_allclose(res["x"], [3.0, -1.0], atol=1e-8)
 
 
+@pytest.mark.parametrize("solver, note", [("reference", True), ("cascade-daqp", False)],
+                         ids=["no warm start", "warm start"])
+def test_solve_warm_notes_a_solver_without_warm_start(capsys, problem, solver, note):
+    code, out, err = run(capsys, "solve", problem[1], "--solver", solver, "--warm", "--repeat", "2")
+    assert code == 0 and "over 2 warm solve(s)" in out
+    said = f"note: {solver} has no warm start: --warm times re-solves that redo a cold solve's work\n"
+    assert err == (said if note else "")
+
+
 def test_solve_text(capsys, problem):
     code, out, _ = run(capsys, "solve", problem[1])
     assert code == 0
@@ -191,9 +200,12 @@ def test_list_families_shows_every_family(capsys):
     (["list", "planets"], "cannot list 'planets'"),
 ], ids=["no command", "unknown command", "missing file", "unknown option", "bad int", "bad choice", "list"])
 def test_usage_errors_exit_2_with_one_line(capsys, argv, fragment):
+    """README, "Errors": `hikbench COMMAND: error: ...`, pointing at that command's --help."""
     code, _, err = run(capsys, *argv)
     assert_user_error(code, err, fragment)
-    assert err.startswith("hikbench")
+    prog = "hikbench" if not argv or argv[0] not in COMMANDS else f"hikbench {argv[0]}"
+    assert err.startswith(f"{prog}: error: "), err
+    assert "--help" not in err or err.rstrip().endswith(f"(see `{prog} --help`)"), err  # (argparse's)
 
 
 @pytest.mark.parametrize("argv", [["--help"]] + [[c, "--help"] for c in COMMANDS], ids=["main", *COMMANDS])
@@ -211,3 +223,29 @@ def test_export_notes_what_soth_loses(capsys, tmp_path):
     assert err == ("hikbench export: note: level names are dropped; x0 is dropped; rows are reordered "
                    "(equality rows first in each level); 1 free row(s), which SOTH's own reader refuses; "
                    "empty level(s), which SOTH's own reader refuses\n")
+
+
+SLOW_WARMUP = '''
+import time
+from doubles import SleepSolver
+
+
+class SlowWarmup(SleepSolver):
+    def warmup(self):
+        time.sleep(0.5)
+'''
+
+
+@pytest.mark.parametrize("cls, note", [("SlowWarmup", True), ("SleepSolver", False)], ids=["slow", "quick"])
+def test_solve_notes_a_long_warm_up(capsys, tmp_path, monkeypatch, cls, note):
+    """hcod's first solve in a fresh process compiles for about 70 s: not in silence."""
+    from doubles import tiny
+
+    from bench.commands import solve
+
+    monkeypatch.setattr(solve, "NOTE_AFTER_S", 0.1)
+    (tmp_path / "slow.py").write_text(SLOW_WARMUP)
+    save_npz(tiny(), tmp_path / "eq.npz")
+    code, _, err = run(capsys, "solve", tmp_path / "eq.npz", "--solver", f"{tmp_path / 'slow.py'}:{cls}")
+    assert code == 0, err
+    assert ("preparing its first solve in this process" in err) == note, err

@@ -153,3 +153,17 @@ def test_table_shows_each_verdicts_p_value_and_stays_aligned():
     assert [ln[col:] for ln in lines[1:]] == ["s / default / cold / p1", "s / default / cold / p2",
                                               "s / default / cold / p0", "s / default / cold / p9"]
     assert all(ln[col - 2:col] == "  " for ln in lines)
+
+
+@pytest.mark.parametrize("direction", ["slower", "faster"])
+def test_a_verdict_needs_the_minima_too(direction):
+    """README: SLOWER when the ratios of medians and of minima both pass the threshold (and the
+    test agrees), `faster` by the same rule the other way round: a median that moved while the
+    fastest repetition did not is noise of the host, not the code."""
+    rest = np.full(8, 50_000) + np.arange(8) * 10
+    base = np.r_[30_000, rest]  # one fast repetition, the others 50 us
+    moved = np.r_[30_000, (rest * (1.5 if direction == "slower" else 1 / 1.5)).astype(int)]
+    c = compare_frames(_frame({("p0", "s"): base}), _frame({("p0", "s"): moved}), {}, {})
+    row = c.table.iloc[0]
+    assert row["ratio"] == pytest.approx(1.5 if direction == "slower" else 1 / 1.5, rel=1e-3)
+    assert row["ratio_min"] == 1.0 and row["verdict"] == "ok"

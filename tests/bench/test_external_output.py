@@ -20,6 +20,8 @@ n = int(np.load(sys.argv[1])["n"])
 out = json.loads(sys.argv[3])
 if out.get("x") == "X":
     out["x"] = [0.0] * n
+elif out.get("x") == "NaN":
+    out["x"] = [0.0] * (n - 1) + [float("nan")]
 with open(sys.argv[2], "w") as f:
     f.write(json.dumps(out))
 """
@@ -64,10 +66,12 @@ def test_bad_output_is_an_error_row(prog, payload, fragment):
     ({"x": "X", "iterations": 3.0, "solve_time_s": 0}, "optimal", 3, 0.0),
     ({"x": "X", "iterations": None, "solve_time_s": None}, "optimal", 0, None),
     ({"x": None, "status": "unsupported", "reason": "no inequalities"}, "unsupported", 0, None),
-], ids=["full", "integral float, zero time", "nulls", "no x with a status"])
+    ({"x": "NaN", "iterations": 2}, "numerical_failure", 2, None),
+], ids=["full", "integral float, zero time", "nulls", "no x with a status", "x with NaN called optimal"])
 def test_good_output(prog, payload, status, iterations, reported):
     res = run_external(_job(prog, payload), timeout=30)
     assert res["status"] == status and res["iterations"] == iterations
+    assert res["reason"] == {"unsupported": "no inequalities", "numerical_failure": "x holds NaN or inf"}.get(status, "")
     if reported is None:
         assert np.isnan(res["solve_time_s"])
     else:

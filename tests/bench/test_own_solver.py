@@ -91,3 +91,56 @@ def test_an_entry_point_gives_it_a_registry_name(tmp_path, equality_file):
     res = json.loads(solved.stdout)
     assert res["status"] == "optimal"
     np.testing.assert_allclose(res["x"], reference_solution(equality_file[0]), rtol=0, atol=1e-12)
+
+
+USER_FILE = '''
+from solvers.nullspace import SOLVERS
+
+PinvAll = next(i.factory for i in SOLVERS if i.name == "pinv-all")
+
+
+class Zero(PinvAll):  # inherits name = "pinv-all"
+    def solve(self, hierarchy):
+        res = super().solve(hierarchy)
+        res.x[:] = 0.0
+        return res
+
+
+class Mine(Zero):
+    name = "mine"
+
+
+class AlsoMine(Zero):
+    name = "mine"
+
+
+class NotASolver:
+    name = "not-a-solver"
+'''
+
+
+@pytest.mark.parametrize("solvers, fragments", [
+    (["{f}:Zero"], ["solver '{f}:Zero' is named 'pinv-all' (its attribute `name`), the name of a registered solver"]),
+    (["pinv-all", "{f}:Zero"], ["is named 'pinv-all'"]),
+    (["{f}:Mine", "{f}:AlsoMine"], ["two solvers are named 'mine': {f}:Mine and {f}:AlsoMine"]),
+    (["{f}:NotASolver"], ["'{f}:NotASolver' is not a solver: expected a class with a solve(hierarchy) method"]),
+], ids=["inherited registered name", "beside the registered one", "same name twice", "no solve method"])
+def test_a_run_refuses_a_solver_whose_rows_would_land_under_another_name(capsys, tmp_path, solvers, fragments):
+    """Rows are keyed by the solver's name: a user's class named like a registered solver
+    (an inherited `name`) or like another of the run's would write, skip or hide their rows."""
+    f = tmp_path / "mine.py"
+    f.write_text(USER_FILE)
+    suite = tmp_path / "s.toml"
+    suite.write_bytes(tomli_w.dumps({"repeat": 1, "modes": ["cold"], "solvers": ["reference"], "problems": [
+        {"family": "equality", "grid": {"n": [6], "depth": [2], "rows": [2]}, "seeds": [0]}]}).encode())
+    code, _, err = run(capsys, "run", "--quiet", "--suite", suite, "--out", tmp_path / "out", "--solvers",
+                       *[s.format(f=f) for s in solvers])
+    assert_user_error(code, err, *[x.format(f=f) for x in fragments])
+    assert not (tmp_path / "out" / "results.csv").exists()
+
+
+def test_solve_command_refuses_a_class_without_solve(capsys, tmp_path, equality_file):
+    f = tmp_path / "mine.py"
+    f.write_text(USER_FILE)
+    code, _, err = run(capsys, "solve", equality_file[1], "--solver", f"{f}:NotASolver")
+    assert_user_error(code, err, "is not a solver: expected a class with a solve(hierarchy) method")

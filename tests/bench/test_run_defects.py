@@ -3,6 +3,7 @@ and never overwrites a backup; bad suite values, bad settings options, unknown
 solvers, empty suites and bad command-line values are one-line errors (exit
 2) before anything runs; a changed [[settings]] runs its rows again."""
 
+import csv
 import json
 import socket
 import textwrap
@@ -288,3 +289,46 @@ def test_bad_command_line_values(tmp_path, capsys, argv, message):
     assert message.format(file=file, port=port) in _one_error_line(capsys)
     assert not (tmp_path / "out" / "results.csv").exists()
     assert file.read_text() == "x"
+
+
+@pytest.fixture(scope="module")
+def two_runs_concatenated(tmp_path_factory):
+    """A results.csv made by `cat a/results.csv b/results.csv`: header, rows, header, rows."""
+    d = tmp_path_factory.mktemp("cat")
+    suite = write_suite(d / "s.toml", [SLEEP], modes=("cold",), repeat=1)
+    assert _run("--suite", suite, "--out", d / "a") == 0
+    text = (d / "a" / "results.csv").read_text()
+    (d / "a" / "run.json").rename(d / "run.json")
+    (d / "a" / "results.csv").write_text(text + text)
+    (d / "run.json").rename(d / "a" / "run.json")
+    return d / "a", suite
+
+
+@pytest.mark.parametrize("command", ["report", "compare", "run"])
+def test_a_second_header_line_is_a_one_line_error(capsys, two_runs_concatenated, command):
+    out, suite = two_runs_concatenated
+    rows = len((out / "results.csv").read_text().splitlines())
+    argv = {"report": ["report", out], "compare": ["compare", out, out],
+            "run": ["run", "--quiet", "--suite", suite, "--out", out]}[command]
+    assert main([str(a) for a in argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith(f"hikbench {command}: error: "), err
+    assert "second header line (two files concatenated?)" in err[0], err
+    assert len((out / "results.csv").read_text().splitlines()) == rows  # nothing appended
+
+
+def test_a_word_in_a_number_column_is_a_one_line_error(tmp_path, capsys):
+    suite = write_suite(tmp_path / "s.toml", [SLEEP], modes=("cold",), repeat=1)
+    assert _run("--suite", suite, "--out", tmp_path / "a") == 0
+    df = read_results(tmp_path / "a")
+    path = tmp_path / "a" / "results.csv"
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    col = rows[0].index("time_median_s")
+    assert float(rows[2][col]) == df["time_median_s"].iloc[1]
+    rows[2][col] = "fast"
+    with open(path, "w", newline="") as f:
+        csv.writer(f).writerows(rows)
+    assert main(["report", str(tmp_path / "a")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == [f"hikbench report: error: {path}: data row 2: column 'time_median_s' holds 'fast', not a number"]
