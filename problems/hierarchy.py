@@ -125,6 +125,7 @@ class Hierarchy:
         level_arr = level_arr.astype(np.int64)
         if names is not None:
             names = tuple(str(s) for s in names)
+        depth_of_names = depth is None and names is not None
         if depth is None:
             depth = len(names) if names is not None else (int(level_arr.max()) + 1 if m else 0)
         depth = _as_int(depth, "depth")
@@ -137,8 +138,9 @@ class Hierarchy:
         if m:
             if level_arr.min() < 0 or level_arr.max() >= depth:
                 i = int(np.argmax((level_arr < 0) | (level_arr >= depth)))
+                why = f" (names has {depth} entries, one per level)" if depth_of_names else ""
                 raise InvalidHierarchyError(
-                    f"row {i}: level {level_arr[i]} is outside [0, {depth})", level=int(level_arr[i]))
+                    f"row {i}: level {level_arr[i]} is outside [0, {depth}){why}", level=int(level_arr[i]))
             drops = np.flatnonzero(np.diff(level_arr) < 0)
             if drops.size:
                 i = int(drops[0]) + 1

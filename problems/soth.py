@@ -173,6 +173,9 @@ class _Tokens:
             raise self.fail(what + " (a number)", tok) from None
         if math.isnan(v):
             raise self.fail(what + " (a number, not NaN)", tok)
+        if math.isinf(v) and tok.lstrip("+-").lower() not in ("inf", "infinity"):  # overflowed, e.g. 1e400
+            raise self.fail(what + " (a number within a double's range, |v| < 1.8e308; "
+                                   "+-1e25 means no bound)", tok)
         return v
 
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import sys
 
-from problems.errors import HikbenchError
+from problems.errors import HikbenchError, ProblemFileError
 from problems.files import load, save_npz
 from problems.soth import save_soth, soth_order, to_soth_text
 
@@ -46,6 +46,11 @@ def soth_losses(h) -> list[str]:
 
 def run(args) -> int:
     h = load(args.file)
+    if args.format == "soth":
+        try:
+            to_soth_text(h)  # (a finite bound beyond +-1e25 cannot be written)
+        except ProblemFileError as err:
+            raise ProblemFileError(f"{args.file}: cannot be written as SOTH text: {err}") from err
     out = args.out or default_out(args.file, args.format)
     if out == "-":
         if args.format != "soth":

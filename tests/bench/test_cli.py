@@ -169,9 +169,14 @@ def test_export_to_stdout(capsys, problem):
     (["export", "{path}", "--format", "soth", "--out", "{d}/x.npz"], ["must not end in .npz"]),
     (["export", "{path}", "--format", "npz", "--out", "-"], ["only for --format soth"]),
     (["export", "{path}", "--format", "soth", "--out", "{d}/no/x.soth"], ["cannot write"]),
-], ids=["overwrite input", "npz extension", "soth extension", "stdout npz", "missing dir"])
+    (["export", "{huge}", "--format", "soth"], [("{huge}: cannot be written as SOTH text: level 0, row 0: finite "
+                                                "lower bound -1e+30 has magnitude >= 1e+25")]),
+], ids=["overwrite input", "npz extension", "soth extension", "stdout npz", "missing dir", "bound beyond 1e25"])
 def test_export_user_errors(capsys, problem, tmp_path, argv, fragments):
-    code, _, err = run(capsys, *[a.format(path=problem[1], d=tmp_path) for a in argv])
+    huge = tmp_path / "huge.npz"
+    save_npz(Hierarchy(np.eye(2), [-1e30, 0.0], [1.0, 1.0], [0, 0]), huge)
+    code, _, err = run(capsys, *[a.format(path=problem[1], d=tmp_path, huge=huge) for a in argv])
+    fragments = [f.format(huge=huge) for f in fragments]
     assert_user_error(code, err, *fragments)
 
 

@@ -77,7 +77,7 @@ GOOD = {"A": np.eye(2), "lower": np.zeros(2), "upper": np.ones(2), "level": np.a
     ({**GOOD, "lower": np.array([0.0, 2.0])}, InvalidHierarchyError,
      r"p\.npz: level 0, row 1: lower \(2.0\) > upper \(1.0\)"),
     ({**GOOD, "level": np.array([0, 1]), "names": np.array(["only one"])}, InvalidHierarchyError,
-     r"p\.npz: row 1: level 1 is outside \[0, 1\)"),
+     r"p\.npz: row 1: level 1 is outside \[0, 1\) \(names has 1 entries, one per level\)"),
 ], ids=["missing key", "n not scalar", "n float", "invalid content", "names vs levels"])
 def test_npz_bad_files(tmp_path, arrays, error, message):
     path = tmp_path / "p.npz"
@@ -205,13 +205,16 @@ def test_soth_no_bound_threshold(bound, read_as):
     ("variable size 2\nlevel\nequalities 0\ninequalities 1\n1 2 nan 3\nend",
      (r"line 5: expected level 0, inequality row 0: the lower bound after 2 coefficients "
       r"\(a number, not NaN\)")),
+    ("variable size 2\nlevel\nequalities 1\n1 0 1e400\ninequalities 0\nend",
+     (r"line 4: expected level 0, equality row 0: the target b after 2 coefficients \(a number within a "
+      r"double's range, \|v\| < 1.8e308; \+-1e25 means no bound\), got '1e400'")),
     ("variable size 1\nlevel\nequalities 0\nineq 0\nend", r"line 4: expected 'inequalities', got 'ineq'"),
     ("variable size 1\nlevel\nequalities 1.5", r"line 3: expected level 0: the number of equality rows"),
     ("variable size 1\nlevel\nequalities 0\ninequalities 0\n",
      r"line 4: expected 'level' or 'end', got end of file"),
     ("variable size 1\nlevels\n", r"line 2: expected 'level' or 'end', got 'levels'"),
     ("variable size 1\nend\nlevel", r"line 3: expected end of file after 'end', got 'level'"),
-], ids=["empty", "size", "n word", "n negative", "short row", "bad number", "NaN bound", "keyword",
+], ids=["empty", "size", "n word", "n negative", "short row", "bad number", "NaN bound", "overflow", "keyword",
         "count not integer", "no end", "bad level keyword", "text after end"])
 def test_soth_parse_errors(text, message):
     with pytest.raises(ProblemFileError, match=message):
