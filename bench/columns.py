@@ -67,6 +67,9 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 KEY = ("problem", "solver", "settings", "mode")  #: a row's identity; resuming skips finished keys
 JSON_COLUMNS = ("params", "rows_per_level", "ranks", "options", "level_norms", "ref_level_norms",
                 "iterations_per_level", "samples_ns")
+NUMBER_COLUMNS = ("seed", "n", "depth", "rows", "eq_rows", "ineq_rows", "rank", "repeat", "verdict_level",
+                  "verdict_diff", "x_norm", "iterations", "activations", "deactivations", "flops", "time_median_s",
+                  "time_min_s", "time_p95_s", "build_time_s", "solve_time_s", "calib_ns", "wall_s")
 
 
 def names() -> list[str]:

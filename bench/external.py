@@ -37,7 +37,7 @@ import numpy as np
 
 from bench.isolation import kill_session
 from problems.errors import HikbenchError
-from solvers.base import CRASHED, ERROR, NUMERICAL_FAILURE, OPTIMAL, STATUSES, TIMEOUT
+from solvers.base import CRASHED, ERROR, OPTIMAL, STATUSES, TIMEOUT, SolveResult
 
 __all__ = ["parse_external", "run_external"]
 
@@ -168,7 +168,6 @@ def _check_output(out, n: int) -> tuple[dict, str]:
           or it != int(it) or it < 0):
         return {}, f'"iterations" must be an integer >= 0 or absent; got {it!r}'
     reason = "" if out.get("reason") is None else str(out["reason"])
-    if status == OPTIMAL and not np.isfinite(x).all():  # never NaN silently (as solvers.base.SolveResult)
-        status, reason = NUMERICAL_FAILURE, (reason + "; " if reason else "") + "x holds NaN or inf"
+    res = SolveResult(x, status, reason)  # its rule: an optimal x holding NaN or inf is a numerical_failure
     return {"x": x, "solve_time_s": None if t is None else float(t), "iterations": int(it),
-            "status": status, "reason": reason}, ""
+            "status": res.status, "reason": res.reason}, ""

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench.columns import JSON_COLUMNS, KEY, names
+from bench.columns import JSON_COLUMNS, KEY, NUMBER_COLUMNS, names
 from problems.errors import HikbenchError
 
 __all__ = ["RESULTS", "ResultsWriter", "backup", "compact", "finished_keys", "finished_rows",
@@ -119,9 +119,12 @@ def _complete_rows(path: Path) -> list[dict]:
     rows = list(csv.DictReader(io.StringIO(_complete_text(path))))
     for i, r in enumerate(rows, start=1):
         if tuple(r[k] for k in KEY) == KEY:
-            raise HikbenchError(f"{path}: data row {i} is a second header line (two files concatenated?): "
-                                f"remove it, or use another --out")
+            raise _second_header(path, i)
     return rows
+
+
+def _second_header(path: Path, row: int) -> HikbenchError:
+    return HikbenchError(f"{path}: data row {row} is a second header line (two files concatenated?): remove it")
 
 
 def backup(out_dir) -> Path | None:
@@ -174,17 +177,11 @@ def parse_json_column(series: pd.Series) -> pd.Series:
     return series.map(lambda s: json.loads(s) if isinstance(s, str) and s else None)
 
 
-NUMERIC_COLUMNS = ("seed", "n", "depth", "rows", "eq_rows", "ineq_rows", "rank", "repeat", "verdict_level",
-                   "verdict_diff", "x_norm", "iterations", "activations", "deactivations", "flops",
-                   "time_median_s", "time_min_s", "time_p95_s", "build_time_s", "solve_time_s", "calib_ns",
-                   "wall_s")
-
-
 def _check_numbers(df: pd.DataFrame, path: Path) -> None:
     """A number column holding anything but numbers (a file edited or two files
     concatenated, header and all) is an error naming its first such row, not a
     TypeError later in a median."""
-    for c in NUMERIC_COLUMNS:
+    for c in NUMBER_COLUMNS:
         if c not in df or pd.api.types.is_numeric_dtype(df[c]):
             continue
         bad = pd.to_numeric(df[c], errors="coerce").isna() & df[c].notna()
@@ -193,8 +190,7 @@ def _check_numbers(df: pd.DataFrame, path: Path) -> None:
         i = int(bad.to_numpy().argmax())
         value = df[c].iloc[i]
         if value == c:
-            raise HikbenchError(f"{path}: data row {i + 1} is a second header line (two files concatenated?): "
-                                f"remove it")
+            raise _second_header(path, i + 1)
         raise HikbenchError(f"{path}: data row {i + 1}: column {c!r} holds {value!r}, not a number")
 
 

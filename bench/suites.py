@@ -55,7 +55,7 @@ import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench.problemset import ProblemSpec, load_object
+from bench.problemset import ProblemSpec
 from bench.worker import solver_info
 from problems.errors import HikbenchError, SolverNotFoundError
 
@@ -338,14 +338,20 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
     return suite
 
 
-def _entry_for_object(spec: str) -> SolverEntry:
+def _entry_for_object(spec: str, where: str) -> SolverEntry:
+    from solvers import registry
+
     obj = solver_info(spec).factory
     mod, _, attr = spec.rpartition(":")
     if mod.endswith(".py") and not Path(mod).is_absolute():  # the workers (Dask) may run in another directory
         spec = f"{Path(mod).resolve()}:{attr}"
     name = getattr(obj, "name", "") or attr
-    return SolverEntry(solver=name if isinstance(name, str) else spec, spec=spec, strict=bool(getattr(obj,
-                                                                                                      "strict", True)),
+    name = name if isinstance(name, str) else spec
+    known = registry.available().get(name)
+    if (known is not None and known.factory is not obj) or name in registry.missing():  # (e.g. inherited)
+        raise SuiteError(f"{where}: solver {spec!r} is named {name!r} (its attribute `name`), the name of a "
+                         f"registered solver, whose rows it would take: give it a name of its own")
+    return SolverEntry(solver=name, spec=spec, strict=bool(getattr(obj, "strict", True)),
                        warm=bool(getattr(obj, "supports_warm_start", False)))
 
 
@@ -401,12 +407,7 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
             from bench.external import parse_external
             add(parse_external(pat))
         elif ":" in pat:
-            e = _entry_for_object(pat)
-            if (e.solver in missing or e.solver in avail  # (e.g. inherited)
-                    and avail[e.solver].factory is not load_object(pat)):
-                raise SuiteError(f"{where}: solver {pat!r} is named {e.solver!r} (its attribute `name`), the name "
-                                 f"of a registered solver, whose rows it would take: give it a name of its own")
-            add(e)
+            add(_entry_for_object(pat, where))
         elif any(c in pat for c in "*?["):
             matched = [n for n in avail if fnmatch.fnmatchcase(n, pat)]
             if not matched:

@@ -231,7 +231,12 @@ def from_soth_text(text: str, source: str = "<soth text>") -> Hierarchy:
 def save_soth(h: Hierarchy, path: str | os.PathLike) -> None:
     """Write h as SOTH text to ``path``; raises ProblemFileError when the file
     cannot be written."""
-    text = to_soth_text(h)
+    write_soth_text(to_soth_text(h), path)
+
+
+def write_soth_text(text: str, path: str | os.PathLike) -> None:
+    """Write the text of :func:`to_soth_text` to ``path`` (ProblemFileError
+    when the file cannot be written)."""
     try:
         with open(path, "w", encoding="ascii") as f:
             f.write(text)

@@ -7,7 +7,7 @@ import sys
 
 from problems.errors import HikbenchError, ProblemFileError
 from problems.files import load, save_npz
-from problems.soth import save_soth, soth_order, to_soth_text
+from problems.soth import soth_order, to_soth_text, write_soth_text
 
 HELP = "convert a problem file to SOTH text or .npz"
 
@@ -46,16 +46,17 @@ def soth_losses(h) -> list[str]:
 
 def run(args) -> int:
     h = load(args.file)
+    text = ""
     if args.format == "soth":
         try:
-            to_soth_text(h)  # (a finite bound beyond +-1e25 cannot be written)
+            text = to_soth_text(h)  # (a finite bound beyond +-1e25 cannot be written)
         except ProblemFileError as err:
             raise ProblemFileError(f"{args.file}: cannot be written as SOTH text: {err}") from err
     out = args.out or default_out(args.file, args.format)
     if out == "-":
         if args.format != "soth":
             raise HikbenchError("--out - (stdout) is only for --format soth")
-        sys.stdout.write(to_soth_text(h))
+        sys.stdout.write(text)
         _note(h)
         return 0
     if os.path.exists(out) and os.path.samefile(out, args.file):
@@ -69,7 +70,7 @@ def run(args) -> int:
         if out.endswith(".npz"):
             raise HikbenchError(f"--out {out}: a SOTH text file must not end in .npz "
                                 "(files are read by extension)")
-        save_soth(h, out)
+        write_soth_text(text, out)
         _note(h)
     print(out)
     return 0

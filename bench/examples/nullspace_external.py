@@ -23,8 +23,9 @@ import time
 import numpy as np
 
 
-def solve(A, lower, upper, level, n):
-    """x of the equality rows, level by level in the null space of the levels above."""
+def solve(A, lower, upper, level, n, rtol=1e-10):
+    """x of the equality rows, level by level in the null space of the levels above
+    (rank: the singular values above ``rtol`` times the level's norm)."""
     x, Z = np.zeros(n), np.eye(n)
     for k in np.unique(level):
         rows = (level == k) & (lower == upper)
@@ -32,7 +33,7 @@ def solve(A, lower, upper, level, n):
             continue
         Ak, bk = A[rows], lower[rows]
         U, s, Vt = np.linalg.svd(Ak @ Z)
-        r = int(np.sum(s > 1e-10 * max(np.linalg.norm(Ak, 2), 1e-300)))
+        r = int(np.sum(s > rtol * max(np.linalg.norm(Ak, 2), 1e-300)))
         if r:
             x = x + Z @ (Vt[:r].T @ ((U[:, :r].T @ (bk - Ak @ x)) / s[:r]))
         Z = Z @ Vt[r:].T

@@ -1,10 +1,12 @@
 """A solver of your own in the benchmark: the template of README, "Adding a solver".
 
-The classical null-space recursion with numpy's SVD (ICRA 2010, eq. 2): level
-k's rows are met in the least-squares sense within the null space ``Z`` of the
-levels above, shapes ``A_k (m_k, n)``, ``Z (n, n - r)`` with r the rank used so
-far. Equality rows only: a problem with inequalities is declined
-(``unsupported``, left out of the aggregates). Try it without registering it:
+The numerical work is a function you already have: here the null-space
+recursion of the external example (``nullspace_external.solve``: ICRA 2010,
+eq. 2, numpy's SVD; A (m, n), lower / upper / level (m,)). The class around
+it is what hikbench needs: a name, what it supports, options checked at
+construction, and a SolveResult. Equality rows only: a problem with
+inequalities is declined (``unsupported``, left out of the aggregates). Try it
+without registering it:
 
     hikbench solve PROBLEM.npz --solver bench/examples/pinv_recursion.py:PinvRecursion
     hikbench run --suite quick --solvers hcod bench/examples/pinv_recursion.py:PinvRecursion \\
@@ -13,8 +15,7 @@ far. Equality rows only: a problem with inequalities is declined
 
 from __future__ import annotations
 
-import numpy as np
-
+from bench.examples.nullspace_external import solve as nullspace_solve
 from problems.hierarchy import Hierarchy
 from solvers.base import OPTIMAL, Solver, SolveResult
 from solvers.registry import SolverInfo, check_number
@@ -33,18 +34,12 @@ class PinvRecursion(Solver):
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
         self.check_hierarchy(hierarchy)
-        if hierarchy.has_inequalities:
-            return self.unsupported(hierarchy, "equality rows only")
-        x, Z = np.zeros(hierarchy.n), np.eye(hierarchy.n)
-        for level in hierarchy:                          # level 0 first: A, lower, upper, name
-            if level.rows == 0 or Z.shape[1] == 0:
-                continue
-            U, s, Vt = np.linalg.svd(level.A @ Z)        # J_k Z_{k-1} = U diag(s) V^T
-            r = int(np.sum(s > self.rcond * s[0])) if s.size and s[0] > 0 else 0
-            x = x + Z @ (Vt[:r].T @ ((U[:, :r].T @ (level.lower - level.A @ x)) / s[:r]))
-            Z = Z @ Vt[r:].T
+        h = hierarchy  # A (m, n), lower, upper, level (m,), n, depth; `for level in h` gives each level
+        if h.has_inequalities:
+            return self.unsupported(h, "equality rows only")
+        x = nullspace_solve(h.A, h.lower, h.upper, h.level, h.n, rtol=self.rcond)
         # statuses: solvers.base.STATUSES; x is judged by the harness from x alone
-        return SolveResult(x, OPTIMAL, iterations_per_level=(0,) * hierarchy.depth)
+        return SolveResult(x, OPTIMAL, iterations_per_level=(0,) * h.depth)
 
 
 # What a package's entry point names (group "hikbench.solvers"): the solver
