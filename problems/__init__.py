@@ -5,6 +5,7 @@ from problems.errors import (
     HikbenchError,
     InvalidHierarchyError,
     ProblemFileError,
+    ProblemTooLargeError,
     SolverNotFoundError,
     SolverOptionError,
     UnknownFamilyError,
@@ -13,7 +14,7 @@ from problems.hierarchy import Hierarchy, Level
 from problems.verify import Verdict, compare_lexicographic, level_norms, level_scales, verify, violation
 
 __all__ = [
-    "Hierarchy", "HikbenchError", "InvalidHierarchyError", "Level", "ProblemFileError", "SolverNotFoundError",
-    "SolverOptionError", "UnknownFamilyError", "Verdict", "compare_lexicographic", "level_norms",
+    "Hierarchy", "HikbenchError", "InvalidHierarchyError", "Level", "ProblemFileError", "ProblemTooLargeError",
+    "SolverNotFoundError", "SolverOptionError", "UnknownFamilyError", "Verdict", "compare_lexicographic", "level_norms",
     "level_scales", "verify", "violation",
 ]

@@ -27,6 +27,11 @@ class InvalidHierarchyError(HikbenchError, ValueError):
         self.row = row
 
 
+class ProblemTooLargeError(HikbenchError, MemoryError):
+    """A valid hierarchy that this machine cannot hold: its n x n matrices
+    would not fit in memory (raised before anything is allocated)."""
+
+
 class ProblemFileError(HikbenchError):
     """A problem file cannot be read or written (missing key, bad syntax)."""
 

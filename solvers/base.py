@@ -3,8 +3,9 @@
 A solver is an object built with its options and called on a
 :class:`~problems.hierarchy.Hierarchy`; it may keep warm-start state between
 calls (the benchmark's ``warm`` mode re-solves on the same object). It never
-sees a robot, never raises for a valid problem, never returns NaN silently:
-failures come back as a status with a reason.
+sees a robot, never raises for a valid problem (one too large for the
+machine's memory excepted, :meth:`Solver.check_hierarchy`), never returns NaN
+silently: failures come back as a status with a reason.
 """
 
 from __future__ import annotations
@@ -14,7 +15,9 @@ from dataclasses import InitVar, dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
+import psutil
 
+from problems.errors import ProblemTooLargeError
 from problems.hierarchy import Hierarchy
 
 __all__ = ["CRASHED", "ERROR", "INFEASIBLE_LEVEL", "MAX_ITERATIONS", "NUMERICAL_FAILURE", "OPTIMAL",
@@ -28,6 +31,10 @@ UNSUPPORTED = "unsupported"              #: the solver cannot handle this proble
 TIMEOUT = "timeout"                      #: the harness killed the solve after its time limit
 CRASHED = "crashed"                      #: the worker process died (segfault, abort)
 ERROR = "error"                          #: an exception escaped from a backend
+
+#: bytes of this machine's memory; a problem whose one n x n matrix of doubles
+#: needs more is refused by :meth:`Solver.check_hierarchy`
+MEMORY_BYTES = psutil.virtual_memory().total
 
 STATUSES = (OPTIMAL, MAX_ITERATIONS, INFEASIBLE_LEVEL, NUMERICAL_FAILURE, UNSUPPORTED, TIMEOUT,
             CRASHED, ERROR)
@@ -130,12 +137,24 @@ class Solver(abc.ABC):
         """The type check at the start of :meth:`solve`: ``hierarchy`` must be a
         :class:`~problems.hierarchy.Hierarchy` (every CLI path builds one; a
         call from Python may pass anything). Raises TypeError naming the
-        solver, the expected type and the type it got."""
+        solver, the expected type and the type it got.
+
+        Also refuses, with :class:`~problems.errors.ProblemTooLargeError`, a
+        hierarchy whose ``n`` makes one ``n x n`` matrix of doubles larger
+        than this machine's memory (:data:`MEMORY_BYTES`): every solver here
+        keeps one (a null-space basis, a Hessian), and allocating it would end
+        in a MemoryError or in swapping for hours."""
+        who = self.name or type(self).__name__
         if not isinstance(hierarchy, Hierarchy):
             t = type(hierarchy)
             got = t.__qualname__ if t.__module__ == "builtins" else f"{t.__module__}.{t.__qualname__}"
-            raise TypeError(f"{self.name or type(self).__name__}.solve expects a problems.hierarchy.Hierarchy "
+            raise TypeError(f"{who}.solve expects a problems.hierarchy.Hierarchy "
                             f"(e.g. Hierarchy.from_levels), got {got}")
+        need = 8 * int(hierarchy.n) ** 2
+        if need > MEMORY_BYTES:
+            raise ProblemTooLargeError(
+                f"{who}: n = {hierarchy.n} variables: one n x n matrix of doubles needs "
+                f"{need / 2**30:.3g} GiB, more than this machine's {MEMORY_BYTES / 2**30:.3g} GiB of memory")
 
     def unsupported(self, hierarchy: Hierarchy, why: str) -> SolveResult:
         return SolveResult(x=None, status=UNSUPPORTED, reason=f"{self.name}: {why}",

@@ -195,6 +195,8 @@ class CascadeBase(Solver):
         build_s = solve_s = 0.0
         inaccurate: list[int] = []
         info = {"backend": self.backend, "freeze": self.freeze, "accuracy": self.accuracy}
+        if n == 0:  # x in R^0 is decided; cvxpy cannot model a Variable(0)
+            return SolveResult(x=x, status=OPTIMAL, iterations_per_level=(0,) * h.depth, info=info)
 
         def fail(status: str, k: int, why: str, x_out) -> SolveResult:
             info["failed_level"] = k
@@ -283,6 +285,7 @@ class QPSolversCascade(CascadeBase):
 
 def _make(backend: str) -> type[QPSolversCascade]:
     cls = type(f"Cascade_{backend}", (QPSolversCascade,), {
+        "__module__": __name__,  # (else type() takes the caller's frame: 'abc')
         "name": f"cascade-{backend}",
         "description": f"cascade of QPs (Kanoun et al.), one QP per level solved by {backend} via qpsolvers",
         "backend": backend,

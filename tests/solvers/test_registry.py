@@ -136,3 +136,52 @@ def test_solve_of_a_non_hierarchy_names_the_solver_and_the_expected_type(name, b
     assert solver.solve(h).status in ("optimal", "unsupported")
     with pytest.raises(TypeError, match=msg):
         solver.solve(bad)
+
+
+def _empty_levels(n: int):
+    from problems.hierarchy import Hierarchy
+
+    return Hierarchy(np.zeros((2, n)), [1.0, -1.0], [1.0, -1.0], [0, 1], n=n, depth=2)  # two equalities
+
+
+@pytest.mark.parametrize("name", _ALL)
+def test_a_problem_larger_than_the_memory_is_refused_before_any_allocation(name):
+    """A valid hierarchy whose n x n matrix of doubles would not fit (SOTH's ``variable size
+    100000000000`` with no rows): a HikbenchError naming the solver, n and both sizes, not
+    numpy's MemoryError traceback (1e11) or hours of swapping (3e9)."""
+    from problems.errors import HikbenchError, ProblemTooLargeError
+    from problems.hierarchy import Hierarchy
+    from solvers.base import MEMORY_BYTES
+
+    n = 10 ** 11
+    h = Hierarchy(np.zeros((0, n)), [], [], [], n=n, depth=1)
+    with pytest.raises(ProblemTooLargeError, match=rf"^{name}: n = {n} variables: one n x n matrix of doubles "
+                                                   rf"needs 7\.45e\+13 GiB, more than this machine's "
+                                                   rf"[0-9.]+ GiB of memory$") as err:
+        registry.create(name).solve(h)
+    assert isinstance(err.value, HikbenchError) and isinstance(err.value, MemoryError)
+    largest = int((MEMORY_BYTES / 8) ** 0.5)  # the largest n whose n x n matrix fits
+    registry.create(name).check_hierarchy(Hierarchy(np.zeros((0, largest)), [], [], [], n=largest, depth=1))
+    with pytest.raises(ProblemTooLargeError):
+        registry.create(name).check_hierarchy(Hierarchy(np.zeros((0, largest + 1)), [], [], [], n=largest + 1,
+                                                        depth=1))
+
+
+@pytest.mark.parametrize("name", _ALL)
+def test_no_variables_is_solved_by_every_solver(name):
+    """n = 0: x in R^0 is decided, every solver says optimal with an empty x (cascade-cvxpy
+    raised on cvxpy's Variable(0) before; its row was an error). dls-liegeois needs a box level,
+    which no row of R^0 is."""
+    res = registry.create(name).solve(_empty_levels(0))
+    if name == "dls-liegeois":
+        assert (res.status, res.x) == ("unsupported", None)
+        assert "needs per-variable limits: no level is a box level" in res.reason
+        return
+    assert res.status == "optimal", res.reason
+    assert res.x.shape == (0,)
+
+
+def test_cascade_factories_are_named_by_their_module():
+    """`hikbench list`/registry.available() showed <class 'abc.Cascade_clarabel'>."""
+    factory = registry.get("cascade-daqp").factory
+    assert (factory.__module__, factory.__qualname__) == ("solvers.cascade", "Cascade_daqp")
