@@ -71,11 +71,25 @@ def test_violation_is_distance_to_the_interval(h, data):
 
 def test_level_scales_by_hand():
     # level 0: A = [[3, 4]] (||A||_F = 5), bounds (-inf, 12] -> finite bounds norm 12;
-    # level 1: A = [[0, 0]], bounds [0, 0] -> 0, floored at 1.
-    h = Hierarchy([[3, 4], [0, 0]], [-INF, 0], [12, 0], [0, 1])
-    np.testing.assert_allclose(level_scales(h), [5 * 1 + 12, 1.0], rtol=1e-15)
+    # level 1: A = [[0, 0]], bounds [0, 0] -> 0 (no floor: its tolerance is atol alone);
+    # level 2: A = [[3e-8, 4e-8]], bounds [1e-7, 1e-7] -> 5e-8 + sqrt(2) 1e-7.
+    h = Hierarchy([[3, 4], [0, 0], [3e-8, 4e-8]], [-INF, 0, 1e-7], [12, 0, 1e-7], [0, 1, 2])
+    np.testing.assert_allclose(level_scales(h), [5 * 1 + 12, 0.0, 5e-8 + 2 ** 0.5 * 1e-7], rtol=1e-15)
     # with ||x|| = 1: 5 * (1 + 1) + 12 = 22
-    np.testing.assert_allclose(level_scales(h, [0.6, 0.8]), [22.0, 1.0], rtol=1e-15)
+    np.testing.assert_allclose(level_scales(h, [0.6, 0.8]), [22.0, 0.0, 1e-7 + 2 ** 0.5 * 1e-7], rtol=1e-15)
+
+
+@pytest.mark.parametrize("scale", [1e-7, 1e-3, 1.0, 1e4], ids=["1e-7", "1e-3", "1", "1e4"])
+def test_a_small_scaled_level_left_undone_is_worse(scale):
+    """[scale (x1 + x2) = scale] > [x = 0]: x = 0 leaves level 0 undone by its whole target and is
+    lower at level 1 than the optimum (0.5, 0.5). The level's tolerance is relative to its own
+    scale at every scale (atol 1e-9 apart); with scales floored at 1 (before) a level of scale
+    1e-7 was within rtol 1e-6 of any answer, and x = 0 was judged *better* than the optimum at
+    level 1."""
+    h = Hierarchy.from_levels([Level.equality(scale * np.ones((1, 2)), [scale]), Level.equality(np.eye(2), [0, 0])])
+    v = verify(h, np.zeros(2), np.array([0.5, 0.5]), rtol=1e-6, atol=1e-9)  # the suites' "default" profile
+    assert (v.level, v.lower) == (0, "b")
+    assert verify(h, np.array([0.5, 0.5]) * (1 + 1e-9), np.array([0.5, 0.5]), rtol=1e-6, atol=0).equal
 
 
 @pytest.mark.parametrize("a, b, kwargs, level, lower, difference", [
