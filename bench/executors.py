@@ -128,6 +128,31 @@ def _check_scheduler_address(address: str) -> tuple[str, int] | None:
     return host, int(port)
 
 
+def _probe_scheduler(address: str, host_port: tuple[str, int]) -> None:
+    """Connect to a tcp:// --scheduler and read what it sends first.
+
+    Fails at once on a refused connection (OSError; Client retries for 30 s).
+    A Dask server writes its handshake as soon as it accepts (a message of a
+    few dozen bytes, led by its length as a little-endian 64-bit integer);
+    Client waits for it without a time limit, and reads any 8 bytes as that
+    length. A port that sends nothing within ``_CONNECT_TIMEOUT`` (an HTTP
+    server, such as the scheduler's dashboard) left the run hanging, and one
+    that sent a banner made Client allocate exabytes: both are a
+    HikbenchError naming the address."""
+    with socket.create_connection(host_port, timeout=_CONNECT_TIMEOUT) as sock:
+        try:
+            first = sock.recv(8)
+        except TimeoutError:
+            first = None
+    hint = "expected a Dask scheduler's address (not its dashboard's HTTP port, by default 8787)"
+    if first is None:
+        raise HikbenchError(f"--scheduler {address}: sent nothing within {_CONNECT_TIMEOUT:g} s; {hint}")
+    if not first:
+        raise HikbenchError(f"--scheduler {address}: closed the connection at once; {hint}")
+    if len(first) == 8 and int.from_bytes(first, "little") > 2 ** 26:
+        raise HikbenchError(f"--scheduler {address}: does not speak Dask's protocol (it sent {first!r}); {hint}")
+
+
 class DaskExecutor:
     def __init__(self, workers: int | None = None, scheduler: str | None = None):
         from distributed import Client, LocalCluster
@@ -141,7 +166,9 @@ class DaskExecutor:
             host_port = _check_scheduler_address(scheduler)
             with contextlib.ExitStack() as starting:  # (the client closes at once if the scheduler is unusable)
                 try:
-                    if host_port is not None:  # fail at once on a refused connection (Client retries for 30 s)
+                    if host_port is not None and scheduler.startswith("tcp://"):
+                        _probe_scheduler(scheduler, host_port)
+                    elif host_port is not None:  # fail at once on a refused connection (Client retries 30 s)
                         socket.create_connection(host_port, timeout=_CONNECT_TIMEOUT).close()
                     self.client = Client(scheduler, timeout=_CONNECT_TIMEOUT)
                 except OSError as err:  # refused, unreachable, unknown host, timed out

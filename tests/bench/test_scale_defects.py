@@ -613,3 +613,46 @@ def test_after_a_restart_a_solver_gets_twice_its_first_solve_not_the_full_allowa
     assert "allowed for the first solve (after a restart: the job timeout plus twice this solver's first solve " \
            "before," in again["reason"], again
     assert took < 5  # not the 20 s allowance
+
+
+@pytest.mark.parametrize("greeting, fragment", [
+    (None, "sent nothing within 0.5 s"),
+    (b"SSH-2.0-OpenSSH_9.2\r\n", "does not speak Dask's protocol (it sent b'SSH-2.0-')"),
+    (b"", "closed the connection at once"),
+], ids=["silent-http-port", "banner", "closes"])
+def test_a_scheduler_address_that_is_not_a_dask_scheduler_is_a_one_line_error(tmp_path, capsys, monkeypatch,
+                                                                               greeting, fragment):
+    """--scheduler at the dashboard's HTTP port (which waits for a request) hung the run for good:
+    Client waits for the scheduler's handshake without a time limit. A port that sent a banner
+    made Client read its first 8 bytes as a message length and allocate exabytes (a traceback)."""
+    import socket
+
+    from clitools import assert_user_error, run
+    from doubles import write_suite
+
+    import bench.executors
+
+    monkeypatch.setattr(bench.executors, "_CONNECT_TIMEOUT", 0.5)
+    server = socket.create_server(("127.0.0.1", 0))
+    port = server.getsockname()[1]
+
+    def serve():
+        conn, _ = server.accept()
+        with conn:
+            if greeting is None:
+                time.sleep(2.0)  # an HTTP server: silent until it gets a request
+            else:
+                conn.sendall(greeting)
+
+    t = threading.Thread(target=serve, daemon=True)
+    t.start()
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], grid={"n": [4], "depth": [1]})
+    try:
+        code, _, err = run(capsys, "run", "--quiet", "--suite", suite, "--out", tmp_path / "out",
+                           "--scheduler", f"tcp://127.0.0.1:{port}")
+    finally:
+        t.join(5)
+        server.close()
+    assert_user_error(code, err, f"--scheduler tcp://127.0.0.1:{port}: {fragment}; expected a Dask scheduler's "
+                                 "address (not its dashboard's HTTP port")
+    assert not (tmp_path / "out" / "results.csv").exists()
