@@ -66,10 +66,11 @@ def execute(job: dict, notify=None) -> dict:
     """Run one job; never raises for a solver failure (the reason is returned).
 
     A solve job starts with the solver's ``warmup()`` (if it has one: all its
-    kernels compiled) and one untimed solve on a fresh solver (it counts as
-    the first warm-up solve: JIT compilation, caches), then calls
-    ``notify()`` so that the isolated worker's caller can switch from the
-    first-solve allowance to the job timeout (bench/isolation.py)."""
+    kernels compiled) and one untimed solve on a fresh solver (JIT
+    compilation, imports), then calls ``notify()`` so that the isolated
+    worker's caller can switch from the first-solve allowance to the job
+    timeout (bench/isolation.py). The job's ``warmup`` discarded solves come
+    after that, right before the timed ones (:func:`bench.timing.time_solves`)."""
     base = {"host": socket.gethostname(), "pid": os.getpid()}
     h = job["hierarchy"]
     try:
@@ -97,8 +98,9 @@ def execute(job: dict, notify=None) -> dict:
         if job.get("calibrate"):
             from bench.calibration import calibrate
             calib.append(calibrate(reps=3))
-        t = time_solves(make, h, repeat=int(job["repeat"]), mode=job["mode"],
-                        warmup=max(int(job["warmup"]) - 1, 0))
+        # every warm-up solve in time_solves, after its gc.collect() and BLAS limit: the first
+        # solve after them took 2-7x the median when the untimed first solve counted as one
+        t = time_solves(make, h, repeat=int(job["repeat"]), mode=job["mode"], warmup=int(job["warmup"]))
         out = {**base, **_result_dict(t.result, t.samples_ns)}
         if calib:
             out["calib_ns"] = min(calib[0], calibrate(reps=3))  # around the timed solves

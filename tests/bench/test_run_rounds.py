@@ -27,13 +27,13 @@ def test_rounds_interleave_the_jobs_and_pool_their_samples(tmp_path, monkeypatch
     for _, row in df.iterrows():
         assert row["status"] == "optimal" and row["verified"]
         assert row["repeat"] == 5 and len(json.loads(row["samples_ns"])) == 5
-    # per job and round: one untimed first solve (the warm-up), then its share of the
+    # per job and round: one untimed first solve, the warm-up solve, then its share of the
     # repetitions: 3 then 2. Round 1 runs both problems, then round 2 both again.
     ns = [int(line.split()[1]) for line in log.read_text().splitlines()]
-    first, second = ns[:8], ns[8:]
-    assert len(ns) == 8 + 6
-    assert sorted(set(first)) == [4, 6] and first[:4] == [first[0]] * 4 and first[4:] == [first[4]] * 4
-    assert second == [first[0]] * 3 + [first[4]] * 3
+    first, second = ns[:10], ns[10:]
+    assert len(ns) == 10 + 8
+    assert sorted(set(first)) == [4, 6] and first[:5] == [first[0]] * 5 and first[5:] == [first[5]] * 5
+    assert second == [first[0]] * 4 + [first[5]] * 4
     session = json.loads((tmp_path / "out" / "run.json").read_text())["sessions"][-1]
     assert session["rounds"] == 2 and session["repeat"] == 5
 
@@ -50,7 +50,7 @@ def test_a_crash_ends_the_rounds_of_its_job_only(tmp_path, monkeypatch):
     assert df.loc["log", "status"] == "optimal" and df.loc["log", "repeat"] == 3
     lines = log.read_text().splitlines()
     assert lines.count("log-segfault 4") == 1  # not run again in rounds 2 and 3
-    assert lines.count("log 4") == 3 * 2  # per round: the warm-up solve and one timed solve
+    assert lines.count("log 4") == 3 * 3  # per round: the first solve, the warm-up and one timed solve
 
 
 def test_a_timeout_in_a_later_round_is_the_row(tmp_path, monkeypatch):
@@ -65,7 +65,7 @@ def test_a_timeout_in_a_later_round_is_the_row(tmp_path, monkeypatch):
     assert df.loc["log-hang-later", "reason"].endswith("(in round 2 of 3; the earlier rounds ended optimal)")
     assert df.loc["log-hang-later", "repeat"] == 0  # (a timeout row has no timing, as without rounds)
     assert df.loc["log", "status"] == "optimal" and df.loc["log", "repeat"] == 3
-    assert log.read_text().splitlines().count("log-hang-later 4") == 3  # round 3 did not run it
+    assert log.read_text().splitlines().count("log-hang-later 4") == 3 + 1  # round 3 did not run it
 
 
 def _res(status="optimal", samples=(10, 20), wall=1.0, reason="", **kw):
