@@ -58,19 +58,32 @@ class Comparison:
 
 
 def _host_calibration(df: pd.DataFrame, meta: dict) -> dict:
-    fallback = float(meta.get("calibration_ns") or 1.0)
+    """host -> median calib_ns of its rows; "" -> run.json's ``calibration_ns``
+    (None when neither is known)."""
+    fallback = meta.get("calibration_ns")
     cal = df.dropna(subset=["calib_ns"]).groupby("host")["calib_ns"].median().to_dict()
-    return {h: float(cal.get(h, fallback)) for h in df["host"].fillna("").unique()} | {"": fallback}
+    return {h: cal.get(h, fallback) for h in df["host"].fillna("").unique()} | {"": fallback}
 
 
-def normalised_samples(df: pd.DataFrame, meta: dict) -> pd.Series:
-    """Samples (ns) divided by a calibration time (see the module docstring): dimensionless."""
+def normalised_samples(df: pd.DataFrame, meta: dict, source: str = "results") -> pd.Series:
+    """Samples (ns) divided by a calibration time (see the module docstring): dimensionless.
+
+    A row with samples and no calibration (an empty ``calib_ns`` on every row
+    of its host and no ``calibration_ns`` in run.json: a hand-made file) is a
+    HikbenchError naming ``source`` and the row: raw nanoseconds compared with
+    a calibrated run would give ratios of a million."""
     cal = _host_calibration(df, meta)
     per_job = bool(meta.get("suite", {}).get("calibrate_each_job"))
     out = []
-    for s, h, c in zip(df["samples_ns"], df["host"].fillna(""), df["calib_ns"]):
+    for i, (s, h, c) in enumerate(zip(df["samples_ns"], df["host"].fillna(""), df["calib_ns"])):
         v = np.asarray(json.loads(s), dtype=float) if s else np.zeros(0)
-        out.append(v / (float(c) if per_job and pd.notna(c) else cal.get(h, cal[""])))
+        scale = float(c) if per_job and pd.notna(c) else cal.get(h, cal[""])
+        if v.size and (scale is None or not float(scale) > 0):
+            raise HikbenchError(f"{source}: data row {i + 1} ({df['solver'].iloc[i]}, {df['problem'].iloc[i]}) "
+                                f"has timing samples but no calibration: calib_ns is empty on every row of "
+                                f"its host and run.json has no calibration_ns; expected a run written by "
+                                f"`hikbench run`")
+        out.append(v / float(scale) if v.size else v)
     return pd.Series(out, index=df.index)
 
 
@@ -79,9 +92,9 @@ def _true(v) -> bool:
 
 
 def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_meta: dict,
-                   threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
-    base = base.assign(_norm=normalised_samples(base, base_meta)).set_index(list(KEY))
-    new = new.assign(_norm=normalised_samples(new, new_meta)).set_index(list(KEY))
+                   threshold: float = 1.15, alpha: float = 0.01, names=("base", "new")) -> Comparison:
+    base = base.assign(_norm=normalised_samples(base, base_meta, names[0])).set_index(list(KEY))
+    new = new.assign(_norm=normalised_samples(new, new_meta, names[1])).set_index(list(KEY))
     base = base[~base.index.duplicated(keep="last")]
     new = new[~new.index.duplicated(keep="last")]
     common = base.index.intersection(new.index)
@@ -119,7 +132,8 @@ def compare_runs(base_dir, new_dir, threshold: float = 1.15, alpha: float = 0.01
     """compare_frames on two run directories; HikbenchError when they have no case in common
     (nothing compared is not a pass)."""
     c = compare_frames(read_results(base_dir), read_results(new_dir), read_run_json(base_dir),
-                       read_run_json(new_dir), threshold, alpha)
+                       read_run_json(new_dir), threshold, alpha,
+                       names=(f"{base_dir}/results.csv", f"{new_dir}/results.csv"))
     if c.table.empty:
         raise HikbenchError(f"{base_dir} ({len(c.only_base)} cases) and {new_dir} ({len(c.only_new)} cases) have "
                             f"no case (problem, solver, settings, mode) in common: expected two runs of the "

@@ -194,6 +194,25 @@ def _check_numbers(df: pd.DataFrame, path: Path) -> None:
         raise HikbenchError(f"{path}: data row {i + 1}: column {c!r} holds {value!r}, not a number")
 
 
+def _check_json(df: pd.DataFrame, path: Path) -> None:
+    """A JSON column whose cell does not parse (a hand-edited file) is an error
+    naming its first such row, not a JSONDecodeError traceback in compare or
+    report."""
+    for c in JSON_COLUMNS:
+        if c not in df:
+            continue
+        for i, value in enumerate(df[c]):
+            if not isinstance(value, str) or not value:
+                continue
+            try:
+                json.loads(value)
+            except ValueError:
+                if value == c:
+                    raise _second_header(path, i + 1) from None
+                raise HikbenchError(f"{path}: data row {i + 1}: column {c!r} holds {value[:40]!r}, "
+                                    f"not JSON") from None
+
+
 def read_results(run_dir) -> pd.DataFrame:
     """OUT/results.csv as a DataFrame (JSON columns left as strings), its
     complete rows only (a row being written is not read half)."""
@@ -207,6 +226,7 @@ def read_results(run_dir) -> pd.DataFrame:
     # complete lines only: a run still writing (or killed mid-row) leaves a partial last row
     df = pd.read_csv(io.StringIO(_complete_text(path)), dtype=dtype, keep_default_na=True)
     _check_numbers(df, path)
+    _check_json(df, path)
     for c in JSON_COLUMNS:
         if c in df:
             df[c] = df[c].fillna("")

@@ -167,3 +167,48 @@ def test_a_verdict_needs_the_minima_too(direction):
     row = c.table.iloc[0]
     assert row["ratio"] == pytest.approx(1.5 if direction == "slower" else 1 / 1.5, rel=1e-3)
     assert row["ratio_min"] == 1.0 and row["verdict"] == "ok"
+
+
+@pytest.fixture(scope="module")
+def one_run(tmp_path_factory):
+    d = tmp_path_factory.mktemp("one-run")
+    suite = write_suite(d / "s.toml", ["reference"], grid={"n": [4], "depth": [1, 2]}, modes=("cold",), repeat=3)
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(d / "run")]) == 0
+    return d / "run"
+
+
+def _edited_copy(run, dest, column, value, drop_run_json=False):
+    """A copy of run whose column holds value on every row (run.json dropped on request)."""
+    import csv
+    import shutil
+
+    shutil.copytree(run, dest)
+    with open(dest / "results.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    for r in rows:
+        r[column] = value
+    with open(dest / "results.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    if drop_run_json:
+        (dest / "run.json").unlink()
+    return dest
+
+
+@pytest.mark.parametrize("column, value, drop_run_json, fragments", [
+    ("samples_ns", "not json", False, ["results.csv: data row 1: column 'samples_ns' holds 'not json', not JSON"]),
+    ("level_norms", "[0.1, ", False, ["results.csv: data row 1: column 'level_norms' holds '[0.1, ', not JSON"]),
+    ("calib_ns", "", True, ["results.csv: data row 1 (reference, ", "has timing samples but no calibration",
+                            "run.json has no calibration_ns"]),
+], ids=["samples-not-json", "norms-cut", "no-calibration"])
+def test_a_hand_edited_run_is_a_one_line_error(one_run, tmp_path, capsys, column, value, drop_run_json,
+                                               fragments):
+    """compare on a results.csv whose JSON cell does not parse gave a JSONDecodeError traceback;
+    one without any calibration divided raw nanoseconds by 1.0 and flagged every case SLOWER
+    (ratio ~1.6e6 against a calibrated base)."""
+    from clitools import assert_user_error, run
+
+    bad = _edited_copy(one_run, tmp_path / "bad", column, value, drop_run_json)
+    code, _, err = run(capsys, "compare", one_run, bad)
+    assert_user_error(code, err, str(bad), *fragments)
