@@ -3,8 +3,8 @@
 One module per sub-command in ``bench/commands/``; each defines ``HELP``,
 ``add_arguments(parser)`` and ``run(args) -> int``. User mistakes
 (:class:`~problems.errors.HikbenchError`, and command lines argparse rejects)
-print one line on stderr and exit 2; ``--help`` exits 0; anything else is a
-bug and keeps its traceback.
+print one line on stderr and exit 2, as does a MemoryError (sizes beyond the
+machine); ``--help`` exits 0; anything else is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -77,6 +77,10 @@ def main(argv: list[str] | None = None) -> int:
         return int(args._run(args) or 0)
     except HikbenchError as err:
         print(f"hikbench {args.command}: error: {_one_line(err)}", file=sys.stderr)
+        return 2
+    except MemoryError as err:  # sizes asked for beyond the machine (generate --param rows=1e12)
+        print(f"hikbench {args.command}: error: out of memory ({_one_line(err) or 'MemoryError'}); "
+              f"expected sizes this machine can hold", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"hikbench {args.command}: interrupted", file=sys.stderr)

@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from problems.hierarchy import Hierarchy
+from problems.hierarchy import Hierarchy, check_fits_in_memory
 
 __all__ = ["RANK_RTOL", "LevelStructure", "level_structure"]
 
@@ -76,6 +76,7 @@ def level_structure(h: Hierarchy, rtol: float = RANK_RTOL) -> list[LevelStructur
     """One :class:`LevelStructure` per level of h, level 0 first."""
     lo_inf, up_inf = np.isneginf(h.lower), np.isposinf(h.upper)
     out = []
+    check_fits_in_memory(h.n, "rank analysis")
     Z = np.eye(h.n)  # orthonormal basis of the null space of the levels above, (n, n - rank)
     for k in range(h.depth):
         s = h.level_rows(k)

@@ -21,12 +21,15 @@ _NUMERIC = ("A", "lower", "upper", "x0")  # real numbers (level and n: integers,
 
 
 def _array(z, key: str, path) -> np.ndarray:
-    """One array of an open npz; an object (pickled) array is refused by name."""
+    """One array of an open npz; an object (pickled) array is refused by name,
+    a damaged one (its data cut short) names the array and numpy's reason."""
     try:
         return z[key]
-    except ValueError as err:  # allow_pickle=False: the array holds Python objects
-        raise ProblemFileError(f"{path}: {key} must be a numeric array; it holds Python objects "
-                               f"(not read, for safety)") from err
+    except ValueError as err:
+        if "allow_pickle" in str(err):  # allow_pickle=False: the array holds Python objects
+            raise ProblemFileError(f"{path}: {key} must be a numeric array; it holds Python objects "
+                                   f"(not read, for safety)") from err
+        raise ProblemFileError(f"{path}: array {key} cannot be read ({err})") from err
 
 
 def save_npz(h: Hierarchy, path: str | os.PathLike) -> None:

@@ -23,11 +23,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from numbers import Integral
 
 import numpy as np
 
 from problems.errors import HikbenchError, UnknownFamilyError
-from problems.hierarchy import Hierarchy, Level
+from problems.hierarchy import Hierarchy, Level, check_fits_in_memory
 
 __all__ = ["DEGENERATE_CASES", "FAMILIES", "INEQUALITY_MIXES", "Family", "degenerate", "equality_stack",
            "generate", "ik_like", "random_hierarchy"]
@@ -361,4 +362,6 @@ def generate(family: str, seed: int = 0, **params) -> Hierarchy:
     """Generate one problem of a named family (see FAMILIES)."""
     if family not in FAMILIES:
         raise UnknownFamilyError(f"unknown family {family!r}; expected one of {', '.join(FAMILIES)}")
+    if isinstance(params.get("n"), Integral):  # (a wrong type is the family's to name)
+        check_fits_in_memory(params["n"], f"family {family}")
     return FAMILIES[family].generate(seed=seed, **params)

@@ -23,10 +23,48 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+import psutil
 
-from problems.errors import InvalidHierarchyError
+from problems.errors import InvalidHierarchyError, ProblemTooLargeError
 
-__all__ = ["Hierarchy", "Level"]
+__all__ = ["MEMORY_BYTES", "Hierarchy", "Level", "check_fits_in_memory"]
+
+#: bytes of this machine's memory; a problem whose one n x n matrix of doubles
+#: needs more is refused (:func:`check_fits_in_memory`)
+MEMORY_BYTES = psutil.virtual_memory().total
+
+
+def check_fits_in_memory(n: int, who: str) -> None:
+    """ProblemTooLargeError (``who`` first in the message) when one ``n x n``
+    matrix of doubles is larger than this machine's memory: every solver here
+    keeps one (a null-space basis, a Hessian), as do the rank analysis of
+    ``inspect`` and the generators' random orthogonal factors; allocating it
+    would end in a MemoryError, or in hours of swapping."""
+    need = 8 * int(n) ** 2
+    if need > MEMORY_BYTES:
+        raise ProblemTooLargeError(
+            f"{who}: n = {int(n)} variables: one n x n matrix of doubles needs {need / 2**30:.3g} GiB, "
+            f"more than this machine's {MEMORY_BYTES / 2**30:.3g} GiB of memory")
+
+
+def _real(value, what: str, level: int | None = None) -> np.ndarray:
+    """``value`` as a float64 array; InvalidHierarchyError naming ``what`` for
+    anything but real numbers (strings, a ragged list, complex numbers: numpy
+    would raise its own ValueError, or drop the imaginary part with a warning)."""
+    try:
+        arr = np.asarray(value)
+    except ValueError as err:  # a ragged nested list
+        raise InvalidHierarchyError(f"{what} is not a rectangular array of numbers ({err})", level=level) from None
+    if arr.dtype.kind == "O":  # numbers of Python types numpy keeps as objects (Fraction, Decimal), or junk
+        try:
+            arr = arr.astype(np.float64)
+        except (TypeError, ValueError):
+            raise InvalidHierarchyError(f"{what} must hold real numbers; got Python objects that are not "
+                                        f"(e.g. {arr.flat[0]!r})" if arr.size else f"{what} must hold real numbers",
+                                        level=level) from None
+    if arr.dtype.kind not in "biuf":
+        raise InvalidHierarchyError(f"{what} must hold real numbers; got dtype {arr.dtype}", level=level)
+    return arr.astype(np.float64, copy=False)
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
@@ -55,8 +93,8 @@ class Level:
     @classmethod
     def equality(cls, A, b, name: str = "") -> Level:
         """Equality rows ``A x = b``."""
-        b = np.asarray(b, dtype=float)
-        return cls(np.asarray(A, dtype=float), b, b.copy(), name)
+        b = _real(b, "b")
+        return cls(_real(A, "A"), b, b.copy(), name)
 
     @property
     def rows(self) -> int:
@@ -96,9 +134,9 @@ class Hierarchy:
 
     def __init__(self, A, lower, upper, level, n: int | None = None, depth: int | None = None,
                  names: Sequence[str] | None = None, x0=None):
-        A = np.asarray(A, dtype=np.float64)
-        lower = np.asarray(lower, dtype=np.float64)
-        upper = np.asarray(upper, dtype=np.float64)
+        A = _real(A, "A")
+        lower = _real(lower, "lower")
+        upper = _real(upper, "upper")
         level_arr = np.asarray(level)
         if A.ndim != 2:
             if A.size == 0 and n is not None:
@@ -150,7 +188,7 @@ class Hierarchy:
         starts = np.searchsorted(level_arr, np.arange(depth + 1), side="left").astype(np.int64)
         self._check_values(A, lower, upper, level_arr, starts)
         if x0 is not None:
-            x0 = np.asarray(x0, dtype=np.float64)
+            x0 = _real(x0, "x0")
             if x0.shape != (n,):
                 raise InvalidHierarchyError(f"x0 has shape {x0.shape}: expected ({n},)")
             if not np.all(np.isfinite(x0)):
@@ -183,26 +221,35 @@ class Hierarchy:
     def from_levels(cls, levels: Iterable[Level], n: int | None = None, x0=None) -> Hierarchy:
         """Stack :class:`Level` objects, the first one the highest priority."""
         levels = list(levels)
+        As = [_real(L.A, f"level {k}: A", k) for k, L in enumerate(levels)]
+        for k, Ak in enumerate(As):
+            if Ak.ndim != 2 and Ak.size:
+                raise InvalidHierarchyError(f"level {k}: A has shape {Ak.shape}: expected a 2-D array (rows, n)",
+                                            level=k)
+        origin = "given"
         if n is None:
             if not levels:
                 raise InvalidHierarchyError("n is required for a hierarchy without levels")
-            n = np.shape(levels[0].A)[1] if np.ndim(levels[0].A) == 2 else 0
+            # from the first level with rows (an empty level's A may be np.zeros(0))
+            k0 = next((k for k, Ak in enumerate(As) if Ak.size), None)
+            k0 = k0 if k0 is not None else next((k for k, Ak in enumerate(As) if Ak.ndim == 2), None)
+            n, origin = (As[k0].shape[1], f"from level {k0}'s A") if k0 is not None else (0, "no level has rows")
         blocks, lo, up, lev = [], [], [], []
-        for k, L in enumerate(levels):
-            Ak = np.asarray(L.A, dtype=np.float64)
+        for k, (L, Ak) in enumerate(zip(levels, As)):
             if Ak.size == 0:
                 Ak = Ak.reshape(0, n)
-            if Ak.ndim != 2 or Ak.shape[1] != n:
+            if Ak.shape[1] != n:
                 raise InvalidHierarchyError(
-                    f"level {k}: A has shape {Ak.shape}: expected (rows, {n})", level=k)
+                    f"level {k}: A has shape {Ak.shape}: expected (rows, {n}) (n = {n}, {origin})", level=k)
             m_k = Ak.shape[0]
-            for label, b in (("lower", L.lower), ("upper", L.upper)):
-                if np.shape(b) != (m_k,):
+            bounds = [_real(b, f"level {k}: {label}", k) for label, b in (("lower", L.lower), ("upper", L.upper))]
+            for label, b in zip(("lower", "upper"), bounds):
+                if b.shape != (m_k,):
                     raise InvalidHierarchyError(
-                        f"level {k}: {label} has shape {np.shape(b)}: expected ({m_k},)", level=k)
+                        f"level {k}: {label} has shape {b.shape}: expected ({m_k},)", level=k)
             blocks.append(Ak)
-            lo.append(np.asarray(L.lower, dtype=np.float64))
-            up.append(np.asarray(L.upper, dtype=np.float64))
+            lo.append(bounds[0])
+            up.append(bounds[1])
             lev.append(np.full(m_k, k, dtype=np.int64))
         A = np.vstack(blocks) if blocks else np.zeros((0, n))
         names = [L.name or f"level {k}" for k, L in enumerate(levels)]

@@ -15,10 +15,8 @@ from dataclasses import InitVar, dataclass, field
 from typing import Any, ClassVar
 
 import numpy as np
-import psutil
 
-from problems.errors import ProblemTooLargeError
-from problems.hierarchy import Hierarchy
+from problems.hierarchy import Hierarchy, check_fits_in_memory
 
 __all__ = ["CRASHED", "ERROR", "INFEASIBLE_LEVEL", "MAX_ITERATIONS", "NUMERICAL_FAILURE", "OPTIMAL",
            "STATUSES", "TIMEOUT", "UNSUPPORTED", "SolveResult", "Solver"]
@@ -31,10 +29,6 @@ UNSUPPORTED = "unsupported"              #: the solver cannot handle this proble
 TIMEOUT = "timeout"                      #: the harness killed the solve after its time limit
 CRASHED = "crashed"                      #: the worker process died (segfault, abort)
 ERROR = "error"                          #: an exception escaped from a backend
-
-#: bytes of this machine's memory; a problem whose one n x n matrix of doubles
-#: needs more is refused by :meth:`Solver.check_hierarchy`
-MEMORY_BYTES = psutil.virtual_memory().total
 
 STATUSES = (OPTIMAL, MAX_ITERATIONS, INFEASIBLE_LEVEL, NUMERICAL_FAILURE, UNSUPPORTED, TIMEOUT,
             CRASHED, ERROR)
@@ -141,20 +135,15 @@ class Solver(abc.ABC):
 
         Also refuses, with :class:`~problems.errors.ProblemTooLargeError`, a
         hierarchy whose ``n`` makes one ``n x n`` matrix of doubles larger
-        than this machine's memory (:data:`MEMORY_BYTES`): every solver here
-        keeps one (a null-space basis, a Hessian), and allocating it would end
-        in a MemoryError or in swapping for hours."""
+        than this machine's memory
+        (:func:`~problems.hierarchy.check_fits_in_memory`)."""
         who = self.name or type(self).__name__
         if not isinstance(hierarchy, Hierarchy):
             t = type(hierarchy)
             got = t.__qualname__ if t.__module__ == "builtins" else f"{t.__module__}.{t.__qualname__}"
             raise TypeError(f"{who}.solve expects a problems.hierarchy.Hierarchy "
                             f"(e.g. Hierarchy.from_levels), got {got}")
-        need = 8 * int(hierarchy.n) ** 2
-        if need > MEMORY_BYTES:
-            raise ProblemTooLargeError(
-                f"{who}: n = {hierarchy.n} variables: one n x n matrix of doubles needs "
-                f"{need / 2**30:.3g} GiB, more than this machine's {MEMORY_BYTES / 2**30:.3g} GiB of memory")
+        check_fits_in_memory(hierarchy.n, who)
 
     def unsupported(self, hierarchy: Hierarchy, why: str) -> SolveResult:
         return SolveResult(x=None, status=UNSUPPORTED, reason=f"{self.name}: {why}",

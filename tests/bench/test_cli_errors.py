@@ -38,11 +38,24 @@ def test_scenario_without_name(capsys):
     (["--param", "box_bound=-1"], "box_bound must be a finite number >= 0"),
     (["--param", "equality_fraction=2"], "equality_fraction must be a finite number >= 0 and <= 1; got 2.0"),
     (["--param", "rows=-1"], "rows must be >= 0"),
+    # numpy's MemoryError tracebacks before
+    (["--param", "n=1000000000000"], ("family random: n = 1000000000000 variables: one n x n matrix of doubles "
+                                      "needs 7.45e+15 GiB, more than this machine's ")),
+    (["--param", "rows=1000000000000"], "out of memory (Unable to allocate "),  # (numpy's wording follows)
 ], ids=["negative seed", "cond overflow", "cond below 1", "row_scale nan", "box_bound negative",
-        "equality_fraction", "rows negative"])
+        "equality_fraction", "rows negative", "n beyond the memory", "rows beyond the memory"])
 def test_generate_parameter_errors(capsys, tmp_path, argv, fragment):
     code, _, err = run(capsys, "generate", "random", *argv, "--out", tmp_path / "g")
     assert_user_error(code, err, "hikbench generate: error:", fragment)
+
+
+def test_inspect_of_a_problem_beyond_the_memory(capsys, tmp_path):
+    """`variable size 100000` and no rows: np.eye(n) of the rank analysis gave numpy's MemoryError."""
+    path = tmp_path / "big.soth"
+    path.write_text("variable size 100000\nlevel\nequalities 0\ninequalities 0\nend\n")
+    code, _, err = run(capsys, "inspect", path)
+    assert_user_error(code, err, "hikbench inspect: error: rank analysis: n = 100000 variables: one n x n "
+                                 "matrix of doubles needs 74.5 GiB")
 
 
 # ------------------------------------------------------ malformed .npz files
@@ -65,7 +78,8 @@ def _bad_npz(path, problem, **changes):
     ("A objects", "A must be a numeric array; it holds Python objects"),
     ("not a zip", "not a valid .npz file (expected a zip archive of arrays"),
     (".npy", "not a valid .npz file (expected a zip archive of arrays"),
-], ids=["A strings", "lower strings", "A complex", "A objects", "not a zip", "npy"])
+    ("A truncated", "array A cannot be read (EOF: reading array data, expected "),
+], ids=["A strings", "lower strings", "A complex", "A objects", "not a zip", "npy", "A truncated"])
 def test_malformed_npz(capsys, tmp_path, problem, command, kind, fragment):
     path = tmp_path / "bad.npz"
     h = problem[0]
@@ -79,6 +93,15 @@ def test_malformed_npz(capsys, tmp_path, problem, command, kind, fragment):
         _bad_npz(path, problem, A=h.A.astype(object))
     elif kind == "not a zip":
         path.write_text("hello")
+    elif kind == "A truncated":  # the zip's directory intact, A.npy's data cut short (was: "holds Python objects")
+        import zipfile
+
+        _bad_npz(path, problem)
+        with zipfile.ZipFile(path) as z:
+            members = {name: z.read(name) for name in z.namelist()}
+        with zipfile.ZipFile(path, "w") as z:
+            for name, data in members.items():
+                z.writestr(name, data[:-8] if name == "A.npy" else data)
     else:
         with open(path, "wb") as f:
             np.save(f, h.A)

@@ -119,6 +119,19 @@ BAD = [
      r"x0 has shape \(1,\): expected \(2,\)", None, None),
     ("x0 NaN", {"A": A2, "lower": [0, 0], "upper": [1, 1], "level": [0, 0], "x0": [1.0, np.nan]},
      r"x0 holds NaN or inf: expected finite values", None, None),
+    # numpy's own ValueError (strings, ragged), or the imaginary part dropped with a warning (complex)
+    ("strings in A", {"A": [["a", "b"]], "lower": [0], "upper": [1], "level": [0]},
+     r"^A must hold real numbers; got dtype <U1$", None, None),
+    ("ragged A", {"A": [[1, 2], [3]], "lower": [0, 0], "upper": [1, 1], "level": [0, 0]},
+     r"^A is not a rectangular array of numbers \(setting an array element with a sequence", None, None),
+    ("complex A", {"A": np.array([[1 + 1j, 2]]), "lower": [0], "upper": [1], "level": [0]},
+     r"^A must hold real numbers; got dtype complex128$", None, None),
+    ("string lower", {"A": A2, "lower": ["x", "y"], "upper": [1, 1], "level": [0, 0]},
+     r"^lower must hold real numbers; got dtype <U1$", None, None),
+    ("object upper", {"A": A2, "lower": [0, 0], "upper": [1, object()], "level": [0, 0]},
+     r"^upper must hold real numbers; got Python objects that are not \(e\.g\. 1\)$", None, None),
+    ("complex x0", {"A": A2, "lower": [0, 0], "upper": [1, 1], "level": [0, 0], "x0": [1j, 0]},
+     r"^x0 must hold real numbers; got dtype complex128$", None, None),
 ]
 
 
@@ -134,10 +147,43 @@ def test_bad_input_raises(kwargs, message, level, row):
      r"level 1: A has shape \(1, 2\): expected \(rows, 3\)"),
     ([Level(np.ones((2, 3)), [0], [1, 1])], r"level 0: lower has shape \(1,\): expected \(2,\)"),
     ([], r"n is required for a hierarchy without levels"),
-], ids=["columns", "bound shape", "no levels without n"])
+    # n was taken as 0 from a 1-D or empty first A, and the message asked for (rows, 0)
+    ([Level(np.array([1.0, 2.0]), [1.0], [1.0])], r"^level 0: A has shape \(2,\): expected a 2-D array \(rows, n\)$"),
+    ([Level(np.ones((2, 3)), [0, 0], [1, 1]), Level(np.array([1.0, 2.0]), [1.0], [1.0])],
+     r"^level 1: A has shape \(2,\): expected a 2-D array \(rows, n\)$"),
+    ([Level(np.ones((1, 3)), [0], [1]), Level(np.ones((1, 2)), [0], [1])],
+     r"^level 1: A has shape \(1, 2\): expected \(rows, 3\) \(n = 3, from level 0's A\)$"),
+    ([Level([["a"]], [0], [1])], r"^level 0: A must hold real numbers; got dtype <U1$"),
+    ([Level(np.ones((1, 2)), ["low"], [1])], r"^level 0: lower must hold real numbers; got dtype <U3$"),
+], ids=["columns", "bound shape", "no levels without n", "1-D first A", "1-D later A", "n from level 0",
+        "strings in A", "strings in lower"])
 def test_from_levels_bad_input(levels, message):
     with pytest.raises(InvalidHierarchyError, match=message):
         Hierarchy.from_levels(levels)
+
+
+def test_from_levels_takes_n_from_the_first_level_with_rows():
+    """An empty first level (np.zeros(0)) made n = 0, then level 1's A of 2 columns was refused."""
+    h = Hierarchy.from_levels([Level.equality(np.zeros(0), []), Level.equality(np.ones((1, 2)), [0.5])])
+    assert (h.n, h.rows_per_level.tolist()) == (2, [0, 1])
+
+
+@pytest.mark.parametrize("A, b, message", [
+    ([["a", "b"]], [3], r"^A must hold real numbers; got dtype <U1$"),
+    ([[1, 2], [3]], [3, 4], r"^A is not a rectangular array of numbers"),
+    ([[1, 2]], ["x"], r"^b must hold real numbers; got dtype <U1$"),
+], ids=["strings", "ragged", "string b"])
+def test_level_equality_bad_input(A, b, message):
+    with pytest.raises(InvalidHierarchyError, match=message):
+        Level.equality(A, b)
+
+
+def test_numbers_of_other_python_types_are_read_as_floats():
+    from fractions import Fraction
+
+    h = Hierarchy.from_levels([Level.equality([[Fraction(1, 2), 1]], [Fraction(1, 4)])])
+    np.testing.assert_array_equal(h.A, [[0.5, 1.0]])
+    np.testing.assert_array_equal(h.lower, [0.25])
 
 
 def test_empty_hierarchy_needs_nothing_but_n():

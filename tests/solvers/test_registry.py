@@ -150,8 +150,7 @@ def test_a_problem_larger_than_the_memory_is_refused_before_any_allocation(name)
     100000000000`` with no rows): a HikbenchError naming the solver, n and both sizes, not
     numpy's MemoryError traceback (1e11) or hours of swapping (3e9)."""
     from problems.errors import HikbenchError, ProblemTooLargeError
-    from problems.hierarchy import Hierarchy
-    from solvers.base import MEMORY_BYTES
+    from problems.hierarchy import MEMORY_BYTES, Hierarchy
 
     n = 10 ** 11
     h = Hierarchy(np.zeros((0, n)), [], [], [], n=n, depth=1)
