@@ -217,6 +217,9 @@ def read_results(run_dir) -> pd.DataFrame:
     """OUT/results.csv as a DataFrame (JSON columns left as strings), its
     complete rows only (a row being written is not read half)."""
     path = Path(run_dir) / RESULTS
+    if Path(run_dir).is_file():
+        raise HikbenchError(f"{run_dir}: is a file; expected a run directory (the --out of `hikbench run`, "
+                            f"which holds {RESULTS})")
     if not path.exists():
         raise HikbenchError(f"{run_dir}: no {RESULTS} (run `hikbench run --out {run_dir}` first)")
     if _check_header(path) is None:  # killed before its header was written: no rows

@@ -197,13 +197,18 @@ def check_run(run: ScenarioRun) -> list[Check]:
         e = df[f"err_{reach['task']}"].to_numpy()
         tsw = float(reach["out_of_reach_until"])
         phase1 = df["time_s"].to_numpy() < tsw - 1e-9
+        # a phase that a run cut by --steps did not finish is not judged (its last value is not its end)
+        why_not = f"not judged: the run was cut to {steps_run} of the scenario's {run.scenario.steps} steps (--steps)"
         if phase1.any():
             e1 = e[phase1]
+            ended = (~phase1).any() or not cut
             ok = e1[-1] <= e1.min() * (1 + LOWEST_RTOL) + 1e-6 and e1[-1] > OUT_OF_REACH and e1[-1] < e1[0]
-            out.append(Check("out of reach: lowest value", bool(ok),
-                             f"start {e1[0]:.3e}, end {e1[-1]:.3e}, min {e1.min():.3e}"))
+            out.append(Check("out of reach: lowest value", bool(ok or not ended),
+                             f"start {e1[0]:.3e}, end {e1[-1]:.3e}, min {e1.min():.3e}"
+                             + ("" if ended else f"; {why_not}")))
         if (~phase1).any():
             e2 = e[~phase1]
-            out.append(Check("back in reach: converges to 0", bool(e2[-1] <= REACHED_TOL),
-                             f"start {e2[0]:.3e}, end {e2[-1]:.3e} (tol {REACHED_TOL})"))
+            out.append(Check("back in reach: converges to 0", bool(e2[-1] <= REACHED_TOL or cut),
+                             f"start {e2[0]:.3e}, end {e2[-1]:.3e} (tol {REACHED_TOL})"
+                             + (f"; {why_not}" if cut else "")))
     return out

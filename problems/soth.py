@@ -168,6 +168,8 @@ class _Tokens:
     def number(self, what: str) -> float:
         tok = self.next(what)
         try:
+            if "_" in tok:  # Python's float() reads 1_0 as 10; C++'s >> (SOTH) stops at the "_"
+                raise ValueError(tok)
             v = float(tok)
         except ValueError:
             raise self.fail(what + " (a number)", tok) from None

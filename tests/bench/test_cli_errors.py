@@ -124,14 +124,32 @@ def empty_run(tmp_path):
 @pytest.mark.parametrize("make, fragment", [
     (lambda d: d / "nosuch.csv", "--scenario {p}: no such file or directory"),
     (lambda d: _write(d / "ik12.npz", b"PK\x03\x04\xff\xfe binary"), "{p}: not a text CSV file"),
-    (lambda d: _write(d / "x.csv", b"a,b\n1,2\n"), "{p}: missing column(s) solver, solve_time_s"),
+    (lambda d: _write(d / "x.csv", b"a,b\n1,2\n"), "{p}: missing column(s) step, solver, solve_time_s"),
+    # a benchmark's results.csv has solver and solve_time_s too: it read as a scenario without hcod rows
+    (lambda d: _results_csv(d / "results.csv"), "{p}: missing column(s) step;"),
     (lambda d: _write(d / "e.csv", b""), "{p}: cannot read as CSV"),
     (lambda d: _mkdir(d / "empty"), "--scenario {p}: no *.csv file in this directory"),
-], ids=["missing", "binary", "wrong columns", "empty file", "empty directory"])
+], ids=["missing", "binary", "wrong columns", "results.csv", "empty file", "empty directory"])
 def test_claims_bad_scenario(capsys, tmp_path, empty_run, make, fragment):
     p = make(tmp_path)
     code, _, err = run(capsys, "claims", empty_run, "--scenario", p)
     assert_user_error(code, err, "hikbench claims: error:", fragment.format(p=p))
+
+
+def _results_csv(path):
+    from bench.columns import names
+
+    path.write_text(",".join(names()) + "\n")
+    return path
+
+
+@pytest.mark.parametrize("command", [["claims"], ["report"], ["compare", "{d}"]], ids=["claims", "report", "compare"])
+def test_a_file_given_as_run_directory(capsys, tmp_path, empty_run, command):
+    """`claims suite.toml` said: run `hikbench run --out suite.toml` first."""
+    f = tmp_path / "mini.toml"
+    f.write_text("repeat = 1\n")
+    code, _, err = run(capsys, command[0], f, *[a.format(d=empty_run) for a in command[1:]])
+    assert_user_error(code, err, f"{f}: is a file; expected a run directory (the --out of `hikbench run`")
 
 
 def _write(path, data: bytes):

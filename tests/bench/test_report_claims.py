@@ -104,9 +104,12 @@ def test_claims_d_e_from_scenario_csv(tmp_path):
     rows += [{"solver": "cascade-osqp", "step": s, "warm_start": "none", "solve_time_s": 30e-3,
               "iterations": 0, "activations": 0} for s in steps]
     sc = pd.DataFrame(rows)
-    assert claim_d(sc).status == PASS
+    d = claim_d(sc)
+    assert d.status == PASS and d.measured.endswith("10.0x; on 20 of the reach scenario's 700 steps (a run cut by "
+                                                    "--steps)"), d.measured
     e = claim_e(sc)
     assert e.status == PASS and "2.00 extra iterations per activation" in e.measured
+    assert e.measured.endswith("; on 20 of the reach scenario's 700 steps (a run cut by --steps)")
     many = sc.assign(iterations=sc["iterations"] + 8 * sc["activations"])  # 10 per activation: not "about 2"
     assert claim_e(many).status == FAIL
     assert claim_d(None).status == MISSING and claim_e(None).status == MISSING
@@ -127,7 +130,7 @@ def test_claim_e_leaves_out_the_cold_first_step_of_time_warm_start():
     e = claim_e(pd.DataFrame(rows))
     assert e.status == PASS, e.measured
     assert e.measured.endswith("2.00 extra iterations per activation (quiet steps: 1; the cold first step "
-                               "(step 0) left out)")
+                               "(step 0) left out); on 10 of the reach scenario's 700 steps (a run cut by --steps)")
 
 
 def test_claims_command_exit_codes(sweep_run, tmp_path, capsys):

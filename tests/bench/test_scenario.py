@@ -191,3 +191,9 @@ def test_a_run_cut_by_steps_is_not_judged_on_final_errors(last_status, passed, f
         assert c.passed is passed, c
         assert f"max 1.00e-03 at step 0, {final}; decay per step" in c.detail, c.detail
     assert checks["run completed"].passed is passed
+    # the out-of-reach phase (until t = 3 s) did not end in 5 steps: its last value is no "lowest
+    # value" (it was judged, and marked [pass] or FAIL, on a cut run)
+    reach = checks["out of reach: lowest value"]
+    assert reach.passed is passed, reach
+    assert reach.detail.endswith("; not judged: the run was cut to 5 of the scenario's 700 steps (--steps)") is passed
+    assert "back in reach: converges to 0" not in checks

@@ -214,8 +214,11 @@ def test_soth_no_bound_threshold(bound, read_as):
      r"line 4: expected 'level' or 'end', got end of file"),
     ("variable size 1\nlevels\n", r"line 2: expected 'level' or 'end', got 'levels'"),
     ("variable size 1\nend\nlevel", r"line 3: expected end of file after 'end', got 'level'"),
+    # Python's float() reads 1_0 as 10; SOTH's C++ reader does not
+    ("variable size 2\nlevel\nequalities 1\n1 1_0 3\n", (r"line 4: expected level 0, equality row 0: "
+                                                         r"coefficient a_2 of 2 \(a number\), got '1_0'")),
 ], ids=["empty", "size", "n word", "n negative", "short row", "bad number", "NaN bound", "overflow", "keyword",
-        "count not integer", "no end", "bad level keyword", "text after end"])
+        "count not integer", "no end", "bad level keyword", "text after end", "underscore"])
 def test_soth_parse_errors(text, message):
     with pytest.raises(ProblemFileError, match=message):
         from_soth_text(text)
