@@ -66,7 +66,7 @@ def level_scales(h: Hierarchy, x=None) -> np.ndarray:
     part of a tolerance.
     """
     xn = 0.0 if x is None else float(np.linalg.norm(np.asarray(x, dtype=float)))
-    out = np.ones(h.depth)
+    out = np.zeros(h.depth)
     for k in range(h.depth):
         s = h.level_rows(k)
         b = np.concatenate([h.lower[s], h.upper[s]])
