@@ -58,10 +58,9 @@ def _real(value, what: str, level: int | None = None) -> np.ndarray:
     if arr.dtype.kind == "O":  # numbers of Python types numpy keeps as objects (Fraction, Decimal), or junk
         try:
             arr = arr.astype(np.float64)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError):  # (an empty array always converts)
             raise InvalidHierarchyError(f"{what} must hold real numbers; got Python objects that are not "
-                                        f"(e.g. {arr.flat[0]!r})" if arr.size else f"{what} must hold real numbers",
-                                        level=level) from None
+                                        f"(e.g. {arr.flat[0]!r})", level=level) from None
     if arr.dtype.kind not in "biuf":
         raise InvalidHierarchyError(f"{what} must hold real numbers; got dtype {arr.dtype}", level=level)
     return arr.astype(np.float64, copy=False)
