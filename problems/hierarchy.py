@@ -59,11 +59,20 @@ def _real(value, what: str, level: int | None = None) -> np.ndarray:
         try:
             arr = arr.astype(np.float64)
         except (TypeError, ValueError):  # (an empty array always converts)
-            raise InvalidHierarchyError(f"{what} must hold real numbers; got Python objects that are not "
-                                        f"(e.g. {arr.flat[0]!r})", level=level) from None
+            i, v = next((i, v) for i, v in enumerate(arr.flat) if not _is_number(v))
+            raise InvalidHierarchyError(f"{what} must hold real numbers; element {i} (flat) is of type "
+                                        f"{type(v).__name__}", level=level) from None
     if arr.dtype.kind not in "biuf":
         raise InvalidHierarchyError(f"{what} must hold real numbers; got dtype {arr.dtype}", level=level)
     return arr.astype(np.float64, copy=False)
+
+
+def _is_number(v) -> bool:
+    try:
+        float(v)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:

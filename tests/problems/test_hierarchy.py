@@ -129,7 +129,7 @@ BAD = [
     ("string lower", {"A": A2, "lower": ["x", "y"], "upper": [1, 1], "level": [0, 0]},
      r"^lower must hold real numbers; got dtype <U1$", None, None),
     ("object upper", {"A": A2, "lower": [0, 0], "upper": [1, object()], "level": [0, 0]},
-     r"^upper must hold real numbers; got Python objects that are not \(e\.g\. 1\)$", None, None),
+     r"^upper must hold real numbers; element 1 \(flat\) is of type object$", None, None),
     ("complex x0", {"A": A2, "lower": [0, 0], "upper": [1, 1], "level": [0, 0], "x0": [1j, 0]},
      r"^x0 must hold real numbers; got dtype complex128$", None, None),
 ]
