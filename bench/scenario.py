@@ -33,6 +33,7 @@ level_norm_<level>         ||v_k(u)||, the level's violation recomputed from u
 from __future__ import annotations
 
 import gc
+import inspect
 import time
 from dataclasses import dataclass
 
@@ -41,12 +42,14 @@ import pandas as pd
 import pinocchio as pin
 from threadpoolctl import threadpool_limits
 
+from bench.worker import solver_info
 from problems.errors import HikbenchError
 from problems.robots.kinematics import KinematicState
 from problems.robots.scenarios import Scenario
 from solvers import registry
+from solvers.base import ERROR, SolveResult
 
-__all__ = ["COLUMNS", "NO_WARM_START", "ScenarioRun", "check_run", "run_scenario"]
+__all__ = ["COLUMNS", "NO_WARM_START", "ScenarioRun", "check_run", "run_scenario", "warm_start_default"]
 
 COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_s", "iterations", "activations",
            "deactivations", "status", "reason", "min_joint_limit_margin")
@@ -68,14 +71,32 @@ class ScenarioRun:
         return self.solver if self.warm_start == NO_WARM_START else f"{self.solver} ({self.warm_start})"
 
 
+def warm_start_default(info: registry.SolverInfo) -> str | None:
+    """The default warm-start mode of a solver with the HCOD modes (none / stage /
+    time): its registered option, or, for a ``module:Class`` solver, the default
+    of the factory's ``warm_start`` parameter; None for a solver without one."""
+    if "warm_start" in info.options:
+        return str(info.options["warm_start"])
+    if "warm_start" not in (registry.option_names(info) or ()):
+        return None
+    param = inspect.signature(info.factory).parameters["warm_start"]
+    if param.default is param.empty:
+        raise HikbenchError(f"solver {info.name!r}: its warm_start parameter has no default value; "
+                            f"expected one (none, stage or time)")
+    return str(param.default)
+
+
 def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
                  warm_start: str | None = None, steps: int | None = None) -> ScenarioRun:
     """Run ``scenario`` in closed loop with solver ``solver``.
 
     Parameters
     ----------
+    solver : str
+        A registry name or ``module:Class`` / ``file.py:Class``
+        (:func:`bench.worker.solver_info`).
     options : dict
-        Solver options (``registry.create(solver, **options)``).
+        Solver options (``registry.build(info, **options)``).
     warm_start : str, optional
         Passed as the ``warm_start`` option to solvers that have one (HCOD's
         none / stage / time); ignored, and the column reads ``n/a``, for the others.
@@ -83,14 +104,15 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
         Number of control steps (default: the scenario's).
     """
     options = dict(options or {})
-    info = registry.get(solver)
-    if "warm_start" in info.options:  # solvers with the HCOD warm-start modes (none / stage / time)
+    info = solver_info(solver)
+    default = warm_start_default(info)
+    if default is not None:  # solvers with the HCOD warm-start modes (none / stage / time)
         if warm_start is not None:
             options["warm_start"] = warm_start
-        mode = str(options.get("warm_start", info.options["warm_start"]))
+        mode = str(options.get("warm_start", default))
     else:
         mode = NO_WARM_START
-    slv = registry.create(solver, **options)
+    slv = registry.build(info, **options)
     steps = scenario.steps if steps is None else int(steps)
     if steps < 1:
         raise HikbenchError(f"steps must be >= 1; got {steps}")
@@ -99,7 +121,7 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
     scenario.reset()
     state = KinematicState(robot, scenario.q_init)
     scenario.targets_at(0.0, state)
-    registry.create(solver, **options).solve(stack.hierarchy(scenario.q_init, state))
+    _solve(registry.build(info, **options), stack.hierarchy(scenario.q_init, state))  # (step 0 reports a failure)
     scenario.reset()
     q = scenario.q_init.copy()
     traj, rows = [q.copy()], []
@@ -112,7 +134,7 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
             gc.disable()  # GC off around the timed call only (DESIGN.md, performance ground rules)
             try:
                 t0 = time.perf_counter_ns()
-                res = slv.solve(h)
+                res = _solve(slv, h)
                 elapsed = (time.perf_counter_ns() - t0) * 1e-9
             finally:
                 gc.enable()
@@ -133,6 +155,15 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
                 break
             traj.append(q.copy())
     return ScenarioRun(scenario, solver, mode, pd.DataFrame(rows), np.array(traj))
+
+
+def _solve(slv, h) -> SolveResult:
+    """``slv.solve(h)``; an exception escaping from the solver (a user's
+    ``file.py:Class``) is returned as status ``error`` with its type and message."""
+    try:
+        return slv.solve(h)
+    except Exception as err:  # noqa: BLE001 - a crashing solver ends its run with a status row
+        return SolveResult(None, ERROR, reason=f"{type(err).__name__}: {err}")
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ def add_arguments(p) -> None:
                         "`hikbench scenario --list` lists them")
     p.add_argument("--robot", default=None, help="run on another robot (default: the scenario's)")
     p.add_argument("--solver", action="append", default=None,
-                   help="solver name (repeatable; default: reference)")
+                   help="solver name or module:Class / file.py:Class (repeatable; default: reference)")
     p.add_argument("--warm-start", nargs="+", default=None, choices=WARM_MODES,
                    help="warm-start modes to run, one run each, for solvers with a warm_start option "
                         "(default: the solver's default); ignored for the others")
@@ -45,10 +45,10 @@ def _slug(text: str) -> str:
 
 
 def run(args) -> int:
-    from bench.scenario import check_run, run_scenario
+    from bench.scenario import check_run, run_scenario, warm_start_default
+    from bench.worker import solver_info
     from problems.robots.scenarios import load_scenario, scenario_names
     from problems.robots.stacks import stack_names
-    from solvers import registry
 
     if args.list:
         print("scenarios: " + ", ".join(scenario_names()))
@@ -74,10 +74,9 @@ def run(args) -> int:
         raise HikbenchError(f"--out {out}: cannot create the directory: {err.strerror or err}") from err
     runs, failed = [], False
     for solver in solvers:
-        info = registry.get(solver)
-        has_modes = "warm_start" in info.options  # HCOD-style none / stage / time
-        modes = (args.warm_start or [options.get("warm_start", info.options["warm_start"])]) if has_modes \
-            else [None]
+        default = warm_start_default(solver_info(solver))
+        has_modes = default is not None  # HCOD-style none / stage / time
+        modes = (args.warm_start or [options.get("warm_start", default)]) if has_modes else [None]
         for mode in modes:
             opts = {k: v for k, v in options.items() if k != "warm_start" or has_modes}
             run_ = run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps)

@@ -92,6 +92,32 @@ class RaisingSolver(Solver):
         raise RuntimeError("backend exploded")
 
 
+class WarmReference:
+    """A stand-in for a warm-start solver (hcod): the reference plus a warm_start option;
+    ``activations`` is 1 in mode none, 0 otherwise (so that a test sees the mode arrive)."""
+
+    def __init__(self, warm_start="time"):
+        from solvers.reference import ReferenceSolver
+
+        if warm_start not in ("none", "stage", "time"):
+            from problems.errors import SolverOptionError
+            raise SolverOptionError(f"warm_start must be none, stage or time; got {warm_start!r}")
+        self.warm_start = warm_start
+        self._ref = ReferenceSolver()
+
+    def solve(self, h):
+        res = self._ref.solve(h)
+        res.activations = 1 if self.warm_start == "none" else 0
+        return res
+
+
+class WarmRequired(WarmReference):
+    """A warm_start parameter without a default value."""
+
+    def __init__(self, warm_start):
+        super().__init__(warm_start)
+
+
 def write_suite(path, solvers, grid=None, seeds=(0,), repeat=3, timeout=5.0, modes=("cold", "warm"),
                 family="tiny") -> Path:
     """Write a suite TOML over the ``tiny`` generator; returns its path."""

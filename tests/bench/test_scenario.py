@@ -3,7 +3,7 @@
 import numpy as np
 import pandas as pd
 import pytest
-from doubles import still_run
+from doubles import WarmReference, spec, still_run
 
 from bench.cli import main
 from bench.scenario import COLUMNS, NO_WARM_START, check_run, run_scenario
@@ -132,31 +132,13 @@ def test_step_checks_pass(solver):
     assert all(c.passed for c in checks), [c for c in checks if not c.passed]
 
 
-class _WarmReference:
-    """A stand-in for a warm-start solver (hcod): the reference plus a warm_start option."""
-
-    def __init__(self, warm_start="time"):
-        from solvers.reference import ReferenceSolver
-
-        if warm_start not in ("none", "stage", "time"):
-            from problems.errors import SolverOptionError
-            raise SolverOptionError(f"warm_start must be none, stage or time; got {warm_start!r}")
-        self.warm_start = warm_start
-        self._ref = ReferenceSolver()
-
-    def solve(self, h):
-        res = self._ref.solve(h)
-        res.activations = 1 if self.warm_start == "none" else 0
-        return res
-
-
 @pytest.fixture
 def warm_solver(monkeypatch):
     from solvers import registry
     from solvers.registry import SolverInfo
 
     reg = dict(registry._load())
-    reg["fake-warm"] = SolverInfo("fake-warm", "test double", _WarmReference, supports_inequalities=True,
+    reg["fake-warm"] = SolverInfo("fake-warm", "test double", WarmReference, supports_inequalities=True,
                                   supports_warm_start=True, options={"warm_start": "time"})
     monkeypatch.setattr(registry, "_registry", reg)
     return "fake-warm"
@@ -197,3 +179,35 @@ def test_a_run_cut_by_steps_is_not_judged_on_final_errors(last_status, passed, f
     assert reach.passed is passed, reach
     assert reach.detail.endswith("; not judged: the run was cut to 5 of the scenario's 700 steps (--steps)") is passed
     assert "back in reach: converges to 0" not in checks
+
+
+def test_a_solver_given_as_file_and_class(tmp_path, capsys):
+    """`scenario --solver file.py:Class` runs like `solve` and `run` take it; a factory with a
+    warm_start parameter gets the modes, its default labels the run without --warm-start."""
+    rc = main(["scenario", "reach", "--solver", spec("WarmReference"), "--solver", "solvers.reference:ReferenceSolver",
+               "--steps", "2", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    assert f"{spec('WarmReference')} (time): 2 steps" in out and "solvers.reference:ReferenceSolver: 2 steps" in out
+    csvs = sorted(p.name for p in tmp_path.glob("*.csv"))
+    assert len(csvs) == 2 and any(c.endswith("doubles.py_WarmReference_time.csv") for c in csvs), csvs
+    run = run_scenario(load_scenario("reach"), spec("WarmReference"), warm_start="none", steps=2)
+    assert (run.records["warm_start"] == "none").all() and (run.records["activations"] == 1).all()
+
+
+def test_a_solver_that_raises_costs_its_run_not_the_command(tmp_path, capsys):
+    """The exception is the step's status and reason, the run stops there and fails its check."""
+    rc = main(["scenario", "reach", "--solver", spec("RaisingSolver"), "--solver", "reference",
+               "--steps", "2", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert rc == 1
+    assert "[FAIL] run completed" in out and "reference: 2 steps" in out
+    df = pd.read_csv(next(tmp_path.glob("*RaisingSolver.csv")))
+    assert len(df) == 1
+    assert df.loc[0, "status"] == "error" and df.loc[0, "reason"] == "RuntimeError: backend exploded"
+
+
+def test_a_required_warm_start_parameter_is_named(tmp_path, capsys):
+    assert main(["scenario", "reach", "--solver", spec("WarmRequired"), "--steps", "1",
+                 "--out", str(tmp_path)]) == 2
+    assert "its warm_start parameter has no default value" in capsys.readouterr().err
