@@ -10,9 +10,12 @@ machine); ``--help`` exits 0; anything else is a bug and keeps its traceback.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import importlib
 import os
+import signal
 import sys
+import threading
 
 from problems.errors import HikbenchError
 
@@ -74,7 +77,11 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as stop:  # --help / --version print and stop
         return stop.code if isinstance(stop.code, int) else 0
     try:
-        return int(args._run(args) or 0)
+        with _sigterm_as_interrupt():
+            return int(args._run(args) or 0)
+    except Terminated:
+        print(f"hikbench {args.command}: terminated (SIGTERM)", file=sys.stderr)
+        return 128 + signal.SIGTERM
     except HikbenchError as err:
         print(f"hikbench {args.command}: error: {_one_line(err)}", file=sys.stderr)
         return 2
@@ -89,6 +96,30 @@ def main(argv: list[str] | None = None) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())
         return 0
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM received (``kill``, a CI job's time limit): unwinds like Ctrl-C."""
+
+
+@contextlib.contextmanager
+def _sigterm_as_interrupt():
+    """SIGTERM raises :class:`Terminated` in the main thread, so that the command
+    stops as on Ctrl-C: rows written so far kept, a Dask cluster closed (killed
+    at once, Python left its semaphores to the resource tracker's warning).
+    Elsewhere than in the main thread (where no handler can be set) nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def raise_terminated(signum, frame):
+        raise Terminated()
+
+    previous = signal.signal(signal.SIGTERM, raise_terminated)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
 
 
 def _one_line(err: Exception) -> str:

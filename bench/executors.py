@@ -38,7 +38,7 @@ from bench.isolation import IsolatedWorker
 from problems.errors import HikbenchError
 from solvers.base import CRASHED
 
-__all__ = ["NO_WORKER_GRACE", "DaskExecutor", "SerialExecutor", "run_job"]
+__all__ = ["NO_WORKER_GRACE", "DaskExecutor", "SerialExecutor", "dask_setup", "run_job"]
 
 NO_WORKER_GRACE = 60.0  # seconds a Dask cluster may have no worker while jobs wait (see DaskExecutor)
 
@@ -102,8 +102,35 @@ _CONNECT_TIMEOUT = 10.0  # seconds to reach a --scheduler
 # the local cluster, for the executor's life: Dask retries no job whose worker died (map does, alone);
 # a large run's jobs wait in the scheduler, not two per worker; a nanny is never dropped (by default
 # it is when its worker is still down 15 s after a death: under repeated deaths no worker was left)
+# Ctrl-C reaches the worker processes too (the terminal's process group): dask_setup below, run in each
+# at its start (a preload), has them ignore it, so that only hikbench stops and closes the cluster
 _LOCAL_CLUSTER = {"distributed.scheduler.worker-saturation": 1.0, "distributed.scheduler.allowed-failures": 0,
-                  "distributed.deploy.lost-worker-timeout": "1 day"}
+                  "distributed.deploy.lost-worker-timeout": "1 day", "distributed.worker.preload": [__name__]}
+
+
+def dask_setup(worker) -> None:
+    """Dask's preload hook, run in every worker process of the local cluster
+    as it starts (and restarts): SIGINT ignored. A Ctrl-C in the terminal
+    reaches every process of its group; each worker printed a
+    KeyboardInterrupt traceback (~70 lines for two) before hikbench's
+    ``interrupted``, and died under its nanny. hikbench itself stops on it and
+    closes the cluster, which ends the workers. (The isolated solve processes
+    run in sessions of their own and never see it.)
+
+    Closing a worker while a job runs on it cancels the job's coroutine, which
+    Dask logs as a warning ("Async instruction for <Task ...> ended with
+    CancelledError"; in Dask's words, this happens exclusively in
+    ``Worker.close()``): that one message is dropped."""
+    import logging
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    logging.getLogger("distributed.worker.state_machine").addFilter(_drop_cancelled_on_close)
+
+
+def _drop_cancelled_on_close(record) -> bool:
+    msg = record.getMessage()
+    return not (msg.startswith("Async instruction for") and msg.endswith("ended with CancelledError"))
 
 
 def _check_scheduler_address(address: str) -> tuple[str, int] | None:

@@ -1,8 +1,9 @@
-"""External solvers through the documented protocol, and Dask scale-out (about 10 s)."""
+"""External solvers through the documented protocol, Dask scale-out, a run stopped by a signal (about 25 s)."""
 
 from pathlib import Path
 
 import pandas as pd
+import pytest
 from doubles import spec, write_suite
 
 from bench.cli import main
@@ -73,3 +74,52 @@ def test_external_reads_soth_text(tmp_path):
     row = read_results(tmp_path / "o").iloc[0]
     assert row["status"] == "optimal" and row["verified"]
     assert pd.isna(row["solve_time_s"])  # not reported: the samples are process wall times
+
+
+@pytest.mark.parametrize("workers, sig, to_group, message", [
+    ("2", "SIGINT", True, "hikbench run: interrupted\n"),
+    ("2", "SIGTERM", False, "hikbench run: terminated (SIGTERM)\n"),
+    (None, "SIGTERM", False, "hikbench run: terminated (SIGTERM)\n"),
+], ids=["ctrl-c-dask", "kill-dask", "kill-serial"])
+def test_a_stopped_run_prints_one_line_and_keeps_the_rows(tmp_path, workers, sig, to_group, message):
+    """Ctrl-C reaches the terminal's whole process group, the Dask worker processes too: each
+    printed a KeyboardInterrupt traceback (71 lines on stderr for two). `kill` (SIGTERM) ended
+    hikbench at once: the cluster's semaphores were left to a resource-tracker warning. Now only
+    hikbench stops, says so in one line (exit 128 + the signal), closes what it started, and a
+    second run resumes."""
+    import os
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    from bench.results import finished_keys
+
+    suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], grid={"n": [4, 5, 6, 7, 8, 9]},
+                        modes=("cold",))
+    suite.write_text(suite.read_text() + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\n'
+                                         'options = { delay = 0.05 }\n')
+    out = tmp_path / "out"
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(Path(__file__).parent)])}
+    # (Python's own SIGINT handler even where pytest runs with SIGINT ignored, as a background job)
+    start = "import runpy, signal; signal.signal(signal.SIGINT, signal.default_int_handler); " \
+            "runpy.run_module('bench', run_name='__main__')"
+    argv = [sys.executable, "-c", start, "run", "--quiet", "--suite", str(suite), "--out", str(out)]
+    proc = subprocess.Popen(argv + (["--workers", workers] if workers else []), env=env, cwd=tmp_path,
+                            start_new_session=True, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 120
+    while time.monotonic() < deadline and len(finished_keys(out)) < 2:
+        time.sleep(0.05)
+    signum = getattr(signal, sig)
+    if to_group:  # as the terminal does on Ctrl-C
+        os.killpg(proc.pid, signum)
+    else:
+        os.kill(proc.pid, signum)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 128 + signum, err
+    assert err == message
+    done = len(finished_keys(out))
+    assert 2 <= done < 12
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(out)]) == 0
+    df = read_results(out)
+    assert len(df) == 12 and set(df["status"]) == {"optimal"}
