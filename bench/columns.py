@@ -13,7 +13,7 @@ __all__ = ["COLUMNS", "JSON_COLUMNS", "KEY", "markdown", "names"]
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("problem", ("problem id: family/param=value,.../seed=S (the file OUT/problems/<id>.npz, each / of the "
                  "id written __)")),
-    ("family", "problem family (problems.generators.FAMILIES name, or module:function)"),
+    ("family", "problem family (a `hikbench list families` name, or module:function)"),
     ("params", "JSON dict of the family parameters given by the suite (defaults not repeated)"),
     ("seed", "generator seed"),
     ("n", "number of variables (DOF)"),

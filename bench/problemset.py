@@ -1,7 +1,7 @@
 """Problems of a suite: deterministic generation from (family, params, seed),
 ids, files under OUT/problems/, and the descriptive columns of a problem.
 
-A family is a name of ``problems.generators.FAMILIES`` or a ``module:function``
+A family is a name of ``problems.generators.all_families()`` or a ``module:function``
 path (``function(seed=..., **params) -> Hierarchy``; also ``path/to/file.py:function``),
 so a user or a test can bring its own generator without touching the library.
 """
@@ -98,10 +98,11 @@ def generate(spec: ProblemSpec) -> Hierarchy:
         from problems import generators
     except ModuleNotFoundError as err:
         raise HikbenchError(f"family {spec.family!r}: problems.generators is not available ({err})") from err
-    if spec.family not in generators.FAMILIES:
+    families = generators.all_families()
+    if spec.family not in families:
         from problems.errors import UnknownFamilyError
         raise UnknownFamilyError(f"unknown problem family {spec.family!r} "
-                                 f"(known: {', '.join(generators.FAMILIES)})")
+                                 f"(known: {', '.join(families)})")
     try:
         return generators.generate(spec.family, seed=spec.seed, **spec.params)
     except TypeError as err:

@@ -22,7 +22,7 @@ path. Schema (every key optional except ``problems``)::
     options = { accuracy = "low" }   # checked against the solver before anything runs
 
     [[problems]]
-    family = "equality"          # FAMILIES name or module:function
+    family = "equality"          # a `hikbench list families` name or module:function
     params = { rows = 6 }              # fixed parameters
     grid = { n = [6, 12], depth = [2, 4] }   # Cartesian product
     seeds = [0, 1]

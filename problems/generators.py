@@ -30,7 +30,8 @@ import numpy as np
 from problems.errors import HikbenchError, UnknownFamilyError
 from problems.hierarchy import Hierarchy, Level, check_fits_in_memory
 
-__all__ = ["DEGENERATE_CASES", "FAMILIES", "INEQUALITY_MIXES", "Family", "degenerate", "equality_stack",
+__all__ = ["DEGENERATE_CASES", "FAMILIES", "INEQUALITY_MIXES", "Family", "all_families", "degenerate",
+           "equality_stack",
            "generate", "ik_like", "random_hierarchy"]
 
 INEQUALITY_MIXES = ("none", "one-sided", "two-sided", "mixed")
@@ -358,10 +359,20 @@ FAMILIES: dict[str, Family] = {f.name: f for f in (
 )}
 
 
+def all_families() -> dict[str, Family]:
+    """The named families: :data:`FAMILIES` and the robot stacks'
+    (``problems.robots.testsets.ROBOT_FAMILIES``: ``robot-stack``, params
+    ``stack`` and ``robot``; pinocchio is imported on its first problem)."""
+    from problems.robots.testsets import ROBOT_FAMILIES  # (it imports Family from here)
+
+    return {**FAMILIES, **ROBOT_FAMILIES}
+
+
 def generate(family: str, seed: int = 0, **params) -> Hierarchy:
-    """Generate one problem of a named family (see FAMILIES)."""
-    if family not in FAMILIES:
-        raise UnknownFamilyError(f"unknown family {family!r}; expected one of {', '.join(FAMILIES)}")
+    """Generate one problem of a named family (see :func:`all_families`)."""
+    families = all_families()
+    if family not in families:
+        raise UnknownFamilyError(f"unknown family {family!r}; expected one of {', '.join(families)}")
     if isinstance(params.get("n"), Integral):  # (a wrong type is the family's to name)
         check_fits_in_memory(params["n"], f"family {family}")
-    return FAMILIES[family].generate(seed=seed, **params)
+    return families[family].generate(seed=seed, **params)

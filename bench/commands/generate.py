@@ -9,7 +9,7 @@ import re
 
 from problems.errors import HikbenchError, ProblemFileError, UnknownFamilyError
 from problems.files import save_npz
-from problems.generators import FAMILIES, generate
+from problems.generators import all_families, generate
 from problems.soth import save_soth
 
 HELP = "generate problems of a named family (see `hikbench list families`) into files"
@@ -86,13 +86,14 @@ def file_name(family: str, params: dict, seed: int, fmt: str) -> str:
 
 
 def run(args) -> int:
-    if args.family not in FAMILIES:
-        raise UnknownFamilyError(f"unknown family {args.family!r}; expected one of {', '.join(FAMILIES)}")
+    families = all_families()
+    if args.family not in families:
+        raise UnknownFamilyError(f"unknown family {args.family!r}; expected one of {', '.join(families)}")
     if args.seed < 0:
         raise HikbenchError(f"--seed must be an integer >= 0; got {args.seed}")
     if args.seeds < 1:
         raise HikbenchError(f"--seeds must be >= 1; got {args.seeds}")
-    params = parse_params(args.param, FAMILIES[args.family].defaults, args.family)
+    params = parse_params(args.param, families[args.family].defaults, args.family)
     try:
         os.makedirs(args.out, exist_ok=True)
     except OSError as err:

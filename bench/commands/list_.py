@@ -42,10 +42,10 @@ def _suites():
 
 
 def _families():
-    from problems.generators import FAMILIES
+    from problems.generators import all_families
 
     rows = []
-    for name, fam in FAMILIES.items():
+    for name, fam in all_families().items():
         params = " ".join(f"{k}={v!r}" for k, v in fam.defaults.items())
         rows.append((name, f"{fam.description} (defaults: {params})" if params else fam.description))
     return rows

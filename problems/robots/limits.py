@@ -12,7 +12,7 @@ import numpy as np
 import pinocchio as pin
 
 from problems.robots.models import Robot
-from problems.robots.tasks import Task, TaskError
+from problems.robots.tasks import Task, TaskError, number
 
 __all__ = ["INEQUALITY_TASKS", "FrameDistance", "JointPositionLimits", "JointVelocityLimits"]
 
@@ -73,8 +73,7 @@ class JointVelocityLimits(_Inequality):
 
     def __init__(self, robot: Robot, name: str = "velocity_limits", scale: float = 1.0):
         super().__init__(robot, name, 0.0)
-        if not (np.isfinite(scale) and scale > 0):
-            raise TaskError(f"task {name!r}: scale must be > 0; got {scale}")
+        scale = number(scale, f"task {name!r}: scale", low_open=True)
         vmax = np.asarray(robot.model.velocityLimit, dtype=float)
         self.select = np.isfinite(vmax) & (vmax > 0) & (vmax < 1e10)
         self.vmax = scale * vmax[self.select]
@@ -106,8 +105,10 @@ class FrameDistance(_Inequality):
     def __init__(self, robot: Robot, name: str, frame_a: str, frame_b: str, d_min: float,
                  gain: float | None = None):
         super().__init__(robot, name, gain)
-        if not (np.isfinite(d_min) and d_min >= 0):
-            raise TaskError(f"task {name!r}: d_min must be >= 0; got {d_min}")
+        d_min = number(d_min, f"task {name!r}: d_min")
+        for frame in (frame_a, frame_b):
+            if not isinstance(frame, str):
+                raise TaskError(f"task {name!r}: frame_a and frame_b must be frame names (strings); got {frame!r}")
         self.frame_a, self.frame_b = frame_a, frame_b
         self.id_a, self.id_b = robot.frame_id(frame_a), robot.frame_id(frame_b)
         if self.id_a == self.id_b:

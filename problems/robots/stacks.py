@@ -16,8 +16,13 @@ TOML format (``problems/robots/stacks/*.toml``)::
     tasks = [{ type = "pose", name = "right_hand", frame = "right_hand", gain = 5.0 }]
 
 Task types: see :data:`TASK_TYPES`; keys other than ``type`` and ``name`` are the
-constructor arguments of the task class. Targets default to the values at the
-robot's nominal configuration q0.
+constructor arguments of the task class. ``dt`` defaults to 0.01 s. A target
+given in the file is kept (``position`` / ``com``: ``[x, y, z]``; ``orientation``:
+``{ rpy = [r, p, y] }`` or a 3x3 matrix; ``pose``: ``{ position = [...], rpy = [...] }``;
+``posture``: nq numbers); the other targets are the values at the robot's
+nominal configuration q0 (and :meth:`Stack.set_targets_from` moves only those).
+A level is a table with ``tasks`` and an optional ``name``; levels come in file
+order, level 0 first.
 """
 
 from __future__ import annotations
@@ -26,10 +31,10 @@ import inspect
 import os
 import tomllib
 from dataclasses import dataclass, field
+from numbers import Real
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 
 from problems.errors import HikbenchError
 from problems.hierarchy import Hierarchy, Level
@@ -85,6 +90,7 @@ class StackSpec:
     levels: list[list[dict]]
     level_names: list[str | None] = field(default_factory=list)
     description: str = ""
+    source: str = "<dict>"  #: the file it was read from, for error messages
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>") -> StackSpec:
@@ -95,18 +101,27 @@ class StackSpec:
         for key in ("name", "robot", "levels"):
             if key not in d:
                 raise StackError(f"{source}: missing key {key!r}")
-        dt = float(d.get("dt", 0.01))
-        if not (np.isfinite(dt) and dt > 0):
-            raise StackError(f"{source}: dt must be > 0 (s); got {d.get('dt')}")
+        dt = d.get("dt", 0.01)
+        if not (isinstance(dt, Real) and not isinstance(dt, bool) and np.isfinite(dt) and dt > 0):
+            raise StackError(f"{source}: dt must be a number > 0 (the control period, s); got {dt!r}")
+        if not isinstance(d["levels"], list) or not d["levels"]:
+            raise StackError(f"{source}: 'levels' must be a non-empty list of [[levels]] tables; "
+                             f"got {d['levels']!r}")
         levels, names = [], []
         for k, lv in enumerate(d["levels"]):
+            if isinstance(lv, dict) and set(lv) - {"tasks", "name"}:
+                raise StackError(f"{source}: level {k}: unknown key(s) {sorted(set(lv) - {'tasks', 'name'})}; "
+                                 f"expected tasks and name (levels come in file order, level 0 first)")
             tasks = lv.get("tasks") if isinstance(lv, dict) else None
-            if not tasks or not all(isinstance(t, dict) and "type" in t for t in tasks):
+            if not tasks or not isinstance(tasks, list) or not all(isinstance(t, dict) and "type" in t
+                                                                   for t in tasks):
                 raise StackError(f"{source}: level {k} needs a non-empty list 'tasks' of tables with a 'type'")
+            if lv.get("name") is not None and not isinstance(lv["name"], str):
+                raise StackError(f"{source}: level {k}: name must be a string; got {lv['name']!r}")
             levels.append([dict(t) for t in tasks])
             names.append(lv.get("name"))
-        return cls(name=str(d["name"]), robot=str(d["robot"]), dt=dt, levels=levels, level_names=names,
-                   description=str(d.get("description", "")))
+        return cls(name=str(d["name"]), robot=str(d["robot"]), dt=float(dt), levels=levels, level_names=names,
+                   description=str(d.get("description", "")), source=source)
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike) -> StackSpec:
@@ -135,18 +150,11 @@ def load_stack_spec(name_or_path: str | os.PathLike) -> StackSpec:
     return StackSpec.from_toml(path)
 
 
-def _convert(key: str, value, robot: Robot):
-    if key == "target" and isinstance(value, dict):  # pose target {position, rpy}
-        R = pin.rpy.rpyToMatrix(*value.get("rpy", (0.0, 0.0, 0.0)))
-        return pin.SE3(R, np.asarray(value.get("position", (0.0, 0.0, 0.0)), dtype=float))
-    return value
-
-
 def make_task(robot: Robot, spec: dict) -> Task:
     """Build one task from its table ``{type, name?, ...constructor arguments}``."""
     spec = dict(spec)
     kind = spec.pop("type")
-    if kind not in TASK_TYPES:
+    if not isinstance(kind, str) or kind not in TASK_TYPES:
         raise StackError(f"unknown task type {kind!r}; expected one of {', '.join(TASK_TYPES)}")
     cls = TASK_TYPES[kind]
     params = inspect.signature(cls.__init__).parameters
@@ -156,13 +164,13 @@ def make_task(robot: Robot, spec: dict) -> Task:
         raise StackError(f"task type {kind!r}: unknown key(s) {sorted(bad)}; expected {allowed}")
     if "name" not in spec:  # default: the frame alias, else the class default, else the type
         default = params["name"].default
-        if "frame" in spec:
+        if isinstance(spec.get("frame"), str):
             spec["name"] = spec["frame"]
         elif kind == "distance":
             spec["name"] = f"distance_{spec.get('frame_a')}_{spec.get('frame_b')}"
         else:
             spec["name"] = kind if default is inspect.Parameter.empty else default
-    return cls(robot, **{k: _convert(k, v, robot) for k, v in spec.items()})
+    return cls(robot, **spec)
 
 
 class Stack:
@@ -179,13 +187,25 @@ class Stack:
         self.spec = spec
         self.robot = load_robot(robot or spec.robot)
         self.dt = spec.dt
-        self.levels: list[list[Task]] = [[make_task(self.robot, t) for t in lv] for lv in spec.levels]
+        self.levels: list[list[Task]] = []
+        for k, lv in enumerate(spec.levels):
+            tasks = []
+            for i, t in enumerate(lv):
+                try:
+                    tasks.append(make_task(self.robot, t))
+                except HikbenchError as err:  # (a TaskError or StackError without the place)
+                    raise StackError(f"{spec.source}: level {k}, task {i} (type {t.get('type')!r}): {err}") from err
+            self.levels.append(tasks)
         self.level_names = [given or "+".join(t.name for t in lv)
                             for given, lv in zip(spec.level_names or [None] * len(self.levels), self.levels)]
         names = [t.name for t in self.tasks]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
-            raise StackError(f"stack {spec.name!r}: task names must be unique; repeated: {dup}")
+            raise StackError(f"{spec.source}: stack {spec.name!r}: task names must be unique; repeated: {dup} "
+                             f"(a task's name defaults to its frame, else its type)")
+        #: tasks whose target the file gives: kept by set_targets_from
+        self.given_targets = {task.name for lv, specs in zip(self.levels, spec.levels)
+                              for task, t in zip(lv, specs) if "target" in t}
         self.set_targets_from(self.robot.q0)
 
     @property
@@ -200,10 +220,12 @@ class Stack:
                          f"(tasks: {', '.join(t.name for t in self.tasks)})")
 
     def set_targets_from(self, q: np.ndarray) -> None:
-        """Every task's target := its value at q (error 0 there)."""
+        """Every task's target := its value at q (error 0 there), but the targets
+        given in the stack file (:attr:`given_targets`), which are kept."""
         state = KinematicState(self.robot, q)
         for t in self.tasks:
-            t.set_target_from(state)
+            if t.name not in self.given_targets:
+                t.set_target_from(state)
 
     def hierarchy(self, q: np.ndarray, state: KinematicState | None = None) -> Hierarchy:
         """The hierarchy in u (shape (nv,)) at configuration q: one level per task level,

@@ -16,6 +16,7 @@ Shapes: q (nq,), u (nv,), J (d, nv).
 from __future__ import annotations
 
 import abc
+from numbers import Real
 from typing import ClassVar
 
 import numpy as np
@@ -36,21 +37,60 @@ __all__ = [
     "Task",
     "TaskError",
     "axes_index",
+    "number",
+    "placement",
+    "rotation",
 ]
 
 
 def axes_index(axes: str) -> np.ndarray:
     """``"xy"`` -> ``[0, 1]``; raises TaskError for anything but a subset of xyz."""
-    if not axes or any(a not in "xyz" for a in axes) or len(set(axes)) != len(axes):
+    if not isinstance(axes, str) or not axes or any(a not in "xyz" for a in axes) or len(set(axes)) != len(axes):
         raise TaskError(f"axes must be a non-empty subset of 'xyz' without repeats; got {axes!r}")
     return np.array(["xyz".index(a) for a in axes])
 
 
 def _vector(v, size: int, what: str) -> np.ndarray:
-    a = np.asarray(v, dtype=float).reshape(-1)
-    if a.shape != (size,) or not np.all(np.isfinite(a)):
+    try:
+        a = np.asarray(v, dtype=float).reshape(-1)
+    except (TypeError, ValueError):  # strings, tables, ragged lists
+        a = None
+    if a is None or a.shape != (size,) or not np.all(np.isfinite(a)) or isinstance(v, (str, bool)):
         raise TaskError(f"{what} must be {size} finite numbers; got {v!r}")
     return a
+
+
+def number(v, what: str, *, low: float = 0.0, low_open: bool = False) -> float:
+    """``v`` as a float: a finite real number (not a bool, not a string) ``>= low``
+    (``> low`` with ``low_open``); else TaskError naming ``what``."""
+    ok = isinstance(v, Real) and not isinstance(v, bool) and np.isfinite(v) and (v > low if low_open else v >= low)
+    if not ok:
+        raise TaskError(f"{what} must be a finite number {'>' if low_open else '>='} {low:g}; got {v!r}")
+    return float(v)
+
+
+def rotation(v, what: str) -> np.ndarray:
+    """A rotation matrix from a 3x3 nested list (orthonormal, det +1, to 1e-9) or a
+    table ``{ rpy = [roll, pitch, yaw] }`` (rad, ``pin.rpy.rpyToMatrix``); shape (3, 3)."""
+    if isinstance(v, dict):
+        if set(v) - {"rpy"}:
+            raise TaskError(f"{what}: unknown key(s) {sorted(set(v) - {'rpy'})}; expected {{ rpy = [r, p, y] }}")
+        return np.array(pin.rpy.rpyToMatrix(*_vector(v.get("rpy", (0.0, 0.0, 0.0)), 3, f"{what} rpy")))
+    R = _vector(v, 9, f"{what} (a 3x3 rotation matrix, or {{ rpy = [r, p, y] }})").reshape(3, 3)
+    if not (np.allclose(R.T @ R, np.eye(3), rtol=0.0, atol=1e-9) and np.linalg.det(R) > 0):
+        raise TaskError(f"{what} must be a rotation matrix (R^T R = I, det R = +1, to 1e-9); got {v!r}")
+    return R
+
+
+def placement(v, what: str) -> pin.SE3:
+    """A pose target: a pin.SE3, or a table ``{ position = [x, y, z], rpy = [r, p, y] }``
+    (both optional, default 0)."""
+    if isinstance(v, pin.SE3):
+        return pin.SE3(v)
+    if not isinstance(v, dict) or set(v) - {"position", "rpy"}:
+        raise TaskError(f"{what} must be a table {{ position = [x, y, z], rpy = [r, p, y] }}; got {v!r}")
+    R = rotation({"rpy": v.get("rpy", (0.0, 0.0, 0.0))}, what)
+    return pin.SE3(R, _vector(v.get("position", (0.0, 0.0, 0.0)), 3, f"{what} position"))
 
 
 class Task(abc.ABC):
@@ -68,11 +108,11 @@ class Task(abc.ABC):
     kind: ClassVar[str] = "equality"
 
     def __init__(self, robot: Robot, name: str, gain: float = 1.0):
-        if not np.isfinite(gain) or gain < 0:
-            raise TaskError(f"task {name!r}: gain must be finite and >= 0; got {gain}")
+        if not isinstance(name, str) or not name:
+            raise TaskError(f"a task name must be a non-empty string; got {name!r}")
         self.robot = robot
         self.name = name
-        self.gain = float(gain)
+        self.gain = number(gain, f"task {name!r}: gain")
         self.target_velocity: np.ndarray | None = None  #: feed-forward e_dot_ff, shape (d,)
 
     @abc.abstractmethod
@@ -104,6 +144,8 @@ class Task(abc.ABC):
 class _FrameTask(Task):
     def __init__(self, robot: Robot, name: str, frame: str, gain: float = 1.0):
         super().__init__(robot, name, gain)
+        if not isinstance(frame, str):
+            raise TaskError(f"task {name!r}: frame must be a frame name (a string); got {frame!r}")
         self.frame = frame
         self.frame_id = robot.frame_id(frame)
 
@@ -143,7 +185,7 @@ class OrientationTask(_FrameTask):
 
     def __init__(self, robot: Robot, name: str, frame: str, target=None, gain: float = 1.0):
         super().__init__(robot, name, frame, gain)
-        self.target = None if target is None else np.asarray(target, dtype=float).reshape(3, 3)
+        self.target = None if target is None else rotation(target, f"task {name!r} target")
 
     def set_target_from(self, state):
         self.target = np.array(state.placement(self.frame_id).rotation)
@@ -170,7 +212,7 @@ class PoseTask(_FrameTask):
     def __init__(self, robot: Robot, name: str, frame: str, target: pin.SE3 | None = None,
                  gain: float = 1.0):
         super().__init__(robot, name, frame, gain)
-        self.target = target
+        self.target = None if target is None else placement(target, f"task {name!r} target")
 
     def set_target_from(self, state):
         self.target = pin.SE3(state.placement(self.frame_id))

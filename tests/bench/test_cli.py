@@ -11,7 +11,7 @@ from clitools import assert_user_error, run
 from bench.cli import COMMANDS
 from problems import Hierarchy, Level
 from problems.files import load, save_npz
-from problems.generators import FAMILIES, generate
+from problems.generators import FAMILIES, all_families, generate
 from problems.soth import save_soth, soth_order
 from problems.verify import level_norms
 
@@ -99,7 +99,7 @@ def test_generate_writes_loadable_deterministic_files(capsys, tmp_path, fmt, ext
             np.testing.assert_array_equal(got.A, soth_order(expected).A)
 
 
-@pytest.mark.parametrize("family", list(FAMILIES))
+@pytest.mark.parametrize("family", list(all_families()))
 def test_generate_every_family(capsys, tmp_path, family):
     code, out, err = run(capsys, "generate", family, "--out", str(tmp_path))
     assert code == 0, err
@@ -191,7 +191,7 @@ def test_list(capsys, what, expected):
 
 def test_list_families_shows_every_family(capsys):
     _, out, _ = run(capsys, "list", "families")
-    assert [line.split()[0] for line in out.splitlines()] == list(FAMILIES)
+    assert [line.split()[0] for line in out.splitlines()] == [*FAMILIES, "robot-stack"] == list(all_families())
 
 
 # ------------------------------------------------------------ usage errors

@@ -97,3 +97,25 @@ def test_relative_py_paths_resolve_next_to_the_suite(tmp_path):
     assert not skipped and [t.entry.solver for t in tasks] == ["sleep"]
     assert tasks[0].problem.id == "mydoubles.py:tiny/n=4/seed=0"
     assert generate(tasks[0].problem).n == 4
+
+
+def test_robot_stacks_are_a_family_by_name(tmp_path):
+    """`family = "robot-stack"` (README: the robot stacks' family for the harness) was an unknown
+    family; a user's stack file is a value of its `stack` parameter."""
+    from bench.cli import main
+    from bench.results import read_results
+    from problems.robots.testsets import stack_problem
+
+    stack = tmp_path / "arm.toml"
+    stack.write_text('name = "arm"\nrobot = "ur5"\ndt = 0.02\n[[levels]]\ntasks = [{ type = "joint_limits" }]\n'
+                     '[[levels]]\ntasks = [{ type = "position", frame = "ee", target = [0.3, 0.3, 0.3] }]\n'
+                     '[[levels]]\ntasks = [{ type = "posture" }]\n')
+    (tmp_path / "s.toml").write_text(
+        'solvers = ["hcod"]\nrepeat = 2\nmodes = ["cold"]\n[[problems]]\nfamily = "robot-stack"\n'
+        f'grid = {{ stack = ["arm_reach", "{stack}"] }}\nparams = {{ robot = "ur5" }}\nseeds = [0]\n')
+    tasks, skipped = expand(load_suite(str(tmp_path / "s.toml")))
+    assert not skipped and len(tasks) == 2
+    assert generate(tasks[0].problem) == stack_problem("arm_reach", 0, robot="ur5")
+    assert main(["run", "--quiet", "--suite", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 0
+    df = read_results(tmp_path / "out")
+    assert len(df) == 2 and df["verified"].all() and set(df["n"]) == {6}

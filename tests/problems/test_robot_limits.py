@@ -32,8 +32,11 @@ def test_distance_bound_keeps_d_min_after_one_step(panda):
 @pytest.mark.parametrize("kwargs, match", [
     ({"axes": "xw"}, "subset of 'xyz'"),
     ({"target": [1.0, 2.0]}, "target must be 3 finite numbers"),
-    ({"gain": -1.0}, "gain must be finite and >= 0"),
-], ids=["axes", "target", "gain"])
+    ({"gain": -1.0}, "gain must be a finite number >= 0; got -1.0"),
+    ({"gain": "5"}, "gain must be a finite number >= 0; got '5'"),
+    ({"target": ["a", "b", "c"]}, "target must be 3 finite numbers"),
+    ({"axes": ["x"]}, "subset of 'xyz'"),
+], ids=["axes", "target", "gain", "gain-string", "target-strings", "axes-list"])
 def test_task_parameters_are_checked(panda, kwargs, match):
     with pytest.raises(TaskError, match=match):
         PositionTask(panda, "p", "ee", **kwargs)

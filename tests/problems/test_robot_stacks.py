@@ -65,6 +65,74 @@ def test_toml_errors_name_the_problem(tmp_path, panda):
         load_stack_spec("nope")
 
 
+def _stack_file(tmp_path, tasks: str, extra: str = "") -> object:
+    f = tmp_path / "s.toml"
+    f.write_text(f'name = "s"\nrobot = "panda"\n{extra}[[levels]]\ntasks = [{{ type = "joint_limits" }}]\n'
+                 f'[[levels]]\ntasks = [{tasks}]\n')
+    return f
+
+
+@pytest.mark.parametrize("tasks, extra, match", [
+    ('{ type = "position", frame = "ee", gain = "5" }', "",
+     r"level 1, task 0 \(type 'position'\): task 'ee': gain must be a finite number >= 0; got '5'"),
+    ('{ type = "orientation", frame = "ee", target = [1, 0, 0] }', "",
+     r"level 1, task 0 \(type 'orientation'\): task 'ee' target \(a 3x3 rotation matrix"),
+    ('{ type = "orientation", frame = "ee", target = [[1, 0, 0], [0, 1, 0], [0, 0, 2]] }', "",
+     "must be a rotation matrix"),
+    ('{ type = "pose", frame = "ee", target = [0.4, 0.1, 0.3] }', "", r"target must be a table \{ position"),
+    ('{ type = "pose", frame = "ee", target = { position = [0.4, 0.1], rpy = [0, 0, 0] } }', "",
+     "target position must be 3 finite numbers"),
+    ('{ type = "pose", frame = "ee", target = { position = [0.4, 0.1, 0.3], rpy = [0, 0] } }', "",
+     "target rpy must be 3 finite numbers"),
+    ('{ type = "velocity_limits", scale = "1" }', "", "scale must be a finite number > 0; got '1'"),
+    ('{ type = "positon", frame = "ee" }', "", r"level 1, task 0 \(type 'positon'\): unknown task type"),
+    ('{ type = "com" }', 'dt = "fast"\n', "dt must be a number > 0 .*; got 'fast'"),
+], ids=["gain-string", "orientation-3-numbers", "orientation-not-a-rotation", "pose-list", "pose-position-2",
+        "pose-rpy-2", "scale-string", "type-typo", "dt-string"])
+def test_bad_values_in_a_stack_file_are_one_line_errors_naming_file_level_and_task(tmp_path, tasks, extra, match):
+    """Each was a ValueError / TypeError / Boost.Python traceback, or named neither file nor level."""
+    f = _stack_file(tmp_path, tasks, extra)
+    with pytest.raises(StackError, match=match) as err:
+        build_stack(f)
+    assert str(f) in str(err.value)
+
+
+def test_level_keys_and_an_empty_stack_are_checked(tmp_path):
+    f = tmp_path / "s.toml"
+    f.write_text('name = "s"\nrobot = "panda"\n[[levels]]\npriority = 2\ntasks = [{ type = "com" }]\n')
+    with pytest.raises(StackError, match=r"level 0: unknown key\(s\) \['priority'\]; expected tasks and name "
+                                         r"\(levels come in file order"):
+        build_stack(f)
+    f.write_text('name = "s"\nrobot = "panda"\nlevels = []\n')
+    with pytest.raises(StackError, match="'levels' must be a non-empty list"):
+        build_stack(f)
+
+
+def test_targets_given_in_the_file_are_kept(tmp_path, panda):
+    """A `target` in the stack file was replaced by the value at q0 (the robot never moved); it is
+    kept, also by set_targets_from (stack_problem's random targets move the others only)."""
+    import pinocchio as pin
+
+    from problems.robots.kinematics import KinematicState
+
+    f = _stack_file(tmp_path, '{ type = "position", frame = "ee", target = [0.3, 0.3, 0.3] }, '
+                              '{ type = "orientation", name = "ee_rot", frame = "ee", target = { rpy = [3.0, 0.1, 0.2] } },'
+                              '{ type = "com" }')
+    stack = build_stack(f)
+    assert stack.given_targets == {"ee", "ee_rot"}
+    ee, rot, com = (stack.task(n) for n in ("ee", "ee_rot", "com"))
+    np.testing.assert_array_equal(ee.target, [0.3, 0.3, 0.3])
+    np.testing.assert_allclose(rot.target, pin.rpy.rpyToMatrix(3.0, 0.1, 0.2), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(com.target, KinematicState(panda, panda.q0).com, rtol=0, atol=1e-15)
+    stack.set_targets_from(panda.random_configuration(np.random.default_rng(0)))
+    np.testing.assert_array_equal(ee.target, [0.3, 0.3, 0.3])
+    assert np.linalg.norm(com.target - KinematicState(panda, panda.q0).com) > 1e-3
+    # the rows drive the end effector towards the given point: J u = -gain (p - p*)
+    h = stack.hierarchy(panda.q0)
+    p0 = KinematicState(panda, panda.q0).position(ee.frame_id)
+    np.testing.assert_allclose(h.lower[h.level_rows(1)][:3], -(p0 - [0.3, 0.3, 0.3]), rtol=1e-14)
+
+
 def test_robot_family_for_the_harness():
     from problems.robots.testsets import ROBOT_FAMILIES, SHIPPED_STACKS
 
