@@ -125,7 +125,9 @@ Result
     26.9 Kflops of sec. VI). Statuses: ``optimal``; ``max_iterations`` when the
     cap (option ``max_iterations``, default ``100 + 10 (rows + n)``) is hit
     (x = last iterate, reason names the level); ``numerical_failure`` when x
-    is not finite or a blocking row cannot enter the decomposition (x = None).
+    is not finite (x = None). A blocking row that cannot enter the
+    decomposition (a combination of the working rows to the rank threshold)
+    no longer blocks while they stay (see ``._kernel``).
     No exception escapes for a valid problem.
 
 Compiled with numba (nopython, ``cache=True``); nothing compiles at import:
@@ -267,8 +269,7 @@ class HcodSolver(Solver):
                 where = "the min-norm stage" if o[5] >= depth else f"level {o[5]}"
                 reason = f"hcod: iteration cap {cap} reached at {where}"
             elif status == NUMERICAL_FAILURE:
-                reason = (f"hcod: numerical breakdown at level {o[5]} (x not finite, or a blocking row "
-                          "could not enter the decomposition)")
+                reason = "hcod: numerical breakdown (x not finite)"
                 x = None
             # (x_finite: the kernel tested every entry of u with isfinite, status 2 otherwise).
             # Positional, in the order of SolveResult's fields: eleven keywords cost ~0.35 us

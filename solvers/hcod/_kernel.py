@@ -5,7 +5,11 @@ Row states (``state``): INACTIVE (a constraint with zero slack, inside its
 bounds), WORK (in the working set of constraints ``J_bar`` of the levels above,
 its row in the decomposition ``W``/``R``), IMPLIED (a frozen row that is a
 combination of working rows: not in ``W``, kept implicitly), OBJECTIVE (a row
-of the current level in the least-squares objective ``J_hat_k``, eq. 43).
+of the current level in the least-squares objective ``J_hat_k``, eq. 43),
+DEPENDENT (an inequality row above that blocked a step but is a combination of
+the working rows to the rank threshold: it cannot enter ``W``, and a step in
+``Z`` moves it by at most that threshold times the step; it blocks no more
+until a working row leaves or the level ends, then it is INACTIVE again).
 ``side``: +1 upper bound, -1 lower bound, 0 equality / frozen (never leaves).
 
 Level k (``starts[k] <= i < starts[k+1]``):
@@ -71,7 +75,7 @@ from solvers.hcod._setup import FEND0, IOFF0, N_HEAD, N_OUT
 
 _FM = set(FASTMATH)
 
-INACTIVE, WORK, IMPLIED, OBJECTIVE = 0, 1, 2, 3
+INACTIVE, WORK, IMPLIED, OBJECTIVE, DEPENDENT = 0, 1, 2, 3, 4
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
 O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL = range(7)
@@ -136,6 +140,15 @@ def _within(av, lo_i, up_i, rnorm_i, unorm, rtol):
     if av < lo_i:
         return av >= lo_i - _floor(rnorm_i, unorm, lo_i, rtol)
     return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _release_dependent(state, s0):
+    """DEPENDENT rows of the levels above (rows < s0) become INACTIVE; returns 0."""
+    for i in range(s0):
+        if state[i] == DEPENDENT:
+            state[i] = INACTIVE
+    return 0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -515,6 +528,7 @@ def hcod_solve(fw, iw):
             ref_row = -1  # (refinement: the objective row whose residual it measures, its side * w,
             ref_val = 0.0  # and acts + deacts when it was recorded)
             ref_ad = -1
+            ndep = 0  # rows of levels above DEPENDENT in this level
             while True:
                 if total >= max_iter:
                     status = ST_MAXIT
@@ -645,9 +659,14 @@ def hcod_solve(fw, iw):
                                                Wt, qv, qi, sv, sv2)
                         fl += f
                         if not ok:
-                            status = ST_NUMERICAL
-                            fail_level = k
-                            break
+                            # in the span of the working rows to the rank threshold: the rank rule
+                            # does not tell it from one of them (a row x0 <= 1 under a working row
+                            # x0 + 1e-12 x1 >= 1); it is not activated and blocks no more while W
+                            # keeps its rows (it was a numerical failure)
+                            state[blk] = DEPENDENT
+                            ndep += 1
+                            acts -= 1
+                            continue
                         if mf_valid:
                             fl += mf_reflect(Mf, nO, p, q, bt)
                         ncod = 0
@@ -790,6 +809,8 @@ def hcod_solve(fw, iw):
                             state[i] = INACTIVE
                             deacts += 1
                             ncod = 0
+                            if ndep > 0:  # (W lost a row: a DEPENDENT row may move freely again)
+                                ndep = _release_dependent(state, s0)
                             if mf_valid and not lazy:
                                 wp = Wt[p]
                                 for j in range(nO):
@@ -810,6 +831,8 @@ def hcod_solve(fw, iw):
                                         state[i2] = WORK
                             continue
                 break
+            if ndep > 0:
+                ndep = _release_dependent(state, s0)
             if status != ST_OPTIMAL:
                 break
             last = k == D - 1 or levid[k] == 2

@@ -364,6 +364,44 @@ def test_time_warm_start_known_wrong_on_badly_scaled_drift():
     assert agree == [True, True, True, True, False], agree
 
 
+def _pinned_by_near_parallel_rows(eps: float, variant: str) -> Hierarchy:
+    """x0 pinned to 1 by two one-sided rows parallel to eps (x0 <= 1, x0 + eps x1 >= 1), then a
+    task 2 x0 + 0.3 x1 <= -4 that only x1 can serve; variants under a box, with the pin an
+    equality, with a third variable."""
+    pin = Level(np.array([[1.0, 0.0], [-1.0, -eps]]), [-np.inf, -np.inf], [1.0, -1.0], "pin")
+    task = Level(np.array([[2.0, 0.3]]), [-np.inf], [-4.0], "task")
+    if variant == "under-a-box":
+        return Hierarchy.from_levels([Level(np.eye(2), [-50.0, -50.0], [50.0, 50.0], "box"), pin, task])
+    if variant == "equality-pin":
+        return Hierarchy.from_levels([Level(np.array([[1.0, 0.0], [1.0, eps]]), [1.0, 1.0], [1.0, np.inf]), task])
+    if variant == "three-variables":
+        return Hierarchy.from_levels([Level(np.hstack([pin.A, np.zeros((2, 1))]), pin.lower, pin.upper),
+                                      Level(np.array([[2.0, 0.3, 0.1]]), [-np.inf], [-4.0])])
+    return Hierarchy.from_levels([pin, task])
+
+
+@pytest.mark.parametrize("warm_start", ["none", "stage", "time"])
+@pytest.mark.parametrize("variant", ["plain", "under-a-box", "equality-pin", "three-variables"])
+@pytest.mark.parametrize("eps", [1e-12, 1e-11, 1e-10], ids=lambda e: f"eps{e:g}")
+def test_a_blocking_row_parallel_to_a_working_one_to_the_rank_threshold(eps, variant, warm_start):
+    """The task's step (x1 down to -20) moves the row x0 <= 1, at its bound, by eps * 20: it
+    blocks, and it cannot enter W, where the rank test (rank_rtol 1e-10) calls it a copy of the
+    working row x0 + eps x1 >= 1. It was a numerical_failure (x = None) for eps 1e-12 .. 1e-10,
+    in every mode (found by an audit, on trajectories that duplicate rows and drift them by
+    1e-12). It no longer blocks while W keeps that row: x = (1, -20), the reference's answer,
+    the pin met to the rank threshold times the step (eps * 20 here)."""
+    h = _pinned_by_near_parallel_rows(eps, variant)
+    s = HcodSolver(warm_start=warm_start)
+    for _ in range(2):  # (cold, then a re-solve from the record)
+        res = s.solve(h)
+        assert res.status == OPTIMAL, res.reason
+        verdict = verify(h, res.x, reference_solution(h), rtol=RTOL_ILL)
+        assert verdict.equal or verdict.lower == "a", verdict
+        pin_level = 1 if variant == "under-a-box" else 0
+        assert level_norms(h, res.x)[pin_level] <= 1e-10 * 21 * 1.5, level_norms(h, res.x)
+        assert level_norms(h, res.x)[-1] <= 1e-8
+
+
 def test_iteration_cap():
     h = G.ik_like(20, 0)
     res = HcodSolver(max_iterations=3).solve(h)
