@@ -30,8 +30,10 @@ figure, the paper's figure and the criterion. Criteria (README, "Claims"):
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -283,6 +285,16 @@ def claim_e(sc: pd.DataFrame | None) -> Claim:
 
 
 def check_claims(run_dir, scenario=None) -> list[Claim]:
+    """Claims (a)-(c) from the run, (d)-(e) from the reach scenario CSVs
+    (:func:`find_scenario_csvs`); the measured text of (d)-(e) names where
+    those were found, since the last place searched is not the run's
+    (./results/scenarios/reach, relative to the working directory)."""
     df = read_results(run_dir)
     sc = load_scenario(run_dir, scenario)
-    return [claim_a(df), claim_b(df), claim_c(df), claim_d(sc), claim_e(sc)]
+    out = [claim_a(df), claim_b(df), claim_c(df), claim_d(sc), claim_e(sc)]
+    if sc is not None:
+        paths = [p for p in find_scenario_csvs(run_dir, scenario) if p.exists()]
+        where = paths[0].parent if len({p.parent for p in paths}) == 1 else Path(os.path.commonpath(paths))
+        for i in (3, 4):
+            out[i] = dataclasses.replace(out[i], measured=f"{out[i].measured} (CSVs of {where})")
+    return out

@@ -214,7 +214,8 @@ def write_report(run_dir) -> Path:
 
     from bench.claims import check_claims
 
-    L += _table("Claims of the ICRA 2010 paper (hikbench claims; MISSING = no data in this run)",
+    L += _table("Claims of the ICRA 2010 paper (hikbench claims; MISSING = no data; (d)-(e) name the reach "
+                "scenario CSVs they read)",
                 ["claim", "result", "measured", "paper"],
                 [[c.name, c.status, c.measured, c.paper] for c in check_claims(run_dir)])
 

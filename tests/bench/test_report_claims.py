@@ -157,6 +157,9 @@ def test_scenario_csvs_are_found_and_concatenated(sweep_run, tmp_path):
     assert len(sc) == 24
     claims = check_claims(sweep_run, scenario=d)
     assert [c.status for c in claims[3:]] == [PASS, PASS]
+    # where the CSVs came from is named: the search ends at ./results/scenarios/reach, the working
+    # directory's, which a report of any run read without saying so
+    assert all(c.measured.endswith(f" (CSVs of {d})") for c in claims[3:]), [c.measured for c in claims[3:]]
 
 
 def test_times_from_several_hosts_are_normalised():
