@@ -61,6 +61,18 @@ def _style(i: int) -> dict:
             "marker": _MARKERS[i % len(_MARKERS)]}
 
 
+def _label(df: pd.DataFrame) -> pd.Series:
+    """``solver``, or ``solver [settings]`` for a ``[[settings]]`` variant (as the
+    report's tables: bench.report.solver_label)."""
+    return df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
+
+
+def _style_of(label: str, i: int, order: list[str] | None) -> dict:
+    """The style of ``label``: its place in ``order`` (every solver of the run, so
+    that a solver keeps its colour in every figure), else ``i``."""
+    return _style(order.index(label) if order and label in order else i)
+
+
 def _legend(ax) -> None:
     """Legend outside the axes on the right (never over the data)."""
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
@@ -94,7 +106,7 @@ def _finish(fig, ax, path: Path, title: str) -> Path:
 
 
 def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "cold",
-               vline: tuple[float, str] | None = None) -> tuple[Path | None, dict]:
+               vline: tuple[float, str] | None = None, order: list[str] | None = None) -> tuple[Path | None, dict]:
     """Median time vs ``var`` per solver, log-log, from the verified rows only,
     fitted slopes in the legend; a size where a solver was not verified has no
     point, and the legend says how many sizes were verified of those it
@@ -117,7 +129,7 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
         note = f"slope {slope:.2f}" if np.isfinite(slope) else "no slope: < 3 sizes"
         if sizes < tried:
             note += f", {sizes}/{tried} sizes verified"
-        ax.plot(med.index, med.to_numpy() * 1e6, **_style(i), label=f"{label} ({note})")
+        ax.plot(med.index, med.to_numpy() * 1e6, **_style_of(label, i, order), label=f"{label} ({note})")
     ax.set_xscale("log")
     ax.set_yscale("log")
     _readable_log_ticks(ax)
@@ -135,8 +147,7 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
     df = df[df["status"] != "unsupported"]  # as in report.md: success among the rows a solver supports
     if df.empty:
         return None
-    label = df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
-    tab = df.assign(_ok=df["verified"].eq(True).astype(float), _s=label).pivot_table(
+    tab = df.assign(_ok=df["verified"].eq(True).astype(float), _s=_label(df)).pivot_table(
         index="_s", columns="family", values="_ok", aggfunc="mean")
     fig, ax = plt.subplots(figsize=(max(5.5, 2.5 + 1.3 * tab.shape[1]), max(2.8, 1.6 + 0.4 * tab.shape[0])),
                            dpi=_STYLE["dpi"])
@@ -149,14 +160,15 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
             if np.isfinite(v):
                 ax.text(j, i, f"{100 * v:.0f}%", ha="center", va="center", fontsize=7)
     fig.colorbar(im, ax=ax, label="success [%]")
-    ax.set_title("Verified success rate per solver and family (unsupported rows left out)", fontsize=11)
+    # (two lines: on one, the title of a figure of one or two families was cut at both ends)
+    ax.set_title("Verified success rate per solver and family\n(unsupported rows left out)", fontsize=11)
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
     return path
 
 
-def plot_profiles(times: pd.DataFrame, path: Path, title: str) -> Path | None:
+def plot_profiles(times: pd.DataFrame, path: Path, title: str, order: list[str] | None = None) -> Path | None:
     """Dolan-More performance profiles of a problems x solvers table
     (:func:`bench.shgeom.performance_profile`: NaN, inf or <= 0 = failure)."""
     if times.empty or times.shape[1] == 0:
@@ -167,7 +179,7 @@ def plot_profiles(times: pd.DataFrame, path: Path, title: str) -> Path | None:
     taus, fractions = prof
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
     for i, (s, y) in enumerate(fractions.items()):
-        st = _style(i)
+        st = _style_of(s, i, order)
         ax.step(taus, y, where="post", label=s, color=st["color"], linestyle=st["linestyle"])
     ax.set_xscale("log")
     ax.set_ylim(-0.02, 1.02)
@@ -177,13 +189,14 @@ def plot_profiles(times: pd.DataFrame, path: Path, title: str) -> Path | None:
     return _finish(fig, ax, path, title)
 
 
-def plot_accuracy(df: pd.DataFrame, path: Path) -> Path | None:
-    """Median |level norm - reference level norm| per level and solver."""
+def plot_accuracy(df: pd.DataFrame, path: Path, order: list[str] | None = None) -> Path | None:
+    """Median |level norm - reference level norm| per level and solver (each
+    ``[[settings]]`` variant a line of its own)."""
     d = df[(df["level_norms"] != "") & (df["ref_level_norms"] != "") & (df["mode"] == "cold")]
     if d.empty:
         return None
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
-    for i, (solver, s) in enumerate(d.groupby("solver")):
+    for i, (solver, s) in enumerate(d.groupby(_label(d))):
         per_level: dict[int, list] = {}
         for a, b in zip(s["level_norms"], s["ref_level_norms"]):
             for k, (u, v) in enumerate(zip(json.loads(a), json.loads(b))):
@@ -191,7 +204,8 @@ def plot_accuracy(df: pd.DataFrame, path: Path) -> Path | None:
                     per_level.setdefault(k, []).append(abs(u - v))
         if per_level:
             ks = sorted(per_level)
-            ax.plot(ks, [max(np.median(per_level[k]), 1e-17) for k in ks], label=solver, **_style(i))
+            ax.plot(ks, [max(np.median(per_level[k]), 1e-17) for k in ks], label=solver,
+                    **_style_of(solver, i, order))
     ax.set_yscale("log")
     ax.set_xlabel("level k (0 = highest priority)")
     ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
@@ -200,17 +214,20 @@ def plot_accuracy(df: pd.DataFrame, path: Path) -> Path | None:
     return _finish(fig, ax, path, "Per-level accuracy against the reference (floored at 1e-17)")
 
 
-def plot_cold_warm(df: pd.DataFrame, path: Path) -> Path | None:
-    keys = ["problem", "solver", "settings"]
-    ok = df[timed(df)]  # log axes
+def plot_cold_warm(df: pd.DataFrame, path: Path, order: list[str] | None = None) -> Path | None:
+    """Warm against cold median time per problem and solver (each ``[[settings]]``
+    variant a series of its own)."""
+    keys = ["problem", "_label"]
+    d = df.assign(_label=_label(df))
+    ok = d[timed(d)]  # log axes
     cold = ok[ok["mode"] == "cold"].set_index(keys)["time_median_s"]
     warm = ok[ok["mode"] == "warm"].set_index(keys)["time_median_s"]
     both = pd.concat([cold.rename("cold"), warm.rename("warm")], axis=1, join="inner")
     if both.empty:
         return None
     fig, ax = plt.subplots(figsize=(8, 6), dpi=_STYLE["dpi"])
-    for i, (solver, s) in enumerate(both.groupby(level="solver")):
-        st = _style(i)
+    for i, (solver, s) in enumerate(both.groupby(level="_label")):
+        st = _style_of(solver, i, order)
         ax.scatter(s["cold"] * 1e6, s["warm"] * 1e6, label=solver, s=22, color=st["color"],
                    marker=st["marker"])
     lo = float(min(both.min())) * 1e6 / 2

@@ -220,6 +220,7 @@ def write_report(run_dir) -> Path:
                 [[c.name, c.status, c.measured, c.paper] for c in check_claims(run_dir)])
 
     figures = []
+    order = sorted(df["label"].unique())  # (a solver's colour is the same in every figure)
     for var, what in (("n", "DOF"), ("depth", "depth")):
         for i, (family, fixed, g) in enumerate(plots.sweeps(df, var)):
             name = f"time_vs_{'dof' if var == 'n' else 'depth'}_{family}_{i}.png".replace(":", "_")
@@ -229,7 +230,7 @@ def write_report(run_dir) -> Path:
                 sat = (fx["n"] / fx["rows"], f"DOF saturated (depth = n / rows = {fx['n'] / fx['rows']:g})")
             p, slopes = plots.plot_sweep(g, var, plot_dir / name,
                                          f"{family}: time vs {what} "
-                                         f"({fixed.strip('{}') or 'defaults'}), cold", vline=sat)
+                                         f"({fixed.strip('{}') or 'defaults'}), cold", vline=sat, order=order)
             if p:
                 figures.append((f"Time vs {what}: {family} {fixed}", p))
                 L += _table(f"Log-log slope of cold time vs {what}: {family} {fixed} (verified rows; "
@@ -246,13 +247,13 @@ def write_report(run_dir) -> Path:
                 index="problem", columns="label", values="t", aggfunc="first", dropna=False)
             p = plots.plot_profiles(t, plot_dir / f"performance_profile_{mode}{slug}.png",
                                     f"Performance profiles (Dolan-More), {mode} solves; failures never reach 1"
-                                    + (f"\n{what[2:]}" if what else ""))
+                                    + (f"\n{what[2:]}" if what else ""), order=order)
             if p:
                 figures.append((f"Performance profile, {mode}{what}", p))
-    p = plots.plot_accuracy(df, plot_dir / "accuracy_per_level.png")
+    p = plots.plot_accuracy(df, plot_dir / "accuracy_per_level.png", order=order)
     if p:
         figures.append(("Per-level accuracy", p))
-    p = plots.plot_cold_warm(df, plot_dir / "cold_vs_warm.png")
+    p = plots.plot_cold_warm(df, plot_dir / "cold_vs_warm.png", order=order)
     if p:
         figures.append(("Cold vs warm", p))
     L += ["### Figures", ""]

@@ -68,3 +68,40 @@ def test_minor_tick_labels_only_on_narrow_log_axes(hi, labelled):
     texts = [t.get_text() for t in ax.xaxis.get_minorticklabels() if t.get_text()]
     plt.close(fig)
     assert bool(texts) == labelled, texts
+
+
+def test_settings_variants_are_series_of_their_own_with_one_colour_per_solver(tmp_path, monkeypatch):
+    """accuracy_per_level.png and cold_vs_warm.png grouped rows by solver name: a solver's
+    `[[settings]]` variants (cascade-osqp default at 1e-10, `low` at 1e-6) were one line. Each
+    variant is a series now, and a label has the same colour in every figure (its place in the
+    run's sorted labels)."""
+    import matplotlib.colors
+
+    from bench import plots
+
+    drawn = {}
+
+    def keep(fig, ax, path, title):
+        drawn[path.name] = {h.get_label(): matplotlib.colors.to_hex(
+            h.get_color() if hasattr(h, "get_color") else h.get_facecolor()[0])
+            for h in ax.get_legend_handles_labels()[0]}
+        plots.plt.close(fig)
+        return path
+
+    monkeypatch.setattr(plots, "_finish", keep)
+    rows = []
+    for settings, err in (("default", 1e-10), ("low", 1e-6)):
+        for n in SIZES:
+            for mode, t in (("cold", 2e-5), ("warm", 1e-5)):
+                r = _row("osqp", n, t)
+                r.update(settings=settings, mode=mode, level_norms=json.dumps([err, 1.0]),
+                         ref_level_norms=json.dumps([0.0, 1.0]))
+                rows.append(r)
+    df = pd.DataFrame(rows)
+    order = ["aaa", "osqp", "osqp [low]"]
+    plots.plot_accuracy(df, tmp_path / "acc.png", order=order)
+    plots.plot_cold_warm(df, tmp_path / "cw.png", order=order)
+    acc, cw = drawn["acc.png"], drawn["cw.png"]
+    assert set(acc) == {"osqp", "osqp [low]"} and set(cw) == {"osqp", "osqp [low]", "warm = cold"}
+    for label, i in (("osqp", 1), ("osqp [low]", 2)):
+        assert acc[label] == cw[label] == matplotlib.colors.to_hex(plots._style(i)["color"]), (label, acc, cw)
