@@ -46,10 +46,13 @@ def _profile_groups(d: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:
         used[slug] = used.get(slug, 0) + 1
         if used[slug] > 1:
             slug = f"{slug}{used[slug]}"
-        left = sorted(every - set(labels))
+        mine = d[d["problem"].isin(probs.index)]
+        declined = sorted(set(mine.loc[mine["status"] == "unsupported", "label"]) - set(labels))
+        not_run = sorted(every - set(labels) - set(declined))  # (a partial run: no row of these problems)
         what = (f", {len(probs)} problem{'s' * (len(probs) != 1)}{' ' + kind if kind else ''} "
                 f"({len(labels)} solver{'s' * (len(labels) != 1)}"
-                f"{'; unsupported by ' + ', '.join(left) if left else ''})")
+                f"{'; unsupported by ' + ', '.join(declined) if declined else ''}"
+                f"{'; not run by ' + ', '.join(not_run) if not_run else ''})")
         out.append((what, slug, sup[sup["problem"].isin(probs.index)]))
     return out
 
@@ -94,6 +97,28 @@ def _aggregate(g: pd.DataFrame, penalty: float) -> float:
     return shifted_geometric_mean(charged_times(g, penalty))
 
 
+def _rows_note(rows: int, suite_rows) -> str:
+    """``rows``, and of how many the suite has when run.json knows it (older runs do not)."""
+    if not isinstance(suite_rows, int):
+        return str(rows)
+    if rows >= suite_rows:
+        return f"{rows} (the whole suite)"
+    return (f"{rows} of the suite's {suite_rows} (`hikbench run` with the same suite and --out runs the "
+            f"other {suite_rows - rows})")
+
+
+def _speed_cell(t: float, verified: float, seeds: float, declined: bool) -> str:
+    """A cell of the speed table: the median time, with (k/m) when only k of
+    the m seeds that ran were verified; ``unsupported`` when the solver
+    declined the problem, ``not run`` when it has no row of it (a partial
+    run), ``-`` when none of its rows is verified."""
+    if not seeds > 0:  # (NaN: no row that ran)
+        return "unsupported" if declined else "not run"
+    if not verified > 0:
+        return "-"
+    return _us(t) + (f" ({int(verified)}/{int(seeds)})" if verified < seeds else "")
+
+
 def _percent(ok: pd.Series) -> str:
     """Share of True in ``ok`` (a boolean Series), '-' for no rows."""
     return f"{100 * ok.mean():.0f}%" if len(ok) else "-"
@@ -131,6 +156,9 @@ def write_report(run_dir) -> Path:
     penalty = _penalty(meta)
     suite = meta.get("suite", {})
     L = [f"# hikbench report: suite {suite.get('name', '?')}", ""]
+    if isinstance(meta.get("suite_rows"), int) and len(df) < meta["suite_rows"]:
+        note = _rows_note(len(df), meta["suite_rows"])
+        L += [f"**Incomplete run: {note}.** Every table and figure below covers the rows run so far only.", ""]
     L += _table("Run", ["field", "value"], [
         ["suite", f"{suite.get('name')} ({suite.get('source', '')})"],
         ["created", meta.get("created", "")],
@@ -143,7 +171,7 @@ def write_report(run_dir) -> Path:
         ["calibration kernel", (f"{meta.get('calibration_ns', float('nan')) / 1e6:.3f} ms "
                                 f"({meta.get('calibration_kernel', '')})")],
         ["accuracy", json.dumps(meta.get("accuracy", {}))],
-        ["rows", str(len(df))],
+        ["rows", _rows_note(len(df), meta.get("suite_rows"))],
         ["times", norm_note],
         ["runtime aggregate", (f"shifted geometric mean, shift {SHIFT_S * 1e6:g} us; "
                                f"unverified rows charged {penalty:g} s (the job timeout)")],
@@ -185,7 +213,10 @@ def write_report(run_dir) -> Path:
                 [[i, *[_percent(by.get((i, f), pd.Series(dtype=bool))) for f in families]] for i in labels])
 
     for mode in ("cold", "warm"):
-        ran = df[(df["mode"] == mode) & (df["status"] != "unsupported")]
+        in_mode = df[df["mode"] == mode]
+        unsup = in_mode[in_mode["status"] == "unsupported"]
+        declined = set(zip(unsup["problem"].str.replace(r"/seed=\d+$", "", regex=True), unsup["label"]))
+        ran = in_mode[in_mode["status"] != "unsupported"]
         if ran.empty:
             continue
         # every solver and problem that ran in this mode has its cell (groupby keeps a group
@@ -193,10 +224,16 @@ def write_report(run_dir) -> Path:
         # verified row shows "-" rather than dropping out of the table
         ran = ran.assign(group=ran["problem"].str.replace(r"/seed=\d+$", "", regex=True),
                          t=ran["time_median_s"].where(timed(ran, zero_ok=True)))
-        med = ran.groupby(["group", "label"])["t"].median().unstack("label")
+        by = ran.groupby(["group", "label"])["t"]
+        groups = sorted({g for g, _ in declined} | set(ran["group"]))
+        labels = sorted(in_mode["label"].unique())  # (a problem or solver that only declined keeps its cell)
+        med, verified, seeds = (x.unstack("label").reindex(index=groups, columns=labels)
+                                for x in (by.median(), by.count(), by.size()))
         L += _table(f"Median {mode} time per problem over its seeds [us] (verified rows; the speed table; "
-                    "- = no verified row)", ["problem", *med.columns],
-                    [[g, *[_us(v) for v in med.loc[g]]] for g in med.index])
+                    "(k/m) = over the k of its m seeds verified; - = no verified row; "
+                    "unsupported = declined; not run = no row in this run)", ["problem", *med.columns],
+                    [[g, *[_speed_cell(med.at[g, c], verified.at[g, c], seeds.at[g, c], (g, c) in declined)
+                           for c in med.columns]] for g in med.index])
 
     st = df.pivot_table(index="label", columns="status", values="problem", aggfunc="count", fill_value=0)
     L += _table("Statuses per solver", ["solver", *st.columns], [[i, *st.loc[i].tolist()] for i in st.index])

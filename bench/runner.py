@@ -257,7 +257,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         meta = read_run_json(out)
         session = {"started": utc_now(), "calibration_start_ns": calibrate(), "todo": len(todo),
                    "repeat": repeat, "rounds": rounds, "timeout": timeout}
-        meta.update({"suite": suite.to_dict(), "calibration_kernel": KERNEL, "key": list(KEY),
+        meta.update({"suite": suite.to_dict(), "suite_rows": len(tasks), "calibration_kernel": KERNEL, "key": list(KEY),
                      "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
                      "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
         meta.setdefault("created", session["started"])

@@ -99,7 +99,7 @@ def test_speed_table_keeps_a_solver_without_a_verified_row(declining_run, tmp_pa
     speed = _table((run / "report.md").read_text(), "Median cold time per problem")
     assert sorted(speed) == ["equality/depth=2,n=6", "equality/depth=2,n=8", "ik-like/n=6"]
     for problem, row in speed.items():
-        assert row["nullspace-svd"] == "-"
+        assert row["nullspace-svd"] == ("unsupported" if problem.startswith("ik-like") else "-")
         assert (row["reference"] == "-") == problem.startswith("ik-like"), row
         if row["reference"] != "-":
             assert float(row["reference"]) > 0
@@ -198,3 +198,33 @@ def test_timed_rows_and_charged_times(verified, t, usable, usable_zero_ok):
     assert timed(df).tolist() == [usable]
     assert timed(df, zero_ok=True).tolist() == [usable_zero_ok]
     assert charged_times(df, 120.0).tolist() == [t if usable_zero_ok else 120.0]
+
+
+def test_a_partial_run_says_so_and_tells_not_run_from_not_verified(tmp_path):
+    """A run stopped by --limit: the report said nothing of the missing rows, and a solver
+    that never ran a problem showed '-' ('no verified row'). A median over some seeds only
+    looked like one over all of them; it now says (k/m)."""
+    (tmp_path / "s.toml").write_text(SUITE.replace("grid = { n = [6] }", "grid = { n = [6] }\nseeds = [0, 1]"))
+    out = tmp_path / "out"
+    run = ["run", "--quiet", "--suite", str(tmp_path / "s.toml"), "--out", str(out)]
+    assert main([*run, "--limit", "5"]) == 0  # both equality problems, nullspace-svd declining ik-like seed 0
+    assert json.loads((out / "run.json").read_text())["suite_rows"] == 8
+    assert main(["report", str(out)]) == 0
+    md = (out / "report.md").read_text()
+    assert ("**Incomplete run: 5 of the suite's 8 (`hikbench run` with the same suite and --out runs the "
+            "other 3).**") in md
+    speed = _table(md, "Median cold time per problem")
+    assert speed["ik-like/n=6"]["reference"] == "not run"
+    assert speed["ik-like/n=6"]["nullspace-svd"] == "unsupported"
+    assert float(speed["equality/depth=2,n=6"]["reference"]) > 0
+
+    assert main(run) == 0
+    df = pd.read_csv(out / "results.csv", keep_default_na=False)
+    df["verified"] = df["verified"].astype(str)
+    df.loc[(df["problem"] == "ik-like/n=6/seed=1") & (df["solver"] == "reference"), "verified"] = "False"
+    df.to_csv(out / "results.csv", index=False)
+    assert main(["report", str(out)]) == 0
+    md = (out / "report.md").read_text()
+    assert "Incomplete run" not in md and "| rows | 8 (the whole suite) |" in md
+    cell = _table(md, "Median cold time per problem")["ik-like/n=6"]["reference"]
+    assert cell.endswith(" (1/2)") and float(cell.split()[0]) > 0, cell
