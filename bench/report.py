@@ -18,6 +18,7 @@ from bench import plots
 from bench.environment import read_run_json
 from bench.results import read_results
 from bench.shgeom import SHIFT_S, charged_times, shifted_geometric_mean, timed
+from problems.errors import HikbenchError
 
 __all__ = ["solver_label", "write_report"]
 
@@ -125,6 +126,8 @@ def _percent(ok: pd.Series) -> str:
 
 
 TIME_COLUMNS = ("time_median_s", "time_min_s", "time_p95_s")
+#: file name prefixes of the figures write_report draws in RUN/plots/
+REPORT_FIGURES = ("time_vs_", "success_rate", "performance_profile_", "accuracy_per_level", "cold_vs_warm")
 
 
 def normalise_hosts(df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
@@ -147,10 +150,16 @@ def normalise_hosts(df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
 def write_report(run_dir) -> Path:
     run_dir = Path(run_dir)
     df = read_results(run_dir)
+    if df.empty:
+        raise HikbenchError(f"{run_dir / 'results.csv'} has no rows; expected the rows of a `hikbench run` "
+                            f"(nothing to report)")
     meta = read_run_json(run_dir)
     env = meta.get("environment", {})
     plot_dir = run_dir / "plots"
     plot_dir.mkdir(exist_ok=True)
+    for old in plot_dir.glob("*.png"):  # the figures of an earlier report (a partial run's, say) go
+        if old.name.startswith(REPORT_FIGURES):
+            old.unlink()
     df = df.assign(label=solver_label(df))
     df, norm_note = normalise_hosts(df)
     penalty = _penalty(meta)

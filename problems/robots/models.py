@@ -9,6 +9,7 @@ finite limits; the free flyer and continuous joints are unbounded).
 
 from __future__ import annotations
 
+import difflib
 import functools
 from dataclasses import dataclass, field
 
@@ -150,8 +151,12 @@ class Robot:
         frame = self.frames.get(name, name)
         if not self.model.existFrame(frame):
             aliases = ", ".join(sorted(self.frames)) or "none"
+            names = [f.name for f in self.model.frames]
+            close = difflib.get_close_matches(name, names, n=5, cutoff=0.6)
             raise FrameNotFoundError(f"robot {self.name!r} has no frame {name!r} (aliases: {aliases}; "
-                                     f"or any of its {self.model.nframes} pinocchio frame names)")
+                                     f"or any of its {len(names)} pinocchio frame names"
+                                     + (f", e.g. {', '.join(close)}" if close else
+                                        f": {', '.join(names)}" if len(names) <= 60 else "") + ")")
         return frame
 
     def frame_id(self, name: str) -> int:

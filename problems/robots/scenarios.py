@@ -181,9 +181,18 @@ class Scenario:
             qb = stack.robot.bounded_q
             inset = 0.02 * (stack.robot.upper - stack.robot.lower)  # start strictly inside the limits
             q[qb] = np.clip(q[qb], stack.robot.lower + inset, stack.robot.upper - inset)
+        joints = d.get("plot", {}).get("joints")
+        if joints is not None and robot is None:
+            # (on another robot, --robot, names it lacks fall back to the joints that move most)
+            model = stack.robot.model
+            plotted = [model.names[j] for j in range(1, model.njoints)
+                       if model.joints[j].nq == 1 and stack.robot.bounded[model.joints[j].idx_v]]
+            bad = [j for j in joints if j not in plotted] if isinstance(joints, list) else [joints]
+            if bad:
+                raise ScenarioError(f"{source}: [plot] joints: {bad} are not bounded 1-DOF joints of "
+                                    f"{stack.robot.name}; expected a list of some of {plotted}")
         sc = cls(name=str(d["name"]), stack=stack, steps=steps, q_init=q, checks=dict(d.get("checks", {})),
-                 description=str(d.get("description", "")),
-                 plot_joints=d.get("plot", {}).get("joints"))
+                 description=str(d.get("description", "")), plot_joints=joints)
         sc._nominal = {t.name: _copy_target(t.target) for t in stack.tasks if hasattr(t, "target")}
         for kind in ("events", "trajectories"):
             for k, item in enumerate(d.get(kind, [])):

@@ -228,3 +228,20 @@ def test_a_partial_run_says_so_and_tells_not_run_from_not_verified(tmp_path):
     assert "Incomplete run" not in md and "| rows | 8 (the whole suite) |" in md
     cell = _table(md, "Median cold time per problem")["ik-like/n=6"]["reference"]
     assert cell.endswith(" (1/2)") and float(cell.split()[0]) > 0, cell
+
+
+def test_report_removes_its_old_figures_and_refuses_an_empty_run(declining_run, tmp_path, capsys):
+    import shutil
+    run = tmp_path / "run"
+    shutil.copytree(declining_run, run)
+    (run / "plots").mkdir(exist_ok=True)
+    (run / "plots" / "performance_profile_cold_eq2.png").write_bytes(b"stale")  # a partial run's figure
+    (run / "plots" / "mine.png").write_bytes(b"the user's")
+    assert main(["report", str(run)]) == 0
+    assert not (run / "plots" / "performance_profile_cold_eq2.png").exists()
+    assert (run / "plots" / "mine.png").exists()
+    capsys.readouterr()
+    header = (run / "results.csv").read_text().splitlines()[0]
+    (run / "results.csv").write_text(header + "\n")
+    assert main(["report", str(run)]) == 2
+    assert "results.csv has no rows; expected the rows of a `hikbench run`" in capsys.readouterr().err

@@ -211,3 +211,15 @@ def test_a_required_warm_start_parameter_is_named(tmp_path, capsys):
     assert main(["scenario", "reach", "--solver", spec("WarmRequired"), "--steps", "1",
                  "--out", str(tmp_path)]) == 2
     assert "its warm_start parameter has no default value" in capsys.readouterr().err
+
+
+def test_a_plotted_joint_that_the_robot_lacks_is_named(tmp_path):
+    """A typo in `[plot] joints` silently fell back to the 12 joints that move most."""
+    f = tmp_path / "arm.toml"
+    f.write_text('name = "arm"\nstack = "arm_reach"\nrobot = "ur5"\nsteps = 3\n'
+                 '[plot]\njoints = ["shoulder_pan_joint", "shoulder_pan_jont"]\n')
+    with pytest.raises(ScenarioError, match=r"\[plot\] joints: \['shoulder_pan_jont'\] are not bounded 1-DOF "
+                                            r"joints of ur5; expected a list of some of \['shoulder_pan_joint'"):
+        load_scenario(f)
+    # on another robot (--robot), the shipped scenarios' joints may be missing: the figure falls back
+    assert load_scenario("reach", robot="g1").plot_joints

@@ -140,3 +140,12 @@ def test_robot_family_for_the_harness():
     fam = ROBOT_FAMILIES["robot-stack"]
     assert fam.generate(seed=2, stack="arm_reach") == stack_problem("arm_reach", 2)
     assert fam.generate(seed=0).n == 38  # talos, the paper's stack
+
+
+def test_an_unknown_frame_suggests_the_closest_names(panda):
+    from problems.robots.models import FrameNotFoundError, load_robot
+
+    with pytest.raises(FrameNotFoundError, match="e.g. tool0"):
+        load_robot("ur5").frame_name("tool_0")
+    with pytest.raises(FrameNotFoundError, match="frame names: universe, "):
+        load_robot("ur5").frame_name("zzz")  # (22 frames: all listed)
