@@ -61,9 +61,9 @@ def _style(i: int) -> dict:
             "marker": _MARKERS[i % len(_MARKERS)]}
 
 
-def _label(df: pd.DataFrame) -> pd.Series:
-    """``solver``, or ``solver [settings]`` for a ``[[settings]]`` variant (as the
-    report's tables: bench.report.solver_label)."""
+def solver_label(df: pd.DataFrame) -> pd.Series:
+    """``solver``, or ``solver [settings]`` for a ``[[settings]]`` variant: a
+    solver's name in every table and figure of the report."""
     return df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
 
 
@@ -119,11 +119,10 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
         return None, {}
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
     slopes = {}
-    for i, ((solver, settings), s) in enumerate(g.groupby(["solver", "settings"])):
+    for i, (label, s) in enumerate(g.groupby(solver_label(g))):
         v = s[ok.loc[s.index]]
         med = v.groupby(var)["time_median_s"].median().sort_index()
         slope, se = loglog_slope(v[var], v["time_median_s"])
-        label = solver if settings == "default" else f"{solver} [{settings}]"
         sizes, tried = len(med), s[var].nunique()
         slopes[label] = (slope, se, sizes, tried)
         note = f"slope {slope:.2f}" if np.isfinite(slope) else "no slope: < 3 sizes"
@@ -147,7 +146,7 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
     df = df[df["status"] != "unsupported"]  # as in report.md: success among the rows a solver supports
     if df.empty:
         return None
-    tab = df.assign(_ok=df["verified"].eq(True).astype(float), _s=_label(df)).pivot_table(
+    tab = df.assign(_ok=df["verified"].eq(True).astype(float), _s=solver_label(df)).pivot_table(
         index="_s", columns="family", values="_ok", aggfunc="mean")
     fig, ax = plt.subplots(figsize=(max(5.5, 2.5 + 1.3 * tab.shape[1]), max(2.8, 1.6 + 0.4 * tab.shape[0])),
                            dpi=_STYLE["dpi"])
@@ -196,7 +195,7 @@ def plot_accuracy(df: pd.DataFrame, path: Path, order: list[str] | None = None) 
     if d.empty:
         return None
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
-    for i, (solver, s) in enumerate(d.groupby(_label(d))):
+    for i, (solver, s) in enumerate(d.groupby(solver_label(d))):
         per_level: dict[int, list] = {}
         for a, b in zip(s["level_norms"], s["ref_level_norms"]):
             for k, (u, v) in enumerate(zip(json.loads(a), json.loads(b))):
@@ -218,7 +217,7 @@ def plot_cold_warm(df: pd.DataFrame, path: Path, order: list[str] | None = None)
     """Warm against cold median time per problem and solver (each ``[[settings]]``
     variant a series of its own)."""
     keys = ["problem", "_label"]
-    d = df.assign(_label=_label(df))
+    d = df.assign(_label=solver_label(df))
     ok = d[timed(d)]  # log axes
     cold = ok[ok["mode"] == "cold"].set_index(keys)["time_median_s"]
     warm = ok[ok["mode"] == "warm"].set_index(keys)["time_median_s"]

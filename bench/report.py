@@ -16,6 +16,7 @@ import pandas as pd
 
 from bench import plots
 from bench.environment import read_run_json
+from bench.plots import solver_label
 from bench.results import read_results
 from bench.shgeom import SHIFT_S, charged_times, shifted_geometric_mean, timed
 from problems.errors import HikbenchError
@@ -56,10 +57,6 @@ def _profile_groups(d: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:
                 f"{'; not run by ' + ', '.join(not_run) if not_run else ''})")
         out.append((what, slug, sup[sup["problem"].isin(probs.index)]))
     return out
-
-
-def solver_label(df: pd.DataFrame) -> pd.Series:
-    return df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
 
 
 def _table(title: str, header: list[str], rows: list[list]) -> list[str]:

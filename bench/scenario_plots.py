@@ -44,10 +44,7 @@ def normalised_joints(run) -> tuple[np.ndarray, list[str]]:
     robot = run.scenario.robot
     qb = run.q[:, robot.bounded_q]
     z = 2.0 * (qb - robot.lower) / (robot.upper - robot.lower) - 1.0
-    model = robot.model
-    names = [model.names[j] for j in range(1, model.njoints)
-             if model.joints[j].nq == 1 and robot.bounded[model.joints[j].idx_v]]
-    return z, names
+    return z, list(robot.bounded_joint_names)
 
 
 def not_optimal(records) -> tuple[np.ndarray, str]:

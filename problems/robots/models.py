@@ -119,14 +119,20 @@ class Robot:
         return np.array(self._bounded_pairs[0], dtype=int)
 
     @functools.cached_property
-    def _bounded_pairs(self) -> tuple[list[int], list[int]]:
-        iq, iv = [], []
+    def bounded_joint_names(self) -> list[str]:
+        """Names of the joints of the bounded coordinates, same order as ``bounded_q``."""
+        return self._bounded_pairs[2]
+
+    @functools.cached_property
+    def _bounded_pairs(self) -> tuple[list[int], list[int], list[str]]:
+        iq, iv, names = [], [], []
         for j in range(1, self.model.njoints):
             joint = self.model.joints[j]
             if joint.nv == 1 and joint.nq == 1 and self.bounded[joint.idx_v]:
                 iq.append(joint.idx_q)
                 iv.append(joint.idx_v)
-        return iq, iv
+                names.append(self.model.names[j])
+        return iq, iv, names
 
     @property
     def lower(self) -> np.ndarray:

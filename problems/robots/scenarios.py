@@ -184,9 +184,7 @@ class Scenario:
         joints = d.get("plot", {}).get("joints")
         if joints is not None and robot is None:
             # (on another robot, --robot, names it lacks fall back to the joints that move most)
-            model = stack.robot.model
-            plotted = [model.names[j] for j in range(1, model.njoints)
-                       if model.joints[j].nq == 1 and stack.robot.bounded[model.joints[j].idx_v]]
+            plotted = stack.robot.bounded_joint_names
             bad = [j for j in joints if j not in plotted] if isinstance(joints, list) else [joints]
             if bad:
                 raise ScenarioError(f"{source}: [plot] joints: {bad} are not bounded 1-DOF joints of "
