@@ -117,7 +117,10 @@ def test_generate_every_family(capsys, tmp_path, family):
     (["generate", "random", "--param", "rank=x", "--out", "{d}"], ["rank must be an integer; got 'x'"]),
     (["generate", "random", "--seeds", "0", "--out", "{d}"], ["--seeds must be >= 1"]),
     (["generate", "random", "--out", "{file}/sub"], ["cannot create the directory"]),
-], ids=["family", "param name", "int", "float", "bool", "syntax", "rank", "rank type", "seeds", "out"])
+    (["generate", "robot-stack", "--param", "stack=nope", "--out", "{d}"], ["unknown stack 'nope' (shipped: "]),
+    (["generate", "robot-stack", "--param", "robot=r2d2", "--out", "{d}"], ["robot 'r2d2' is not in the installed"]),
+], ids=["family", "param name", "int", "float", "bool", "syntax", "rank", "rank type", "seeds", "out",
+        "robot-stack stack", "robot-stack robot"])
 def test_generate_user_errors(capsys, tmp_path, argv, fragments):
     (tmp_path / "f").write_text("a file")
     code, _, err = run(capsys, *[a.format(d=tmp_path, file=tmp_path / "f") for a in argv])
