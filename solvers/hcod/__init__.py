@@ -96,7 +96,12 @@ Warm start (sec. XI), option ``warm_start``
     ``Z`` and shortened by tau to keep inactive rows feasible, ``Delta^+ A``
     inserted, then an LSE correction onto the inserted rows). A level whose
     corrected point violates a row above starts cold from the previous
-    level's optimum instead (``info["warm_fallback_levels"]``). A run of
+    level's optimum instead (``info["warm_fallback_levels"]``). A call with a
+    level whose optimum lies far from a warm point of it or of a level above
+    (``||u_hat|| > 1e6 (1 + ||u_k||)``: a record of a huge step, the optimum
+    back to O(1)) is done once more cold (``info["cold_after_warm"]``; the
+    counters add both passes): the steps back cancel and leave ``eps
+    ||u_hat||`` along the working rows, a violation of the levels above. A run of
     levels run0..m-1 that met their objectives exactly (every objective row
     within its rounding floor) is marked in the record: a re-solve jumps at
     run0 to the last call's ``u_m`` (the sum of the run's ``Delta u``, level
@@ -262,6 +267,8 @@ class HcodSolver(Solver):
             info = {"min_norm_iterations": o[it1]} if extra else {}
             if o[6]:
                 info["warm_fallback_levels"] = o[6]
+            if o[7]:
+                info["cold_after_warm"] = True
             x = xv.copy()
             status = _STATUS[o[0]]
             reason = ""

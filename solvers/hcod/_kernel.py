@@ -78,9 +78,13 @@ _FM = set(FASTMATH)
 INACTIVE, WORK, IMPLIED, OBJECTIVE, DEPENDENT = 0, 1, 2, 3, 4
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
-O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL = range(7)
+O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_COLD = range(8)
 G_ROUNDING = 1e-2  #: a row's rounding in the noise floor of g, a fraction of its _floor (1e-15)
 BLAND_AFTER = 32  #: consecutive iterations that leave u where it is before the anti-cycling rule takes over
+#: a ``time`` re-solve is done again cold when a level's optimum u_k has ``||u_hat|| > COLD_AFTER_WARM
+#: (1 + ||u_k||)`` for a warm point u_hat of this level or one above: its steps cancelled. (At 1e6 the
+#: rounding left, eps 1e6 = 2.2e-10 relative, stays below the 1e-9 of verify's high profile.)
+COLD_AFTER_WARM = 1e6
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -252,8 +256,11 @@ def hcod_solve(fw, iw):
     status = ST_OPTIMAL
     fail_level = -1
     warm_failed = 0
-    for _once in range(1):  # (a block, left by break on failure)
-        use_hist = warm == 2
+    cold_again = 0
+    itl[:] = 0
+    for attempt in range(2):  # (a block, left by break; a second pass: cold_again below)
+        use_hist = warm == 2 and attempt == 0
+        uwarm = 0.0  # the largest ||u_hat|| of the warm points so far
         # the representation of W (._basis): factored for a warm re-solve of a large problem
         # (few iterations per level: the queue is short), explicit otherwise (a cold solve
         # iterates: products through a long queue or a dense W0 cost more than Z's columns)
@@ -268,19 +275,12 @@ def hcod_solve(fw, iw):
             state[i] = INACTIVE
             side[i] = 0
         p = 0
-        fl = 0
-        acts = 0
-        deacts = 0
-        total = 0
-        status = ST_OPTIMAL
-        fail_level = -1
         run0 = -1  # (time, recording) first level of the current run of exactly met levels, -1: none
         jrun = -1  # (time, re-solving) a jump over the levels jrun..jm-1 to u_jm: see below
         jm = -1
         for k in range(D):
             s0 = starts[k]
             s1 = starts[k + 1]
-            itl[k] = 0
             for c in range(n):
                 uprev[c] = u[c]
             if s1 == s0:
@@ -470,6 +470,8 @@ def hcod_solve(fw, iw):
                     p = p_in
                     for c in range(n):
                         u[c] = uprev[c]
+                else:
+                    uwarm = max(uwarm, unorm)
                 for i in range(s0, s1):
                     if hist_state[k, i] == OBJECTIVE:
                         sd = hist_side[k, i]
@@ -835,6 +837,12 @@ def hcod_solve(fw, iw):
                 ndep = _release_dependent(state, s0)
             if status != ST_OPTIMAL:
                 break
+            if uwarm > COLD_AFTER_WARM and uwarm > COLD_AFTER_WARM * (1.0 + _norm(u)):
+                # a warm point far from this level's optimum: the steps back cancelled and left
+                # their rounding, eps ||u_hat||, along the working rows (levels above violated
+                # by it). The call is done once more cold, its record rewritten
+                cold_again = 1
+                break
             last = k == D - 1 or levid[k] == 2
             if warm == 2 and not jump:  # (a level of a jump keeps the record of the last call that did not)
                 for i in range(s1):
@@ -904,12 +912,22 @@ def hcod_solve(fw, iw):
                             R[p + l, p + t] = Mr[t, l]
                         R[p + t, p + t] = diag[t]
                     fl += push_reflectors(lazy, Wt, qv, qi, p, Mr, beta, r, Qbf, sv, sv2)
+                # the level's residual ||w||: the rounding of an LSE with a conflict (nonzero w)
+                # leaks into its met rows in proportion to it (a pair of parallel rows apart by
+                # 4, the rows that meet them at zero left at 1e-11): it joins their zero slack
+                wn = 0.0
                 for j in range(nO):
                     i = Olist[piv[j]]
-                    av = row_dot(A[i], bcol[i], bval[i], u)
+                    bvec[j] = row_dot(A[i], bcol[i], bval[i], u)
+                    w = bvec[j] - target[i]
+                    wn += w * w
+                wn = math.sqrt(wn)
+                for j in range(nO):
+                    i = Olist[piv[j]]
+                    av = bvec[j]
                     w = av - target[i]
                     sd = side[i]
-                    if kind[i] == 0 or abs(w) > _floor(rnorm[i], unorm, target[i], freeze_rtol):
+                    if kind[i] == 0 or abs(w) > _floor(rnorm[i], unorm, target[i], freeze_rtol) + freeze_rtol * wn:
                         target[i] = av
                         sd = 0
                     if cod_done:
@@ -925,6 +943,8 @@ def hcod_solve(fw, iw):
                         state[i] = WORK
                     else:
                         state[i] = IMPLIED if sd == 0 else INACTIVE
+        if cold_again and attempt == 0:
+            continue  # (cold: u_0 = 0; the counters add both passes)
         break
     for c in range(n):
         if not math.isfinite(u[c]):
@@ -937,4 +957,5 @@ def hcod_solve(fw, iw):
     out[O_FLOPS] = fl
     out[O_LEVEL] = fail_level
     out[O_WARMFAIL] = warm_failed
+    out[O_COLD] = cold_again
 

@@ -530,6 +530,48 @@ def test_no_cycling_at_a_degenerate_vertex():
     assert res.iterations < 500
 
 
+@pytest.mark.parametrize("min_norm", [True, False], ids=["min_norm", "no_min_norm"])
+def test_a_conflict_leaves_its_met_rows_removable(min_norm):
+    """A trajectory of the audit (random hierarchy, n = 5, 5 levels of 9 rows, seed 569, steps
+    111-112): level 0 holds a row and its negative with incompatible bounds (a conflict of 4.15)
+    and, met at a bound, rows that bound the conflict. The LSE's rounding leaks into those met
+    rows in proportion to the conflict, 1.2e-11 on one of them, past the zero slack of the
+    freeze (1.1e-11): a `time` re-solve froze it as an equality at its achieved value, and
+    level 1 was 9.9e-3 above the reference. The level's residual now joins the zero slack."""
+    first, second = (load_npz(DATA / f"conflict_leak_{which}.npz") for which in ("first", "second"))
+    s = HcodSolver(warm_start="time", min_norm=min_norm)
+    check(first, solver=s)
+    res, x_ref = check(second, solver=s)
+    cold, _ = check(second, solver=HcodSolver(warm_start="stage", min_norm=min_norm), x_ref=x_ref)
+    np.testing.assert_allclose(level_norms(second, res.x), level_norms(second, cold.x), rtol=1e-9, atol=1e-12)
+
+
+@pytest.mark.parametrize("seed", range(6), ids=lambda s: f"seed{s}")
+def test_time_warm_start_after_a_huge_step(seed):
+    """Level 1 a single row of norm 1e-11 (full rank at its own scale): its bound 0.5 puts the
+    optimum at 5e10, then the bound goes and the optimum (the min-norm stage) is O(1) again.
+    The `time` re-solve went through the recorded step, 5e10, and back: the steps cancelled and
+    left eps 5e10 = 1e-5 along level 0's rows (violated by 1e-6 .. 3e-5 on seeds 0-19). Such a
+    call is done once more cold (``info["cold_after_warm"]``)."""
+    rng = np.random.default_rng(seed)
+    n = 6
+    Q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    low = rng.standard_normal((2, n))
+    up = rng.standard_normal(2)
+
+    def hierarchy(lower1):
+        return Hierarchy.from_levels([Level(2.0 * Q[:, :2].T, [0.5, -1.0], [0.5, 1.0]),
+                                      Level(1e-11 * Q[:, 2:3].T, [lower1], [np.inf]),
+                                      Level(low, [-np.inf, -np.inf], up)], n=n)
+
+    s = HcodSolver(warm_start="time")
+    big = s.solve(hierarchy(0.5))  # (beyond the reference's QPs)
+    assert big.status == OPTIMAL and np.linalg.norm(big.x) > 1e10, big
+    res, _ = check(hierarchy(-np.inf), solver=s)
+    assert res.info.get("cold_after_warm"), res.info
+    assert res.iterations == sum(res.iterations_per_level) + res.info["min_norm_iterations"]
+
+
 @pytest.mark.parametrize("warm_start", ["none", "stage", "time"])
 def test_row_held_at_its_bound_by_the_working_rows_does_not_block(warm_start):
     """Romeo reaching, step 0 (``hikbench scenario reach --robot romeo``; n = 61, joint
