@@ -24,7 +24,7 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("rows_per_level", "JSON list: rows of each level"),
     ("ranks", "JSON list: rank of each level's A_k alone (numpy.linalg.matrix_rank)"),
     ("rank", "rank of the whole stacked A"),
-    ("solver", "solver name (registry name, module:Class, or external:NAME)"),
+    ("solver", "solver name (registry name; the class's `name` for module:Class and file.py:Class; external:NAME)"),
     ("settings", "settings name from the suite ('default' = the solver's own defaults)"),
     ("options", "JSON dict of the solver options of these settings"),
     ("strict", "True for strict-hierarchy solvers (judged against the lexicographic optimum)"),

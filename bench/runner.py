@@ -257,7 +257,10 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         meta = read_run_json(out)
         session = {"started": utc_now(), "calibration_start_ns": calibrate(), "todo": len(todo),
                    "repeat": repeat, "rounds": rounds, "timeout": timeout}
-        meta.update({"suite": suite.to_dict(), "suite_rows": len(tasks), "calibration_kernel": KERNEL, "key": list(KEY),
+        # (the solvers this directory's runs selected, skipped ones included: compare expects their cases)
+        selected = sorted({t.entry.solver for t in tasks} | set(skipped) | set(meta.get("selected_solvers", [])))
+        meta.update({"suite": suite.to_dict(), "suite_rows": len(tasks), "selected_solvers": selected,
+                     "calibration_kernel": KERNEL, "key": list(KEY),
                      "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
                      "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
         meta.setdefault("created", session["started"])

@@ -26,7 +26,7 @@ path. Schema (every key optional except ``problems``)::
     params = { rows = 6 }              # fixed parameters
     grid = { n = [6, 12], depth = [2, 4] }   # Cartesian product
     seeds = [0, 1]
-    solvers = ["hcod", "nullspace-*"]  # optional: restricts this group
+    solvers = ["hcod", "nullspace-*", "cascade-osqp"]  # optional: restricts this group
 
 Decisions (README, "Suites"):
 
@@ -291,8 +291,11 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
         if badg:
             c.fail(f"{ctx}unknown key(s) {sorted(badg)}; expected some of {sorted(_GROUP_KEYS)}")
         c.string(g, "family", None, ctx)
-        c.table(g, "params", ctx)
+        params = c.table(g, "params", ctx)
         for k, v in c.table(g, "grid", ctx).items():
+            if k in params:
+                c.fail(f"{ctx}{k!r} is in both params ({params[k]!r}) and grid ({v!r}): expected it in one of "
+                       f"them (the grid's values would replace the param)")
             if isinstance(v, list) and not v:
                 c.fail(f"{ctx}grid key {k!r} is an empty list: expected at least one value")
             if isinstance(v, dict):
@@ -437,7 +440,6 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
 def expand(suite: Suite, solver_patterns=None) -> tuple[list[Task], dict[str, str]]:
     """Every task of the suite; ``solver_patterns`` (from --solvers) replaces
     the suite's and the groups' solver lists."""
-    from solvers import registry
 
     tasks: list[Task] = []
     skipped: dict[str, str] = {}
@@ -456,10 +458,10 @@ def expand(suite: Suite, solver_patterns=None) -> tuple[list[Task], dict[str, st
                 tasks.append(Task(spec, entry, mode))
     if not solver_patterns:  # a [[settings]] for a solver that is nowhere: most likely a typo
         names = {e.solver for entries in cache.values() for e in entries}
-        known = set(registry.available()) | set(registry.missing()) | set(skipped)
         for i, st in enumerate(suite.settings):
-            if st["solver"] not in names and st["solver"] not in known:
+            if st["solver"] not in names and st["solver"] not in skipped:
                 raise SuiteError(f"suite {suite_file}: [[settings]] {st['name']!r}: solver "
                                  f"{st['solver']!r} is not one of the suite's solvers "
-                                 f"({', '.join(sorted(names)) or 'none'})")
+                                 f"({', '.join(sorted(names)) or 'none'}): expected it in the suite's (or a "
+                                 f"group's) solvers, or no [[settings]] for it")
     return tasks, skipped

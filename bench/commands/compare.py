@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 
 HELP = ("compare a run (or several: a case must fail in all) with a baseline run; exit 1 on a significant "
-        "slowdown or a newly failing case")
+        "slowdown, a newly failing case or a missing one")
 
 
 def add_arguments(p) -> None:
@@ -31,8 +31,11 @@ def run(args) -> int:
                             f"got {args.alpha:g}")
     c = confirmed([compare_runs(args.base, r, threshold=args.threshold, alpha=args.alpha) for r in args.run])
     print(format_table(c, show_all=args.all))
-    print(f"\ncompared {len(c.table)} cases (times normalised by the calibration kernel of each host): "
+    print(f"\ncompared {len(c.table) - len(c.missing)} cases (times normalised by the calibration kernel): "
           f"{len(c.slowdowns)} slower (> {args.threshold:g}x, p < {args.alpha:g}), "
-          f"{len(c.new_failures)} newly failing, {int((c.table['verdict'] == 'faster').sum())} faster; "
+          f"{len(c.new_failures)} newly failing, {len(c.missing)} missing, "
+          f"{int((c.table['verdict'] == 'faster').sum())} faster; "
           f"{len(c.only_base)} only in base, {len(c.only_new)} only in the new run")
+    for note in c.notes:
+        print(f"note: {note}")
     return 1 if c.failed else 0

@@ -212,3 +212,73 @@ def test_a_hand_edited_run_is_a_one_line_error(one_run, tmp_path, capsys, column
     bad = _edited_copy(one_run, tmp_path / "bad", column, value, drop_run_json)
     code, _, err = run(capsys, "compare", one_run, bad)
     assert_user_error(code, err, str(bad), *fragments)
+
+
+def _failing(frame: pd.DataFrame, case: str, status: str, reason: str) -> pd.DataFrame:
+    out = frame.copy()
+    i = out.index[out["problem"] == case]
+    out.loc[i, ["status", "verified", "samples_ns", "time_median_s"]] = [status, False, "", float("nan")]
+    out.loc[i, "reason"] = reason
+    return out
+
+
+def test_a_later_run_failing_another_way_or_without_the_case_does_not_clear_it():
+    """A 3x slowdown in runs 1 and 3 that times out in run 2 (or has no row there: the run was
+    cut) stays SLOWER; each run alone exits 1, so together they must too. Only a run where the
+    case passes clears it."""
+    from bench.compare import confirmed
+
+    rng = np.random.default_rng(7)
+    base = _frame(_samples(rng))
+    slow = _frame({k: (v * (3.0 if k[0] == "p0" else 1.0)).astype(int) for k, v in _samples(rng).items()})
+    a = compare_frames(base, slow, {}, {})
+    timeout = compare_frames(base, _failing(_frame(_samples(rng)), "p0", "timeout", "no answer within 20 s"), {}, {})
+    absent = compare_frames(base, _frame(_samples(rng)).query("problem != 'p0'"), {}, {})
+    fine = compare_frames(base, _frame(_samples(rng)), {}, {})
+    assert timeout.new_failures["why"].tolist() == ["timeout: no answer within 20 s"]
+    for later in (timeout, absent):
+        c = confirmed([a, later, a])
+        assert c.failed and c.slowdowns["problem"].tolist() == ["p0"], c.table
+    c = confirmed([a, fine, a])
+    assert not c.failed and (c.table["verdict"] == "slower, not reproduced").sum() == 1
+
+
+SUITE = {"suite": {"name": "ci", "repeat": 9, "calibrate_each_job": False}}
+
+
+@pytest.mark.parametrize("case", ["skipped", "selected", "not selected", "other suite"])
+def test_a_verified_case_without_a_row_is_missing_when_the_run_selected_its_solver(case):
+    """A solver whose backend no longer imports writes no rows (run.json skipped_solvers): its
+    cases are MISSING, exit 1, with the reason. So are those of a selected solver with no row
+    (a cut run). A solver the run did not select (--solvers), or a run of another suite,
+    leaves them listed "only in base", not judged."""
+    rng = np.random.default_rng(8)
+    base = _frame({(f"p{i}", s): v for s in ("a", "b") for i, v in enumerate(_samples(rng, n_cases=3).values())})
+    new = base[base["solver"] == "a"]
+    meta = {"skipped": SUITE | {"selected_solvers": ["a", "b"], "skipped_solvers": {"b": "No module named 'daqp'"}},
+            "selected": SUITE | {"selected_solvers": ["a", "b"]},
+            "not selected": SUITE | {"selected_solvers": ["a"]},
+            "other suite": {"suite": {"name": "quick"}, "selected_solvers": ["a", "b"]}}[case]
+    c = compare_frames(base, new, SUITE, meta)
+    if case in ("skipped", "selected"):
+        assert c.failed and sorted(c.missing["problem"]) == ["p0", "p1", "p2"] and not c.only_base
+        assert set(c.missing["why"]) == {"solver skipped: No module named 'daqp'" if case == "skipped" else "no row"}
+    else:
+        assert not c.failed and len(c.only_base) == 3
+    assert any("suite differs" in n for n in c.notes) == (case == "other suite")
+
+
+def test_the_output_says_why_a_case_fails_and_which_runs_differ(tmp_path, capsys):
+    from bench.columns import names
+
+    rng = np.random.default_rng(9)
+    base = _frame(_samples(rng, n_cases=2))
+    new = _failing(base, "p0", "numerical_failure", "hcod: x is not finite")
+    for name, frame, meta in (("base", base, SUITE), ("new", new, {"suite": {"name": "ci", "repeat": 3}})):
+        (tmp_path / name).mkdir()
+        frame.reindex(columns=names()).to_csv(tmp_path / name / "results.csv", index=False)
+        (tmp_path / name / "run.json").write_text(json.dumps(meta))
+    assert main(["compare", str(tmp_path / "base"), str(tmp_path / "new")]) == 1
+    out = capsys.readouterr().out
+    assert "NEWLY FAILING" in out and "(numerical_failure: hcod: x is not finite)" in out
+    assert "note: repeat differs: 9 in base, 3 in the new run" in out

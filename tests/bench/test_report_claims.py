@@ -130,7 +130,8 @@ def test_claim_e_leaves_out_the_cold_first_step_of_time_warm_start():
     e = claim_e(pd.DataFrame(rows))
     assert e.status == PASS, e.measured
     assert e.measured.endswith("2.00 extra iterations per activation (quiet steps: 1; the cold first step "
-                               "(step 0) left out); on 10 of the reach scenario's 700 steps (a run cut by --steps)")
+                               "(step 0) left out); median time per step (not judged) none 3.000, stage 3.000, "
+                               "time 3.000 ms; on 10 of the reach scenario's 700 steps (a run cut by --steps)")
 
 
 def test_claims_command_exit_codes(sweep_run, tmp_path, capsys):

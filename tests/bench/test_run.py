@@ -64,6 +64,8 @@ def test_outputs_beside_results(tiny_run):
     assert meta["suite"]["name"] == "s"
     assert meta["calibration_ns"] > 0
     assert meta["skipped_solvers"] == {"not-a-solver-*": "pattern matches no installed solver"}
+    df = read_results(tiny_run)
+    assert meta["selected_solvers"] == sorted({*df["solver"], "not-a-solver-*"})  # (compare's MISSING)
     env = meta["environment"]
     assert env["versions"]["numpy"] and env["cpu"] and "threadpools" in env["blas"]
     assert len(list((tiny_run / "problems").glob("*.npz"))) == 4

@@ -64,11 +64,26 @@ def test_expand_modes_settings_and_skips(tmp_path):
     ({"rounds": 0, "problems": [{"family": "equality"}]}, "rounds = 0: expected an integer >= 1"),
     ({"repeat": 3, "rounds": 4, "problems": [{"family": "equality"}]},
      "rounds = 4: expected at most repeat = 3 \\(each round times at least one solve of every row\\)"),
+    ({"problems": [{"family": "equality", "params": {"n": 12}, "grid": {"n": [6, 12]}}]},
+     "'n' is in both params \\(12\\) and grid \\(\\[6, 12\\]\\): expected it in one of them"),
 ], ids=["no-problems", "no-family", "group-key", "mode", "accuracy", "top-key", "repeat", "seeds", "rounds-0",
-        "rounds-over-repeat"])
+        "rounds-over-repeat", "params-and-grid"])
 def test_bad_suites(data, match):
     with pytest.raises(SuiteError, match=match):
         suite_from_dict(data, "bad")
+
+
+def test_settings_of_a_solver_the_suite_does_not_run_are_an_error():
+    """A [[settings]] for an installed solver missing from the suite's solvers was dropped
+    without a word (the user forgot to add the solver). With --solvers the settings of the
+    solvers left out are expected to go."""
+    suite = suite_from_dict({"solvers": ["reference"], "problems": [{"family": "equality"}],
+                             "settings": [{"solver": "cascade-osqp", "name": "low",
+                                           "options": {"accuracy": "low"}}]}, "mine")
+    with pytest.raises(SuiteError, match="\\[\\[settings\\]\\] 'low': solver 'cascade-osqp' is not one of "
+                                         "the suite's solvers \\(reference\\)"):
+        expand(suite)
+    assert {t.entry.solver for t in expand(suite, solver_patterns=["reference"])[0]} == {"reference"}
 
 
 def test_unknown_solver_is_an_error_listing_the_known_ones():
