@@ -47,7 +47,7 @@ from problems.errors import HikbenchError
 from problems.robots.kinematics import KinematicState
 from problems.robots.scenarios import Scenario
 from solvers import registry
-from solvers.base import ERROR, SolveResult
+from solvers.base import ERROR, SolveResult, checked_result
 
 __all__ = ["COLUMNS", "NO_WARM_START", "ScenarioRun", "check_run", "run_scenario", "warm_start_default"]
 
@@ -159,9 +159,11 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
 
 def _solve(slv, h) -> SolveResult:
     """``slv.solve(h)``; an exception escaping from the solver (a user's
-    ``file.py:Class``) is returned as status ``error`` with its type and message."""
+    ``file.py:Class``), or an answer that breaks the contract
+    (:func:`solvers.base.checked_result`), is returned as status ``error`` with
+    its type and message."""
     try:
-        return slv.solve(h)
+        return checked_result(slv.solve(h), h, getattr(slv, "name", type(slv).__name__))
     except Exception as err:  # noqa: BLE001 - a crashing solver ends its run with a status row
         return SolveResult(None, ERROR, reason=f"{type(err).__name__}: {err}")
 

@@ -22,7 +22,7 @@ import numpy as np
 from threadpoolctl import threadpool_limits
 
 from problems.hierarchy import Hierarchy
-from solvers.base import Solver, SolveResult
+from solvers.base import Solver, SolveResult, checked_result
 
 __all__ = ["MODES", "Timing", "quiet_timing", "time_solves"]
 
@@ -104,4 +104,4 @@ def time_solves(make_solver: Callable[[], Solver], h: Hierarchy, repeat: int = 1
                 t0 = clock()
                 result = solver.solve(h)
                 samples[i] = clock() - t0
-    return Timing(samples, result)
+    return Timing(samples, checked_result(result, h, getattr(solver, "name", type(solver).__name__)))

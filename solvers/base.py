@@ -19,7 +19,7 @@ import numpy as np
 from problems.hierarchy import Hierarchy, check_fits_in_memory
 
 __all__ = ["CRASHED", "ERROR", "INFEASIBLE_LEVEL", "MAX_ITERATIONS", "NUMERICAL_FAILURE", "OPTIMAL",
-           "STATUSES", "TIMEOUT", "UNSUPPORTED", "SolveResult", "Solver"]
+           "STATUSES", "TIMEOUT", "UNSUPPORTED", "SolveResult", "Solver", "checked_result"]
 
 OPTIMAL = "optimal"                      #: every level solved to the solver's accuracy
 MAX_ITERATIONS = "max_iterations"        #: an iteration cap was hit; x is the last iterate
@@ -148,3 +148,18 @@ class Solver(abc.ABC):
     def unsupported(self, hierarchy: Hierarchy, why: str) -> SolveResult:
         return SolveResult(x=None, status=UNSUPPORTED, reason=f"{self.name}: {why}",
                            iterations_per_level=(0,) * hierarchy.depth)
+
+
+def checked_result(res, h: Hierarchy, who: str = "the solver") -> SolveResult:
+    """``res`` when it keeps the solve contract (a SolveResult whose x is None
+    or has shape (n,)); otherwise a SolveResult with status ``error`` whose
+    reason names what came back and what was expected. The harness applies it
+    to every solver's answer: a user's ``file.py:Class`` returning an ndarray,
+    or x of the wrong length, costs its row (or scenario run), not the run."""
+    if not isinstance(res, SolveResult):
+        return SolveResult(None, ERROR, reason=f"{who}: solve() returned {type(res).__name__}: expected a "
+                                                f"solvers.base.SolveResult")
+    if res.x is not None and np.shape(res.x) != (h.n,):
+        return SolveResult(None, ERROR, reason=f"{who}: solve() returned x of shape {np.shape(res.x)}: expected "
+                                                f"({h.n},), one value per variable")
+    return res

@@ -12,6 +12,7 @@ from problems.errors import HikbenchError
 from problems.files import load
 from problems.verify import level_norms
 from solvers import registry
+from solvers.base import ERROR
 
 HELP = "solve one problem file with one solver and print the result"
 
@@ -78,8 +79,12 @@ def run(args) -> int:
     if args.warm and not getattr(solver, "supports_warm_start", False):
         print(f"note: {args.solver} has no warm start: --warm times re-solves that redo a cold solve's work",
               file=sys.stderr)
-    timing = time_solves(lambda: registry.build(info, **options), h, repeat=args.repeat,
-                         mode="warm" if args.warm else "cold")
+    try:
+        timing = time_solves(lambda: registry.build(info, **options), h, repeat=args.repeat,
+                             mode="warm" if args.warm else "cold")
+    except Exception as err:  # noqa: BLE001 - the solver's exception (a user's file.py:Class), not hikbench's
+        print(f"solver      {args.solver}\nstatus      error ({type(err).__name__}: {err})")
+        return 1
     res = timing.result
     norms = level_norms(h, res.x).tolist() if res.x is not None else None
     out = {
@@ -102,4 +107,4 @@ def run(args) -> int:
         print(f"iterations  {'-' if out['iterations'] is None else out['iterations']}")
         print(f"time        median {timing.median_s * 1e6:.1f} us, min {timing.min_s * 1e6:.1f} us "
               f"over {args.repeat} {'warm' if args.warm else 'cold'} solve(s)")
-    return 0
+    return 1 if res.status == ERROR else 0  # (an exception in the solver, or an answer off the contract)

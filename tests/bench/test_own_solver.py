@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 import tomli_w
 from clitools import assert_user_error, run
+from doubles import write_suite
 
 from bench.cli import main
 from bench.results import read_results
@@ -144,3 +145,44 @@ def test_solve_command_refuses_a_class_without_solve(capsys, tmp_path, equality_
     f.write_text(USER_FILE)
     code, _, err = run(capsys, "solve", equality_file[1], "--solver", f"{f}:NotASolver")
     assert_user_error(code, err, "is not a solver: expected a class with a solve(hierarchy) method")
+
+
+_BAD = """
+import numpy as np
+from solvers.base import SolveResult
+
+
+class WrongShape:
+    name = "wrong-shape"
+
+    def solve(self, h):
+        return SolveResult(np.zeros(h.n + 1), "optimal")
+
+
+class Array:
+    name = "array"
+
+    def solve(self, h):
+        return np.zeros(h.n)
+"""
+
+
+@pytest.mark.parametrize("cls, reason", [
+    ("WrongShape", "wrong-shape: solve() returned x of shape (5,): expected (4,), one value per variable"),
+    ("Array", "array: solve() returned ndarray: expected a solvers.base.SolveResult"),
+], ids=["wrong-shape", "ndarray"])
+def test_an_answer_off_the_contract_is_an_error_row_naming_it(tmp_path, capsys, cls, reason):
+    """x of the wrong length was recorded `optimal` with an empty reason (verdict "no x"), an
+    ndarray instead of a SolveResult gave "AttributeError ... at worker.py:55" (run) or a
+    traceback (solve, scenario)."""
+    (tmp_path / "bad.py").write_text(_BAD)
+    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4], "depth": [1]}, modes=("cold",),
+                        repeat=1)
+    assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "out"),
+                 "--solvers", f"{tmp_path / 'bad.py'}:{cls}"]) == 0
+    row = read_results(tmp_path / "out").iloc[0]
+    assert (row["status"], row["reason"]) == ("error", reason)
+    problem = next((tmp_path / "out" / "problems").glob("*.npz"))
+    capsys.readouterr()
+    assert main(["solve", str(problem), "--solver", f"{tmp_path / 'bad.py'}:{cls}"]) == 1
+    assert f"status      error ({reason})" in capsys.readouterr().out

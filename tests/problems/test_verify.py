@@ -141,3 +141,14 @@ def test_verify_by_hand():
     # x = (3, 0): level 0 off by 1 -> the verdict is at level 0 even though level 1 is exact
     v = verify(h, [3.0, 0.0], [3.0, -1.0])
     assert (v.level, v.lower) == (0, "b")
+
+
+@pytest.mark.parametrize("free", [0.0, 1e10, 1e12], ids=["x2=0", "x2=1e10", "x2=1e12"])
+def test_a_huge_free_component_buys_no_tolerance(free):
+    """Level 0 ``x0 = 1``, level 1 ``x0 + x1 = 0``, x2 free: x0 off by 1e-3 is worse at level 0
+    whatever x2 is. The tolerance scaled with the larger of the two norms of x let x2 = 1e10
+    pass it (and x0 off by 1000 beside x2 = 1e12)."""
+    h = Hierarchy.from_levels([Level.equality([[1.0, 0.0, 0.0]], [1.0]),
+                               Level.equality([[1.0, 1.0, 0.0]], [0.0])], n=3)
+    v = verify(h, [1.001, -1.0, free], [1.0, -1.0, 0.0], rtol=1e-6)
+    assert (v.level, v.lower) == (0, "b"), v

@@ -305,6 +305,22 @@ def test_iteration_limit_becomes_max_iterations():
     assert f"level {res.info['failed_level']}: backend osqp hit its iteration limit" in res.reason
 
 
+def test_highs_has_an_iteration_cap_by_default():
+    """HiGHS's QP iteration limit defaults to 2^31 - 1: on degenerate/badly_scaled seed 1 its
+    level-2 QP looped for more than 10 minutes (solve and scenario hung; run lost a row after
+    the first-solve timeout). With the default cap it answers at once. (In a child process
+    killed after 120 s: no Python signal handler interrupts a loop in C.)"""
+    import subprocess
+    import sys
+
+    pytest.importorskip("highspy")
+    code = ("from problems import generators as g; from solvers import registry; "
+            "h = g.generate('degenerate', seed=1, case='badly_scaled'); "
+            "print(registry.create('cascade-highs').solve(h).status)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True)
+    assert out.stdout.split()[-1] in (OPTIMAL, INFEASIBLE_LEVEL, MAX_ITERATIONS), out.stdout
+
+
 def test_infeasible_after_freezing_names_the_level():
     # level 0 fixes x0 = 0, level 1 asks x0 >= 1 (slack -1). With slack_tol = 10
     # the "equality" freeze keeps that row as an inequality at its own bound,
