@@ -14,13 +14,13 @@ So runs of different machines or of a loaded CI runner compare as ratios. A case
 * the one-sided Mann-Whitney U test (scipy.stats.mannwhitneyu, new > base) on
   the normalised samples gives p < ``alpha`` (default 0.01),
 
-**newly failing** when it was verified in BASE and is not in RUN, and
-**missing** when it was verified in BASE and RUN has no row for it although
-RUN ran the same suite (run.json's suite name) and selected its solver
-(run.json's ``selected_solvers``: the suite's or ``--solvers``'), a solver it
-skipped included (a backend that no longer imports; the reason is shown). Any of the three makes ``compare`` exit 1. Other keys in
-only one run (a ``--solvers`` selection, another suite) are listed, not
-judged; runs of different suites, repetitions or calibration modes are
+**newly failing** when it was verified in BASE and is not verified in RUN,
+and **missing** when it was verified in BASE and RUN has no row for it
+although RUN ran the same suite (run.json's suite name) and selected its
+solver (run.json's ``selected_solvers``: the suite's or ``--solvers``'), a
+solver it skipped included (a backend that no longer imports; the reason is
+shown). Any of the three makes ``compare`` exit 1. Other keys in only one run
+(a ``--solvers`` selection, another suite) are listed, not judged; runs of different suites, repetitions or calibration modes are
 compared with a note saying so. Given several runs (``compare BASE RUN1
 RUN2``), a case fails only when it fails in every run (``confirmed``): a
 neighbour's load on a shared CI runner slows one job once, a regression slows
