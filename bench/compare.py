@@ -125,7 +125,7 @@ def _why(row) -> str:
         else str(row["verdict_side"])
 
 
-def _notes(base_meta: dict, new_meta: dict, names) -> list[str]:
+def _notes(base_meta: dict, new_meta: dict, new_rows: int, names) -> list[str]:
     """Differences of run.json that make ratios or missing cases mean something else."""
     notes = [f"{n} has no run.json: its suite is unknown and its times are divided by the median "
              f"calibration of each host" for n, m in zip(names, (base_meta, new_meta)) if not m]
@@ -134,9 +134,9 @@ def _notes(base_meta: dict, new_meta: dict, names) -> list[str]:
         for what, label in (("name", "suite"), ("repeat", "repeat"), ("calibrate_each_job", "calibrate_each_job")):
             if b.get(what) != n.get(what):
                 notes.append(f"{label} differs: {b.get(what)!r} in base, {n.get(what)!r} in the new run")
-        rows, want = new_meta.get("_rows"), new_meta.get("suite_rows")
-        if isinstance(want, int) and isinstance(rows, int) and rows < want:
-            notes.append(f"the new run is incomplete: {rows} of its suite's {want} rows")
+        want = new_meta.get("suite_rows")
+        if isinstance(want, int) and new_rows < want:
+            notes.append(f"the new run is incomplete: {new_rows} of its suite's {want} rows")
     return notes
 
 
@@ -153,7 +153,7 @@ def _expected(base_meta: dict, new_meta: dict, new_solvers: set) -> dict:
 
 def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_meta: dict,
                    threshold: float = 1.15, alpha: float = 0.01, names=("base", "new")) -> Comparison:
-    new_solvers = set(new["solver"])
+    new_solvers, new_rows = set(new["solver"]), len(new)
     base = base.assign(_norm=normalised_samples(base, base_meta, names[0])).set_index(list(KEY))
     new = new.assign(_norm=normalised_samples(new, new_meta, names[1])).set_index(list(KEY))
     base = base[~base.index.duplicated(keep="last")]
@@ -198,17 +198,14 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
             only_base.append(key)
     table = pd.DataFrame(rows, columns=_COLUMNS)
     return Comparison(table, only_base, [k for k in new.index if k not in common],
-                      _notes(base_meta, new_meta, names))
+                      _notes(base_meta, new_meta, new_rows, names))
 
 
 def compare_runs(base_dir, new_dir, threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
     """compare_frames on two run directories; HikbenchError when they have no case in common
     (nothing compared is not a pass)."""
-    new = read_results(new_dir)
-    new_meta = read_run_json(new_dir)
-    if new_meta:
-        new_meta = new_meta | {"_rows": len(new)}
-    c = compare_frames(read_results(base_dir), new, read_run_json(base_dir), new_meta, threshold, alpha,
+    c = compare_frames(read_results(base_dir), read_results(new_dir), read_run_json(base_dir),
+                       read_run_json(new_dir), threshold, alpha,
                        names=(f"{base_dir}/results.csv", f"{new_dir}/results.csv"))
     if c.table.empty:
         raise HikbenchError(f"{base_dir} ({len(c.only_base)} cases) and {new_dir} ({len(c.only_new)} cases) have "

@@ -163,7 +163,7 @@ def _solve(slv, h) -> SolveResult:
     (:func:`solvers.base.checked_result`), is returned as status ``error`` with
     its type and message."""
     try:
-        return checked_result(slv.solve(h), h, getattr(slv, "name", type(slv).__name__))
+        return checked_result(slv.solve(h), h, slv)
     except Exception as err:  # noqa: BLE001 - a crashing solver ends its run with a status row
         return SolveResult(None, ERROR, reason=f"{type(err).__name__}: {err}")
 

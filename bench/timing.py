@@ -104,4 +104,4 @@ def time_solves(make_solver: Callable[[], Solver], h: Hierarchy, repeat: int = 1
                 t0 = clock()
                 result = solver.solve(h)
                 samples[i] = clock() - t0
-    return Timing(samples, checked_result(result, h, getattr(solver, "name", type(solver).__name__)))
+    return Timing(samples, checked_result(result, h, solver))

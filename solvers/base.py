@@ -150,12 +150,14 @@ class Solver(abc.ABC):
                            iterations_per_level=(0,) * hierarchy.depth)
 
 
-def checked_result(res, h: Hierarchy, who: str = "the solver") -> SolveResult:
-    """``res`` when it keeps the solve contract (a SolveResult whose x is None
-    or has shape (n,)); otherwise a SolveResult with status ``error`` whose
-    reason names what came back and what was expected. The harness applies it
+def checked_result(res, h: Hierarchy, solver) -> SolveResult:
+    """``res``, what ``solver.solve(h)`` returned, when it keeps the solve
+    contract (a SolveResult whose x is None or has shape (n,)); otherwise a
+    SolveResult with status ``error`` whose reason names the solver (its
+    ``name``, or its class), what came back and what was expected. The harness applies it
     to every solver's answer: a user's ``file.py:Class`` returning an ndarray,
     or x of the wrong length, costs its row (or scenario run), not the run."""
+    who = getattr(solver, "name", type(solver).__name__)
     if not isinstance(res, SolveResult):
         return SolveResult(None, ERROR, reason=f"{who}: solve() returned {type(res).__name__}: expected a "
                                                 f"solvers.base.SolveResult")

@@ -274,7 +274,7 @@ def test_the_output_says_why_a_case_fails_and_which_runs_differ(tmp_path, capsys
     rng = np.random.default_rng(9)
     base = _frame(_samples(rng, n_cases=2))
     new = _failing(base, "p0", "numerical_failure", "hcod: x is not finite")
-    for name, frame, meta in (("base", base, SUITE), ("new", new, {"suite": {"name": "ci", "repeat": 3}})):
+    for name, frame, meta in (("base", base, SUITE), ("new", new, {"suite": {"name": "ci", "repeat": 3}, "suite_rows": 5})):
         (tmp_path / name).mkdir()
         frame.reindex(columns=names()).to_csv(tmp_path / name / "results.csv", index=False)
         (tmp_path / name / "run.json").write_text(json.dumps(meta))
@@ -282,3 +282,4 @@ def test_the_output_says_why_a_case_fails_and_which_runs_differ(tmp_path, capsys
     out = capsys.readouterr().out
     assert "NEWLY FAILING" in out and "(numerical_failure: hcod: x is not finite)" in out
     assert "note: repeat differs: 9 in base, 3 in the new run" in out
+    assert "note: the new run is incomplete: 2 of its suite's 5 rows" in out
