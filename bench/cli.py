@@ -122,6 +122,28 @@ def _sigterm_as_interrupt():
         signal.signal(signal.SIGTERM, previous)
 
 
+@contextlib.contextmanager
+def solver_calls_killable():
+    """SIGTERM and SIGINT take the kernel's default action (end the process)
+    inside the block: around a command's in-process solver calls (``solve``,
+    ``scenario``). Python runs its own handlers only between bytecodes, so a
+    backend looping in C or numba code, which never returns to the
+    interpreter, could not be stopped by ``kill`` or Ctrl-C (audit 35,
+    finding 3). ``run`` does not need it: its solves run in the isolated
+    worker. A signal ignored by the parent (``nohup``, a background job) stays
+    ignored. Elsewhere than in the main thread nothing changes."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, signal.SIG_DFL) for sig in (signal.SIGTERM, signal.SIGINT)
+                if signal.getsignal(sig) is not signal.SIG_IGN}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def _one_line(err: Exception) -> str:
     return " ".join(str(err).splitlines())
 

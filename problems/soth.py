@@ -62,7 +62,9 @@ What this module does (the hikbench side):
 
 Parse errors raise :class:`ProblemFileError` with the line number and what was
 expected; a well-formed file whose numbers do not make a valid hierarchy
-(``inf`` in A, ``lo > hi``) raises :class:`InvalidHierarchyError`.
+(``lo > hi``) raises :class:`InvalidHierarchyError`, with the line and the
+row counted as the file counts it ("level 0, inequality row 0"; the error's
+``row`` attribute counts the level's rows, equalities first).
 """
 
 from __future__ import annotations
@@ -75,9 +77,10 @@ import numpy as np
 from problems.errors import InvalidHierarchyError, ProblemFileError
 from problems.hierarchy import Hierarchy
 
-__all__ = ["NO_BOUND", "from_soth_text", "load_soth", "save_soth", "soth_order", "to_soth_text"]
+__all__ = ["NO_BOUND", "SOTH_NO_BOUND", "from_soth_text", "load_soth", "save_soth", "soth_order", "to_soth_text"]
 
 NO_BOUND = 1e25  #: magnitude written for a missing side; |bound| >= NO_BOUND reads as no bound
+SOTH_NO_BOUND = 1e10  #: SOTH's own reader takes an inequality bound beyond +-1e10 as no bound
 
 
 def _num(v: float) -> str:
@@ -217,6 +220,10 @@ def from_soth_text(text: str, source: str = "<soth text>") -> Hierarchy:
             rows.append([t.number(f"{where}: coefficient a_{j + 1} of {n}") for j in range(n)])
             lo = t.number(f"{where}: the lower bound after {n} coefficients")
             hi = t.number(f"{where}: the upper bound")
+            if lo > hi:  # named here, in the file's own row count, with its line
+                raise InvalidHierarchyError(
+                    f"{source}: line {t.line}: {where}: lower ({lo!r}) > upper ({hi!r}): expected lower <= upper",
+                    level=k, row=m_eq + r)
             lower.append(-math.inf if lo <= -NO_BOUND else lo)
             upper.append(math.inf if hi >= NO_BOUND else hi)
             level.append(k)

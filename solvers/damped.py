@@ -36,8 +36,9 @@ harness reports how far the result lands from the lexicographic optimum.
   its middle in that quadratic approximation (a fixed alpha would be stable
   for some box widths and crawl for others). q is the current iterate x: the limits are taken
   from the first **box level** of the hierarchy — a level whose rows are
-  +-unit vectors on distinct variables — and that level is not part of the
-  task. Variables without two finite, distinct limits get a zero gradient. A
+  +-unit vectors on distinct variables, at least one an inequality with a
+  finite bound (unit equality rows alone are a posture task) — and that
+  level is not part of the task. Variables without two finite, distinct limits get a zero gradient. A
   hierarchy without a box level gets status ``unsupported``. The method keeps
   x inside the box only through that gradient, which acts in the null space
   of the task rows: task rows that pull x out of the box win. So ``optimal``
@@ -97,12 +98,15 @@ def box_limits(h: Hierarchy):
     """Per-variable limits from the first box level.
 
     Returns ``(k, qmin, qmax)``, qmin/qmax shape (n,) (+-inf where a variable
-    has no row), or None when no level is a box level (rows that are +-unit
-    vectors on distinct variables)."""
+    has no row), or None when no level is a box level: rows that are +-unit
+    vectors on distinct variables, at least one of them an inequality with a
+    finite bound (a level of unit equality rows is a posture task, not a
+    limit)."""
     for k in range(h.depth):
         s = h.level_rows(k)
         A = h.A[s]
-        if A.shape[0] == 0:
+        lo, up = h.lower[s], h.upper[s]
+        if A.shape[0] == 0 or not np.any((lo < up) & (np.isfinite(lo) | np.isfinite(up))):
             continue
         nz = A != 0
         if not np.all(nz.sum(axis=1) == 1):
@@ -113,7 +117,6 @@ def box_limits(h: Hierarchy):
             continue
         qmin = np.full(h.n, -np.inf)
         qmax = np.full(h.n, np.inf)
-        lo, up = h.lower[s], h.upper[s]
         qmin[cols] = np.where(vals > 0, lo, -up)
         qmax[cols] = np.where(vals > 0, up, -lo)
         return k, qmin, qmax
@@ -261,7 +264,8 @@ class DLSLiegeois(Solver):
         box = box_limits(h)
         if box is None:
             return self.unsupported(h, "needs per-variable limits: no level is a box level (rows that are "
-                                       "+-unit vectors on distinct variables)")
+                                       "+-unit vectors on distinct variables, at least one an inequality "
+                                       "with a finite bound)")
         kbox, qmin, qmax = box
         alpha = self.alpha
         if alpha is None:

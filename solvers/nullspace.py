@@ -139,8 +139,11 @@ class _EqualityOnly(Solver):
         if h.has_inequalities:
             ineq = np.flatnonzero(~h.is_equality)
             k = int(h.level[ineq[0]])
-            count = int((h.level[ineq] == k).sum())
-            return self.unsupported(h, f"equality hierarchies only; level {k} has {count} inequality row(s)")
+            at_k = ineq[h.level[ineq] == k]
+            free = int(h.is_free[at_k].sum())
+            what = ", ".join(f"{c} {kind} row(s)" for c, kind in ((at_k.size - free, "inequality"), (free, "free"))
+                             if c)
+            return self.unsupported(h, f"equality hierarchies only; level {k} has {what}")
         return None
 
     def _result(self, h: Hierarchy, x, ranks, flops) -> SolveResult:

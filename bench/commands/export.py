@@ -5,9 +5,11 @@ from __future__ import annotations
 import os
 import sys
 
+import numpy as np
+
 from problems.errors import HikbenchError, ProblemFileError
 from problems.files import load, save_npz
-from problems.soth import soth_order, to_soth_text, write_soth_text
+from problems.soth import SOTH_NO_BOUND, soth_order, to_soth_text, write_soth_text
 
 HELP = "convert a problem file to SOTH text or .npz"
 
@@ -41,6 +43,12 @@ def soth_losses(h) -> list[str]:
         notes.append(f"{int(h.is_free.sum())} free row(s), which SOTH's own reader refuses")
     if (h.rows_per_level == 0).any():
         notes.append("empty level(s), which SOTH's own reader refuses")
+    ineq = ~h.is_equality
+    dropped = int(np.sum(ineq & np.isfinite(h.lower) & (h.lower < -SOTH_NO_BOUND))
+                  + np.sum(ineq & np.isfinite(h.upper) & (h.upper > SOTH_NO_BOUND)))
+    if dropped:
+        notes.append(f"{dropped} finite inequality bound(s) beyond +-{SOTH_NO_BOUND:g}, "
+                     "which SOTH's own reader takes as no bound")
     return notes
 
 

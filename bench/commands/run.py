@@ -1,5 +1,5 @@
 """``hikbench run [--suite NAME|FILE] [--solvers ...] [--out DIR] [--repeat R]
-[--rounds K] [--timeout S] [--workers N | --scheduler ADDR] [--rerun] [--quiet] [--limit N]``."""
+[--rounds K] [--timeout S] [--first-solve-timeout S] [--workers N | --scheduler ADDR] [--rerun] [--quiet] [--limit N]``."""
 
 from __future__ import annotations
 
@@ -23,7 +23,12 @@ def add_arguments(p) -> None:
                         "(1 <= K <= repeat; default: the suite's, 1)")
     p.add_argument("--timeout", type=float, default=None,
                    help="hard limit per job in seconds, warm-up and repetitions included; with --rounds, "
-                        "per round (default: the suite's)")
+                        "per round (default: the suite's). A solver's first solve in a worker (numba "
+                        "compilation) has its own allowance, --first-solve-timeout")
+    p.add_argument("--first-solve-timeout", type=float, default=None, metavar="S",
+                   help="allowance in seconds for a solver's first, untimed solve in a worker process, "
+                        "when larger than --timeout (default: the suite's first_solve_timeout, 300); a "
+                        "solver that hangs on its first problem costs this once")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--workers", type=int, default=None,
                    help="run on a local Dask cluster of N single-threaded worker processes")
@@ -47,6 +52,9 @@ def _check_args(args) -> None:
         raise HikbenchError(f"--rounds must be >= 1; got {args.rounds}")
     if args.timeout is not None and not (math.isfinite(args.timeout) and args.timeout > 0):
         raise HikbenchError(f"--timeout must be a number of seconds > 0; got {args.timeout}")
+    fst = args.first_solve_timeout
+    if fst is not None and not (math.isfinite(fst) and fst > 0):
+        raise HikbenchError(f"--first-solve-timeout must be a number of seconds > 0; got {fst}")
     if args.workers is not None and args.workers < 1:
         raise HikbenchError(f"--workers must be >= 1; got {args.workers}")
     if args.limit is not None and args.limit < 0:
@@ -67,6 +75,7 @@ def _check_out(out) -> None:
 
 
 def run(args) -> int:
+    import dataclasses
     from pathlib import Path
 
     from bench.runner import run_suite
@@ -74,6 +83,8 @@ def run(args) -> int:
 
     _check_args(args)
     suite = load_suite(args.suite)
+    if args.first_solve_timeout is not None:
+        suite = dataclasses.replace(suite, first_solve_timeout=args.first_solve_timeout)
     out = Path(args.out or f"results/{suite.name}")
     _check_out(out)
     executor = None

@@ -1,4 +1,4 @@
-"""``hikbench scenario NAME [--robot R] --solver S [--solver S2 ...] [--warm-start none stage time]
+"""``hikbench scenario NAME [--robot R] --solver S [--solver S2 ...] [--warm-start MODE ...]
 [--steps K] [--out DIR] [--plot] [--option KEY=VALUE ...]``.
 
 Runs a closed-loop robot scenario (``problems/robots/scenarios/NAME.toml`` or a
@@ -19,8 +19,6 @@ from problems.errors import HikbenchError
 
 HELP = "run a closed-loop robot scenario (reach, step, or a TOML file) and write CSV + figures"
 
-WARM_MODES = ("none", "stage", "time")
-
 
 def add_arguments(p) -> None:
     p.add_argument("name", nargs="?", default=None,
@@ -29,9 +27,10 @@ def add_arguments(p) -> None:
     p.add_argument("--robot", default=None, help="run on another robot (default: the scenario's)")
     p.add_argument("--solver", action="append", default=None,
                    help="solver name or module:Class / file.py:Class (repeatable; default: reference)")
-    p.add_argument("--warm-start", nargs="+", default=None, choices=WARM_MODES,
+    p.add_argument("--warm-start", nargs="+", default=None, metavar="MODE",
                    help="warm-start modes to run, one run each, for solvers with a warm_start option "
-                        "(default: the solver's default); ignored for the others")
+                        "(hcod: none stage time; a module:Class solver: the values its warm_start "
+                        "parameter takes; default: the solver's default); ignored for the others")
     p.add_argument("--steps", type=int, default=None, help="control steps (default: the scenario's)")
     p.add_argument("--out", default=None, help="output directory (default: results/scenarios/NAME)")
     p.add_argument("--plot", action="store_true", help="write the figures (PNG)")
@@ -45,10 +44,12 @@ def _slug(text: str) -> str:
 
 
 def run(args) -> int:
+    from bench.cli import solver_calls_killable
     from bench.scenario import check_run, run_scenario, warm_start_default
     from bench.worker import solver_info
     from problems.robots.scenarios import load_scenario, scenario_names
     from problems.robots.stacks import stack_names
+    from solvers.registry import build
 
     if args.list:
         print("scenarios: " + ", ".join(scenario_names()))
@@ -72,28 +73,33 @@ def run(args) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise HikbenchError(f"--out {out}: cannot create the directory: {err.strerror or err}") from err
-    runs, failed = [], False
+    plan = []  # (solver, options, mode), each built once here so that a bad mode or option fails before any run
     for solver in solvers:
-        default = warm_start_default(solver_info(solver))
-        has_modes = default is not None  # HCOD-style none / stage / time
-        modes = (args.warm_start or [options.get("warm_start", default)]) if has_modes else [None]
+        info = solver_info(solver)
+        has_modes = warm_start_default(info) is not None  # a warm_start option: hcod's, or a class parameter
+        modes = (args.warm_start or [options.get("warm_start", warm_start_default(info))]) if has_modes else [None]
+        opts = {k: v for k, v in options.items() if k != "warm_start" or has_modes}
         for mode in modes:
-            opts = {k: v for k, v in options.items() if k != "warm_start" or has_modes}
+            build(info, **{**opts, **({"warm_start": mode} if has_modes else {})})
+            plan.append((solver, opts, mode))
+    runs, failed = [], False
+    for solver, opts, mode in plan:
+        with solver_calls_killable():  # a backend looping in C code still ends on SIGTERM / Ctrl-C
             run_ = run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps)
-            runs.append(run_)
-            stem = _slug(f"{scenario.name}_{scenario.robot.name}_{run_.label}")
-            csv = out / f"{stem}.csv"
-            run_.records.to_csv(csv, index=False)
-            np.save(out / f"{stem}_q.npy", run_.q)
-            df = run_.records
-            print(f"{run_.label}: {len(df)} steps, solve time median "
-                  f"{np.median(df['solve_time_s']) * 1e3:.3f} ms, max {df['solve_time_s'].max() * 1e3:.3f} ms"
-                  f" -> {csv}")
-            errs = [c for c in df.columns if c.startswith("err_")]
-            print("  final errors: " + ", ".join(f"{c[4:]}={df[c].iloc[-1]:.2e}" for c in errs))
-            for check in check_run(run_):
-                failed |= not check.passed
-                print(f"  [{'pass' if check.passed else 'FAIL'}] {check.name}: {check.detail}")
+        runs.append(run_)
+        stem = _slug(f"{scenario.name}_{scenario.robot.name}_{run_.label}")
+        csv = out / f"{stem}.csv"
+        run_.records.to_csv(csv, index=False)
+        np.save(out / f"{stem}_q.npy", run_.q)
+        df = run_.records
+        print(f"{run_.label}: {len(df)} steps, solve time median "
+              f"{np.median(df['solve_time_s']) * 1e3:.3f} ms, max {df['solve_time_s'].max() * 1e3:.3f} ms"
+              f" -> {csv}")
+        errs = [c for c in df.columns if c.startswith("err_")]
+        print("  final errors: " + ", ".join(f"{c[4:]}={df[c].iloc[-1]:.2e}" for c in errs))
+        for check in check_run(run_):
+            failed |= not check.passed
+            print(f"  [{'pass' if check.passed else 'FAIL'}] {check.name}: {check.detail}")
     if len(runs) > 1:
         _print_side_by_side(runs)
     if args.plot:

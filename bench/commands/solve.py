@@ -67,6 +67,7 @@ def _warm_up(solver, name: str) -> None:
 
 
 def run(args) -> int:
+    from bench.cli import solver_calls_killable
     from bench.timing import time_solves
 
     if args.repeat < 1:
@@ -75,13 +76,14 @@ def run(args) -> int:
     options = parse_options(args.option)
     info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
     solver = registry.build(info, **options)  # validate name and options before timing
-    _warm_up(solver, args.solver)
     if args.warm and not getattr(solver, "supports_warm_start", False):
         print(f"note: {args.solver} has no warm start: --warm times re-solves that redo a cold solve's work",
               file=sys.stderr)
     try:
-        timing = time_solves(lambda: registry.build(info, **options), h, repeat=args.repeat,
-                             mode="warm" if args.warm else "cold")
+        with solver_calls_killable():  # a backend looping in C code still ends on SIGTERM / Ctrl-C
+            _warm_up(solver, args.solver)
+            timing = time_solves(lambda: registry.build(info, **options), h, repeat=args.repeat,
+                                 mode="warm" if args.warm else "cold")
     except Exception as err:  # noqa: BLE001 - the solver's exception (a user's file.py:Class), not hikbench's
         print(f"solver      {args.solver}\nstatus      error ({type(err).__name__}: {err})")
         return 1

@@ -63,6 +63,32 @@ class HangSolver(Solver):
             time.sleep(0.05)
 
 
+def _spin(x):
+    while x >= 0:  # never ends: x stays in [0, 2^31)
+        x = (x * 1103515245 + 12345) % 2147483648
+    return x
+
+
+class SpinSolver(Solver):
+    """Never returns, looping in numba-compiled code that holds the GIL: no
+    Python signal handler can run (a backend stuck in C code). Touches the
+    file ``marker`` (option) once compiled, just before it spins."""
+
+    name = "spin"
+
+    def __init__(self, marker: str = ""):
+        self.marker = marker
+
+    def solve(self, hierarchy):
+        import numba
+
+        spin = numba.njit(_spin)
+        spin.compile("(int64,)")
+        if self.marker:
+            Path(self.marker).touch()
+        return spin(1)
+
+
 class HangOnWideSolver(SleepSolver):
     """Solves hierarchies of up to 6 variables, hangs on wider ones."""
 
@@ -109,6 +135,19 @@ class WarmReference:
         res = self._ref.solve(h)
         res.activations = 1 if self.warm_start == "none" else 0
         return res
+
+
+class WarmOnOff(WarmReference):
+    """A warm_start parameter with its own modes, "on" and "off" (not hcod's)."""
+
+    def __init__(self, warm_start="on"):
+        from solvers.reference import ReferenceSolver
+
+        if warm_start not in ("on", "off"):
+            from problems.errors import SolverOptionError
+            raise SolverOptionError(f"warm_start must be on or off; got {warm_start!r}")
+        self.warm_start = warm_start
+        self._ref = ReferenceSolver()
 
 
 class WarmRequired(WarmReference):

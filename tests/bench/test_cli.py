@@ -233,6 +233,17 @@ def test_export_notes_what_soth_loses(capsys, tmp_path):
                    "empty level(s), which SOTH's own reader refuses\n")
 
 
+def test_export_notes_bounds_soth_drops(capsys, tmp_path):
+    """SOTH reads an inequality bound beyond +-1e10 as no bound (audit 35,
+    finding 10); an equality target is not thresholded, so it is not noted."""
+    h = Hierarchy([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]], [0.0, -5e11, 3e12], [5e10, 1.0, 3e12], [0, 0, 1])
+    save_npz(h, tmp_path / "b.npz")
+    code, out, err = run(capsys, "export", str(tmp_path / "b.npz"), "--format", "soth", "--out", "-")
+    assert code == 0 and "5e10" not in out and "50000000000.0" in out
+    assert err == ("hikbench export: note: 2 finite inequality bound(s) beyond +-1e+10, "
+                   "which SOTH's own reader takes as no bound\n")
+
+
 SLOW_WARMUP = '''
 import time
 from doubles import SleepSolver

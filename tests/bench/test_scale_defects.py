@@ -656,3 +656,31 @@ def test_a_scheduler_address_that_is_not_a_dask_scheduler_is_a_one_line_error(tm
     assert_user_error(code, err, f"--scheduler tcp://127.0.0.1:{port}: {fragment}; expected a Dask scheduler's "
                                  "address (not its dashboard's HTTP port")
     assert not (tmp_path / "out" / "results.csv").exists()
+
+
+@pytest.mark.parametrize("flag, status", [(None, "timeout"), ("5", "optimal")], ids=["suite", "flag"])
+def test_first_solve_timeout_flag(tmp_path, flag, status):
+    """``run --first-solve-timeout`` overrides the suite's allowance (audit 35, 11):
+    a 1 s first solve under the suite's 0.5 s limit times out, under the flag's 5 s it
+    is given its time, and run.json records the allowance used."""
+    import json
+
+    from doubles import write_suite
+
+    from bench.cli import main
+
+    suite = write_suite(tmp_path / "s.toml", [spec("FirstSlowSolver")], grid={"n": [4], "depth": [1]},
+                        modes=("cold",), repeat=1, timeout=0.5)
+    out = tmp_path / "out"
+    argv = ["run", "--quiet", "--suite", str(suite), "--out", str(out)]
+    assert main(argv + (["--first-solve-timeout", flag] if flag else [])) == 0
+    rows = pd.read_csv(out / "results.csv")
+    assert list(rows["status"]) == [status], rows[["status", "reason"]]
+    assert json.loads((out / "run.json").read_text())["suite"]["first_solve_timeout"] == float(flag or 0.5)
+
+
+def test_first_solve_timeout_flag_must_be_positive(capsys):
+    from bench.cli import main
+
+    assert main(["run", "--first-solve-timeout", "0"]) == 2
+    assert "--first-solve-timeout must be a number of seconds > 0; got 0.0" in capsys.readouterr().err

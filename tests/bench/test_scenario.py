@@ -195,6 +195,23 @@ def test_a_solver_given_as_file_and_class(tmp_path, capsys):
     assert (run.records["warm_start"] == "none").all() and (run.records["activations"] == 1).all()
 
 
+def test_warm_start_modes_are_the_solvers_own(tmp_path, capsys):
+    """--warm-start takes the values of the solver's warm_start parameter, not only hcod's
+    (audit 35, 11); a mode that a solver refuses fails before any run, naming the value."""
+    rc = main(["scenario", "reach", "--solver", spec("WarmOnOff"), "--warm-start", "on", "off",
+               "--steps", "2", "--out", str(tmp_path)])
+    assert rc == 0, capsys.readouterr()
+    for mode in ("on", "off"):
+        assert (pd.read_csv(next(tmp_path.glob(f"*WarmOnOff_{mode}.csv")))["warm_start"] == mode).all()
+    capsys.readouterr()
+    out = tmp_path / "bad"
+    rc = main(["scenario", "reach", "--solver", "reference", "--solver", "hcod", "--warm-start", "time", "tme",
+               "--steps", "2", "--out", str(out)])
+    _, err = capsys.readouterr()
+    assert rc == 2 and "'tme'" in err and "warm_start" in err, err
+    assert not list(out.glob("*.csv"))  # the reference ran no step first
+
+
 def test_a_solver_that_raises_costs_its_run_not_the_command(tmp_path, capsys):
     """The exception is the step's status and reason, the run stops there and fails its check."""
     rc = main(["scenario", "reach", "--solver", spec("RaisingSolver"), "--solver", "reference",

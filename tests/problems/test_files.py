@@ -224,12 +224,15 @@ def test_soth_parse_errors(text, message):
         from_soth_text(text)
 
 
-def test_soth_invalid_numbers_name_the_file(tmp_path):
+def test_soth_invalid_numbers_name_the_file_line_and_row(tmp_path):
+    """lo > hi is named as the file counts rows (the inequality block's own
+    index, audit 35 finding 9), with its line; ``row`` counts the level's rows."""
     path = tmp_path / "bad.soth"
-    path.write_text("variable size 1 level equalities 0 inequalities 1 1 3 2 end")
-    message = r"bad\.soth: level 0, row 0: lower \(3.0\) > upper \(2.0\)"
-    with pytest.raises(InvalidHierarchyError, match=message):
+    path.write_text("variable size 1\nlevel\nequalities 1\n1 0\ninequalities 2\n1 0 1\n1 3 2\nend\n")
+    message = r"^.*bad\.soth: line 7: level 0, inequality row 1: lower \(3.0\) > upper \(2.0\): expected"
+    with pytest.raises(InvalidHierarchyError, match=message) as err:
         load_soth(path)
+    assert (err.value.level, err.value.row) == (0, 2)
 
 
 @pytest.mark.parametrize("lower, upper, message", [

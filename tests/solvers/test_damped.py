@@ -227,3 +227,24 @@ def test_bad_options(name, opts, match):
 def test_weights_length_mismatch_is_unsupported():
     res = registry.create("weighted", weights=[1.0, 2.0, 3.0]).solve(g.equality_stack(4, 2, 1, seed=0))
     assert res.status == UNSUPPORTED and "3 entries" in res.reason
+
+
+def test_a_posture_task_is_not_taken_for_a_box():
+    """Unit equality rows (x = target) are a task, not limits: dls-liegeois
+    found no box in such a hierarchy and must say so rather than report the
+    task's own violation as "outside the limits" (audit 35, finding 8)."""
+    h = Hierarchy.from_levels([Level.equality(np.ones((1, 3)), [3.0], "sum"),
+                               Level.equality(np.eye(3), [0.5, 1.0, 1.5], "posture")])
+    assert box_limits(h) is None
+    res = registry.create("dls-liegeois").solve(h)
+    assert res.status == "unsupported" and "box level" in res.reason
+    # a free unit row does not make a box either; one finite inequality row does
+    free = Level(np.eye(2), np.full(2, -np.inf), np.full(2, np.inf), "free")
+    assert box_limits(Hierarchy.from_levels([free])) is None
+    one = Level(np.eye(2), np.array([-np.inf, 0.5]), np.array([np.inf, 0.5]), "lock+free")
+    assert box_limits(Hierarchy.from_levels([one])) is None  # an equality and a free row
+    lim = Level(np.eye(2), np.array([-1.0, 0.5]), np.array([np.inf, 0.5]), "limit+lock")
+    k, qmin, qmax = box_limits(Hierarchy.from_levels([lim]))
+    assert k == 0
+    np.testing.assert_array_equal(qmin, [-1.0, 0.5])
+    np.testing.assert_array_equal(qmax, [np.inf, 0.5])

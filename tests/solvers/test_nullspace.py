@@ -10,6 +10,7 @@ from hypothesis import strategies as st
 
 from problems import generators as g
 from problems.errors import SolverOptionError
+from problems.hierarchy import Hierarchy
 from problems.verify import level_norms, level_scales, verify
 from solvers import registry
 from solvers.base import OPTIMAL, UNSUPPORTED
@@ -64,6 +65,17 @@ def test_inequalities_are_unsupported(name):
     assert res.status == UNSUPPORTED
     assert res.x is None
     assert "inequality row" in res.reason and res.reason.startswith(name)
+
+
+@pytest.mark.parametrize("name", STRICT + ("pinv-all",))
+def test_free_rows_are_named_as_free(name):
+    """A free row (no bound) is declined too, but not called an inequality (audit 35, 11)."""
+    inf = np.inf
+    h = Hierarchy([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]], [-inf, 0.0, 0.0], [inf, 1.0, 0.0], [0, 0, 1])
+    assert registry.create(name).solve(h).reason == (f"{name}: equality hierarchies only; "
+                                                     "level 0 has 1 inequality row(s), 1 free row(s)")
+    free = Hierarchy([[1.0, 0.0], [1.0, 1.0]], [-inf, 0.0], [inf, 0.0], [0, 1])
+    assert registry.create(name).solve(free).reason.endswith("level 0 has 1 free row(s)")
 
 
 def test_pinv_all_is_not_a_hierarchy():

@@ -1,0 +1,47 @@
+"""In-process solver calls (``solve``, ``scenario``) end on SIGTERM and Ctrl-C
+even when the solver never returns to the interpreter (audit 35, finding 3)."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from doubles import spec, tiny
+
+from problems.files import save_npz
+
+ROOT = Path(__file__).resolve().parents[2]
+# Python's own SIGINT handler even where pytest runs with SIGINT ignored (a background job)
+START = ("import runpy, signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
+         "runpy.run_module('bench', run_name='__main__')")
+
+
+@pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])
+@pytest.mark.parametrize("command", ["solve", "scenario"])
+def test_a_solver_spinning_in_compiled_code_is_stopped(tmp_path, command, sig):
+    marker = tmp_path / "spinning"
+    if command == "solve":
+        save_npz(tiny(), tmp_path / "p.npz")
+        argv = ["solve", str(tmp_path / "p.npz")]
+    else:
+        argv = ["scenario", "reach", "--steps", "2", "--out", str(tmp_path / "out")]
+    argv += ["--solver", spec("SpinSolver"), "--option", f"marker={marker}"]
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(Path(__file__).parent)])}
+    proc = subprocess.Popen([sys.executable, "-c", START, *argv], env=env, cwd=tmp_path,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert marker.exists(), proc.poll()
+        time.sleep(0.2)  # inside the compiled loop
+        os.kill(proc.pid, getattr(signal, sig))
+        _, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == -getattr(signal, sig), err  # the kernel's default action: ended by the signal
