@@ -101,7 +101,15 @@ Warm start (sec. XI), option ``warm_start``
     (``||u_hat|| > 1e6 (1 + ||u_k||)``: a record of a huge step, the optimum
     back to O(1)) is done once more cold (``info["cold_after_warm"]``; the
     counters add both passes): the steps back cancel and leave ``eps
-    ||u_hat||`` along the working rows, a violation of the levels above. A run of
+    ||u_hat||`` along the working rows, a violation of the levels above.
+    The same within a solve, in any mode: a level's optimum u_k with
+    ``||u|| > 1e6 (1 + ||u_k||)`` at an earlier point of this level or one
+    above (an LSE step along a pivot of ``J_k Z`` that is rounding just above
+    the rank threshold, taken back below) has the solve done again cold, each
+    LSE step below working rows cut to ``1e6 (1 + ||u||)`` by leaving out the
+    pivots from the first that takes it past (``info["steps_capped"]``; the
+    counters add both passes). The cut level is left where its solvable
+    pivots put it; the levels above keep their optimum. A run of
     levels run0..m-1 that met their objectives exactly (every objective row
     within its rounding floor) is marked in the record: a re-solve jumps at
     run0 to the last call's ``u_m`` (the sum of the run's ``Delta u``, level
@@ -269,6 +277,8 @@ class HcodSolver(Solver):
                 info["warm_fallback_levels"] = o[6]
             if o[7]:
                 info["cold_after_warm"] = True
+            if o[8]:
+                info["steps_capped"] = True
             x = xv.copy()
             status = _STATUS[o[0]]
             reason = ""

@@ -78,13 +78,18 @@ _FM = set(FASTMATH)
 INACTIVE, WORK, IMPLIED, OBJECTIVE, DEPENDENT = 0, 1, 2, 3, 4
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
-O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_COLD = range(8)
+O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_COLD, O_CAPPED = range(9)
 G_ROUNDING = 1e-2  #: a row's rounding in the noise floor of g, a fraction of its _floor (1e-15)
 BLAND_AFTER = 32  #: consecutive iterations that leave u where it is before the anti-cycling rule takes over
 #: a ``time`` re-solve is done again cold when a level's optimum u_k has ``||u_hat|| > COLD_AFTER_WARM
 #: (1 + ||u_k||)`` for a warm point u_hat of this level or one above: its steps cancelled. (At 1e6 the
 #: rounding left, eps 1e6 = 2.2e-10 relative, stays below the 1e-9 of verify's high profile.)
 COLD_AFTER_WARM = 1e6
+#: the same ratio within a solve: a level's optimum u_k with ``||u|| > CANCELLED (1 + ||u_k||)`` at a
+#: point of this level or one above (a step along a pivot of ``J_k Z`` at its rank threshold, taken
+#: back by a level below or the min-norm stage) left eps ||u|| along the working rows. The solve is
+#: done again cold with each LSE step below working rows cut to ``CANCELLED (1 + ||u||)``
+CANCELLED = COLD_AFTER_WARM
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -257,10 +262,13 @@ def hcod_solve(fw, iw):
     fail_level = -1
     warm_failed = 0
     cold_again = 0
+    capped = 0
     itl[:] = 0
-    for attempt in range(2):  # (a block, left by break; a second pass: cold_again below)
+    for attempt in range(2):  # (a block, left by break; a second pass: cold_again or capped below)
         use_hist = warm == 2 and attempt == 0
         uwarm = 0.0  # the largest ||u_hat|| of the warm points so far
+        upeak = 0.0  # the largest ||u|| before a step so far
+        cap_on = capped != 0  # (the second pass after a cancellation: LSE steps cut, see CANCELLED)
         # the representation of W (._basis): factored for a warm re-solve of a large problem
         # (few iterations per level: the queue is short), explicit otherwise (a cold solve
         # iterates: products through a long queue or a dense W0 cost more than Z's columns)
@@ -591,6 +599,18 @@ def hcod_solve(fw, iw):
                         bvec[j] = target[i] - row_dot(A[i], bcol[i], bval[i], u)
                     if r > 0:
                         fl += solve_lower(Mr, diag, nO, r, bvec, Lb, y)
+                        if cap_on and p > 0:
+                            # ||ps|| = ||y|| (orthogonal reflectors, orthonormal Z): the pivots from
+                            # the first that takes ||y|| past CANCELLED (1 + ||u||) are left out (a
+                            # rank cut of the triangular solve: y[:c] solves the first c pivot rows)
+                            ycap = CANCELLED * (1.0 + _norm(u))
+                            acc = 0.0
+                            for c in range(r):
+                                acc += y[c] * y[c]
+                                if acc > ycap * ycap:
+                                    for c2 in range(c, r):
+                                        y[c2] = 0.0
+                                    break
                         for c in range(nf):
                             z[c] = y[c] if c < r else 0.0
                         fl += apply_reflectors(Mr, beta, r, nf, z)
@@ -605,6 +625,7 @@ def hcod_solve(fw, iw):
                     # a step at rounding level (a warm re-solve: the recorded optimum) moves
                     # no row by more than the feasibility tolerance: no scan
                     un = _norm(u)
+                    upeak = max(upeak, un)
                     moved = pn > 1e-15 * (1.0 + un)
                     if moved:
                         for i in range(s1):
@@ -843,6 +864,10 @@ def hcod_solve(fw, iw):
                 # by it). The call is done once more cold, its record rewritten
                 cold_again = 1
                 break
+            if attempt == 0 and upeak > CANCELLED and upeak > CANCELLED * (1.0 + _norm(u)):
+                # the same within the solve: a step out and back (CANCELLED)
+                capped = 1
+                break
             last = k == D - 1 or levid[k] == 2
             if warm == 2 and not jump:  # (a level of a jump keeps the record of the last call that did not)
                 for i in range(s1):
@@ -943,7 +968,7 @@ def hcod_solve(fw, iw):
                         state[i] = WORK
                     else:
                         state[i] = IMPLIED if sd == 0 else INACTIVE
-        if cold_again and attempt == 0:
+        if (cold_again or capped) and attempt == 0:
             continue  # (cold: u_0 = 0; the counters add both passes)
         break
     for c in range(n):
@@ -958,4 +983,5 @@ def hcod_solve(fw, iw):
     out[O_LEVEL] = fail_level
     out[O_WARMFAIL] = warm_failed
     out[O_COLD] = cold_again
+    out[O_CAPPED] = capped
 

@@ -546,6 +546,26 @@ def test_a_conflict_leaves_its_met_rows_removable(min_norm):
     np.testing.assert_allclose(level_norms(second, res.x), level_norms(second, cold.x), rtol=1e-9, atol=1e-12)
 
 
+@pytest.mark.parametrize("warm_start", ["none", "stage", "time"])
+def test_a_step_out_and_back_leaves_the_levels_above(warm_start):
+    """Conditioning sweep, trial 2272 (n = 57, levels of 55, 32 and 48 rows, cond 1e6, rows
+    spread over 1e4). Level 2 has rank 1 in the span of the rows above: its projection on Z is
+    rounding, just above the rank threshold, and its LSE step was 7e15 (||u|| 5e6). The min-norm
+    stage took it back, and the rounding left, ~1 per entry, put level 0 at 49 and level 1 at
+    5617, against 0.967 and 0.009 without level 2 (the reference: 1.93 and 1.50). Such a solve
+    is done again with each LSE step below working rows cut to 1e6 (1 + ||u||)
+    (``info["steps_capped"]``): a level below leaves the levels above where they were."""
+    h = load_npz(DATA / "step_out_and_back.npz")
+    top = Hierarchy(h.A[:h.starts[2]], h.lower[:h.starts[2]], h.upper[:h.starts[2]], h.level[:h.starts[2]],
+                    n=h.n, depth=2)
+    above = HcodSolver(warm_start=warm_start).solve(top)
+    res = HcodSolver(warm_start=warm_start).solve(h)
+    assert res.status == OPTIMAL and res.info.get("steps_capped"), res
+    np.testing.assert_allclose(level_norms(h, res.x)[:2], level_norms(top, above.x), rtol=1e-6)
+    v = verify(h, res.x, reference_solution(h), rtol=RTOL_ILL)
+    assert v.equal or v.level == 2 or v.lower == "a", v  # (the reference is lower at level 2 only)
+
+
 @pytest.mark.parametrize("seed", range(6), ids=lambda s: f"seed{s}")
 def test_time_warm_start_after_a_huge_step(seed):
     """Level 1 a single row of norm 1e-11 (full rank at its own scale): its bound 0.5 puts the
@@ -724,12 +744,14 @@ def test_conditioning_sweep(capsys):
     an ill-conditioned problem, ``numerical_failure``: a blocking row the rank test calls
     dependent); well-conditioned ones (cond 1, unscaled rows) equal to the reference at 1e-9 (or
     lexicographically lower, a reference that missed the optimum); ill-conditioned ones never
-    worse than the reference at the top level beyond 1e-7 (lower levels may differ either way:
-    README, "Limitations"). The tally is printed (``-s``). Over the solves other than the
-    well-conditioned ones (README's rows "the same, perturbed" and "ill-conditioned"), ``hcod``
-    failures and reference-lower verdicts are bounded at 4x their rates in README's 3000-problem
-    tally (24 and 139 of 5507: 0.44 % and 2.5 %), so that a change which makes them common fails
-    here instead of only moving the printed counts."""
+    worse than the reference at the top level beyond 1e-7 of its scale or, where a row dependent
+    on the working rows to the rank threshold moved, ``rank_rtol ||A_0|| ||x||`` (lower levels
+    may differ either way: README, "Limitations"). The tally is printed (``-s``). Over the solves
+    other than the well-conditioned ones (README's rows "the same, perturbed" and
+    "ill-conditioned"), reference-lower verdicts, those at the top level and ``hcod`` failures are
+    bounded at 4x their rates in README's 3000-problem tally (138 and 1 of 5507; failures: 24 in
+    an earlier tally, 0 since), so that a change which makes them common fails here instead of
+    only moving the printed counts."""
     tally = Counter()
     for trial in range(int(os.environ.get("HIKBENCH_SWEEP", "300"))):
         h, perturbed, kw = _sweep_problem(trial)
@@ -752,8 +774,14 @@ def test_conditioning_sweep(capsys):
             v = verify(prob, res.x, x_ref, rtol=RTOL if well else RTOL_ILL)
             if well:
                 assert v.equal or (prob.has_inequalities and v.lower == "a"), (trial, kw, v)
-            else:
-                assert v.equal or v.level > 0 or v.lower == "a", (trial, kw, v)
+            elif v.level == 0 and v.lower == "b":
+                # a row of the top level that blocked but is a combination of the working rows to
+                # the rank threshold (DEPENDENT) moves by at most rank_rtol ||A_0|| per unit of
+                # step: below the reference's scale when ||x|| is far above the reference's
+                # (README, "Limitations": 1 of 5014 in the 3000-problem tally)
+                bound = 1e-10 * np.linalg.norm(prob.A[prob.level_rows(0)], 2) * np.linalg.norm(res.x)
+                assert v.difference <= bound, (trial, kw, v, bound)
+                tally[group, "reference lower at the top"] += 1
             tally[group, "equal" if v.equal else "hcod lower" if v.lower == "a" else "reference lower"] += 1
     with capsys.disabled():
         print()
@@ -764,8 +792,10 @@ def test_conditioning_sweep(capsys):
         if group != "well":
             ill[verdict] += count
             ill["solves"] += count
+    ill["solves"] -= ill["reference lower at the top"]  # (counted twice: also "reference lower")
     assert ill["hcod failure"] <= max(2, 4 * 24 / 5507 * ill["solves"]), ill
-    assert ill["reference lower"] <= max(2, 4 * 139 / 5507 * ill["solves"]), ill
+    assert ill["reference lower"] <= max(2, 4 * 138 / 5507 * ill["solves"]), ill
+    assert ill["reference lower at the top"] <= max(2, 4 * 1 / 5507 * ill["solves"]), ill
 
 
 @pytest.mark.parametrize("shape", [(7,), (3, 5)], ids=["1d", "2d"])
