@@ -220,12 +220,14 @@ def from_soth_text(text: str, source: str = "<soth text>") -> Hierarchy:
             rows.append([t.number(f"{where}: coefficient a_{j + 1} of {n}") for j in range(n)])
             lo = t.number(f"{where}: the lower bound after {n} coefficients")
             hi = t.number(f"{where}: the upper bound")
-            if lo > hi:  # named here, in the file's own row count, with its line
+            lo_k = -math.inf if lo <= -NO_BOUND else lo
+            hi_k = math.inf if hi >= NO_BOUND else hi
+            if lo_k > hi_k:  # named here, in the file's own row count, with its line
                 raise InvalidHierarchyError(
                     f"{source}: line {t.line}: {where}: lower ({lo!r}) > upper ({hi!r}): expected lower <= upper",
                     level=k, row=m_eq + r)
-            lower.append(-math.inf if lo <= -NO_BOUND else lo)
-            upper.append(math.inf if hi >= NO_BOUND else hi)
+            lower.append(lo_k)
+            upper.append(hi_k)
             level.append(k)
         k += 1
     if not t.at_end:

@@ -233,6 +233,9 @@ def test_soth_invalid_numbers_name_the_file_line_and_row(tmp_path):
     with pytest.raises(InvalidHierarchyError, match=message) as err:
         load_soth(path)
     assert (err.value.level, err.value.row) == (0, 2)
+    # an upper bound of 1e25 is no bound: 2e25 <= +inf
+    h = from_soth_text("variable size 1 level equalities 0 inequalities 1 1 2e25 1e25 end")
+    assert (h.lower[0], h.upper[0]) == (2e25, np.inf)
 
 
 @pytest.mark.parametrize("lower, upper, message", [
