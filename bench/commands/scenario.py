@@ -76,8 +76,9 @@ def run(args) -> int:
     plan = []  # (solver, options, mode), each built once here so that a bad mode or option fails before any run
     for solver in solvers:
         info = solver_info(solver)
-        has_modes = warm_start_default(info) is not None  # a warm_start option: hcod's, or a class parameter
-        modes = (args.warm_start or [options.get("warm_start", warm_start_default(info))]) if has_modes else [None]
+        default = warm_start_default(info)
+        has_modes = default is not None  # a warm_start option: hcod's, or a class parameter
+        modes = (args.warm_start or [options.get("warm_start", default)]) if has_modes else [None]
         opts = {k: v for k, v in options.items() if k != "warm_start" or has_modes}
         for mode in modes:
             build(info, **{**opts, **({"warm_start": mode} if has_modes else {})})
