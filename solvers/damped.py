@@ -36,9 +36,9 @@ harness reports how far the result lands from the lexicographic optimum.
   its middle in that quadratic approximation (a fixed alpha would be stable
   for some box widths and crawl for others). q is the current iterate x: the limits are taken
   from the first **box level** of the hierarchy — a level whose rows are
-  +-unit vectors on distinct variables, at least one an inequality with a
-  finite bound (unit equality rows alone are a posture task) — and that
-  level is not part of the task. Variables without two finite, distinct limits get a zero gradient. A
+  +-unit vectors (several rows on one variable: their intersection), at
+  least one an inequality with a finite bound (unit equality rows alone are
+  a posture task) — and that level is not part of the task. Variables without two finite, distinct limits get a zero gradient. A
   hierarchy without a box level gets status ``unsupported``. The method keeps
   x inside the box only through that gradient, which acts in the null space
   of the task rows: task rows that pull x out of the box win. So ``optimal``
@@ -98,10 +98,10 @@ def box_limits(h: Hierarchy):
     """Per-variable limits from the first box level.
 
     Returns ``(k, qmin, qmax)``, qmin/qmax shape (n,) (+-inf where a variable
-    has no row), or None when no level is a box level: rows that are +-unit
-    vectors on distinct variables, at least one of them an inequality with a
-    finite bound (a level of unit equality rows is a posture task, not a
-    limit)."""
+    has no row; the intersection of a variable's rows), or None when no level
+    is a box level: rows that are +-unit vectors, at least one of them an
+    inequality with a finite bound (a level of unit equality rows is a
+    posture task, not a limit)."""
     for k in range(h.depth):
         s = h.level_rows(k)
         A = h.A[s]
@@ -113,12 +113,13 @@ def box_limits(h: Hierarchy):
             continue
         cols = np.argmax(nz, axis=1)
         vals = A[np.arange(A.shape[0]), cols]
-        if not np.all(np.abs(vals) == 1.0) or np.unique(cols).size != cols.size:
+        if not np.all(np.abs(vals) == 1.0):
             continue
         qmin = np.full(h.n, -np.inf)
         qmax = np.full(h.n, np.inf)
-        qmin[cols] = np.where(vals > 0, lo, -up)
-        qmax[cols] = np.where(vals > 0, up, -lo)
+        # a variable with several rows (position and velocity limits) gets their intersection
+        np.maximum.at(qmin, cols, np.where(vals > 0, lo, -up))
+        np.minimum.at(qmax, cols, np.where(vals > 0, up, -lo))
         return k, qmin, qmax
     return None
 
@@ -141,8 +142,10 @@ def box_excess(x: np.ndarray, qmin: np.ndarray, qmax: np.ndarray, k: int, rtol: 
 
 
 def liegeois_gradient(q: np.ndarray, qmin: np.ndarray, qmax: np.ndarray) -> np.ndarray:
-    """Boutin et al. eq. (2), shape (n,); 0 where a limit is infinite or qmin >= qmax."""
-    ok = np.isfinite(qmin) & np.isfinite(qmax) & (qmax > qmin)
+    """Boutin et al. eq. (2), shape (n,); 0 where a limit is infinite, qmin >= qmax, or q is
+    on a limit (eq. (2) is infinite there: a velocity bound of 0 for a joint at its position
+    limit puts x = 0 on it). Outside the limits it points back inside."""
+    ok = np.isfinite(qmin) & np.isfinite(qmax) & (qmax > qmin) & (q != qmin) & (q != qmax)
     g = np.zeros_like(q)
     lo, hi, qq = qmin[ok], qmax[ok], q[ok]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -264,8 +267,7 @@ class DLSLiegeois(Solver):
         box = box_limits(h)
         if box is None:
             return self.unsupported(h, "needs per-variable limits: no level is a box level (rows that are "
-                                       "+-unit vectors on distinct variables, at least one an inequality "
-                                       "with a finite bound)")
+                                       "+-unit vectors, at least one an inequality with a finite bound)")
         kbox, qmin, qmax = box
         alpha = self.alpha
         if alpha is None:

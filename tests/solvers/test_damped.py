@@ -141,6 +141,10 @@ def test_liegeois_gradient_points_to_the_middle():
     # eq. (2) at q = 0.5 on [-1, 1]: 4 * (0 - 1) / (0.25 * 2.25)
     np.testing.assert_allclose(grad[0], 4 * (-1.0) / (0.25 * 2.25), rtol=1e-14)
     assert liegeois_gradient(np.array([0.0]), np.array([-1.0]), np.array([1.0]))[0] == 0.0
+    # on a limit eq. (2) is infinite: 0 (x = 0 on a velocity bound of 0); outside: back inside
+    np.testing.assert_array_equal(liegeois_gradient(np.array([0.0, 1.0]), np.array([0.0, -1.0]),
+                                                    np.array([1.0, 1.0])), [0.0, 0.0])
+    assert liegeois_gradient(np.array([2.0]), np.array([-1.0]), np.array([1.0]))[0] < 0
 
 
 def test_box_limits_read_from_signed_unit_rows():
@@ -248,3 +252,8 @@ def test_a_posture_task_is_not_taken_for_a_box():
     assert k == 0
     np.testing.assert_array_equal(qmin, [-1.0, 0.5])
     np.testing.assert_array_equal(qmax, [np.inf, 0.5])
+    # two rows on one variable (position and velocity limits): their intersection
+    two = Level(np.array([[1.0, 0.0], [-1.0, 0.0]]), np.array([-2.0, -1.0]), np.array([1.0, 3.0]), "pos+vel")
+    _, qmin, qmax = box_limits(Hierarchy.from_levels([two]))
+    np.testing.assert_array_equal(qmin, [-2.0, -np.inf])
+    np.testing.assert_array_equal(qmax, [1.0, np.inf])
