@@ -12,7 +12,9 @@ So runs of different machines or of a loaded CI runner compare as ratios. A case
   (load from other processes only ever adds time, so a shift of the whole
   distribution, minimum included, is what a real slowdown looks like), and
 * the one-sided Mann-Whitney U test (scipy.stats.mannwhitneyu, new > base) on
-  the normalised samples gives p < ``alpha`` (default 0.01),
+  the normalised samples gives p < ``alpha`` (default 0.01); both ratios past
+  the threshold with p >= alpha is **inconclusive** (shown, not failed: the
+  samples are too few or too spread to tell a slowdown of that size),
 
 **newly failing** when it was verified in BASE and is not verified in RUN,
 and **missing** when it was verified in BASE and RUN has no row for it
@@ -64,6 +66,10 @@ class Comparison:
     @property
     def slowdowns(self) -> pd.DataFrame:
         return self.table[self.table["verdict"] == "SLOWER"]
+
+    @property
+    def inconclusive(self) -> pd.DataFrame:
+        return self.table[self.table["verdict"] == "inconclusive"]
 
     @property
     def new_failures(self) -> pd.DataFrame:
@@ -172,8 +178,10 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
         if _true(b["verified"]) and not _true(n["verified"]):
             verdict = "NEWLY FAILING"
             why = _why(n)
-        elif np.isfinite(ratio) and ratio > threshold and ratio_min > threshold and p < alpha:
-            verdict = "SLOWER"
+        elif np.isfinite(ratio) and ratio > threshold and ratio_min > threshold:
+            # past the threshold both ways but not significant: too few or too spread samples to
+            # tell (README, "What the check can see"); shown, not failed
+            verdict = "SLOWER" if p < alpha else "inconclusive"
         elif np.isfinite(ratio) and ratio < 1 / threshold and ratio_min < 1 / threshold and \
                 (p_less := float(mannwhitneyu(ns, bs, alternative="less").pvalue)) < alpha:
             verdict = "faster"

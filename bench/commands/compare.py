@@ -34,6 +34,7 @@ def run(args) -> int:
     print(f"\ncompared {len(c.table) - len(c.missing)} cases (times normalised by the calibration kernel): "
           f"{len(c.slowdowns)} slower (> {args.threshold:g}x, p < {args.alpha:g}), "
           f"{len(c.new_failures)} newly failing, {len(c.missing)} missing, "
+          f"{len(c.inconclusive)} inconclusive (past the threshold, p >= {args.alpha:g}), "
           f"{int((c.table['verdict'] == 'faster').sum())} faster; "
           f"{len(c.only_base)} only in base, {len(c.only_new)} only in the new run")
     for note in c.notes:

@@ -169,6 +169,22 @@ def test_a_verdict_needs_the_minima_too(direction):
     assert row["ratio_min"] == 1.0 and row["verdict"] == "ok"
 
 
+def test_a_slowdown_the_samples_cannot_confirm_is_inconclusive_not_ok():
+    """The audit of 2026-11-23 measured hcod's `ci` samples (9 repetitions, the first timed ones
+    up to 2x the others) and a real +45 % that read "ok 1.45 1.48 p=0.047": past the threshold
+    both ways, not significant. It is `inconclusive` (shown and counted, exit 0), not `ok`."""
+    base = np.array([10876, 9324, 6620, 5869, 6260, 12349, 6310, 5268, 4918])  # the audit's samples
+    new = (base * 1.45).astype(int)[[8, 7, 0, 2, 5, 1, 3, 6, 4]]
+    c = compare_frames(_frame({("p0", "s"): base}), _frame({("p0", "s"): new}), {}, {})
+    row = c.table.iloc[0]
+    assert row["ratio"] > 1.15 and row["ratio_min"] > 1.15 and row["p_value"] >= 0.01
+    assert row["verdict"] == "inconclusive" and len(c.inconclusive) == 1 and not c.failed
+    from bench.compare import format_table
+    assert format_table(c).splitlines()[1].split()[:3] == ["inconclusive", "1.45", "1.45"]
+    doubled = compare_frames(_frame({("p0", "s"): base}), _frame({("p0", "s"): base * 3}), {}, {})
+    assert doubled.table.iloc[0]["verdict"] == "SLOWER"  # (the same samples 3x slower: significant)
+
+
 @pytest.fixture(scope="module")
 def one_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("one-run")
