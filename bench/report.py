@@ -175,7 +175,9 @@ def write_report(run_dir) -> Path:
                            for t in env.get("blas", {}).get("threadpools",
                                                             [])) + "; solves timed at 1 thread"],
         ["calibration kernel", (f"{meta.get('calibration_ns', float('nan')) / 1e6:.3f} ms "
-                                f"({meta.get('calibration_kernel', '')})")],
+                                f"({meta.get('calibration_kernel', '')}; timed in the main process at "
+                                f"the start and end of each session, their median; the workers' own "
+                                f"are under Hosts)")],
         ["accuracy", json.dumps(meta.get("accuracy", {}))],
         ["rows", _rows_note(len(df), meta.get("suite_rows"))],
         ["times", norm_note],
@@ -186,8 +188,9 @@ def write_report(run_dir) -> Path:
                 [[k, v if v else "not installed"] for k, v in sorted(env.get("versions", {}).items())])
     hosts = df.groupby(df["host"].fillna("?").astype(str)).agg(rows=("problem", "count"),
                                                                  calib=("calib_ns", "median"))
-    L += _table("Hosts (calibration kernel time of their workers; compare divides times by it)",
-                ["host", "rows", "calibration [ms]"],
+    L += _table("Hosts (calibration kernel time of their workers, the median over their rows; compare "
+                "divides times by it)",
+                ["host", "rows", "median calibration [ms]"],
                 [[h, int(r.rows), f"{r.calib / 1e6:.3f}" if np.isfinite(r.calib) else "-"]
                  for h, r in hosts.iterrows()])
     skipped = meta.get("skipped_solvers", {})
@@ -276,7 +279,8 @@ def write_report(run_dir) -> Path:
                                          f"({fixed.strip('{}') or 'defaults'}), cold", vline=sat, order=order)
             if p:
                 figures.append((f"Time vs {what}: {family} {fixed}", p))
-                L += _table(f"Log-log slope of cold time vs {what}: {family} {fixed} (verified rows; "
+                span = "" if sat is None else f"; every depth, those below saturation ({sat[0]:g}) included"
+                L += _table(f"Log-log slope of cold time vs {what}: {family} {fixed} (verified rows{span}; "
                             "- = fewer than 3 verified sizes)",
                             ["solver", "slope", "std. err.", "sizes verified / attempted"],
                             [[s, _num(a), _num(b), f"{k}/{m}"] for s, (a, b, k, m) in sorted(slopes.items())])
@@ -288,6 +292,9 @@ def write_report(run_dir) -> Path:
         for what, slug, g in _profile_groups(d):
             t = g.assign(t=g["time_median_s"].where(timed(g))).pivot_table(
                 index="problem", columns="label", values="t", aggfunc="first", dropna=False)
+            if t.shape[1] < 2:  # (a profile of one solver is a flat line at 1: it compares nothing)
+                figures.append((f"Performance profile, {mode}{what}", None))
+                continue
             p = plots.plot_profiles(t, plot_dir / f"performance_profile_{mode}{slug}.png",
                                     f"Performance profiles (Dolan-More), {mode} solves; failures never reach 1"
                                     + (f"\n{what[2:]}" if what else ""), order=order)
@@ -301,7 +308,10 @@ def write_report(run_dir) -> Path:
         figures.append(("Cold vs warm", p))
     L += ["### Figures", ""]
     for title, p in figures:
-        L += [f"{title}:", "", f"![{title}]({p.relative_to(run_dir)})", ""]
+        if p is None:
+            L += [f"{title}: one solver, no profile drawn (it would be a flat line at 1).", ""]
+        else:
+            L += [f"{title}:", "", f"![{title}]({p.relative_to(run_dir)})", ""]
     out = run_dir / "report.md"
     out.write_text("\n".join(L).rstrip() + "\n")
     return out

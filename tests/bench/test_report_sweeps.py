@@ -102,6 +102,33 @@ def test_settings_variants_are_series_of_their_own_with_one_colour_per_solver(tm
     plots.plot_accuracy(df, tmp_path / "acc.png", order=order)
     plots.plot_cold_warm(df, tmp_path / "cw.png", order=order)
     acc, cw = drawn["acc.png"], drawn["cw.png"]
-    assert set(acc) == {"osqp", "osqp [low]"} and set(cw) == {"osqp", "osqp [low]", "warm = cold"}
+    assert set(acc) == {"osqp (4 problems)", "osqp [low] (4 problems)"}  # (the count: the cold rows)
+    acc = {k.removesuffix(" (4 problems)"): v for k, v in acc.items()}
+    assert set(cw) == {"osqp", "osqp [low]", "warm = cold"}
     for label, i in (("osqp", 1), ("osqp [low]", 2)):
         assert acc[label] == cw[label] == matplotlib.colors.to_hex(plots._style(i)["color"]), (label, acc, cw)
+
+
+def test_accuracy_per_level_leaves_out_levels_few_problems_reach(tmp_path, monkeypatch):
+    """Audit 35 F11: in the paper suite every cascade line dipped to the 1e-17 floor at level 9
+    and came back at level 10, from the one problem with more than 8 levels. A level reached by
+    fewer than a tenth of a solver's problems is no longer drawn."""
+    from bench import plots
+
+    drawn = {}
+
+    def keep(fig, ax, path, title):
+        drawn.update({ln.get_label(): list(ln.get_xdata()) for ln in ax.get_lines()})
+        plots.plt.close(fig)
+        return path
+
+    monkeypatch.setattr(plots, "_finish", keep)
+    rows = []
+    for i in range(20):  # 20 problems of 3 levels, one of them with 12
+        depth = 12 if i == 0 else 3
+        r = _row("qp", 6, 1e-5)
+        r.update(problem=f"p{i}", level_norms=json.dumps([1e-9] * depth), ref_level_norms=json.dumps([0.0] * depth))
+        rows.append(r)
+    plots.plot_accuracy(pd.DataFrame(rows), tmp_path / "acc.png")
+    assert drawn == {"qp (20 problems)": [0, 1, 2]}
+
