@@ -193,9 +193,10 @@ def plot_profiles(times: pd.DataFrame, path: Path, title: str, order: list[str] 
 def plot_accuracy(df: pd.DataFrame, path: Path, order: list[str] | None = None) -> Path | None:
     """Median |level norm - reference level norm| per level and solver (each
     ``[[settings]]`` variant a line of its own, its problem count in the legend).
-    A level reached by fewer than a tenth of a solver's problems is not drawn: its
-    median would come from a few deep problems (one, for the cascades of the
-    paper suite), not from the set the other levels' medians describe."""
+    A level reached by fewer than a tenth of a solver's problems, or by one of
+    several, is not drawn: its median would come from a few deep problems (one,
+    for the cascades of the paper suite), not from the set the other levels'
+    medians describe."""
     d = df[(df["level_norms"] != "") & (df["ref_level_norms"] != "") & (df["mode"] == "cold")]
     if d.empty:
         return None
@@ -207,17 +208,18 @@ def plot_accuracy(df: pd.DataFrame, path: Path, order: list[str] | None = None) 
                 if u is not None and v is not None:
                     per_level.setdefault(k, []).append(abs(u - v))
         if per_level:
-            enough = max(1, math.ceil(0.1 * len(per_level[min(per_level)])))
+            n0 = len(per_level[min(per_level)])
+            enough = min(n0, max(2, math.ceil(0.1 * n0)))  # (one problem is never enough but when alone)
             ks = [k for k in sorted(per_level) if len(per_level[k]) >= enough]
             ax.plot(ks, [max(np.median(per_level[k]), 1e-17) for k in ks],
-                    label=f"{solver} ({len(per_level[min(per_level)])} problems)", **_style_of(solver, i, order))
+                    label=f"{solver} ({n0} problem{'' if n0 == 1 else 's'})", **_style_of(solver, i, order))
     ax.set_yscale("log")
     ax.set_xlabel("level k (0 = highest priority)")
     ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax.set_ylabel("median | ||v_k(x)|| - ||v_k(x_ref)|| |  [units of the task]")
     _legend(ax)
     return _finish(fig, ax, path, "Per-level accuracy against the reference (floored at 1e-17; levels\n"
-                   "reached by fewer than 10 % of a solver's problems not drawn)")
+                   "reached by one or under 10 % of a solver's problems not drawn)")
 
 
 def plot_cold_warm(df: pd.DataFrame, path: Path, order: list[str] | None = None) -> Path | None:

@@ -112,7 +112,7 @@ def test_settings_variants_are_series_of_their_own_with_one_colour_per_solver(tm
 def test_accuracy_per_level_leaves_out_levels_few_problems_reach(tmp_path, monkeypatch):
     """Audit 35 F11: in the paper suite every cascade line dipped to the 1e-17 floor at level 9
     and came back at level 10, from the one problem with more than 8 levels. A level reached by
-    fewer than a tenth of a solver's problems is no longer drawn."""
+    fewer than a tenth of a solver's problems, or by one problem of several, is no longer drawn."""
     from bench import plots
 
     drawn = {}
@@ -124,11 +124,14 @@ def test_accuracy_per_level_leaves_out_levels_few_problems_reach(tmp_path, monke
 
     monkeypatch.setattr(plots, "_finish", keep)
     rows = []
-    for i in range(20):  # 20 problems of 3 levels, one of them with 12
-        depth = 12 if i == 0 else 3
-        r = _row("qp", 6, 1e-5)
-        r.update(problem=f"p{i}", level_norms=json.dumps([1e-9] * depth), ref_level_norms=json.dumps([0.0] * depth))
-        rows.append(r)
+    for solver, count in (("qp", 20), ("ns", 8), ("one", 1)):  # 3 levels, the first problem 12
+        for i in range(count):
+            depth = 12 if i == 0 else 3
+            r = _row(solver, 6, 1e-5)
+            r.update(problem=f"p{i}", level_norms=json.dumps([1e-9] * depth),
+                     ref_level_norms=json.dumps([0.0] * depth))
+            rows.append(r)
     plots.plot_accuracy(pd.DataFrame(rows), tmp_path / "acc.png")
-    assert drawn == {"qp (20 problems)": [0, 1, 2]}
+    assert drawn == {"qp (20 problems)": [0, 1, 2], "ns (8 problems)": [0, 1, 2],  # (1 of 8: 12 %)
+                     "one (1 problem)": list(range(12))}
 
