@@ -69,6 +69,11 @@ def _us(t: float) -> str:
     return "-" if not np.isfinite(t) else f"{t * 1e6:.1f}"
 
 
+def _cut(text: str, size: int) -> str:
+    """text, or its first ``size`` characters and " ..." when longer."""
+    return text if len(text) <= size else text[:size] + " ..."
+
+
 def _num(v: float) -> str:
     return f"{v:.2f}" if np.isfinite(v) else "-"
 
@@ -88,6 +93,12 @@ def _penalty(meta: dict) -> float:
     vals = [_positive(s.get("timeout", suite_timeout)) for s in sessions]
     vals = [v for v in vals if v is not None]
     return max(vals) if vals else 60.0
+
+
+def _timeout_known(meta: dict) -> bool:
+    """Whether :func:`_penalty` read a job timeout (else it is its 60 s)."""
+    suite = meta.get("suite") or {}
+    return any(_positive(s.get("timeout", suite.get("timeout"))) is not None for s in meta.get("sessions") or [{}])
 
 
 def _aggregate(g: pd.DataFrame, penalty: float) -> float:
@@ -182,7 +193,9 @@ def write_report(run_dir) -> Path:
         ["rows", _rows_note(len(df), meta.get("suite_rows"))],
         ["times", norm_note],
         ["runtime aggregate", (f"shifted geometric mean, shift {SHIFT_S * 1e6:g} us; "
-                               f"unverified rows charged {penalty:g} s (the job timeout)")],
+                               f"unverified rows charged {penalty:g} s "
+                               + ("(the job timeout)" if _timeout_known(meta) else
+                                  "(no job timeout recorded: run.json missing or without one)"))],
     ])
     L += _table("Package versions", ["package", "version"],
                 [[k, v if v else "not installed"] for k, v in sorted(env.get("versions", {}).items())])
@@ -206,7 +219,10 @@ def write_report(run_dir) -> Path:
         r = [label, strict, str(len(g)), str(len(g) - len(sup)), _percent(sup["verified"].eq(True))]
         for mode in ("cold", "warm"):
             gm = sup[sup["mode"] == mode]
-            r.append(_us(_aggregate(gm, penalty)) if len(gm) else "-")
+            if len(gm) and not gm["verified"].eq(True).any():  # (the charge alone: not a time)
+                r.append(f"none verified ({len(gm)} charged {penalty:g} s)")
+            else:
+                r.append(_us(_aggregate(gm, penalty)) if len(gm) else "-")
         rows.append(r)
     L += _table("Solvers: verified success and shifted geometric mean time (us; unverified rows charged, "
                 "unsupported rows left out)",
@@ -256,7 +272,7 @@ def write_report(run_dir) -> Path:
                 [[r.label, r.problem, r.mode, r.status,
                   f"{r.verdict_side} at level {int(r.verdict_level)}" if pd.notna(r.verdict_level) else
                   (r.verdict_side if isinstance(r.verdict_side, str) else ""),
-                  str(r.reason)[:80].replace("|", "/")] for r in bad.head(40).itertuples()])
+                  _cut(str(r.reason), 240).replace("|", "/")] for r in bad.head(40).itertuples()])
 
     from bench.claims import check_claims
 

@@ -51,4 +51,8 @@ def run(args) -> int:
     print("cond: largest / smallest nonzero singular value of the level's constraint rows; "
           "proj: of the level "
           "projected in the null space of all rows above; conflicts = rank - proj rank")
+    if h.rows - n_eq - n_free:
+        print("(inequality rows above a level count as active there: its proj rank is a lower bound, its "
+              "conflicts an upper bound of what the optimum's active set leaves; a box on every "
+              "variable makes every level below it 'conflicting')")
     return 0

@@ -138,6 +138,8 @@ def test_inspect_table(capsys, problem):
     # level 0: 2 rows (1 eq, 1 one-sided), rank 2; level 1: x0 = 3, rank 1, decided above: conflicts 1
     assert lines[2].split()[:2] == ["0", "reach"] and lines[2].split()[2:8] == ["2", "1", "1", "0", "0", "2"]
     assert lines[3].split()[-5:] == ["1", "0", "-", "-", "1"]
+    # (the problem has an inequality row: the footer says its conflicts count it as active)
+    assert lines[-1].startswith("(inequality rows above a level count as active there")
 
 
 def test_inspect_json(capsys, problem):

@@ -93,10 +93,16 @@ def test_speed_table_keeps_a_solver_without_a_verified_row(declining_run, tmp_pa
     df = pd.read_csv(run / "results.csv", keep_default_na=False)
     df["verified"] = df["verified"].astype(str)
     df.loc[df["solver"] == "nullspace-svd", "verified"] = "False"
+    df.loc[df["solver"] == "nullspace-svd", "reason"] = "level 3: " + "why " * 30 + "THE END"
     df.loc[df["family"] == "ik-like", "verified"] = "False"
     df.to_csv(run / "results.csv", index=False)
     assert main(["report", str(run)]) == 0
-    speed = _table((run / "report.md").read_text(), "Median cold time per problem")
+    md = (run / "report.md").read_text()
+    # its aggregate is the charge alone, which is no time: said so (it read 60000000.0 us)
+    solvers = _table(md, "Solvers: verified success")
+    assert solvers["nullspace-svd"]["sgm cold [us]"].startswith("none verified (2 charged ")
+    assert "why why THE END" in md  # (a reason cut at 80 characters lost its end)
+    speed = _table(md, "Median cold time per problem")
     assert sorted(speed) == ["equality/depth=2,n=6", "equality/depth=2,n=8", "ik-like/n=6"]
     for problem, row in speed.items():
         assert row["nullspace-svd"] == ("unsupported" if problem.startswith("ik-like") else "-")
@@ -247,3 +253,18 @@ def test_report_removes_its_old_figures_and_refuses_an_empty_run(declining_run, 
     (run / "results.csv").write_text(header + "\n")
     assert main(["report", str(run)]) == 2
     assert "results.csv has no rows; expected the rows of a `hikbench run`" in capsys.readouterr().err
+
+
+def test_report_without_run_json_says_its_charge_is_no_job_timeout(declining_run, tmp_path):
+    """Without run.json the charge of an unverified row is 60 s; the Run table called it "the job
+    timeout", which no file recorded."""
+    import shutil
+    run = tmp_path / "run"
+    shutil.copytree(declining_run, run)
+    assert main(["report", str(run)]) == 0
+    with_meta = _table((run / "report.md").read_text(), "Run")["runtime aggregate"]["value"]
+    assert with_meta.endswith("(the job timeout)"), with_meta
+    (run / "run.json").unlink()
+    assert main(["report", str(run)]) == 0
+    without = _table((run / "report.md").read_text(), "Run")["runtime aggregate"]["value"]
+    assert without.endswith("charged 60 s (no job timeout recorded: run.json missing or without one)"), without
