@@ -170,9 +170,8 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
 
 def plot_profiles(times: pd.DataFrame, path: Path, title: str, order: list[str] | None = None) -> Path | None:
     """Dolan-More performance profiles of a problems x solvers table
-    (:func:`bench.shgeom.performance_profile`: NaN, inf or <= 0 = failure); None for
-    fewer than two solvers (a profile compares them)."""
-    if times.empty or times.shape[1] < 2:
+    (:func:`bench.shgeom.performance_profile`: NaN, inf or <= 0 = failure)."""
+    if times.empty or times.shape[1] == 0:
         return None
     prof = performance_profile(times)
     if prof is None:

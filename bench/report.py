@@ -85,20 +85,13 @@ def _positive(v) -> float | None:
     return float(v)
 
 
-def _penalty(meta: dict) -> float:
-    """The charge of an unverified row: the largest job timeout of the run's
-    sessions (the suite's when a session did not record one; 60 s at worst)."""
-    sessions = meta.get("sessions") or [{}]
-    suite_timeout = (meta.get("suite") or {}).get("timeout", 60.0)
-    vals = [_positive(s.get("timeout", suite_timeout)) for s in sessions]
+def _recorded_timeout(meta: dict) -> float | None:
+    """The largest job timeout of the run's sessions (the suite's when a session did not record
+    one); None when run.json records none (missing, or bogus values): the charge is then 60 s."""
+    suite_timeout = (meta.get("suite") or {}).get("timeout")
+    vals = [_positive(s.get("timeout", suite_timeout)) for s in meta.get("sessions") or [{}]]
     vals = [v for v in vals if v is not None]
-    return max(vals) if vals else 60.0
-
-
-def _timeout_known(meta: dict) -> bool:
-    """Whether :func:`_penalty` read a job timeout (else it is its 60 s)."""
-    suite = meta.get("suite") or {}
-    return any(_positive(s.get("timeout", suite.get("timeout"))) is not None for s in meta.get("sessions") or [{}])
+    return max(vals) if vals else None
 
 
 def _aggregate(g: pd.DataFrame, penalty: float) -> float:
@@ -170,7 +163,8 @@ def write_report(run_dir) -> Path:
             old.unlink()
     df = df.assign(label=solver_label(df))
     df, norm_note = normalise_hosts(df)
-    penalty = _penalty(meta)
+    timeout = _recorded_timeout(meta)
+    penalty = 60.0 if timeout is None else timeout  # (the charge of an unverified row)
     suite = meta.get("suite", {})
     L = [f"# hikbench report: suite {suite.get('name', '?')}", ""]
     if isinstance(meta.get("suite_rows"), int) and len(df) < meta["suite_rows"]:
@@ -194,7 +188,7 @@ def write_report(run_dir) -> Path:
         ["times", norm_note],
         ["runtime aggregate", (f"shifted geometric mean, shift {SHIFT_S * 1e6:g} us; "
                                f"unverified rows charged {penalty:g} s "
-                               + ("(the job timeout)" if _timeout_known(meta) else
+                               + ("(the job timeout)" if timeout is not None else
                                   "(no job timeout recorded: run.json missing or without one)"))],
     ])
     L += _table("Package versions", ["package", "version"],
