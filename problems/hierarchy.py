@@ -75,6 +75,14 @@ def _is_number(v) -> bool:
     return True
 
 
+def _check_rows(m: int, **arrays: np.ndarray) -> None:
+    """Each array has shape (m,), one entry per row of A."""
+    for label, arr in arrays.items():
+        if arr.shape != (m,):
+            raise InvalidHierarchyError(
+                f"{label} has shape {arr.shape} but A has {m} rows: expected {label} of shape ({m},)")
+
+
 def _frozen(a: np.ndarray) -> np.ndarray:
     a = np.array(a, copy=True)
     a.setflags(write=False)
@@ -159,10 +167,7 @@ class Hierarchy:
             raise InvalidHierarchyError(f"n must be >= 0; got {n}")
         if ncols != n:
             raise InvalidHierarchyError(f"A has {ncols} columns but n = {n}: expected A of shape (rows, {n})")
-        for label, arr in (("lower", lower), ("upper", upper), ("level", level_arr)):
-            if arr.shape != (m,):
-                raise InvalidHierarchyError(
-                    f"{label} has shape {arr.shape} but A has {m} rows: expected {label} of shape ({m},)")
+        _check_rows(m, lower=lower, upper=upper, level=level_arr)
         if level_arr.dtype.kind not in "iub" and not (level_arr.dtype.kind == "f" or m == 0):
             raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
         if m and level_arr.dtype.kind == "f" and (not np.all(np.isfinite(level_arr))
@@ -264,15 +269,32 @@ class Hierarchy:
         return cls(A, _cat(lo), _cat(up), _cat(lev, np.int64), n=n, depth=len(levels), names=names, x0=x0)
 
     @staticmethod
-    def _check_values(A, lower, upper, level, starts) -> None:
-        def where(i: int) -> tuple[str, int, int]:
-            k = int(level[i])
-            return f"level {k}, row {i - int(starts[k])}", k, i - int(starts[k])
+    def _where(level, starts, i: int) -> tuple[str, int, int]:
+        """("level k, row r", k, r) of the row i of the whole stack."""
+        k = int(level[i])
+        return f"level {k}, row {i - int(starts[k])}", k, i - int(starts[k])
 
+    @staticmethod
+    def _check_values(A, lower, upper, level, starts) -> None:
+        """No NaN or inf in A (:meth:`_check_bounds` for the bounds). One
+        pass when A is clean; the row-by-row search only to name a bad row."""
+        if A.size and not np.isfinite(A).all():
+            for bad, what in ((np.isnan(A).any(axis=1), "A holds NaN"),
+                              (np.isinf(A).any(axis=1), "A holds inf: coefficients must be finite")):
+                if bad.any():
+                    loc, k, r = Hierarchy._where(level, starts, int(np.argmax(bad)))
+                    raise InvalidHierarchyError(f"{loc}: {what}", level=k, row=r)
+        Hierarchy._check_bounds(lower, upper, level, starts)
+
+    @staticmethod
+    def _check_bounds(lower, upper, level, starts) -> None:
+        """Bounds of shape (m,) hold no NaN, no ``lower == +inf`` or
+        ``upper == -inf``, and ``lower <= upper``; the first bad row is named.
+        Three reductions when they are clean (a NaN fails ``lower <=
+        upper``), the search for the row only when they are not."""
+        if lower.size == 0 or ((lower <= upper).all() and lower.max() < np.inf and upper.min() > -np.inf):
+            return
         checks = (
-            (np.isnan(A).any(axis=1) if A.size else np.zeros(A.shape[0], bool), "A holds NaN"),
-            (np.isinf(A).any(axis=1) if A.size else np.zeros(A.shape[0], bool),
-             "A holds inf: coefficients must be finite"),
             (np.isnan(lower), "lower is NaN (use -inf for no lower bound)"),
             (np.isnan(upper), "upper is NaN (use +inf for no upper bound)"),
             (lower == np.inf, "lower is +inf: no x can satisfy it"),
@@ -280,16 +302,13 @@ class Hierarchy:
         )
         for bad, what in checks:
             if bad.any():
-                i = int(np.argmax(bad))
-                loc, k, r = where(i)
+                loc, k, r = Hierarchy._where(level, starts, int(np.argmax(bad)))
                 raise InvalidHierarchyError(f"{loc}: {what}", level=k, row=r)
-        bad = lower > upper
-        if bad.any():
-            i = int(np.argmax(bad))
-            loc, k, r = where(i)
-            raise InvalidHierarchyError(
-                f"{loc}: lower ({float(lower[i])!r}) > upper ({float(upper[i])!r}): expected lower <= upper",
-                level=k, row=r)
+        i = int(np.argmax(lower > upper))
+        loc, k, r = Hierarchy._where(level, starts, i)
+        raise InvalidHierarchyError(
+            f"{loc}: lower ({float(lower[i])!r}) > upper ({float(upper[i])!r}): expected lower <= upper",
+            level=k, row=r)
 
     # -- views -----------------------------------------------------------------
     @property
@@ -329,19 +348,34 @@ class Hierarchy:
         """Mask of free rows (both bounds infinite), shape (m,)."""
         return _frozen(np.isneginf(self.lower) & np.isposinf(self.upper))
 
-    @property
+    @cached_property
     def has_inequalities(self) -> bool:
-        """True when some row is not an equality (free rows count)."""
-        return not bool(self.is_equality.all())
+        """True when some row is not an equality (free rows count). Computed
+        once per hierarchy (solvers ask it on every solve)."""
+        return not np.array_equal(self.lower, self.upper)
 
     @property
     def rows_per_level(self) -> np.ndarray:
         return np.diff(self.starts)
 
     def with_bounds(self, lower, upper) -> Hierarchy:
-        """The same rows with new bounds (a new time step of a trajectory)."""
-        return Hierarchy(self.A, lower, upper, self.level, n=self.n, depth=self.depth,
-                         names=self.names, x0=self.x0)
+        """The same rows with new bounds (a new time step of a trajectory).
+        Only the bounds are checked, as the constructor checks them: the rows,
+        levels and names are this hierarchy's, checked when it was built and
+        shared (read-only), not copied."""
+        m = self.rows
+        lower = _real(lower, "lower")
+        upper = _real(upper, "upper")
+        _check_rows(m, lower=lower, upper=upper)
+        self._check_bounds(lower, upper, self.level, self.starts)
+        new = object.__new__(Hierarchy)
+        init = object.__setattr__
+        for name in ("A", "level", "n", "depth", "names", "x0"):
+            init(new, name, getattr(self, name))
+        init(new, "lower", _frozen(lower))
+        init(new, "upper", _frozen(upper))
+        new.__dict__["starts"] = self.starts
+        return new
 
     # -- verification shortcuts (see problems.verify) --------------------------
     def violation(self, x) -> np.ndarray:

@@ -169,7 +169,6 @@ _NONE = object()  # (matches no solve() argument, unlike None)
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
 _eq_run = None  # solvers.hcod._equality.eq_run, imported on the first solve (numba compiles then)
 _ineq = None  # (._kernel.hcod_solve, ._setup), imported on the first solve with inequalities
-_last_kind = (None, False)  # (last hierarchy seen, its has_inequalities)
 _warmed = False  # warmup() done in this process
 
 
@@ -207,10 +206,10 @@ class HcodSolver(Solver):
         # the hierarchy bound to the workspaces (see _bind) and the last equality-only one (skips
         # the checks on a re-solve); _NONE until then, so that solve(None) meets the type check
         self._h = _NONE
-        self._key = None  # its shape: the warm-start record is kept while it stays the same
-        self._ws = None
+        self._n = self._st = None  # its shape: the warm-start record is kept while it stays the same
+        self._ws = None  # (fw, iw): the kernel's workspaces for that shape (see _shape)
         self._eq_h = _NONE
-        self._run = None  # closure solving the bound hierarchy (see _bind)
+        self._run = None  # closure solving the hierarchy loaded into the workspaces (see _shape)
 
     def reset(self) -> None:
         """Forget the warm-start record (the next solve is cold)."""
@@ -237,31 +236,40 @@ class HcodSolver(Solver):
 
     # -- hierarchies with inequalities: the active set (_kernel.py) -------------------------------
     def _bind(self, h: Hierarchy):
-        """Workspaces for h (kept when the shape is unchanged: the warm-start
-        record survives), h written into them scaled (:func:`._setup.load`),
-        and a closure running one solve on them."""
+        """h written into the workspaces scaled (:func:`._setup.load`); the
+        workspaces and the closure running one solve on them are made anew
+        only when the shape (n, level sizes) changes: the warm-start record
+        survives, and a new problem of the same shape (a control loop) costs
+        the load alone."""
+        n = h.n
+        st = h.starts.tolist()
+        if n != self._n or st != self._st:  # (None before the first bind)
+            self._shape(n, st)
+        fw, iw = self._ws
+        _ineq[1].load(fw, iw, h.A, h.lower, h.upper, h.starts, self.min_norm)
+        self._h = h
+        return self._run
+
+    def _shape(self, n: int, st: list[int]) -> None:
+        """Workspaces for a problem of n variables and levels ``starts = st``
+        (:func:`._setup.workspaces`), and the closure ``self._run`` solving
+        the problem loaded into them."""
         global _ineq
         if _ineq is None:
             from solvers.hcod import _setup
             from solvers.hcod._kernel import hcod_solve
             _ineq = (hcod_solve, _setup)
         hcod_solve, setup = _ineq
-        n = h.n
-        st = h.starts.tolist()
         mn = self.min_norm  # (n > 0 here)
         depth = len(st) - 1
         D = depth + mn
         mt = st[-1] + n * mn
         mmax = max(max(b - a for a, b in pairwise(st)), n * mn)
-        key = (n, mt, D, mmax, tuple(st))
-        if key != self._key:  # (None before the first bind)
-            cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (mt + n)
-            ip = (n, mt, D, mmax, cap, WARM_STARTS.index(self.warm_start), 1)
-            self._ws = (*setup.workspaces(ip, self._prm), cap)
-            self._key = key
-        fw, iw, xv, outv, cap = self._ws
-        setup.load(fw, iw, h.A, h.lower, h.upper, h.starts, mn)
-        self._h = h
+        cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (mt + n)
+        ip = (n, mt, D, mmax, cap, WARM_STARTS.index(self.warm_start), 1)
+        fw, iw, xv, outv = setup.workspaces(ip, self._prm)
+        self._ws = (fw, iw)
+        self._n, self._st = n, st
         extra = D > depth
         it0, it1 = setup.N_OUT, setup.N_OUT + depth
 
@@ -295,7 +303,6 @@ class HcodSolver(Solver):
                                True)
 
         self._run = run
-        return run
 
     def warmup(self) -> None:
         """Compile or load both kernels (:func:`warmup`)."""
@@ -310,13 +317,8 @@ class HcodSolver(Solver):
         if hierarchy.n == 0 or hierarchy.rows == 0:
             return SolveResult(x=np.zeros(hierarchy.n), status=OPTIMAL, flops=0,
                                iterations_per_level=(0,) * hierarchy.depth)
-        global _eq_run, _last_kind
-        if _last_kind[0] is hierarchy:  # (one-entry cache: a fresh solver per cold solve)
-            has_ineq = _last_kind[1]
-        else:
-            has_ineq = hierarchy.has_inequalities
-            _last_kind = (hierarchy, has_ineq)
-        if not has_ineq:
+        global _eq_run
+        if not hierarchy.has_inequalities:
             if _eq_run is None:
                 from solvers.hcod._equality import eq_run as _eq_run
             self._eq_h = hierarchy

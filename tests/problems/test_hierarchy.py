@@ -199,3 +199,34 @@ def test_with_bounds_keeps_rows_and_validates():
     assert g.names == h.names
     with pytest.raises(InvalidHierarchyError, match=r"level 0, row 0: lower \(3.0\) > upper \(1.0\)"):
         h.with_bounds(h.lower + 2, h.upper)
+
+
+def test_with_bounds_is_the_hierarchy_the_constructor_builds():
+    h = Hierarchy.from_levels([Level(np.eye(2), [-1, 0], [1, 0], "box"), Level.equality(np.ones((1, 2)), [3])],
+                              x0=[0.5, 0.25])
+    lower, upper = np.array([-2.0, 0.0, 1.0]), np.array([2.0, 0.5, 1.0])
+    g = h.with_bounds(lower, upper)
+    built = Hierarchy(h.A, lower, upper, h.level, n=h.n, depth=h.depth, names=h.names, x0=h.x0)
+    assert g == built
+    np.testing.assert_array_equal(g.starts, built.starts)
+    np.testing.assert_array_equal(g.is_equality, [False, False, True])
+    assert g.has_inequalities and not h.with_bounds(upper, upper).has_inequalities
+    assert not (g.lower.flags.writeable or g.upper.flags.writeable)
+    lower[0] = 9.0  # (the caller's array is copied)
+    assert g.lower[0] == -2.0
+    assert g.A is h.A  # (checked and read-only: shared)
+
+
+# the bad bounds of BAD, given to with_bounds of a valid hierarchy with the same rows: the same errors
+BAD_BOUNDS = [b for b in BAD if set(b[1]) == {"A", "lower", "upper", "level"}
+              and ("lower" in b[0] or "upper" in b[0])]
+
+
+@pytest.mark.parametrize("kwargs, message, level, row", [b[1:] for b in BAD_BOUNDS],
+                         ids=[b[0] for b in BAD_BOUNDS])
+def test_with_bounds_raises_as_the_constructor_does(kwargs, message, level, row):
+    m = len(kwargs["level"])
+    h = Hierarchy(kwargs["A"], np.zeros(m), np.ones(m), kwargs["level"])
+    with pytest.raises(InvalidHierarchyError, match=message) as info:
+        h.with_bounds(kwargs["lower"], kwargs["upper"])
+    assert (info.value.level, info.value.row) == (level, row)

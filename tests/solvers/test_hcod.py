@@ -667,6 +667,27 @@ def test_warm_start_on_unrelated_problems_of_one_shape():
             assert verify(ht, res.x, cold.x, rtol=RTOL).equal
 
 
+def test_one_solver_across_shapes():
+    """One solver object given problems whose shape changes between calls
+    (other n; the same rows split into other levels; back to an earlier
+    shape): each change makes new workspaces and its solve is cold, bit for
+    bit the one of a fresh solver; the last call, the problem of the call
+    before built again, keeps the shape and re-solves warm from its record."""
+    h20 = G.ik_like(20, 0)
+    merged = Hierarchy(h20.A, h20.lower, h20.upper, np.minimum(h20.level, 2), n=20)  # levels 2-4 as one
+    calls = [h20, G.ik_like(12, 1), merged, h20, merged, G.ik_like(20, 2), G.ik_like(20, 2)]
+    s = HcodSolver()
+    for i, h in enumerate(calls):
+        res, fresh = s.solve(h), HcodSolver().solve(h)
+        assert res.status == fresh.status == OPTIMAL, i
+        if i < len(calls) - 1:
+            np.testing.assert_array_equal(res.x, fresh.x, err_msg=f"call {i}")
+            assert res.iterations_per_level == fresh.iterations_per_level, i
+        else:
+            assert res.iterations_per_level == (1,) * h.depth and fresh.iterations > h.depth
+            assert verify(h, res.x, fresh.x, rtol=RTOL).equal
+
+
 @pytest.mark.slow
 @settings(max_examples=400, deadline=None)
 @given(h=hik_strategies.hierarchies(max_n=7, max_depth=6, max_rows=5, coefficients=_grid, bounds=_grid,
