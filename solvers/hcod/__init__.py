@@ -243,10 +243,11 @@ class HcodSolver(Solver):
         the load alone."""
         n = h.n
         st = h.starts.tolist()
-        if n != self._n or st != self._st:  # (None before the first bind)
+        fresh = n != self._n or st != self._st  # (None before the first bind)
+        if fresh:
             self._shape(n, st)
         fw, iw = self._ws
-        _ineq[1].load(fw, iw, h.A, h.lower, h.upper, h.starts, self.min_norm)
+        _ineq[1].load(fw, iw, h.A, h.lower, h.upper, h.starts, self.min_norm, fresh)
         self._h = h
         return self._run
 

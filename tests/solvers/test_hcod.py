@@ -667,6 +667,39 @@ def test_warm_start_on_unrelated_problems_of_one_shape():
             assert verify(ht, res.x, cold.x, rtol=RTOL).equal
 
 
+@pytest.mark.parametrize("min_norm", [True, False], ids=["min_norm", "no_min_norm"])
+def test_a_load_into_used_workspaces_writes_what_a_fresh_one_does(min_norm):
+    """``_setup.load`` into workspaces that held another problem of the shape
+    and ran the kernel on it (the min-norm level left as the first load wrote
+    it) gives the problem blocks, bit for bit, of a load into new ones."""
+    from solvers.hcod import _setup
+    from solvers.hcod._kernel import hcod_solve
+
+    h1, h2 = G.ik_like(20, 0), G.ik_like(20, 1)
+    h2 = Hierarchy(h2.A, h2.lower, h2.upper, h1.level, n=20)  # (the same shape: level sizes of h1)
+    n, st = 20, h1.starts
+    mt, D = int(st[-1]) + n * min_norm, len(st) - 1 + min_norm
+    ip = (n, mt, D, max(int(np.diff(st).max()), n * min_norm), 1000, 2, 1)
+    prm = HcodSolver()._prm
+
+    def loaded(*problems):
+        fw, iw, _, _ = _setup.workspaces(ip, prm)
+        for i, h in enumerate(problems):
+            _setup.load(fw, iw, h.A, h.lower, h.upper, h.starts, min_norm, i == 0)
+            hcod_solve(fw, iw)
+        return fw, iw
+
+    used, new = loaded(h1, h2), loaded(h2)
+    foff, fend, ioff = (used[1][a:b] for a, b in ((0, _setup.FEND0), (_setup.FEND0, _setup.IOFF0),
+                                                  (_setup.IOFF0, _setup.N_HEAD)))
+    for b in ("A", "lo", "up", "bval", "rnorm", "lnorm"):
+        k = _setup.F_BLOCKS.index(b)
+        np.testing.assert_array_equal(used[0][foff[k]:fend[k]], new[0][foff[k]:fend[k]], err_msg=b)
+    for b in ("starts", "kind", "bcol", "rowlev", "levid"):
+        k = _setup.I_BLOCKS.index(b)
+        np.testing.assert_array_equal(used[1][ioff[k]:ioff[k + 1]], new[1][ioff[k]:ioff[k + 1]], err_msg=b)
+
+
 def test_one_solver_across_shapes():
     """One solver object given problems whose shape changes between calls
     (other n; the same rows split into other levels; back to an earlier
