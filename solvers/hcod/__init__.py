@@ -245,7 +245,7 @@ class HcodSolver(Solver):
         st = h.starts.tolist()
         fresh = n != self._n or st != self._st  # (None before the first bind)
         if fresh:
-            self._shape(n, st)
+            self._shape(n, st)  # (the first one also imports the kernel into _ineq)
         fw, iw = self._ws
         _ineq[1].load(fw, iw, h.A, h.lower, h.upper, h.starts, self.min_norm, fresh)
         self._h = h
