@@ -4,12 +4,18 @@ cascades cost a few ms per level)."""
 from __future__ import annotations
 
 from functools import cache
+from pathlib import Path
 
 import numpy as np
 
 from problems import generators as g
 from problems.hierarchy import Hierarchy, Level
 from solvers.reference import reference_solution
+
+_CPUINFO = Path("/proc/cpuinfo")
+#: whether this CPU has AVX-512: ProxSuite loads its AVX-512 build, OpenBLAS its SkylakeX kernels and
+#: numba compiles for it, so the backends' and the solvers' rounding differ from an AVX2 machine's
+AVX512 = _CPUINFO.exists() and " avx512f" in _CPUINFO.read_text()
 
 #: name -> builder; random families and every degenerate case at n = 8
 CASE_BUILDERS = {

@@ -6,9 +6,11 @@ optimal and :func:`problems.verify.verify` finds no level that differs beyond
 the tolerance of :data:`RTOL`), ``"differs"`` (status optimal but the
 verification finds a level that differs: a wrong answer) or the status. The
 expected outcome is ``"ok"`` unless :data:`KNOWN` records otherwise — those
-entries are the backend failures observed on this machine (qpsolvers 4.13,
-osqp 1.1, proxsuite 0.8, clarabel 0.11, daqp, quadprog, piqp 0.7, highspy)
-and are asserted exactly, so a backend that gets better or worse shows up.
+entries are the backend failures observed on an AVX2 machine (AMD EPYC,
+OpenBLAS "Haswell" kernels; qpsolvers 4.13, osqp 1.1, proxsuite 0.8,
+clarabel 0.11, daqp, quadprog, piqp 0.7, highspy), with the outcomes that
+differ on an AVX-512 one (AMD EPYC Zen 4) in :data:`KNOWN_AVX512`, and are
+asserted exactly on either, so a backend that gets better or worse shows up.
 """
 
 from __future__ import annotations
@@ -18,7 +20,7 @@ import re
 
 import numpy as np
 import pytest
-from baseline_cases import BIG_CASES, CASES, case, reference
+from baseline_cases import AVX512, BIG_CASES, CASES, case, reference
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -153,6 +155,39 @@ KNOWN: dict[tuple[str, str, str, str], str | tuple[str, ...]] = {
     ("cascade-cvxpy", "low", "shift", "ik-like-8"): "infeasible_level",
 }
 
+# The outcomes that differ on an AVX-512 machine (AMD EPYC Zen 4, numba target znver4; the same
+# package versions; three runs gave the same): the backends' rounding differs and, on these
+# borderline cases, so does which frozen set they call infeasible.
+KNOWN_AVX512: dict[tuple[str, str, str, str], str] = {
+    ("cascade-osqp", "default", "shift", "deg-equalities_in_inequality_levels"): "ok",
+    ("cascade-proxqp", "high", "shift", "rand-mixed"): "differs",  # level 3 1.6e-5 above the reference
+    ("cascade-proxqp", "high", "shift", "deg-rank_deficient"): "ok",
+    ("cascade-proxqp", "high", "equality", "rand-mixed"): "differs",
+    ("cascade-proxqp", "high", "equality", "deg-deep_inequalities"): "infeasible_level",
+    ("cascade-proxqp", "high", "relaxed", "rand-mixed"): "differs",
+    ("cascade-proxqp", "default", "shift", "deg-rank_deficient"): "infeasible_level",
+    ("cascade-proxqp", "default", "shift", "deg-infeasible_top"): "ok",
+    ("cascade-proxqp", "default", "shift", "deg-equalities_in_inequality_levels"): "ok",
+    ("cascade-proxqp", "low", "shift", "deg-equalities_in_inequality_levels"): "ok",
+    ("cascade-daqp", "high", "relaxed", "deg-equalities_in_inequality_levels"): "infeasible_level",
+    ("cascade-daqp", "default", "shift", "deg-equalities_in_inequality_levels"): "ok",
+    ("cascade-daqp", "low", "shift", "deg-equalities_in_inequality_levels"): "ok",
+    ("cascade-quadprog", "high", "shift", "deg-rank_deficient"): "ok",
+    ("cascade-quadprog", "high", "equality", "deg-rank_deficient"): "ok",
+    ("cascade-quadprog", "high", "equality", "deg-badly_scaled"): "infeasible_level",
+    ("cascade-quadprog", "default", "shift", "deg-rank_deficient"): "ok",
+    ("cascade-quadprog", "low", "shift", "deg-rank_deficient"): "ok",
+    ("cascade-highs", "high", "relaxed", "deg-equalities_in_inequality_levels"): "infeasible_level",
+}
+
+
+def expected_outcome(key: tuple[str, str, str, str]):
+    """The outcome expected for ``key``: on an AVX-512 machine KNOWN_AVX512's if it has
+    one, else KNOWN's, else "ok"."""
+    if AVX512 and key in KNOWN_AVX512:
+        return KNOWN_AVX512[key]
+    return KNOWN.get(key, "ok")
+
 
 def outcome(name: str, profile: str, freeze: str, case_name: str):
     h = case(case_name)
@@ -179,7 +214,7 @@ def _matrix():
 @pytest.mark.parametrize("name, profile, freeze, case_name", list(_matrix()))
 def test_cascade_matches_reference_or_known_status(name, profile, freeze, case_name):
     got, res = outcome(name, profile, freeze, case_name)
-    expected = KNOWN.get((name, profile, freeze, case_name), "ok")
+    expected = expected_outcome((name, profile, freeze, case_name))
     allowed = expected if isinstance(expected, tuple) else (expected,)
     assert got in allowed, f"{res.status}: {res.reason}"
     if res.status != OPTIMAL:
@@ -238,17 +273,33 @@ def test_times_and_iterations_recorded(name):
     assert res.iterations == sum(res.iterations_per_level)
 
 
+WARM_CASES = ("rand-mixed", "rand-two-sided", "rand-one-sided-conflict", "deg-free_rows")
+
+
 @pytest.mark.parametrize("name", [n for n in QP_SOLVERS if tables.WARM_START[n[8:]]])
 def test_warm_resolve_gives_same_answer(name):
-    h = case("rand-mixed")
-    solver = registry.create(name)
-    first = solver.solve(h)
-    again = solver.solve(h)
+    """On each case whose cold solve matches the reference (ProxQP's does not
+    on rand-mixed on an AVX-512 machine, AMD EPYC Zen 4: level 3 1.6e-5 above
+    it, see KNOWN_AVX512), a warm re-solve on the same object gives the same
+    answer; at least three cases are checked."""
     assert registry.get(name).supports_warm_start
-    assert again.status == OPTIMAL
-    assert verify(h, again.x, first.x, rtol=RTOL["high"][name]).equal
-    if name == "cascade-proxqp":  # primal warm start pays off for ProxQP (28 -> 10 iterations here);
-        assert again.iterations < first.iterations  # OSQP gets x only (no duals), DAQP reports none
+    rtol = RTOL["high"][name]
+    checked, first_its, again_its = [], 0, 0
+    for c in WARM_CASES:
+        h = case(c)
+        solver = registry.create(name)
+        first = solver.solve(h)
+        if first.status != OPTIMAL or not verify(h, first.x, reference(c), rtol=rtol).equal:
+            continue
+        again = solver.solve(h)
+        assert again.status == OPTIMAL, c
+        assert verify(h, again.x, first.x, rtol=rtol).equal, c
+        checked.append(c)
+        first_its += first.iterations
+        again_its += again.iterations
+    assert len(checked) >= 3, checked
+    if name == "cascade-proxqp":  # primal warm start pays off for ProxQP (rand-mixed: 28 -> 10 iterations);
+        assert again_its < first_its  # OSQP gets x only (no duals), DAQP reports none
 
 
 def test_warm_start_flags_follow_backend_table():
