@@ -28,6 +28,15 @@ RUN2``), a case fails only when it fails in every run (``confirmed``): a
 neighbour's load on a shared CI runner slows one job once, a regression slows
 it every time. A run with no row for the case does not clear it.
 
+The calibration kernel (BLAS QR and matmul) does not follow every solver
+from one kind of CPU to another: on an AVX-512 AMD EPYC (OpenBLAS SkylakeX
+kernels) the kernel took 1.2x its time on the AVX2 one (Haswell) while the
+reference solver's SVDs took 1.9x, so a baseline holds for one machine class
+(``bench.environment.machine_class``: CPU model and OpenBLAS kernels). BASE
+may be a directory of baselines, one subdirectory per class
+(``results/baseline``): ``baseline_for`` picks the one recorded on RUN's
+class. Runs of two classes are compared with a note saying so.
+
 The calibration is one number per row (or per host): its own error moves all
 the row's samples together, which the test does not see. Per-row
 calibrations of one ``ci`` run on a loaded 2-core machine spread over 1.75 ..
@@ -39,17 +48,18 @@ from __future__ import annotations
 
 import json
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
 from scipy.stats import mannwhitneyu
 
 from bench.columns import KEY
-from bench.environment import read_run_json
-from bench.results import read_results
+from bench.environment import machine_class, read_run_json
+from bench.results import RESULTS, read_results
 from problems.errors import HikbenchError
 
-__all__ = ["FAILING", "Comparison", "compare_runs", "confirmed", "normalised_samples"]
+__all__ = ["FAILING", "Comparison", "baseline_for", "compare_runs", "confirmed", "normalised_samples"]
 
 FAILING = ("SLOWER", "NEWLY FAILING", "MISSING")  #: the verdicts that make compare exit 1
 _COLUMNS = [*KEY, "base_status", "new_status", "base_verified", "new_verified", "base_median_s", "new_median_s",
@@ -140,6 +150,10 @@ def _notes(base_meta: dict, new_meta: dict, new_rows: int, names) -> list[str]:
         for what, label in (("name", "suite"), ("repeat", "repeat"), ("calibrate_each_job", "calibrate_each_job")):
             if b.get(what) != n.get(what):
                 notes.append(f"{label} differs: {b.get(what)!r} in base, {n.get(what)!r} in the new run")
+        classes = [machine_class(m.get("environment") or {}) for m in (base_meta, new_meta)]
+        if None not in classes and classes[0] != classes[1]:
+            notes.append(f"machine class differs: {classes[0]!r} in base, {classes[1]!r} in the new run "
+                         f"(ratios between solvers move with the CPU; record a baseline on this class)")
         want = new_meta.get("suite_rows")
         if isinstance(want, int) and new_rows < want:
             notes.append(f"the new run is incomplete: {new_rows} of its suite's {want} rows")
@@ -207,6 +221,37 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
     table = pd.DataFrame(rows, columns=_COLUMNS)
     return Comparison(table, only_base, [k for k in new.index if k not in common],
                       _notes(base_meta, new_meta, new_rows, names))
+
+
+def baseline_for(base_dir, run_dir) -> Path | None:
+    """The baseline run to compare RUN with: BASE itself when it holds a
+    results.csv; else, BASE being a directory of baselines (one subdirectory
+    per machine class, each a run directory), the subdirectory whose run.json
+    was recorded on RUN's machine class; None when none was. HikbenchError
+    when BASE is neither, when RUN's class is unknown, or when two
+    subdirectories have its class."""
+    base = Path(base_dir)
+    if (base / RESULTS).exists() or not base.is_dir():
+        return base  # (read_results says what is wrong with a file or a missing directory)
+    runs = sorted(d for d in base.iterdir() if (d / RESULTS).exists())
+    if not runs:
+        raise HikbenchError(f"{base}: no {RESULTS} and no subdirectory holding one; expected a run directory "
+                            f"(the --out of `hikbench run`) or a directory of baselines, one per machine class")
+    want = machine_class(read_run_json(run_dir).get("environment") or {})
+    if want is None:
+        raise HikbenchError(f"{run_dir}: its run.json names no machine (cpu, BLAS); cannot pick one of the "
+                            f"baselines in {base}: give the baseline run directory itself")
+    same = [d for d in runs if machine_class(read_run_json(d).get("environment") or {}) == want]
+    if len(same) > 1:
+        raise HikbenchError(f"{base}: {len(same)} baselines of machine class {want!r} "
+                            f"({', '.join(d.name for d in same)}); keep one")
+    return same[0] if same else None
+
+
+def baseline_classes(base_dir) -> dict[str, str]:
+    """subdirectory name -> machine class of each baseline in a directory of baselines."""
+    return {d.name: str(machine_class(read_run_json(d).get("environment") or {}))
+            for d in sorted(Path(base_dir).iterdir()) if (d / RESULTS).exists()}
 
 
 def compare_runs(base_dir, new_dir, threshold: float = 1.15, alpha: float = 0.01) -> Comparison:

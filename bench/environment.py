@@ -13,7 +13,7 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["PACKAGES", "environment", "read_run_json", "utc_now", "write_run_json"]
+__all__ = ["PACKAGES", "environment", "machine_class", "read_run_json", "utc_now", "write_run_json"]
 
 PACKAGES = ("hikbench", "numpy", "scipy", "pandas", "numba", "llvmlite", "threadpoolctl", "qpsolvers", "osqp",
             "proxsuite", "clarabel", "daqp", "quadprog", "piqp", "highspy", "cvxpy", "pin",
@@ -88,6 +88,22 @@ def environment() -> dict:
         "git": _git(),
         "argv": sys.argv,
     }
+
+
+def machine_class(env: dict) -> str | None:
+    """The kind of machine a run.json's ``environment`` was recorded on: the
+    CPU model and the kernels numpy's OpenBLAS chose for it (threadpoolctl's
+    ``architecture``: "Haswell" on an AVX2 CPU, "SkylakeX" on an AVX-512 one),
+    e.g. ``"AMD EPYC, OpenBLAS SkylakeX"``; None when the run.json says
+    neither. Timing ratios between solvers move with it (the calibration
+    kernel does not absorb that), so a timing baseline holds for one class."""
+    cpu = env.get("cpu")
+    pools = [t for t in (env.get("blas") or {}).get("threadpools", []) if t.get("internal_api") == "openblas"]
+    numpy_pools = [t for t in pools if "numpy" in str(t.get("filepath", ""))]
+    arch = next((t.get("architecture") for t in numpy_pools + pools if t.get("architecture")), None)
+    if cpu is None and arch is None:
+        return None
+    return f"{cpu or 'unknown CPU'}, OpenBLAS {arch or 'unknown'}"
 
 
 def read_run_json(run_dir) -> dict:

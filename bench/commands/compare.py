@@ -1,15 +1,17 @@
-"""``hikbench compare BASE RUN [RUN ...] [--threshold 1.15] [--alpha 0.01] [--all]``."""
+"""``hikbench compare BASE RUN [RUN ...] [--threshold 1.15] [--alpha 0.01] [--all] [--no-baseline error|skip]``."""
 
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 HELP = ("compare a run (or several: a case must fail in all) with a baseline run; exit 1 on a significant "
         "slowdown, a newly failing case or a missing one")
 
 
 def add_arguments(p) -> None:
-    p.add_argument("base", help="baseline run directory")
+    p.add_argument("base", help="baseline run directory, or a directory of baselines (one subdirectory per "
+                                "machine class: the one recorded on the first RUN's class is used)")
     p.add_argument("run", nargs="+", help="new run directory; with several, a case fails only if it fails "
                                          "in every one (confirmation re-runs in CI)")
     p.add_argument("--threshold", type=float, default=1.15,
@@ -18,10 +20,14 @@ def add_arguments(p) -> None:
     p.add_argument("--alpha", type=float, default=0.01,
                    help="significance level of the one-sided Mann-Whitney test (default 0.01)")
     p.add_argument("--all", action="store_true", help="print every compared case")
+    p.add_argument("--no-baseline", choices=("error", "skip"), default="error",
+                   help="when BASE is a directory of baselines and none is of RUN's machine class: an error "
+                        "(exit 2, the default), or skip: say so and exit 0 without comparing")
 
 
 def run(args) -> int:
-    from bench.compare import compare_runs, confirmed, format_table
+    from bench.compare import baseline_classes, baseline_for, compare_runs, confirmed, format_table
+    from bench.environment import machine_class, read_run_json
     from problems.errors import HikbenchError
 
     if not (1.0 < args.threshold < math.inf):  # also refuses nan
@@ -29,7 +35,19 @@ def run(args) -> int:
     if not 0.0 < args.alpha < 1.0:
         raise HikbenchError(f"--alpha must be a significance level with 0 < alpha < 1 (e.g. 0.01); "
                             f"got {args.alpha:g}")
-    c = confirmed([compare_runs(args.base, r, threshold=args.threshold, alpha=args.alpha) for r in args.run])
+    base = baseline_for(args.base, args.run[0])
+    if base is None:
+        want = machine_class(read_run_json(args.run[0]).get("environment") or {})
+        have = "; ".join(f"{d}: {c}" for d, c in baseline_classes(args.base).items())
+        msg = (f"no baseline in {args.base} of the machine class of {args.run[0]} ({want!r}; it has {have}); "
+               f"record one: hikbench run --suite SUITE --out {args.base}/NAME")
+        if args.no_baseline == "error":
+            raise HikbenchError(msg)
+        print(f"compare skipped: {msg}")
+        return 0
+    if base != Path(args.base):
+        print(f"baseline: {base} (machine class {machine_class(read_run_json(base).get('environment') or {})!r})")
+    c = confirmed([compare_runs(base, r, threshold=args.threshold, alpha=args.alpha) for r in args.run])
     print(format_table(c, show_all=args.all))
     print(f"\ncompared {len(c.table) - len(c.missing)} cases (times normalised by the calibration kernel): "
           f"{len(c.slowdowns)} slower (> {args.threshold:g}x, p < {args.alpha:g}), "

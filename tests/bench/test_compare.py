@@ -87,7 +87,10 @@ def _same_calibration(out) -> None:
 
 def test_injected_slowdown_end_to_end(tmp_path, capsys):
     """The same solver name ("sleeper") sleeping 2 ms in the baseline, 2 ms
-    again (noise only), then 4 ms (an injected slowdown)."""
+    again (noise only), then 4 ms (an injected slowdown). Noise is judged as
+    `.ci/run` judges it, with a confirmation run: one run alone flagged a
+    2 ms sleep against a 2 ms sleep in 1 of 20 tries (sleeps overshoot by
+    what the host's load gives them)."""
     suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4], "depth": [1, 2]}, modes=("cold",),
                         repeat=7)
 
@@ -97,8 +100,9 @@ def test_injected_slowdown_end_to_end(tmp_path, capsys):
         _same_calibration(tmp_path / out)
     run("base", "Sleep2ms")
     run("same", "Sleep2ms")
+    run("same-again", "Sleep2ms")
     run("slow", "Sleep4ms")
-    assert main(["compare", str(tmp_path / "base"), str(tmp_path / "same")]) == 0
+    assert main(["compare", str(tmp_path / "base"), str(tmp_path / "same"), str(tmp_path / "same-again")]) == 0
     assert main(["compare", str(tmp_path / "base"), str(tmp_path / "slow")]) == 1
     assert "SLOWER" in capsys.readouterr().out
 
@@ -299,3 +303,93 @@ def test_the_output_says_why_a_case_fails_and_which_runs_differ(tmp_path, capsys
     assert "NEWLY FAILING" in out and "(numerical_failure: hcod: x is not finite)" in out
     assert "note: repeat differs: 9 in base, 3 in the new run" in out
     assert "note: the new run is incomplete: 2 of its suite's 5 rows" in out
+
+
+def _env(cpu: str, arch: str) -> dict:
+    """run.json's environment as bench.environment writes it, reduced to what names the machine class."""
+    return {"cpu": cpu, "blas": {"threadpools": [
+        {"user_api": "blas", "internal_api": "openblas", "architecture": "Zen",
+         "filepath": "/venv/site-packages/scs.libs/libopenblas.so"},
+        {"user_api": "blas", "internal_api": "openblas", "architecture": arch,
+         "filepath": "/venv/site-packages/numpy.libs/libscipy_openblas64_.so"}]}}
+
+
+def _write_run(d, frame: pd.DataFrame, env: dict | None):
+    from bench.columns import names
+
+    d.mkdir(parents=True)
+    frame.reindex(columns=names()).to_csv(d / "results.csv", index=False)
+    (d / "run.json").write_text(json.dumps({**SUITE, **({"environment": env} if env else {})}))
+    return d
+
+
+@pytest.fixture()
+def baselines(tmp_path):
+    """results/baseline as committed: one baseline per machine class. The AVX2 one's times are
+    half the AVX-512 one's, so comparing a run of the AVX-512 class with it flags every case."""
+    rng = np.random.default_rng(10)
+    fast = _samples(rng, n_cases=4)
+    _write_run(tmp_path / "baseline" / "epyc-haswell", _frame(fast), _env("AMD EPYC", "Haswell"))
+    _write_run(tmp_path / "baseline" / "epyc-skylakex", _frame({k: 2 * v for k, v in fast.items()}),
+               _env("AMD EPYC", "SkylakeX"))
+    run = _write_run(tmp_path / "run", _frame({k: 2 * v for k, v in _samples(rng, n_cases=4).items()}),
+                     _env("AMD EPYC", "SkylakeX"))
+    return tmp_path / "baseline", run
+
+
+def test_the_machine_class_is_the_cpu_and_numpys_openblas_kernels():
+    from bench.environment import environment, machine_class
+
+    assert machine_class(_env("AMD EPYC", "SkylakeX")) == "AMD EPYC, OpenBLAS SkylakeX"
+    assert machine_class({}) is None
+    here = machine_class(environment())
+    assert here is not None and here.startswith(environment()["cpu"] + ", OpenBLAS ")
+
+
+def test_a_directory_of_baselines_gives_the_one_of_the_runs_machine_class(baselines, capsys):
+    from clitools import run
+
+    base, new = baselines
+    code, out, _ = run(capsys, "compare", base, new)
+    assert code == 0 and f"baseline: {base / 'epyc-skylakex'} (machine class 'AMD EPYC, OpenBLAS SkylakeX')" in out
+    assert "0 slower" in out and "machine class differs" not in out
+    code, out, _ = run(capsys, "compare", base / "epyc-haswell", new)  # the other class, named: every case slower
+    assert code == 1 and "4 slower" in out
+    assert ("note: machine class differs: 'AMD EPYC, OpenBLAS Haswell' in base, 'AMD EPYC, OpenBLAS SkylakeX' "
+            "in the new run") in out
+
+
+def test_no_baseline_of_the_runs_class_is_an_error_or_a_said_skip(baselines, capsys):
+    from clitools import assert_user_error, run
+
+    base, new = baselines
+    meta = json.loads((new / "run.json").read_text())
+    meta["environment"] = _env("Intel Xeon", "SkylakeX")
+    (new / "run.json").write_text(json.dumps(meta))
+    code, _, err = run(capsys, "compare", base, new)
+    assert_user_error(code, err, f"no baseline in {base} of the machine class of {new} ('Intel Xeon, OpenBLAS "
+                      "SkylakeX'; it has epyc-haswell: AMD EPYC, OpenBLAS Haswell; epyc-skylakex: AMD EPYC, "
+                      f"OpenBLAS SkylakeX); record one: hikbench run --suite SUITE --out {base}/NAME")
+    code, out, _ = run(capsys, "compare", "--no-baseline", "skip", base, new)
+    assert code == 0 and out.startswith("compare skipped: no baseline in ")
+
+
+@pytest.mark.parametrize("case", ["run-without-environment", "two-of-one-class", "no-baseline-inside"])
+def test_a_directory_of_baselines_that_cannot_give_one_is_a_one_line_error(baselines, capsys, case):
+    import shutil
+
+    from clitools import assert_user_error, run
+
+    base, new = baselines
+    if case == "run-without-environment":
+        (new / "run.json").write_text(json.dumps(SUITE))
+        fragments = [f"{new}: its run.json names no machine (cpu, BLAS)"]
+    elif case == "two-of-one-class":
+        shutil.copytree(base / "epyc-skylakex", base / "again")
+        fragments = [f"{base}: 2 baselines of machine class 'AMD EPYC, OpenBLAS SkylakeX' (again, epyc-skylakex)"]
+    else:
+        for d in base.iterdir():
+            (d / "results.csv").unlink()
+        fragments = [f"{base}: no results.csv and no subdirectory holding one"]
+    code, _, err = run(capsys, "compare", base, new)
+    assert_user_error(code, err, *fragments)
