@@ -90,8 +90,9 @@ def test_a_stopped_run_prints_one_line_and_keeps_the_rows(tmp_path, workers, sig
     import os
     import signal
     import subprocess
-    import sys
     import time
+
+    from clitools import start
 
     from bench.results import finished_keys
 
@@ -100,13 +101,9 @@ def test_a_stopped_run_prints_one_line_and_keeps_the_rows(tmp_path, workers, sig
     suite.write_text(suite.read_text() + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\n'
                                          'options = { delay = 0.05 }\n')
     out = tmp_path / "out"
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(Path(__file__).parent)])}
-    # (Python's own SIGINT handler even where pytest runs with SIGINT ignored, as a background job)
-    start = "import runpy, signal; signal.signal(signal.SIGINT, signal.default_int_handler); " \
-            "runpy.run_module('bench', run_name='__main__')"
-    argv = [sys.executable, "-c", start, "run", "--quiet", "--suite", str(suite), "--out", str(out)]
-    proc = subprocess.Popen(argv + (["--workers", workers] if workers else []), env=env, cwd=tmp_path,
-                            start_new_session=True, stderr=subprocess.PIPE, text=True)
+    argv = ["run", "--quiet", "--suite", suite, "--out", out]
+    proc = start(argv + (["--workers", workers] if workers else []), tmp_path, start_new_session=True,
+                 stderr=subprocess.PIPE)
     deadline = time.monotonic() + 120
     while time.monotonic() < deadline and len(finished_keys(out)) < 2:
         time.sleep(0.05)

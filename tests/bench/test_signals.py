@@ -6,19 +6,13 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import sys
 import time
-from pathlib import Path
 
 import pytest
+from clitools import start
 from doubles import spec, tiny
 
 from problems.files import save_npz
-
-ROOT = Path(__file__).resolve().parents[2]
-# Python's own SIGINT handler even where pytest runs with SIGINT ignored (a background job)
-START = ("import runpy, signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
-         "runpy.run_module('bench', run_name='__main__')")
 
 
 @pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])
@@ -31,9 +25,7 @@ def test_a_solver_spinning_in_compiled_code_is_stopped(tmp_path, command, sig):
     else:
         argv = ["scenario", "reach", "--steps", "2", "--out", str(tmp_path / "out")]
     argv += ["--solver", spec("SpinSolver"), "--option", f"marker={marker}"]
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(Path(__file__).parent)])}
-    proc = subprocess.Popen([sys.executable, "-c", START, *argv], env=env, cwd=tmp_path,
-                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    proc = start(argv, tmp_path, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
         deadline = time.monotonic() + 120
         while not marker.exists() and proc.poll() is None and time.monotonic() < deadline:
