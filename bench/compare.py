@@ -59,7 +59,8 @@ from bench.environment import machine_class, read_run_json
 from bench.results import RESULTS, read_results
 from problems.errors import HikbenchError
 
-__all__ = ["FAILING", "Comparison", "baseline_for", "compare_runs", "confirmed", "normalised_samples"]
+__all__ = ["FAILING", "Comparison", "NoBaseline", "baseline_for", "compare_runs", "confirmed", "machine_class_of",
+           "normalised_samples"]
 
 FAILING = ("SLOWER", "NEWLY FAILING", "MISSING")  #: the verdicts that make compare exit 1
 _COLUMNS = [*KEY, "base_status", "new_status", "base_verified", "new_verified", "base_median_s", "new_median_s",
@@ -223,35 +224,42 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
                       _notes(base_meta, new_meta, new_rows, names))
 
 
-def baseline_for(base_dir, run_dir) -> Path | None:
+class NoBaseline(HikbenchError):
+    """A directory of baselines holds none of the run's machine class."""
+
+
+def machine_class_of(run_dir) -> str | None:
+    """``bench.environment.machine_class`` of a run directory's run.json."""
+    return machine_class(read_run_json(run_dir).get("environment") or {})
+
+
+def baseline_for(base_dir, run_dir) -> Path:
     """The baseline run to compare RUN with: BASE itself when it holds a
     results.csv; else, BASE being a directory of baselines (one subdirectory
     per machine class, each a run directory), the subdirectory whose run.json
-    was recorded on RUN's machine class; None when none was. HikbenchError
-    when BASE is neither, when RUN's class is unknown, or when two
-    subdirectories have its class."""
+    was recorded on RUN's machine class. NoBaseline when none was;
+    HikbenchError when BASE is neither, when RUN's class is unknown, or when
+    two subdirectories have its class."""
     base = Path(base_dir)
     if (base / RESULTS).exists() or not base.is_dir():
         return base  # (read_results says what is wrong with a file or a missing directory)
-    runs = sorted(d for d in base.iterdir() if (d / RESULTS).exists())
-    if not runs:
+    classes = {d: machine_class_of(d) for d in sorted(base.iterdir()) if (d / RESULTS).exists()}
+    if not classes:
         raise HikbenchError(f"{base}: no {RESULTS} and no subdirectory holding one; expected a run directory "
                             f"(the --out of `hikbench run`) or a directory of baselines, one per machine class")
-    want = machine_class(read_run_json(run_dir).get("environment") or {})
+    want = machine_class_of(run_dir)
     if want is None:
         raise HikbenchError(f"{run_dir}: its run.json names no machine (cpu, BLAS); cannot pick one of the "
                             f"baselines in {base}: give the baseline run directory itself")
-    same = [d for d in runs if machine_class(read_run_json(d).get("environment") or {}) == want]
+    same = [d for d, c in classes.items() if c == want]
     if len(same) > 1:
         raise HikbenchError(f"{base}: {len(same)} baselines of machine class {want!r} "
                             f"({', '.join(d.name for d in same)}); keep one")
-    return same[0] if same else None
-
-
-def baseline_classes(base_dir) -> dict[str, str]:
-    """subdirectory name -> machine class of each baseline in a directory of baselines."""
-    return {d.name: str(machine_class(read_run_json(d).get("environment") or {}))
-            for d in sorted(Path(base_dir).iterdir()) if (d / RESULTS).exists()}
+    if not same:
+        have = "; ".join(f"{d.name}: {c}" for d, c in classes.items())
+        raise NoBaseline(f"no baseline in {base_dir} of the machine class of {run_dir} ({want!r}; it has "
+                         f"{have}); record one: hikbench run --suite SUITE --out {base_dir}/NAME")
+    return same[0]
 
 
 def compare_runs(base_dir, new_dir, threshold: float = 1.15, alpha: float = 0.01) -> Comparison:

@@ -26,8 +26,14 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from bench.compare import baseline_classes, baseline_for, compare_runs, confirmed, format_table
-    from bench.environment import machine_class, read_run_json
+    from bench.compare import (
+        NoBaseline,
+        baseline_for,
+        compare_runs,
+        confirmed,
+        format_table,
+        machine_class_of,
+    )
     from problems.errors import HikbenchError
 
     if not (1.0 < args.threshold < math.inf):  # also refuses nan
@@ -35,18 +41,15 @@ def run(args) -> int:
     if not 0.0 < args.alpha < 1.0:
         raise HikbenchError(f"--alpha must be a significance level with 0 < alpha < 1 (e.g. 0.01); "
                             f"got {args.alpha:g}")
-    base = baseline_for(args.base, args.run[0])
-    if base is None:
-        want = machine_class(read_run_json(args.run[0]).get("environment") or {})
-        have = "; ".join(f"{d}: {c}" for d, c in baseline_classes(args.base).items())
-        msg = (f"no baseline in {args.base} of the machine class of {args.run[0]} ({want!r}; it has {have}); "
-               f"record one: hikbench run --suite SUITE --out {args.base}/NAME")
+    try:
+        base = baseline_for(args.base, args.run[0])
+    except NoBaseline as err:
         if args.no_baseline == "error":
-            raise HikbenchError(msg)
-        print(f"compare skipped: {msg}")
+            raise
+        print(f"compare skipped: {err}")
         return 0
     if base != Path(args.base):
-        print(f"baseline: {base} (machine class {machine_class(read_run_json(base).get('environment') or {})!r})")
+        print(f"baseline: {base} (machine class {machine_class_of(base)!r})")
     c = confirmed([compare_runs(base, r, threshold=args.threshold, alpha=args.alpha) for r in args.run])
     print(format_table(c, show_all=args.all))
     print(f"\ncompared {len(c.table) - len(c.missing)} cases (times normalised by the calibration kernel): "
