@@ -4,18 +4,25 @@ cascades cost a few ms per level)."""
 from __future__ import annotations
 
 from functools import cache
-from pathlib import Path
 
 import numpy as np
+from threadpoolctl import threadpool_info
 
 from problems import generators as g
 from problems.hierarchy import Hierarchy, Level
 from solvers.reference import reference_solution
 
-_CPUINFO = Path("/proc/cpuinfo")
-#: whether this CPU has AVX-512: ProxSuite loads its AVX-512 build, OpenBLAS its SkylakeX kernels and
-#: numba compiles for it, so the backends' and the solvers' rounding differ from an AVX2 machine's
-AVX512 = _CPUINFO.exists() and " avx512f" in _CPUINFO.read_text()
+#: the kernels numpy's OpenBLAS chose on this CPU (threadpoolctl's ``architecture``, as in
+#: ``bench.environment.machine_class``), None without one
+BLAS_KERNELS = next((pool.get("architecture") for pool in threadpool_info()
+                     if pool.get("internal_api") == "openblas" and "numpy" in str(pool.get("filepath", ""))),
+                    None)
+#: whether numpy's OpenBLAS runs its AVX-512 "SkylakeX" kernels: the test problems (random
+#: orthogonal factors, products) and the solvers' NumPy steps round otherwise there, and on the
+#: borderline cases which answers go wrong follows. It is the kernels, not the CPU: on an AMD EPYC
+#: Zen 5 (AVX-512, numba target znver5) OpenBLAS 0.3.31 loads its "Haswell" kernels and every
+#: outcome is the AVX2 machines'; under OPENBLAS_CORETYPE=SkylakeX it gives the Zen 4's
+SKYLAKEX_BLAS = BLAS_KERNELS == "SkylakeX"
 
 #: name -> builder; random families and every degenerate case at n = 8
 CASE_BUILDERS = {

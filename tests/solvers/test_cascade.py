@@ -6,11 +6,13 @@ optimal and :func:`problems.verify.verify` finds no level that differs beyond
 the tolerance of :data:`RTOL`), ``"differs"`` (status optimal but the
 verification finds a level that differs: a wrong answer) or the status. The
 expected outcome is ``"ok"`` unless :data:`KNOWN` records otherwise — those
-entries are the backend failures observed on an AVX2 machine (AMD EPYC,
-OpenBLAS "Haswell" kernels; qpsolvers 4.13, osqp 1.1, proxsuite 0.8,
-clarabel 0.11, daqp, quadprog, piqp 0.7, highspy), with the outcomes that
-differ on an AVX-512 one (AMD EPYC Zen 4) in :data:`KNOWN_AVX512`, and are
-asserted exactly on either, so a backend that gets better or worse shows up.
+entries are the backend failures observed where numpy's OpenBLAS runs its
+"Haswell" kernels (AVX2 AMD EPYCs, and an AVX-512 Zen 5 on which OpenBLAS
+0.3.31 picks them; qpsolvers 4.13, osqp 1.1, proxsuite 0.8, clarabel 0.11,
+daqp, quadprog, piqp 0.7, highspy), with the outcomes that differ where it
+runs its AVX-512 "SkylakeX" kernels (an AMD EPYC Zen 4) in
+:data:`KNOWN_SKYLAKEX`, and are asserted exactly on either, so a backend that
+gets better or worse shows up.
 """
 
 from __future__ import annotations
@@ -20,7 +22,7 @@ import re
 
 import numpy as np
 import pytest
-from baseline_cases import AVX512, BIG_CASES, CASES, case, reference
+from baseline_cases import BIG_CASES, CASES, SKYLAKEX_BLAS, case, reference
 from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
@@ -155,10 +157,12 @@ KNOWN: dict[tuple[str, str, str, str], str | tuple[str, ...]] = {
     ("cascade-cvxpy", "low", "shift", "ik-like-8"): "infeasible_level",
 }
 
-# The outcomes that differ on an AVX-512 machine (AMD EPYC Zen 4, numba target znver4; the same
-# package versions; three runs gave the same): the backends' rounding differs and, on these
-# borderline cases, so does which frozen set they call infeasible.
-KNOWN_AVX512: dict[tuple[str, str, str, str], str] = {
+# The outcomes that differ where numpy's OpenBLAS runs its SkylakeX kernels (baseline_cases.
+# SKYLAKEX_BLAS; an AMD EPYC Zen 4, the same package versions, three runs gave the same; an AMD EPYC
+# Zen 5 under OPENBLAS_CORETYPE=SkylakeX gives the same): the test problems and the backends'
+# NumPy steps round differently and, on these borderline cases, so does which frozen set they
+# call infeasible.
+KNOWN_SKYLAKEX: dict[tuple[str, str, str, str], str] = {
     ("cascade-osqp", "default", "shift", "deg-equalities_in_inequality_levels"): "ok",
     ("cascade-proxqp", "high", "shift", "rand-mixed"): "differs",  # level 3 1.6e-5 above the reference
     ("cascade-proxqp", "high", "shift", "deg-rank_deficient"): "ok",
@@ -182,10 +186,10 @@ KNOWN_AVX512: dict[tuple[str, str, str, str], str] = {
 
 
 def expected_outcome(key: tuple[str, str, str, str]):
-    """The outcome expected for ``key``: on an AVX-512 machine KNOWN_AVX512's if it has
-    one, else KNOWN's, else "ok"."""
-    if AVX512 and key in KNOWN_AVX512:
-        return KNOWN_AVX512[key]
+    """The outcome expected for ``key``: under OpenBLAS's SkylakeX kernels KNOWN_SKYLAKEX's
+    if it has one, else KNOWN's, else "ok"."""
+    if SKYLAKEX_BLAS and key in KNOWN_SKYLAKEX:
+        return KNOWN_SKYLAKEX[key]
     return KNOWN.get(key, "ok")
 
 
@@ -279,8 +283,8 @@ WARM_CASES = ("rand-mixed", "rand-two-sided", "rand-one-sided-conflict", "deg-fr
 @pytest.mark.parametrize("name", [n for n in QP_SOLVERS if tables.WARM_START[n[8:]]])
 def test_warm_resolve_gives_same_answer(name):
     """On each case whose cold solve matches the reference (ProxQP's does not
-    on rand-mixed on an AVX-512 machine, AMD EPYC Zen 4: level 3 1.6e-5 above
-    it, see KNOWN_AVX512), a warm re-solve on the same object gives the same
+    on rand-mixed under OpenBLAS's SkylakeX kernels: level 3 1.6e-5 above it,
+    see KNOWN_SKYLAKEX), a warm re-solve on the same object gives the same
     answer; at least three cases are checked."""
     assert registry.get(name).supports_warm_start
     rtol = RTOL["high"][name]
