@@ -19,9 +19,11 @@ BLAS_KERNELS = next((pool.get("architecture") for pool in threadpool_info()
                     None)
 #: whether numpy's OpenBLAS runs its AVX-512 "SkylakeX" kernels: the test problems (random
 #: orthogonal factors, products) and the solvers' NumPy steps round otherwise there, and on the
-#: borderline cases which answers go wrong follows. It is the kernels, not the CPU: on an AMD EPYC
-#: Zen 5 (AVX-512, numba target znver5) OpenBLAS 0.3.31 loads its "Haswell" kernels and every
-#: outcome is the AVX2 machines'; under OPENBLAS_CORETYPE=SkylakeX it gives the Zen 4's
+#: borderline cases which answers go wrong follows. It is the kernels, not the CPU: an AVX-512
+#: AMD EPYC Zen 5 (numba target znver5) whose environment sets OPENBLAS_CORETYPE=Haswell gives
+#: every outcome of the AVX2 machines, and the Zen 4's with SkylakeX kernels (the variable unset).
+#: Only these two kinds were observed: under OPENBLAS_CORETYPE=Sandybridge 9 tests of test_cascade
+#: and test_hcod (borderline cascade outcomes, hcod's known wrong answers) read otherwise
 SKYLAKEX_BLAS = BLAS_KERNELS == "SkylakeX"
 
 #: name -> builder; random families and every degenerate case at n = 8

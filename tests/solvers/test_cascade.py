@@ -7,8 +7,8 @@ the tolerance of :data:`RTOL`), ``"differs"`` (status optimal but the
 verification finds a level that differs: a wrong answer) or the status. The
 expected outcome is ``"ok"`` unless :data:`KNOWN` records otherwise — those
 entries are the backend failures observed where numpy's OpenBLAS runs its
-"Haswell" kernels (AVX2 AMD EPYCs, and an AVX-512 Zen 5 on which OpenBLAS
-0.3.31 picks them; qpsolvers 4.13, osqp 1.1, proxsuite 0.8, clarabel 0.11,
+"Haswell" kernels (AVX2 AMD EPYCs, and an AVX-512 Zen 5 whose environment
+sets OPENBLAS_CORETYPE=Haswell; qpsolvers 4.13, osqp 1.1, proxsuite 0.8, clarabel 0.11,
 daqp, quadprog, piqp 0.7, highspy), with the outcomes that differ where it
 runs its AVX-512 "SkylakeX" kernels (an AMD EPYC Zen 4) in
 :data:`KNOWN_SKYLAKEX`, and are asserted exactly on either, so a backend that
@@ -159,7 +159,7 @@ KNOWN: dict[tuple[str, str, str, str], str | tuple[str, ...]] = {
 
 # The outcomes that differ where numpy's OpenBLAS runs its SkylakeX kernels (baseline_cases.
 # SKYLAKEX_BLAS; an AMD EPYC Zen 4, the same package versions, three runs gave the same; an AMD EPYC
-# Zen 5 under OPENBLAS_CORETYPE=SkylakeX gives the same): the test problems and the backends'
+# Zen 5 with these kernels gives the same): the test problems and the backends'
 # NumPy steps round differently and, on these borderline cases, so does which frozen set they
 # call infeasible.
 KNOWN_SKYLAKEX: dict[tuple[str, str, str, str], str] = {
