@@ -93,7 +93,8 @@ def environment() -> dict:
 def machine_class(env: dict) -> str | None:
     """The kind of machine a run.json's ``environment`` was recorded on: the
     CPU model and the kernels numpy's OpenBLAS chose for it (threadpoolctl's
-    ``architecture``: "Haswell" on an AVX2 CPU, "SkylakeX" on an AVX-512 one),
+    ``architecture``: "Haswell" on an AVX2 CPU, "SkylakeX" on an AVX-512 one,
+    or what the environment's ``OPENBLAS_CORETYPE`` asks for),
     e.g. ``"AMD EPYC, OpenBLAS SkylakeX"``; None when the run.json says
     neither. Timing ratios between solvers move with it (the calibration
     kernel does not absorb that), so a timing baseline holds for one class."""
