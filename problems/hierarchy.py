@@ -48,9 +48,14 @@ def check_fits_in_memory(n: int, who: str) -> None:
 
 
 def _real(value, what: str, level: int | None = None) -> np.ndarray:
-    """``value`` as a float64 array; InvalidHierarchyError naming ``what`` for
-    anything but real numbers (strings, a ragged list, complex numbers: numpy
-    would raise its own ValueError, or drop the imaginary part with a warning)."""
+    """``value`` as a float64 array; InvalidHierarchyError naming ``what`` (of
+    ``level``, when given) for anything but real numbers (strings, a ragged
+    list, complex numbers: numpy would raise its own ValueError, or drop the
+    imaginary part with a warning)."""
+    if type(value) is np.ndarray and value.dtype == np.float64:  # (the usual case, ~4x faster)
+        return value
+    if level is not None:
+        what = f"level {level}: {what}"
     try:
         arr = np.asarray(value)
     except ValueError as err:  # a ragged nested list
@@ -84,7 +89,12 @@ def _check_rows(m: int, **arrays: np.ndarray) -> None:
 
 
 def _frozen(a: np.ndarray) -> np.ndarray:
-    a = np.array(a, copy=True)
+    """A read-only copy of ``a``."""
+    return _read_only(np.array(a, copy=True))
+
+
+def _read_only(a: np.ndarray) -> np.ndarray:
+    """``a`` itself, made read-only (an array no one else holds)."""
     a.setflags(write=False)
     return a
 
@@ -150,6 +160,12 @@ class Hierarchy:
 
     def __init__(self, A, lower, upper, level, n: int | None = None, depth: int | None = None,
                  names: Sequence[str] | None = None, x0=None):
+        self._init(A, lower, upper, level, n, depth, names, x0, copy=True)
+
+    def _init(self, A, lower, upper, level, n, depth, names, x0, copy: bool) -> None:
+        """The constructor's checks and assignments; ``copy=False`` when A,
+        lower and upper are float64 arrays no one else holds (made by
+        :meth:`from_levels`): they are frozen in place, not copied."""
         A = _real(A, "A")
         lower = _real(lower, "lower")
         upper = _real(upper, "upper")
@@ -173,12 +189,15 @@ class Hierarchy:
         if m and level_arr.dtype.kind == "f" and (not np.all(np.isfinite(level_arr))
                                                   or np.any(level_arr != np.round(level_arr))):
             raise InvalidHierarchyError(f"level must hold integers; got dtype {level_arr.dtype}")
-        level_arr = level_arr.astype(np.int64)
+        level_arr = level_arr.astype(np.int64)  # (a new array)
+        # nondecreasing: then its first and last entries are its extremes (one pass, not three)
+        nondecreasing = m < 2 or bool((level_arr[1:] >= level_arr[:-1]).all())
         if names is not None:
             names = tuple(str(s) for s in names)
         depth_of_names = depth is None and names is not None
         if depth is None:
-            depth = len(names) if names is not None else (int(level_arr.max()) + 1 if m else 0)
+            depth = len(names) if names is not None else (
+                0 if m == 0 else int(level_arr[-1] if nondecreasing else level_arr.max()) + 1)
         depth = _as_int(depth, "depth")
         if depth < 0:
             raise InvalidHierarchyError(f"depth must be >= 0; got {depth}")
@@ -186,19 +205,9 @@ class Hierarchy:
             names = tuple(f"level {k}" for k in range(depth))
         if len(names) != depth:
             raise InvalidHierarchyError(f"names has {len(names)} entries but the hierarchy has {depth} levels")
-        if m:
-            if level_arr.min() < 0 or level_arr.max() >= depth:
-                i = int(np.argmax((level_arr < 0) | (level_arr >= depth)))
-                why = f" (names has {depth} entries, one per level)" if depth_of_names else ""
-                raise InvalidHierarchyError(
-                    f"row {i}: level {level_arr[i]} is outside [0, {depth}){why}", level=int(level_arr[i]))
-            drops = np.flatnonzero(np.diff(level_arr) < 0)
-            if drops.size:
-                i = int(drops[0]) + 1
-                raise InvalidHierarchyError(
-                    f"row {i}: level {level_arr[i]} follows level {level_arr[i - 1]}: "
-                    "levels must be nondecreasing (level 0 first)", level=int(level_arr[i]))
-        starts = np.searchsorted(level_arr, np.arange(depth + 1), side="left").astype(np.int64)
+        if m and not (nondecreasing and level_arr[0] >= 0 and level_arr[-1] < depth):
+            self._raise_level_error(level_arr, depth, depth_of_names)
+        starts = np.searchsorted(level_arr, np.arange(depth + 1), side="left").astype(np.int64, copy=False)
         self._check_values(A, lower, upper, level_arr, starts)
         if x0 is not None:
             x0 = _real(x0, "x0")
@@ -207,16 +216,17 @@ class Hierarchy:
             if not np.all(np.isfinite(x0)):
                 raise InvalidHierarchyError("x0 holds NaN or inf: expected finite values")
             x0 = _frozen(x0)
+        freeze = _frozen if copy else _read_only
         init = object.__setattr__  # __setattr__ below refuses any later assignment
-        init(self, "A", _frozen(A))
-        init(self, "lower", _frozen(lower))
-        init(self, "upper", _frozen(upper))
-        init(self, "level", _frozen(level_arr))
+        init(self, "A", freeze(A))
+        init(self, "lower", freeze(lower))
+        init(self, "upper", freeze(upper))
+        init(self, "level", _read_only(level_arr))  # (new arrays, made above)
         init(self, "n", n)
         init(self, "depth", depth)
         init(self, "names", names)
         init(self, "x0", x0)
-        self.__dict__["starts"] = _frozen(starts)
+        self.__dict__["starts"] = _read_only(starts)
 
     def __setattr__(self, name, value):
         raise AttributeError(f"Hierarchy is immutable: cannot set {name!r}; build a new one "
@@ -234,7 +244,7 @@ class Hierarchy:
     def from_levels(cls, levels: Iterable[Level], n: int | None = None, x0=None) -> Hierarchy:
         """Stack :class:`Level` objects, the first one the highest priority."""
         levels = list(levels)
-        As = [_real(L.A, f"level {k}: A", k) for k, L in enumerate(levels)]
+        As = [_real(L.A, "A", k) for k, L in enumerate(levels)]
         for k, Ak in enumerate(As):
             if Ak.ndim != 2 and Ak.size:
                 raise InvalidHierarchyError(f"level {k}: A has shape {Ak.shape}: expected a 2-D array (rows, n)",
@@ -247,7 +257,7 @@ class Hierarchy:
             k0 = next((k for k, Ak in enumerate(As) if Ak.size), None)
             k0 = k0 if k0 is not None else next((k for k, Ak in enumerate(As) if Ak.ndim == 2), None)
             n, origin = (As[k0].shape[1], f"from level {k0}'s A") if k0 is not None else (0, "no level has rows")
-        blocks, lo, up, lev = [], [], [], []
+        blocks, lo, up, sizes = [], [], [], []
         for k, (L, Ak) in enumerate(zip(levels, As)):
             if Ak.size == 0:
                 Ak = Ak.reshape(0, n)
@@ -255,18 +265,38 @@ class Hierarchy:
                 raise InvalidHierarchyError(
                     f"level {k}: A has shape {Ak.shape}: expected (rows, {n}) (n = {n}, {origin})", level=k)
             m_k = Ak.shape[0]
-            bounds = [_real(b, f"level {k}: {label}", k) for label, b in (("lower", L.lower), ("upper", L.upper))]
-            for label, b in zip(("lower", "upper"), bounds):
+            lower, upper = _real(L.lower, "lower", k), _real(L.upper, "upper", k)
+            for label, b in (("lower", lower), ("upper", upper)):
                 if b.shape != (m_k,):
                     raise InvalidHierarchyError(
                         f"level {k}: {label} has shape {b.shape}: expected ({m_k},)", level=k)
             blocks.append(Ak)
-            lo.append(bounds[0])
-            up.append(bounds[1])
-            lev.append(np.full(m_k, k, dtype=np.int64))
-        A = np.vstack(blocks) if blocks else np.zeros((0, n))
+            lo.append(lower)
+            up.append(upper)
+            sizes.append(m_k)
+        A = np.concatenate(blocks) if blocks else np.zeros((0, n))  # (blocks of shape (m_k, n))
         names = [L.name or f"level {k}" for k, L in enumerate(levels)]
-        return cls(A, _cat(lo), _cat(up), _cat(lev, np.int64), n=n, depth=len(levels), names=names, x0=x0)
+        level = np.repeat(np.arange(len(levels), dtype=np.int64), sizes)
+        h = object.__new__(cls)  # (the arrays above are new: frozen in place, not copied again)
+        h._init(A, _cat(lo), _cat(up), level, n, len(levels), names, x0, copy=False)
+        return h
+
+    @staticmethod
+    def _raise_level_error(level, depth: int, depth_of_names: bool) -> None:
+        """InvalidHierarchyError naming the first row whose level is outside
+        ``[0, depth)``, else the first row whose level drops (one of them is:
+        the caller found the levels not nondecreasing within ``[0, depth)``)."""
+        if level.min() < 0 or level.max() >= depth:
+            i = int(np.argmax((level < 0) | (level >= depth)))
+            why = f" (names has {depth} entries, one per level)" if depth_of_names else ""
+            raise InvalidHierarchyError(
+                f"row {i}: level {level[i]} is outside [0, {depth}){why}", level=int(level[i]))
+        drops = np.flatnonzero(np.diff(level) < 0)
+        if drops.size:
+            i = int(drops[0]) + 1
+            raise InvalidHierarchyError(
+                f"row {i}: level {level[i]} follows level {level[i - 1]}: "
+                "levels must be nondecreasing (level 0 first)", level=int(level[i]))
 
     @staticmethod
     def _where(level, starts, i: int) -> tuple[str, int, int]:
@@ -415,5 +445,5 @@ def _as_int(v, label: str) -> int:
     return iv
 
 
-def _cat(parts, dtype=np.float64) -> np.ndarray:
-    return np.concatenate(parts) if parts else np.zeros(0, dtype=dtype)
+def _cat(parts) -> np.ndarray:
+    return np.concatenate(parts) if parts else np.zeros(0)

@@ -56,6 +56,35 @@ def test_arrays_are_copies():
     assert h.A[0, 0] == 1.0
 
 
+@pytest.mark.parametrize("depth", [1, 3], ids=["one_level", "three_levels"])
+def test_from_levels_arrays_are_its_own(depth):
+    """from_levels freezes the arrays it stacks in place (no second copy): they are new arrays, so
+    changing the levels' arrays afterwards changes nothing, and they are read-only."""
+    levels = [Level(np.full((2, 3), float(k)), np.full(2, -1.0 - k), np.full(2, 1.0 + k)) for k in range(depth)]
+    h = Hierarchy.from_levels(levels)
+    before = (h.A.copy(), h.lower.copy(), h.upper.copy())
+    for L in levels:
+        L.A[:] = 9.0
+        L.lower[:] = -9.0
+        L.upper[:] = 9.0
+    for got, was in zip((h.A, h.lower, h.upper), before):
+        np.testing.assert_array_equal(got, was)
+        assert not got.flags.writeable
+    assert not h.level.flags.writeable and not h.starts.flags.writeable
+    np.testing.assert_array_equal(h.level, np.repeat(np.arange(depth), 2))
+
+
+def test_constructor_copies_every_array():
+    A, lower, upper, level = np.eye(2), np.zeros(2), np.ones(2), np.zeros(2, dtype=np.int64)
+    h = Hierarchy(A, lower, upper, level)
+    A[:] = lower[:] = upper[:] = 5.0
+    level[:] = 1
+    np.testing.assert_array_equal(h.A, np.eye(2))
+    np.testing.assert_array_equal(h.lower, [0.0, 0.0])
+    np.testing.assert_array_equal(h.upper, [1.0, 1.0])
+    np.testing.assert_array_equal(h.level, [0, 0])
+
+
 def _pickled(h):
     return pickle.loads(pickle.dumps(h))
 
