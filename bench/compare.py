@@ -32,10 +32,11 @@ The calibration kernel (BLAS QR and matmul) does not follow every solver
 from one kind of CPU to another: on an AVX-512 AMD EPYC (OpenBLAS SkylakeX
 kernels) the kernel took 1.2x its time on the AVX2 one (Haswell) while the
 reference solver's SVDs took 1.9x, so a baseline holds for one machine class
-(``bench.environment.machine_class``: CPU model and OpenBLAS kernels). BASE
-may be a directory of baselines, one subdirectory per class
+(``bench.environment.machine_class``: CPU model, OpenBLAS kernels and numba's
+target). BASE may be a directory of baselines, one subdirectory per class
 (``results/baseline``): ``baseline_for`` picks the one recorded on RUN's
-class. Runs of two classes are compared with a note saying so.
+class, else one recorded before run.json named numba's target on RUN's CPU
+and kernels. Runs of two classes are compared with a note saying so.
 
 The calibration is one number per row (or per host): its own error moves all
 the row's samples together, which the test does not see. Per-row
@@ -230,28 +231,38 @@ class NoBaseline(HikbenchError):
 
 def machine_class_of(run_dir) -> str | None:
     """``bench.environment.machine_class`` of a run directory's run.json."""
-    return machine_class(read_run_json(run_dir).get("environment") or {})
+    return machine_class(_environment_of(run_dir))
+
+
+def _environment_of(run_dir) -> dict:
+    return read_run_json(run_dir).get("environment") or {}
 
 
 def baseline_for(base_dir, run_dir) -> Path:
     """The baseline run to compare RUN with: BASE itself when it holds a
     results.csv; else, BASE being a directory of baselines (one subdirectory
     per machine class, each a run directory), the subdirectory whose run.json
-    was recorded on RUN's machine class. NoBaseline when none was;
-    HikbenchError when BASE is neither, when RUN's class is unknown, or when
-    two subdirectories have its class."""
+    was recorded on RUN's machine class; failing that, one recorded before
+    run.json named numba's target, on RUN's CPU and OpenBLAS kernels.
+    NoBaseline when none was; HikbenchError when BASE is neither, when RUN's
+    class is unknown, or when two subdirectories have its class."""
     base = Path(base_dir)
     if (base / RESULTS).exists() or not base.is_dir():
         return base  # (read_results says what is wrong with a file or a missing directory)
-    classes = {d: machine_class_of(d) for d in sorted(base.iterdir()) if (d / RESULTS).exists()}
-    if not classes:
+    envs = {d: _environment_of(d) for d in sorted(base.iterdir()) if (d / RESULTS).exists()}
+    if not envs:
         raise HikbenchError(f"{base}: no {RESULTS} and no subdirectory holding one; expected a run directory "
                             f"(the --out of `hikbench run`) or a directory of baselines, one per machine class")
-    want = machine_class_of(run_dir)
+    classes = {d: machine_class(env) for d, env in envs.items()}
+    run_env = _environment_of(run_dir)
+    want = machine_class(run_env)
     if want is None:
         raise HikbenchError(f"{run_dir}: its run.json names no machine (cpu, BLAS); cannot pick one of the "
                             f"baselines in {base}: give the baseline run directory itself")
     same = [d for d, c in classes.items() if c == want]
+    if not same:  # (a baseline whose run.json does not name numba's target: CPU and kernels alone)
+        untargeted = machine_class({**run_env, "numba_target": None})
+        same = [d for d, c in classes.items() if not envs[d].get("numba_target") and c == untargeted]
     if len(same) > 1:
         raise HikbenchError(f"{base}: {len(same)} baselines of machine class {want!r} "
                             f"({', '.join(d.name for d in same)}); keep one")

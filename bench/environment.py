@@ -13,7 +13,7 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["PACKAGES", "environment", "machine_class", "read_run_json", "utc_now", "write_run_json"]
+__all__ = ["PACKAGES", "environment", "machine_class", "numba_target", "read_run_json", "utc_now", "write_run_json"]
 
 PACKAGES = ("hikbench", "numpy", "scipy", "pandas", "numba", "llvmlite", "threadpoolctl", "qpsolvers", "osqp",
             "proxsuite", "clarabel", "daqp", "quadprog", "piqp", "highspy", "cvxpy", "pin",
@@ -77,11 +77,20 @@ def _git() -> dict:
             "dirty": None if status is None else bool(status)}  # (unknown, never a claimed clean tree)
 
 
+def numba_target() -> str:
+    """The CPU numba compiles the solvers' kernels for: ``NUMBA_CPU_NAME``
+    when set, else LLVM's name of this CPU (e.g. "znver4", "znver5")."""
+    from llvmlite import binding
+
+    return os.environ.get("NUMBA_CPU_NAME") or binding.get_host_cpu_name()
+
+
 def environment() -> dict:
     return {
         "host": socket.gethostname(),
         "platform": platform.platform(),
         "cpu": cpu_model(),
+        "numba_target": numba_target(),
         "cpu_count": os.cpu_count(),
         "versions": _versions(),
         "blas": _blas(),
@@ -92,19 +101,24 @@ def environment() -> dict:
 
 def machine_class(env: dict) -> str | None:
     """The kind of machine a run.json's ``environment`` was recorded on: the
-    CPU model and the kernels numpy's OpenBLAS chose for it (threadpoolctl's
+    CPU model, the kernels numpy's OpenBLAS chose for it (threadpoolctl's
     ``architecture``: "Haswell" on an AVX2 CPU, "SkylakeX" on an AVX-512 one,
-    or what the environment's ``OPENBLAS_CORETYPE`` asks for),
-    e.g. ``"AMD EPYC, OpenBLAS SkylakeX"``; None when the run.json says
-    neither. Timing ratios between solvers move with it (the calibration
-    kernel does not absorb that), so a timing baseline holds for one class."""
+    or what the environment's ``OPENBLAS_CORETYPE`` asks for) and, when
+    recorded (run.json files from 2026-11-23 on), numba's target
+    (:func:`numba_target`), e.g. ``"AMD EPYC, OpenBLAS SkylakeX, numba
+    znver4"``; None when the run.json says neither CPU nor BLAS. Timing ratios
+    between solvers move with it (the calibration kernel does not absorb that:
+    normalised by it, 5 cases of hcod read 1.23-1.30x slower on an AMD EPYC
+    Zen 5 than on a Zen 4, both "AMD EPYC" with SkylakeX kernels), so a
+    timing baseline holds for one class."""
     cpu = env.get("cpu")
     pools = [t for t in (env.get("blas") or {}).get("threadpools", []) if t.get("internal_api") == "openblas"]
     numpy_pools = [t for t in pools if "numpy" in str(t.get("filepath", ""))]
     arch = next((t.get("architecture") for t in numpy_pools + pools if t.get("architecture")), None)
     if cpu is None and arch is None:
         return None
-    return f"{cpu or 'unknown CPU'}, OpenBLAS {arch or 'unknown'}"
+    target = env.get("numba_target")
+    return f"{cpu or 'unknown CPU'}, OpenBLAS {arch or 'unknown'}" + (f", numba {target}" if target else "")
 
 
 def read_run_json(run_dir) -> dict:

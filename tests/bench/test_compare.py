@@ -305,9 +305,10 @@ def test_the_output_says_why_a_case_fails_and_which_runs_differ(tmp_path, capsys
     assert "note: the new run is incomplete: 2 of its suite's 5 rows" in out
 
 
-def _env(cpu: str, arch: str) -> dict:
-    """run.json's environment as bench.environment writes it, reduced to what names the machine class."""
-    return {"cpu": cpu, "blas": {"threadpools": [
+def _env(cpu: str, arch: str, target: str | None = None) -> dict:
+    """run.json's environment as bench.environment writes it, reduced to what names the machine class
+    (``target``: numba's; None as in the run.json files written before it was recorded)."""
+    return {"cpu": cpu, **({"numba_target": target} if target else {}), "blas": {"threadpools": [
         {"user_api": "blas", "internal_api": "openblas", "architecture": "Zen",
          "filepath": "/venv/site-packages/scs.libs/libopenblas.so"},
         {"user_api": "blas", "internal_api": "openblas", "architecture": arch,
@@ -341,9 +342,36 @@ def test_the_machine_class_is_the_cpu_and_numpys_openblas_kernels():
     from bench.environment import environment, machine_class
 
     assert machine_class(_env("AMD EPYC", "SkylakeX")) == "AMD EPYC, OpenBLAS SkylakeX"
+    assert machine_class(_env("AMD EPYC", "SkylakeX", "znver5")) == "AMD EPYC, OpenBLAS SkylakeX, numba znver5"
     assert machine_class({}) is None
-    here = machine_class(environment())
-    assert here is not None and here.startswith(environment()["cpu"] + ", OpenBLAS ")
+    env = environment()
+    here = machine_class(env)
+    assert env["numba_target"] and here is not None
+    assert here.startswith(env["cpu"] + ", OpenBLAS ") and here.endswith(f", numba {env['numba_target']}")
+
+
+@pytest.mark.parametrize("have, picked", [
+    (("epyc-skylakex",), "epyc-skylakex"),
+    (("epyc-skylakex", "epyc-skylakex-znver5"), "epyc-skylakex-znver5"),
+    (("epyc-skylakex-znver4",), None),
+], ids=["untargeted-baseline-serves", "its-own-target-first", "another-target-never"])
+def test_numbas_target_picks_among_baselines_of_one_cpu_and_kernels(tmp_path, have, picked):
+    """A run on a Zen 5 (numba znver5) takes the baseline recorded on its target; failing that,
+    one recorded before run.json named the target, on its CPU and kernels; never one of another
+    target (against a Zen 4's, 5 cases of hcod on a Zen 5 read 1.23-1.30x slower in 2 of 2 runs)."""
+    from bench.compare import NoBaseline, baseline_for
+
+    rng = np.random.default_rng(3)
+    targets = {"epyc-skylakex": None, "epyc-skylakex-znver5": "znver5", "epyc-skylakex-znver4": "znver4"}
+    for name in have:
+        _write_run(tmp_path / "baseline" / name, _frame(_samples(rng, n_cases=2)),
+                   _env("AMD EPYC", "SkylakeX", targets[name]))
+    run = _write_run(tmp_path / "run", _frame(_samples(rng, n_cases=2)), _env("AMD EPYC", "SkylakeX", "znver5"))
+    if picked is None:
+        with pytest.raises(NoBaseline, match="'AMD EPYC, OpenBLAS SkylakeX, numba znver5'"):
+            baseline_for(tmp_path / "baseline", run)
+    else:
+        assert baseline_for(tmp_path / "baseline", run) == tmp_path / "baseline" / picked
 
 
 def test_a_directory_of_baselines_gives_the_one_of_the_runs_machine_class(baselines, capsys):
