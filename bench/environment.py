@@ -13,7 +13,8 @@ import sys
 from importlib import metadata
 from pathlib import Path
 
-__all__ = ["PACKAGES", "environment", "machine_class", "numba_target", "read_run_json", "utc_now", "write_run_json"]
+__all__ = ["PACKAGES", "environment", "machine_class", "numba_target", "openblas_kernels",
+           "read_run_json", "utc_now", "write_run_json"]
 
 PACKAGES = ("hikbench", "numpy", "scipy", "pandas", "numba", "llvmlite", "threadpoolctl", "qpsolvers", "osqp",
             "proxsuite", "clarabel", "daqp", "quadprog", "piqp", "highspy", "cvxpy", "pin",
@@ -99,6 +100,15 @@ def environment() -> dict:
     }
 
 
+def openblas_kernels(threadpools: list[dict]) -> str | None:
+    """The kernels (threadpoolctl's ``architecture``) of numpy's OpenBLAS
+    among ``threadpools`` (threadpoolctl's ``threadpool_info()``, or as
+    run.json records it), else of another OpenBLAS; None without one."""
+    pools = [t for t in threadpools if t.get("internal_api") == "openblas"]
+    numpy_pools = [t for t in pools if "numpy" in str(t.get("filepath", ""))]
+    return next((t.get("architecture") for t in numpy_pools + pools if t.get("architecture")), None)
+
+
 def machine_class(env: dict) -> str | None:
     """The kind of machine a run.json's ``environment`` was recorded on: the
     CPU model, the kernels numpy's OpenBLAS chose for it (threadpoolctl's
@@ -112,9 +122,7 @@ def machine_class(env: dict) -> str | None:
     Zen 5 than on a Zen 4, both "AMD EPYC" with SkylakeX kernels), so a
     timing baseline holds for one class."""
     cpu = env.get("cpu")
-    pools = [t for t in (env.get("blas") or {}).get("threadpools", []) if t.get("internal_api") == "openblas"]
-    numpy_pools = [t for t in pools if "numpy" in str(t.get("filepath", ""))]
-    arch = next((t.get("architecture") for t in numpy_pools + pools if t.get("architecture")), None)
+    arch = openblas_kernels((env.get("blas") or {}).get("threadpools", []))
     if cpu is None and arch is None:
         return None
     target = env.get("numba_target")

@@ -8,15 +8,14 @@ from functools import cache
 import numpy as np
 from threadpoolctl import threadpool_info
 
+from bench.environment import openblas_kernels
 from problems import generators as g
 from problems.hierarchy import Hierarchy, Level
 from solvers.reference import reference_solution
 
-#: the kernels numpy's OpenBLAS chose on this CPU (threadpoolctl's ``architecture``, as in
+#: the kernels numpy's OpenBLAS chose on this CPU (threadpoolctl's ``architecture``, read as
 #: ``bench.environment.machine_class``), None without one
-BLAS_KERNELS = next((pool.get("architecture") for pool in threadpool_info()
-                     if pool.get("internal_api") == "openblas" and "numpy" in str(pool.get("filepath", ""))),
-                    None)
+BLAS_KERNELS = openblas_kernels(threadpool_info())
 #: whether numpy's OpenBLAS runs its AVX-512 "SkylakeX" kernels: the test problems (random
 #: orthogonal factors, products) and the solvers' NumPy steps round otherwise there, and on the
 #: borderline cases which answers go wrong follows. It is the kernels, not the CPU: an AVX-512
