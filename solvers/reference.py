@@ -273,8 +273,11 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
 
     # Primal active-set refinement (activations only): go from the feasible
     # point toward the exact point of the current active set, stop at the
-    # first blocking constraint, activate it, repeat.
+    # first blocking constraint, activate it, repeat. The rows of the working set (in C) do not
+    # block: rounding, not the step, moves them (taking one for the blocking row, again and again,
+    # once left a stage at its iteration cap with the real blocking row never activated).
     x_cur = x_qp
+    working = eq_hi | at_up | at_lo
     for _ in range(A_hi.shape[0] + 1):
         x = _constrained_lstsq(x_cur, C, d, G, t)
         feas = _FEAS_RTOL * _row_scale(A_hi, lo_hi, up_hi, x)
@@ -286,8 +289,11 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
         with np.errstate(divide="ignore", invalid="ignore"):
             tau_u = np.where(dr > 0, (up_hi - r0) / dr, np.inf)
             tau_l = np.where(dr < 0, (lo_hi - r0) / dr, np.inf)
-        tau = np.minimum(tau_u, tau_l)
+        tau = np.where(working, np.inf, np.minimum(tau_u, tau_l))
         j = int(np.argmin(tau))
+        if not np.isfinite(tau[j]):
+            return x_qp, False  # only working rows are violated: C x = d has no exact solution
+        working[j] = True
         step = float(np.clip(tau[j], 0.0, 1.0))
         x_cur = x_cur + step * (x - x_cur)
         C = np.vstack([C, A_hi[j:j + 1]])
@@ -308,8 +314,9 @@ def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, name: str):
     solved again with the bounds of A_hi widened by each of WIDEN_RTOL in turn;
     a widened QP's point counts only once polished onto the exact bounds and
     certified optimal there (:func:`_kkt_certified`). Returns x, whether it was
-    polished, and the backend label. Raises ReferenceError naming the stage
-    (``name``) and every try."""
+    polished, the backend label, and the QP's own point on the exact bounds
+    where polishing replaced it (else None). Raises ReferenceError naming the
+    stage (``name``) and every try."""
     failed = []
     for widen in (0.0, *WIDEN_RTOL):
         try:
@@ -319,12 +326,23 @@ def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, name: str):
             continue
         x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, certify=widen > 0)
         if not widen:
-            return x, ok, backend
+            return x, ok, backend, (x_qp if ok else None)
         if ok:
-            return x, ok, f"{backend}, bounds widened by {widen:g}"
+            return x, ok, f"{backend}, bounds widened by {widen:g}", None
         failed.append(f"bounds widened by {widen:g}: {backend} solved it, but its point could not be polished "
                       f"onto the exact bounds and certified optimal there (KKT check)")
     raise ReferenceError(f"{name}: " + "; ".join(failed))
+
+
+def _freeze(A_k, lo_k, up_k, x):
+    """Level k frozen at x (exact, the optimal slack being unique): a row with
+    nonzero slack becomes an equality at its achieved value (then eliminated
+    by the null-space step of the next QPs); a row with zero slack keeps its
+    bounds. Returns the signed slack w (shape (rows,)) and the frozen bounds."""
+    w = _signed_slack(A_k @ x, lo_k, up_k)
+    w[np.abs(w) <= 1e-13 * _row_scale(A_k, lo_k, up_k, x)] = 0.0
+    achieved = A_k @ x
+    return w, np.where(w != 0, achieved, lo_k), np.where(w != 0, achieved, up_k)
 
 
 def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
@@ -335,38 +353,66 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
     was kept) and ``backend`` (the QP backend that solved it), and ``slack``
     (the signed optimal slack w_k* of each level). Raises ReferenceError when
     no backend solves a stage, not even on widened bounds with a certified
-    polished point (:func:`_stage`)."""
+    polished point (:func:`_stage`).
+
+    A level frozen at its polished (exact) optimum can leave the next stage a
+    feasible set with no interior to round-off, a sliver no backend solves
+    (seen on a humanoid's step: ~1e-6 wide after 21 equalities, a level of
+    conflicting equalities met at 17 joint bounds). The next stage is then
+    tried once more with that level frozen at its QP's own point instead,
+    within the QP's tolerances of the optimum; the level is then recorded
+    unpolished, its backend label saying why."""
     n = h.n
-    A_hi = np.zeros((0, n))
-    lo_hi = np.zeros(0)
-    up_hi = np.zeros(0)
+    levels = [(h.A[s], h.lower[s], h.upper[s]) for s in map(h.level_rows, range(h.depth))]
+    frozen: list[tuple[np.ndarray, np.ndarray]] = []  # (lower, upper) of each level above
     x = np.zeros(n)
     polished, slacks, backends = [], [], []
+    last, last_qp = None, None  # the last level with rows, and its QP point where polishing replaced it
+
+    def above(upto):
+        if not upto:
+            return np.zeros((0, n)), np.zeros(0), np.zeros(0)
+        return (np.vstack([levels[j][0] for j in range(upto)]), np.concatenate([f[0] for f in frozen]),
+                np.concatenate([f[1] for f in frozen]))
+
+    def stage(k, final):
+        A_k, lo_k, up_k = levels[k] if not final else (np.zeros((0, n)), np.zeros(0), np.zeros(0))
+        name = "the minimum-norm stage" if final else f"level {k}"
+        try:
+            return _stage(*above(len(frozen)), A_k, lo_k, up_k, final, name)
+        except ReferenceError as err:
+            if last_qp is None:
+                raise
+            kept = frozen[last]
+            w, lo_f, up_f = _freeze(*levels[last], last_qp)
+            frozen[last] = (lo_f, up_f)
+            try:
+                result = _stage(*above(len(frozen)), A_k, lo_k, up_k, final, name)
+            except ReferenceError as again:
+                frozen[last] = kept
+                raise ReferenceError(f"{err}; with level {last} frozen at its QP's point, not its polished "
+                                     f"one: {again}") from None
+            slacks[last], polished[last] = w, False
+            backends[last] += f" (its QP's point kept: {name} had no solvable frozen set at the polished one)"
+            return result
+
     for k in range(h.depth):
-        s = h.level_rows(k)
-        A_k, lo_k, up_k = h.A[s], h.lower[s], h.upper[s]
+        A_k, lo_k, up_k = levels[k]
         if A_k.shape[0] == 0:
+            frozen.append((lo_k, up_k))
             slacks.append(np.zeros(0))
             polished.append(True)
             backends.append("none")
             continue
-        x, ok, backend = _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, False, f"level {k}")
+        x, ok, backend, x_qp = stage(k, False)
         backends.append(backend)
         polished.append(ok)
-        w = _signed_slack(A_k @ x, lo_k, up_k)
-        w[np.abs(w) <= 1e-13 * _row_scale(A_k, lo_k, up_k, x)] = 0.0
+        w, lo_f, up_f = _freeze(A_k, lo_k, up_k, x)
         slacks.append(w)
-        A_hi = np.vstack([A_hi, A_k])
-        # freeze (exact, the optimal slack being unique): a row with nonzero
-        # slack becomes an equality at its achieved value (then eliminated by
-        # the null-space step of the next QPs); a row with zero slack keeps
-        # its bounds
-        achieved = A_k @ x
-        lo_hi = np.concatenate([lo_hi, np.where(w != 0, achieved, lo_k)])
-        up_hi = np.concatenate([up_hi, np.where(w != 0, achieved, up_k)])
-    if A_hi.shape[0]:
-        empty = np.zeros((0, n))
-        x, ok, backend = _stage(A_hi, lo_hi, up_hi, empty, np.zeros(0), np.zeros(0), True, "the minimum-norm stage")
+        frozen.append((lo_f, up_f))
+        last, last_qp = k, x_qp
+    if sum(len(f[0]) for f in frozen):
+        x, ok, backend, _ = stage(h.depth, True)
         backends.append(backend)
         polished.append(ok)
     return x, {"polished": polished, "slack": slacks, "backend": backends}
