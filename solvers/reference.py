@@ -339,9 +339,9 @@ def _freeze(A_k, lo_k, up_k, x):
     nonzero slack becomes an equality at its achieved value (then eliminated
     by the null-space step of the next QPs); a row with zero slack keeps its
     bounds. Returns the signed slack w (shape (rows,)) and the frozen bounds."""
-    w = _signed_slack(A_k @ x, lo_k, up_k)
-    w[np.abs(w) <= 1e-13 * _row_scale(A_k, lo_k, up_k, x)] = 0.0
     achieved = A_k @ x
+    w = _signed_slack(achieved, lo_k, up_k)
+    w[np.abs(w) <= 1e-13 * _row_scale(A_k, lo_k, up_k, x)] = 0.0
     return w, np.where(w != 0, achieved, lo_k), np.where(w != 0, achieved, up_k)
 
 
@@ -369,17 +369,18 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
     polished, slacks, backends = [], [], []
     last, last_qp = None, None  # the last level with rows, and its QP point where polishing replaced it
 
-    def above(upto):
-        if not upto:
+    def above():
+        """A, lower, upper of the levels frozen so far."""
+        if not frozen:
             return np.zeros((0, n)), np.zeros(0), np.zeros(0)
-        return (np.vstack([levels[j][0] for j in range(upto)]), np.concatenate([f[0] for f in frozen]),
+        return (np.vstack([levels[j][0] for j in range(len(frozen))]), np.concatenate([f[0] for f in frozen]),
                 np.concatenate([f[1] for f in frozen]))
 
     def stage(k, final):
         A_k, lo_k, up_k = levels[k] if not final else (np.zeros((0, n)), np.zeros(0), np.zeros(0))
         name = "the minimum-norm stage" if final else f"level {k}"
         try:
-            return _stage(*above(len(frozen)), A_k, lo_k, up_k, final, name)
+            return _stage(*above(), A_k, lo_k, up_k, final, name)
         except ReferenceError as err:
             if last_qp is None:
                 raise
@@ -387,7 +388,7 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
             w, lo_f, up_f = _freeze(*levels[last], last_qp)
             frozen[last] = (lo_f, up_f)
             try:
-                result = _stage(*above(len(frozen)), A_k, lo_k, up_k, final, name)
+                result = _stage(*above(), A_k, lo_k, up_k, final, name)
             except ReferenceError as again:
                 frozen[last] = kept
                 raise ReferenceError(f"{err}; with level {last} frozen at its QP's point, not its polished "
