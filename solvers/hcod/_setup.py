@@ -18,6 +18,12 @@ _FM = set(FASTMATH)
 N_OUT = 9  #: counters at the head of the "out" block; the iterations per level follow them
 N_IP = 7  #: integer parameters (n, mt, D, mmax, max_iter, warm_mode, has_ineq)
 N_PRM = 4  #: float parameters (rank_rtol, feas_rtol, dual_rtol, freeze_rtol)
+#: a problem whose finite bounds, each level scaled by 1 / ||A_k||_F, are all below this in
+#: magnitude is solved with its bounds multiplied by a power of 2 that brings the largest into [1, 2)
+#: (:func:`load`). The kernel's absolute tolerance parts showed no error down to bounds x 1e-6 of
+#: problems whose largest scaled bound is 0.1-1 (IK-like); this threshold leaves such problems as
+#: they are (bit for bit) with a margin of 1e3
+BOUND_SCALE_MIN = 2.0**-10
 ALIGN = 8  #: float blocks start on multiples of 8 doubles (64 bytes)
 # float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n);
 # then the (scaled) problem and the parameters, so the kernel takes two arrays, and the queue of
@@ -98,6 +104,13 @@ def workspaces(ip, prm):
     return fw, iw, fw[s_u], iw[s_out]
 
 
+def fblock(fw, iw, name: str):
+    """The float block ``name`` (one of F_BLOCKS) of fw, a view (the offsets
+    are read from iw's header)."""
+    b = F_BLOCKS.index(name)
+    return fw[iw[b]:iw[FEND0 + b]]
+
+
 def iblock(iw, name: str):
     """The int block ``name`` (one of I_BLOCKS) of iw, a view (the offsets
     are read from iw's header)."""
@@ -175,7 +188,13 @@ def load(fw, iw, A, lo, up, starts, min_norm, fresh):
     every problem of the shape, and the kernel writes none of these blocks,
     so it is written and prepared only into ``fresh`` workspaces (a third of
     the rows at n = 80 less to write per problem). The workspaces must have
-    been made for (n, m + n min_norm, D + min_norm, ...)."""
+    been made for (n, m + n min_norm, D + min_norm, ...).
+
+    Returns f, the factor of the bounds: 1, or when every finite scaled bound
+    is below BOUND_SCALE_MIN (2^-10) in magnitude (and one is not 0), the power of 2
+    that brings the largest into [1, 2). The kernel then solves for ``u = f x``:
+    the same minimisers scaled (the problem is homogeneous in (x, bounds)),
+    seen by its tolerances at the order of magnitude they are made for."""
     foff = iw[:FEND0]
     fend = iw[FEND0:IOFF0]
     ioff = iw[IOFF0:N_HEAD]
@@ -188,6 +207,7 @@ def load(fw, iw, A, lo, up, starts, min_norm, fresh):
     st2 = iw[ioff[I_STARTS]:ioff[I_STARTS + 1]]
     for k in range(D + 1):
         st2[k] = starts[k]
+    bmax = 0.0  # the largest finite scaled bound
     for k in range(D):
         sc = level_scale(A, starts[k], starts[k + 1], n)
         for i in range(starts[k], starts[k + 1]):
@@ -197,6 +217,18 @@ def load(fw, iw, A, lo, up, starts, min_norm, fresh):
                 a2[c] = a[c] * sc
             lo2[i] = lo[i] * sc
             up2[i] = up[i] * sc
+            if lo2[i] > -np.inf:
+                bmax = max(bmax, abs(lo2[i]))
+            if up2[i] < np.inf:
+                bmax = max(bmax, abs(up2[i]))
+    f = 1.0
+    if 0.0 < bmax < BOUND_SCALE_MIN:
+        # the kernel's tolerances have absolute parts (1 + ||u||, + 1) that assume bounds not far
+        # below 1: a problem wholly smaller is solved as u = f x, f a power of 2 (exact)
+        f = math.ldexp(1.0, min(1 - math.frexp(bmax)[1], 1021))
+        for i in range(m):
+            lo2[i] *= f
+            up2[i] *= f
     k1 = D
     if min_norm and fresh:
         st2[D + 1] = mt
@@ -210,3 +242,4 @@ def load(fw, iw, A, lo, up, starts, min_norm, fresh):
             fw[foff[F_BVAL]:fend[F_BVAL]], fw[foff[F_RNORM]:fend[F_RNORM]],
             iw[ioff[I_ROWLEV]:ioff[I_ROWLEV + 1]], fw[foff[F_LNORM]:fend[F_LNORM]],
             iw[ioff[I_LEVID]:ioff[I_LEVID + 1]], iw[ioff[I_WIDX]:ioff[I_WIDX + 1]], 0, k1)
+    return f

@@ -601,6 +601,86 @@ def test_time_warm_start_after_a_huge_step(seed):
     assert res.iterations == sum(res.iterations_per_level) + res.info["min_norm_iterations"]
 
 
+SCALED_CASES = {  # seeds whose `time` re-solve at bounds x 1e-9 was wrong before the factor (below)
+    "ik-like-5": lambda: G.ik_like(20, 5),
+    "ik-like-11": lambda: G.ik_like(20, 11),
+    "ik-like-21": lambda: G.ik_like(20, 21),
+    "random-mixed-32": lambda: G.generate("random", seed=32, n=20, depth=4, rows=8, inequality="mixed"),
+    "random-mixed-51": lambda: G.generate("random", seed=51, n=20, depth=4, rows=8, inequality="mixed"),
+    "equality": lambda: G.equality_stack(20, 4, 6, seed=0),
+}
+
+
+@pytest.fixture(scope="module")
+def scaled_case_reference():
+    cache = {}
+
+    def get(case):
+        if case not in cache:
+            h = SCALED_CASES[case]()
+            cache[case] = (h, reference_solution(h))
+        return cache[case]
+    return get
+
+
+@pytest.mark.parametrize("warm_start", ["none", "stage", "time"])
+@pytest.mark.parametrize("scale", [1e-9, 1e-30, 1e-300], ids=lambda s: f"x{s:g}")
+@pytest.mark.parametrize("case", list(SCALED_CASES))
+def test_bounds_of_any_magnitude_give_the_scaled_minimisers(case, scale, warm_start, scaled_case_reference):
+    """Every bound times ``scale``: the lexicographic optima are the problem's times ``scale``
+    (the problem is homogeneous in (x, bounds)). hcod's tolerances have absolute parts
+    (``1e-9 (||a|| (1 + ||u||) + 1)`` for a warm step) made for bounds not far below 1: with
+    bounds x 1e-9 a `time` re-solve of the same problem accepted shifted points violating level
+    0 by up to 7.3 times the problem's own size (15 of 60 IK-like n=20 seeds, 7 of 60 random
+    mixed ones). ``._setup.load`` now multiplies bounds all below 2^-10 (levels scaled) by a power
+    of 2 that brings the largest into [1, 2) and divides x by it. Judged at the unscaled
+    problem's scale, where verify's ``1 +`` parts are those of an O(1) problem."""
+    h0, x_ref = scaled_case_reference(case)
+    h = h0.with_bounds(h0.lower * scale, h0.upper * scale)
+    s = HcodSolver(warm_start=warm_start)
+    res = s.solve(h)
+    if warm_start == "time":
+        res = s.solve(h)  # (the re-solve, from the record)
+    assert res.status == OPTIMAL, res.reason
+    v = verify(h0, res.x / scale, x_ref, rtol=RTOL)
+    assert v.equal or (h0.has_inequalities and v.lower == "a"), (v, level_norms(h0, res.x / scale))
+
+
+def _largest_scaled_bound(h: Hierarchy) -> float:
+    """max |finite bound| / ||A_k||_F over the levels (what ``._setup.load`` scales by)."""
+    out = 0.0
+    for k in range(h.depth):
+        s = h.level_rows(k)
+        b = np.concatenate([h.lower[s], h.upper[s]])
+        b = b[np.isfinite(b)]
+        if b.size:
+            out = max(out, float(np.abs(b).max() / np.linalg.norm(h.A[s])))
+    return out
+
+
+@pytest.mark.parametrize("seed", [1, 2, 7], ids=lambda s: f"seed{s}")
+def test_time_warm_start_record_follows_the_factor_of_the_bounds(seed):
+    """A trajectory whose bounds cross a power of 2 (the largest scaled bound at 2^-30 (1 -+
+    1e-10)): the factor of ``._setup.load`` halves between two nearly equal problems, and the
+    record's steps ``Delta u`` (eq. 46) follow it, so that they stay the same steps in x. The
+    re-solve after the crossing is then one LSE per level, nothing activated, as a re-solve of
+    the same problem is (with the record left in the old factor's units these seeds took 8, 3
+    and 13 iterations at level 2)."""
+    h0 = G.ik_like(20, seed)
+    c = 2.0**-30 / _largest_scaled_bound(h0)
+    h1, h2 = (h0.with_bounds(h0.lower * cc, h0.upper * cc) for cc in (c * (1 - 1e-10), c * (1 + 1e-10)))
+    s = HcodSolver(warm_start="time")
+    s.solve(h1)
+    f1 = s.solve(h1).info["bounds_scaled_by"]
+    res = s.solve(h2)
+    assert res.info["bounds_scaled_by"] == f1 / 2  # (the crossing)
+    assert res.status == OPTIMAL
+    assert max(res.iterations_per_level) == 1 and res.activations == res.deactivations == 0, (
+        res.iterations_per_level, res.activations, res.deactivations)
+    v = verify(h0, res.x / (c * (1 + 1e-10)), reference_solution(h0), rtol=RTOL)
+    assert v.equal or v.lower == "a", v
+
+
 @pytest.mark.parametrize("warm_start", ["none", "stage", "time"])
 def test_row_held_at_its_bound_by_the_working_rows_does_not_block(warm_start):
     """Romeo reaching, step 0 (``hikbench scenario reach --robot romeo``; n = 61, joint
