@@ -72,11 +72,38 @@ def test_violation_is_distance_to_the_interval(h, data):
 def test_level_scales_by_hand():
     # level 0: A = [[3, 4]] (||A||_F = 5), bounds (-inf, 12] -> finite bounds norm 12;
     # level 1: A = [[0, 0]], bounds [0, 0] -> 0 (no floor: its tolerance is atol alone);
-    # level 2: A = [[3e-8, 4e-8]], bounds [1e-7, 1e-7] -> 5e-8 + sqrt(2) 1e-7.
+    # level 2: A = [[3e-8, 4e-8]], bounds [1e-7, 1e-7] -> sqrt(2) 1e-7 (+ 5e-8 ||x||).
     h = Hierarchy([[3, 4], [0, 0], [3e-8, 4e-8]], [-INF, 0, 1e-7], [12, 0, 1e-7], [0, 1, 2])
-    np.testing.assert_allclose(level_scales(h), [5 * 1 + 12, 0.0, 5e-8 + 2 ** 0.5 * 1e-7], rtol=1e-15)
-    # with ||x|| = 1: 5 * (1 + 1) + 12 = 22
-    np.testing.assert_allclose(level_scales(h, [0.6, 0.8]), [22.0, 0.0, 1e-7 + 2 ** 0.5 * 1e-7], rtol=1e-15)
+    np.testing.assert_allclose(level_scales(h), [12.0, 0.0, 2 ** 0.5 * 1e-7], rtol=1e-15)
+    # with ||x|| = 1: 5 * 1 + 12 = 17
+    np.testing.assert_allclose(level_scales(h, [0.6, 0.8]), [17.0, 0.0, 5e-8 + 2 ** 0.5 * 1e-7], rtol=1e-15)
+
+
+@pytest.mark.parametrize("scale", [1e-9, 1e-3, 1.0, 1e4], ids=["1e-9", "1e-3", "1", "1e4"])
+def test_a_level_of_small_bounds_left_undone_is_worse(scale):
+    """[x1 + x2 = scale] > [x = 0]: x = 0 leaves level 0 undone by its whole target. With the
+    scale ``||A_0||_F (1 + ||x||) + ||b_0||`` (before) level 0's tolerance at rtol 1e-6 was
+    1.4e-6 whatever the target: at 1e-9, x = 0 was judged equal to the optimum at level 0 and
+    better at level 1."""
+    h = Hierarchy.from_levels([Level.equality(np.ones((1, 2)), [scale]), Level.equality(np.eye(2), [0, 0])])
+    optimum = np.array([0.5, 0.5]) * scale
+    v = verify(h, np.zeros(2), optimum, rtol=1e-6, atol=0)
+    assert (v.level, v.lower) == (0, "b")
+    assert verify(h, optimum * (1 + 1e-9), optimum, rtol=1e-6, atol=0).equal
+
+
+@given(hierarchies(coefficients=moderate, bounds=moderate, min_n=1, names=False, x0=False),
+       st.data(), st.integers(min_value=-60, max_value=60))
+def test_verdicts_do_not_depend_on_the_units(h, data, e):
+    """Bounds, x and the reference times one power of 2 (exact): the same verdict at rtol, with
+    atol 0 (its one absolute part)."""
+    x, x_ref = (np.array(data.draw(st.lists(moderate, min_size=h.n, max_size=h.n))) for _ in range(2))
+    f = 2.0 ** e
+    hs = h.with_bounds(h.lower * f, h.upper * f)
+    v, vs = verify(h, x, x_ref, rtol=1e-6), verify(hs, x * f, x_ref * f, rtol=1e-6)
+    assert (vs.level, vs.lower) == (v.level, v.lower)
+    if v.level is not None and np.isfinite(v.difference):
+        assert vs.difference == v.difference * f
 
 
 @pytest.mark.parametrize("scale", [1e-7, 1e-3, 1.0, 1e4], ids=["1e-7", "1e-3", "1", "1e4"])
