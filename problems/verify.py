@@ -48,7 +48,9 @@ def violation(h: Hierarchy, x) -> np.ndarray:
 
 def level_norms(h: Hierarchy, x) -> np.ndarray:
     """``(||v_0(x)||_2, ..., ||v_{N-1}(x)||_2)``, shape (depth,); 0 for an
-    empty level."""
+    empty level. From the squares: violations below ~1e-154 underflow, so
+    a problem wholly at that scale (bounds x 1e-300) cannot be judged in its
+    own units."""
     v = violation(h, x)
     return np.sqrt(np.bincount(h.level, weights=v * v, minlength=h.depth))
 

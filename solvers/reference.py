@@ -32,7 +32,8 @@ Two methods that share no code with the HCOD solver:
   such a point is kept only if polishing puts it on the exact bounds and the
   KKT conditions certify it optimal there (multipliers of the right signs,
   found by bounded least squares); the widening is recorded in the stage's
-  ``backend``.
+  ``backend``. A problem whose bounds all lie near the origin is solved in
+  units that bring them to O(1) (:data:`UNITS_MIN`, :func:`cascade_reference`).
 """
 
 from __future__ import annotations
@@ -46,7 +47,7 @@ from problems.hierarchy import Hierarchy
 from solvers.base import ERROR, OPTIMAL, Solver, SolveResult
 from solvers.registry import SolverInfo
 
-__all__ = ["RANK_RTOL", "WIDEN_RTOL", "ReferenceSolver", "cascade_reference", "nullspace_reference",
+__all__ = ["RANK_RTOL", "UNITS_MIN", "WIDEN_RTOL", "ReferenceSolver", "cascade_reference", "nullspace_reference",
            "reference_solution"]
 
 RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
@@ -57,6 +58,9 @@ _FEAS_RTOL = 1e-11  #: feasibility slack allowed to a polished point (relative, 
 #: widenings of the frozen inequality bounds (relative to each row's scale) tried, in order, on a
 #: stage no backend solved; the last is _ACTIVE_RTOL: polishing reads rows that close as active anyway
 WIDEN_RTOL = (1e-9, _ACTIVE_RTOL)
+#: a problem whose bounds all lie within this of the origin (in units of x) is solved in units that
+#: bring the farthest to [1, 2) (:func:`cascade_reference`); problems beyond it are left bit for bit
+UNITS_MIN = 1.0
 
 
 class ReferenceError(HikbenchError):
@@ -345,6 +349,23 @@ def _freeze(A_k, lo_k, up_k, x):
     return w, np.where(w != 0, achieved, lo_k), np.where(w != 0, achieved, up_k)
 
 
+def _units(h: Hierarchy) -> float:
+    """1, or the power of 2 f that brings ``d = max_i |bound_i| / ||a_i||``
+    (finite bounds, nonzero rows: the largest distance of a bound's
+    hyperplane from the origin, in units of x) into [1, 2) when ``d <
+    UNITS_MIN``."""
+    norms = np.linalg.norm(h.A, axis=1)
+    rows = norms > 0
+    d = 0.0
+    for b in (h.lower, h.upper):
+        ok = rows & np.isfinite(b)
+        if ok.any():
+            d = max(d, float(np.max(np.abs(b[ok]) / norms[ok])))
+    if not 0.0 < d < UNITS_MIN:
+        return 1.0
+    return float(np.ldexp(1.0, min(1 - np.frexp(d)[1], 1021)))
+
+
 def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
     """Minimum-norm lexicographic solution of any hierarchy.
 
@@ -355,6 +376,15 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
     no backend solves a stage, not even on widened bounds with a certified
     polished point (:func:`_stage`).
 
+    The QPs' tolerances and the regularisation ``_Y_REG`` are absolute: a
+    problem whose bounds all lie within ``UNITS_MIN`` of the origin (in x,
+    see :func:`_units`) is solved with its bounds times a power of 2 (exact)
+    that brings the farthest to [1, 2), then x and the slacks divided by it
+    (``info["bounds_scaled_by"]``). The problem is homogeneous in (x,
+    bounds): the same minimisers. With bounds x 1e-6 .. 1e-9 (IK-like and
+    random mixed, seeds 0-9) the reference was above the exact optimum at a
+    level on 20 of 20 problems, by up to 14 times the level's size.
+
     A level frozen at its polished (exact) optimum can leave the next stage a
     feasible set with no interior to round-off, a sliver no backend solves
     (seen on a humanoid's step: ~1e-6 wide after 21 equalities, a level of
@@ -362,6 +392,12 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
     tried once more with that level frozen at its QP's own point instead,
     within the QP's tolerances of the optimum; the level is then recorded
     unpolished, its backend label saying why."""
+    f = _units(h)
+    if f != 1.0:
+        x, info = cascade_reference(h.with_bounds(h.lower * f, h.upper * f))
+        info["slack"] = [w / f for w in info["slack"]]
+        info["bounds_scaled_by"] = f
+        return x / f, info
     n = h.n
     levels = [(h.A[s], h.lower[s], h.upper[s]) for s in map(h.level_rows, range(h.depth))]
     frozen: list[tuple[np.ndarray, np.ndarray]] = []  # (lower, upper) of each level above
