@@ -331,12 +331,31 @@ class Family:
     defaults: dict = field(default_factory=dict)
     sweep: dict = field(default_factory=dict)
 
+    def __post_init__(self):
+        # every family takes bound_scale (see generate); its default is in defaults, for the CLI
+        object.__setattr__(self, "defaults", {**self.defaults, "bound_scale": 1.0})
+
     def generate(self, seed: int = 0, **params) -> Hierarchy:
+        """The family's problem for ``seed`` and ``params`` (the defaults for
+        the others). ``bound_scale`` (every family, default 1) multiplies every
+        bound, equality targets included: the problem in other units of x,
+        whose lexicographic optima are the scaled ones (the problem is
+        homogeneous in (x, bounds)). Small scales test a solver's absolute
+        tolerances."""
         unknown = sorted(set(params) - set(self.defaults))
         if unknown:
             raise HikbenchError(f"family {self.name!r}: unknown parameter(s) {unknown}; "
                                 f"expected some of {sorted(self.defaults)}")
-        return self.make(seed=seed, **{**self.defaults, **params})
+        params = {**self.defaults, **params}
+        scale = params.pop("bound_scale")
+        if isinstance(scale, (bool, np.bool_)) or not isinstance(scale, (int, np.integer, float, np.floating)) \
+                or not 0 < scale < np.inf:
+            raise HikbenchError(f"family {self.name!r}: bound_scale must be a finite number > 0 (it multiplies "
+                                f"every bound); got {scale!r}")
+        h = self.make(seed=seed, **params)
+        if scale != 1.0:
+            h = h.with_bounds(h.lower * scale, h.upper * scale)
+        return h
 
 
 FAMILIES: dict[str, Family] = {f.name: f for f in (

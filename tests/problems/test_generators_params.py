@@ -3,6 +3,7 @@
 
 import warnings
 
+import numpy as np
 import pytest
 
 from problems.errors import HikbenchError
@@ -52,3 +53,25 @@ def test_family_seeds_and_sizes(make, message):
 def test_edge_values_still_generate(params):
     h = random_hierarchy(6, 2, 3, box=True, **params)
     assert h.n == 6 and h.depth == 3
+
+
+@pytest.mark.parametrize("family, params", [("ik-like", {"n": 8}), ("random", {"n": 6}), ("equality", {"n": 6}),
+                                            ("degenerate", {"case": "free_rows"})],
+                         ids=["ik-like", "random", "equality", "degenerate"])
+def test_bound_scale_multiplies_every_bound(family, params):
+    """Every family takes ``bound_scale``: the same rows, every bound (equality targets too)
+    times it; the default is 1 (the problem unchanged)."""
+    h = generate(family, seed=3, **params)
+    assert generate(family, seed=3, bound_scale=1.0, **params) == h
+    hs = generate(family, seed=3, bound_scale=1e-9, **params)
+    np.testing.assert_array_equal(hs.A, h.A)
+    np.testing.assert_array_equal(hs.lower, h.lower * 1e-9)
+    np.testing.assert_array_equal(hs.upper, h.upper * 1e-9)
+
+
+@pytest.mark.parametrize("value", [0, -1.0, float("inf"), float("nan"), "small", True],
+                         ids=["zero", "negative", "inf", "nan", "string", "bool"])
+def test_bad_bound_scale(value):
+    with pytest.raises(HikbenchError, match=r"family 'ik-like': bound_scale must be a finite number > 0 "
+                                            r"\(it multiplies every bound\); got "):
+        generate("ik-like", bound_scale=value)
