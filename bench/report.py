@@ -231,6 +231,15 @@ def write_report(run_dir) -> Path:
                 "- = the solver declined every problem of the family)", ["solver", *families],
                 [[i, *[_percent(by.get((i, f), pd.Series(dtype=bool))) for f in families]] for i in labels])
 
+    # the units suite: the same problems with every bound times bound_scale (a family parameter)
+    scales = supported["params"].map(lambda p: float(json.loads(p or "{}").get("bound_scale", 1.0)))
+    if scales.ne(1.0).any():
+        cols = sorted(scales.unique(), reverse=True)
+        by = {k: g["verified"].eq(True) for k, g in supported.assign(bs=scales).groupby(["label", "bs"])}
+        L += _table("Verified success rate per solver and bound_scale (every bound times it: the same problems "
+                    "in other units of x; unsupported rows left out)", ["solver", *[f"x {c:g}" for c in cols]],
+                    [[i, *[_percent(by.get((i, c), pd.Series(dtype=bool))) for c in cols]] for i in labels])
+
     for mode in ("cold", "warm"):
         in_mode = df[df["mode"] == mode]
         unsup = in_mode[in_mode["status"] == "unsupported"]

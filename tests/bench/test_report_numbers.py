@@ -63,6 +63,35 @@ def test_verified_percent_leaves_unsupported_rows_out(declining_run, capsys):
     assert fam["reference"]["ik-like"] == "100%"
 
 
+UNITS_SUITE = """repeat = 1
+warmup = 0
+timeout = 20.0
+modes = ["cold", "warm"]
+accuracy = "relative"
+solvers = ["hcod", "cascade-clarabel", "nullspace-svd"]
+[[problems]]
+family = "ik-like"
+params = { n = 6 }
+grid = { bound_scale = [1.0, 1e-9] }
+seeds = [0, 1]
+"""
+
+
+@pytest.mark.filterwarnings("error")
+def test_verified_per_bound_scale_when_a_run_has_one(declining_run, tmp_path):
+    """A run whose problems carry ``bound_scale`` (the units suite) gets a table of verified
+    rates per solver and scale; a run without one does not."""
+    (tmp_path / "s.toml").write_text(UNITS_SUITE)
+    assert main(["run", "--quiet", "--suite", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 0
+    assert main(["report", str(tmp_path / "out")]) == 0
+    units = _table((tmp_path / "out" / "report.md").read_text(), "Verified success rate per solver and bound_scale")
+    assert units["hcod"]["x 1"] == units["hcod"]["x 1e-09"] == "100%"  # 2 seeds x cold, warm
+    assert all(units["cascade-clarabel"][c].endswith("%") for c in ("x 1", "x 1e-09"))
+    assert units["nullspace-svd"]["x 1e-09"] == "-"  # (declines inequalities)
+    assert main(["report", str(declining_run)]) == 0
+    assert "per solver and bound_scale" not in (declining_run / "report.md").read_text()
+
+
 @pytest.mark.filterwarnings("error")
 def test_report_with_bogus_times_and_timeouts(declining_run, tmp_path, capsys):
     """Negative times (an external program's -1) and all-failed problems: no RuntimeWarning."""
