@@ -45,13 +45,15 @@ def _integer(v, label: str) -> int:
     return int(v)
 
 
-def _number(v, label: str, low: float, what: str = "", high: float = np.inf) -> float:
-    """v as a finite float in [low, high]; HikbenchError naming ``label``
-    otherwise (a string, True, NaN, inf, or a value outside the interval)."""
+def _number(v, label: str, low: float, what: str = "", high: float = np.inf, low_open: bool = False) -> float:
+    """v as a finite float in [low, high] (``(low, high]`` when ``low_open``);
+    HikbenchError naming ``label`` otherwise (a string, True, NaN, inf, or a
+    value outside the interval)."""
     if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer, float, np.floating)) \
-            or not np.isfinite(v) or not low <= v <= high:
+            or not np.isfinite(v) or not low <= v <= high or (low_open and v == low):
         bound = f" and <= {high:g}" if np.isfinite(high) else ""
-        raise HikbenchError(f"{label} must be a finite number >= {low:g}{bound}{what}; got {v!r}")
+        raise HikbenchError(f"{label} must be a finite number {'>' if low_open else '>='} {low:g}{bound}{what}; "
+                            f"got {v!r}")
     return float(v)
 
 
@@ -347,11 +349,8 @@ class Family:
             raise HikbenchError(f"family {self.name!r}: unknown parameter(s) {unknown}; "
                                 f"expected some of {sorted(self.defaults)}")
         params = {**self.defaults, **params}
-        scale = params.pop("bound_scale")
-        if isinstance(scale, (bool, np.bool_)) or not isinstance(scale, (int, np.integer, float, np.floating)) \
-                or not 0 < scale < np.inf:
-            raise HikbenchError(f"family {self.name!r}: bound_scale must be a finite number > 0 (it multiplies "
-                                f"every bound); got {scale!r}")
+        scale = _number(params.pop("bound_scale"), f"family {self.name!r}: bound_scale", 0,
+                        " (it multiplies every bound)", low_open=True)
         h = self.make(seed=seed, **params)
         if scale != 1.0:
             h = h.with_bounds(h.lower * scale, h.upper * scale)

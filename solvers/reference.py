@@ -358,13 +358,12 @@ def _units(h: Hierarchy) -> float:
     its largest to 1 left the reference at bounds x 1e-6 above the optimum
     again (humanoid_reach seed 0: level 0 at 1.7e-8 of its size, the levels
     below lower than they can be)."""
-    norms = np.linalg.norm(h.A, axis=1)
-    rows = norms > 0
-    d = [np.abs(b[ok]) / norms[ok] for b in (h.lower, h.upper) for ok in [rows & np.isfinite(b) & (b != 0)]]
-    d = np.concatenate(d)
-    if d.size == 0:
+    b = np.concatenate([h.lower, h.upper])
+    norms = np.tile(np.linalg.norm(h.A, axis=1), 2)
+    ok = (norms > 0) & np.isfinite(b) & (b != 0)
+    if not ok.any():
         return 1.0
-    med = float(np.median(d))
+    med = float(np.median(np.abs(b[ok]) / norms[ok]))
     if not 0.0 < med < UNITS_MIN:
         return 1.0
     return float(np.ldexp(1.0, min(1 - np.frexp(med)[1], 1021)))
