@@ -15,7 +15,9 @@ the projected level of eq. 19), shape (m_k, n). Then
    r < m_k, least squares);
 4. ``p += r``; the level's reflectors stay in its rows. They are applied to
    the rows of a level below only when that level is reached with ``nf > 0``
-   (lazily), so levels after saturation cost nothing.
+   (lazily), so levels after saturation cost nothing; four at a time on long
+   rows (``QUAD_MIN``), with the products of each four reflectors computed once
+   per level (:func:`._linalg.quad_gram`), and two at a time on short ones.
 
 At the end ``x = H^(0) ... H^(N-1) xi``. Cost per level: the reflectors of
 the levels above applied once to the level's rows, i.e. ``2 m_k sum_j r_j
@@ -34,8 +36,12 @@ from solvers.hcod._linalg import (
     FASTMATH,
     householder,
     level_scale,
+    quad_gram,
     reflect_pair,
     reflect_pair4,
+    reflect_quad,
+    reflect_quad2,
+    reflect_quad4,
     reflect_rows,
     unowned,
     vdot,
@@ -46,10 +52,15 @@ __all__ = ["eq_solve"]
 
 
 _FM = set(FASTMATH)
+#: the reflectors of a level above are applied four at a time to rows of at least this many
+#: columns (:func:`._linalg.reflect_quad4`: equality n=120 8x12, in-process minima summed over
+#: seeds 0-4, 54.2 -> 43.4 us per seed), two at a time below (shorter rows lose to the four-way
+#: loop's set-up: n=36 6x6 7.9 -> 8.9 us with four at a time from 16 columns)
+QUAD_MIN = 40
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
+def eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl):
     """Minimum-norm lexicographic solution of ``A_k x = e_k``, k = 0..N-1.
 
     Parameters
@@ -57,6 +68,8 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
     A : (m, n) rows, level k = ``starts[k]:starts[k+1]``; e : (m,) targets.
     At : (m, n) scratch (the rotated rows, then the reflectors).
     beta, cn : (m,) scratch (reflector scalars, pivot norms).
+    gm : (m, 6) scratch (the products of each four reflectors of a level,
+    :func:`._linalg.quad_gram`, in the row of the first).
     xi, x : (n,) scratch / output (x is the solution).
     lev_p, lev_r, itl : (N,) int scratch / output (p and rank of each level,
     iterations = 1 per nonempty level).
@@ -105,7 +118,10 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
             pj = lev_p[j]
             rj = lev_r[j]
             t = 0
-            while t + 2 <= rj:  # two reflectors at a time (fewer loads per multiply-add)
+            if n - pj >= QUAD_MIN:  # four reflectors at a time while the rows are long
+                t, f = _apply_quads(At, beta, gm, starts[j], rj, pj, s0, s1)
+                fl += f
+            while t + 2 <= rj:  # two reflectors at a time
                 it = starts[j] + t
                 c0 = pj + t
                 v1 = At[it, c0:]
@@ -195,6 +211,16 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
             xi[p + t] = x[t]
         for c in range(p + r, n):
             xi[c] = 0.0
+        # the coupling products of the level's reflectors, four at a time (reflect_quad)
+        for t in range(0, r - 3, 4):
+            it = s0 + t
+            c0 = p + t
+            if n - c0 < QUAD_MIN:
+                break
+            g = quad_gram(At[it, c0:], At[it + 1, c0 + 1:], At[it + 2, c0 + 2:], At[it + 3, c0 + 3:])
+            for l in range(6):
+                gm[it, l] = g[l]
+            fl += 6 * (n - c0 - 3) + 4
         lev_r[k] = r
         p += r
     # x = H^(0) ... H^(N-1) xi
@@ -211,6 +237,41 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl):
         if not math.isfinite(x[c]):
             return -1
     return fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _apply_quads(At, beta, gm, it0, rj, pj, s0, s1):
+    """The reflectors of a level above (rows ``it0:it0+rj`` of At, the first
+    at column pj) applied four at a time (:func:`._linalg.reflect_quad4`) to
+    the rows ``s0:s1`` while at least ``QUAD_MIN`` columns are left. Returns
+    (the number applied, multiply-adds). (Not inlined: in eq_solve's body
+    these loops cost the short rows of n = 36 7 % whether they ran or not.)"""
+    At = unowned(At)
+    n = At.shape[1]
+    mk = s1 - s0
+    fl = 0
+    t = 0
+    while t + 4 <= rj and n - pj - t >= QUAD_MIN:
+        it = it0 + t
+        c0 = pj + t
+        v1 = At[it, c0:]
+        v2 = At[it + 1, c0 + 1:]
+        v3 = At[it + 2, c0 + 2:]
+        v4 = At[it + 3, c0 + 3:]
+        bq = (beta[it], beta[it + 1], beta[it + 2], beta[it + 3])
+        gq = (gm[it, 0], gm[it, 1], gm[it, 2], gm[it, 3], gm[it, 4], gm[it, 5])
+        i = s0
+        while i + 4 <= s1:
+            reflect_quad4(bq, gq, v1, v2, v3, v4, At[i, c0:], At[i + 1, c0:], At[i + 2, c0:], At[i + 3, c0:])
+            i += 4
+        if i + 2 <= s1:
+            reflect_quad2(bq, gq, v1, v2, v3, v4, At[i, c0:], At[i + 1, c0:])
+            i += 2
+        if i < s1:
+            reflect_quad(bq, gq, v1, v2, v3, v4, At[i, c0:])
+        fl += 2 * mk * (4 * (n - c0) - 6)
+        t += 4
+    return t, fl
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -274,10 +335,11 @@ def eq_run(A, e, starts, rank_rtol):
     At = buf[a0:a0 + m * n].reshape((m, n))
     beta = np.empty(m)
     cn = np.empty(m)
+    gm = np.empty((m, 6))
     xi = np.empty(n)
     x = np.empty(n)
     lev_p = np.empty(D, np.int64)
     lev_r = np.empty(D, np.int64)
     itl = np.empty(D, np.int64)
-    fl = eq_solve(A, e, starts, rank_rtol, At, beta, cn, xi, x, lev_p, lev_r, itl)
+    fl = eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl)
     return x, itl, fl

@@ -101,7 +101,9 @@ def test_bad_options(option, value, expected):
 
 @pytest.mark.parametrize("n, depth, rows, rank", [
     (36, 6, 6, None), (50, 5, 8, None), (12, 8, 3, None), (36, 24, 6, None), (20, 4, 6, 3), (7, 3, 5, 2),
-], ids=["36x6x6", "50x5x8", "saturated-12x8x3", "saturated-36x24x6", "rank3-of-6", "tiny-rank2"])
+    (120, 8, 12, None), (64, 5, 7, None), (80, 4, 13, 9),
+], ids=["36x6x6", "50x5x8", "saturated-12x8x3", "saturated-36x24x6", "rank3-of-6", "tiny-rank2",
+        "120x8x12", "64x5x7-odd-rows", "80x4x13-rank9"])
 def test_equality_stack_min_norm(n, depth, rows, rank):
     for seed in range(3):
         h = G.equality_stack(n, depth, rows, seed=seed, rank=rank)

@@ -187,3 +187,41 @@ def test_solve_upper_solves_the_leading_triangle(p, n):
     solve_upper(R, p, h, x)
     np.testing.assert_allclose(x[:p], expected, rtol=1e-12, atol=1e-12)
     assert np.isnan(x[p:]).all()
+
+
+# -- four reflectors of a level applied at once (the equality recursion, _equality.py) -----------
+
+def _level_reflectors(L: int, seed: int):
+    """Four consecutive Householder reflectors ``I - b_i v_i v_i^T`` of a QR,
+    v_i starting i columns after v_0 (as they sit in a level's rows), as full
+    vectors of length L and as the views the kernels take."""
+    rng = np.random.default_rng(seed)
+    V = np.zeros((4, L))
+    b = np.zeros(4)
+    for i in range(4):
+        v = rng.standard_normal(L - i)
+        V[i, i:] = v
+        b[i] = 2.0 / (v @ v)
+    return V, b
+
+
+@pytest.mark.parametrize("L", [4, 5, 11, 40, 97], ids=lambda L: f"L{L}")
+@pytest.mark.parametrize("rows", [1, 2, 4], ids=lambda r: f"{r}-rows")
+def test_four_reflectors_at_once_equal_four_in_turn(L, rows):
+    """reflect_quad / quad2 / quad4 give H4 H3 H2 H1 x of each row, with the
+    coupling products of quad_gram (the products of the reflectors' tails)."""
+    from solvers.hcod._linalg import quad_gram, reflect_quad, reflect_quad2, reflect_quad4
+
+    V, b = _level_reflectors(L, seed=L * rows)
+    X = np.random.default_rng(rows).standard_normal((rows, L))
+    expected = X.copy()
+    for i in range(4):
+        expected -= b[i] * np.outer(expected @ V[i], V[i])
+    views = [V[i, i:].copy() for i in range(4)]
+    g = quad_gram(*views)
+    np.testing.assert_allclose(g, [V[1] @ V[0], V[2] @ V[0], V[2] @ V[1], V[3] @ V[0], V[3] @ V[1], V[3] @ V[2]],
+                               rtol=1e-13, atol=1e-13)
+    Y = X.copy()
+    fn = {1: reflect_quad, 2: reflect_quad2, 4: reflect_quad4}[rows]
+    fn(tuple(b), g, *views, *Y)
+    np.testing.assert_allclose(Y, expected, rtol=0, atol=ATOL)
