@@ -53,10 +53,11 @@ __all__ = ["eq_solve"]
 
 _FM = set(FASTMATH)
 #: the reflectors of a level above are applied four at a time to rows of at least this many
-#: columns (:func:`._linalg.reflect_quad4`: equality n=120 8x12, in-process minima summed over
-#: seeds 0-4, 54.2 -> 43.4 us per seed), two at a time below (shorter rows lose to the four-way
-#: loop's set-up: n=36 6x6 7.9 -> 8.9 us with four at a time from 16 columns)
-QUAD_MIN = 40
+#: columns (:func:`._linalg.reflect_quad4`: equality n=120 8x12 in `hikbench run`, hcod alone,
+#: alternated with the two-at-a-time loops: 57.4-59.4 -> 47.7-48.8 us), two at a time below:
+#: from 40 columns n=50 5x8 read 12.3-13.3 us against 12.2-12.3, from 16 columns n=36 6x6 7.9
+#: -> 8.9 us in-process (shorter rows lose to the four-way loops' set-up)
+QUAD_MIN = 56
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
