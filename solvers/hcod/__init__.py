@@ -154,7 +154,10 @@ Result
     No exception escapes for a valid problem.
 
 Compiled with numba (nopython, ``cache=True``); nothing compiles at import:
-the first solve (or :func:`warmup`) compiles or loads the cache. One
+the first solve (or :func:`warmup`) compiles or loads the cache, whose
+entries are valid while every ``solvers/hcod/*.py`` file but this one is
+unchanged (:mod:`._cache`; numba alone looks only at the file of the
+function it caches, not at the helpers compiled into it). One
 compiled call per solve (plus one to scale a new hierarchy), on workspaces
 kept in the solver object; the kernels see them as unowned arrays (no
 reference counting of their views, :func:`._linalg.unowned`) and test every

@@ -38,7 +38,11 @@ from __future__ import annotations
 
 from numba import njit
 
-from solvers.hcod import _explicit, _factored
+from solvers.hcod import (
+    _cache,  # noqa: F401  (before any @njit: cache stamps over every hcod file)
+    _explicit,
+    _factored,
+)
 from solvers.hcod._factored import Q_ID
 from solvers.hcod._linalg import FASTMATH
 

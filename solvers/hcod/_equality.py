@@ -32,6 +32,7 @@ import math
 import numpy as np
 from numba import njit
 
+from solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
 from solvers.hcod._linalg import (
     FASTMATH,
     householder,

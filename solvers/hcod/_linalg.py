@@ -20,6 +20,8 @@ from numba import njit, types
 from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
 
+from solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
+
 #: fast-math flags of every kernel: reassociation (vectorised reductions) and FMA
 #: contraction; no "nnan"/"ninf" (the kernels test finiteness)
 FASTMATH = frozenset({"reassoc", "contract", "nsz", "arcp"})
