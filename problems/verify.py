@@ -46,13 +46,38 @@ def violation(h: Hierarchy, x) -> np.ndarray:
     return v
 
 
+def _group_norms(values: np.ndarray, groups: np.ndarray, count: int) -> np.ndarray:
+    """2-norm of ``values[groups == g]`` for g < count, each scaled by its
+    largest entry before squaring (``m ||v / m||``): no overflow above 1e154
+    nor underflow below 1e-154, where the plain sum of squares gave inf or
+    0 (a problem at bounds x 1e-300 then had every answer's norms 0, a wrong
+    one passing as the reference). NaN stays NaN, inf stays inf, an empty
+    group is 0."""
+    a = np.abs(values)
+    m = np.zeros(count)
+    with np.errstate(invalid="ignore"):
+        np.maximum.at(m, groups, a)  # (np.maximum propagates NaN)
+    mg = m[groups]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = np.where(mg > 0, a / mg, 0.0)
+        out = m * np.sqrt(np.bincount(groups, weights=q * q, minlength=count))
+    out[np.isposinf(m)] = np.inf
+    return out
+
+
+def _norm(v) -> float:
+    """2-norm of the entries of v (any shape), scaled as :func:`_group_norms`."""
+    v = np.asarray(v, dtype=float).ravel()
+    return float(_group_norms(v, np.zeros(v.size, dtype=np.intp), 1)[0])
+
+
 def level_norms(h: Hierarchy, x) -> np.ndarray:
     """``(||v_0(x)||_2, ..., ||v_{N-1}(x)||_2)``, shape (depth,); 0 for an
-    empty level. From the squares: violations below ~1e-154 underflow, so
-    a problem wholly at that scale (bounds x 1e-300) cannot be judged in its
-    own units."""
+    empty level. Each level's violations are scaled by their largest before
+    squaring (:func:`_group_norms`), so a problem at any scale the doubles
+    hold is judged in its own units."""
     v = violation(h, x)
-    return np.sqrt(np.bincount(h.level, weights=v * v, minlength=h.depth))
+    return _group_norms(v, h.level, h.depth)
 
 
 def level_scales(h: Hierarchy, x=None) -> np.ndarray:
@@ -70,13 +95,13 @@ def level_scales(h: Hierarchy, x=None) -> np.ndarray:
     the bounds and both x by one factor scales the tolerance alike.
     ``atol`` of :func:`verify` is the one absolute part of a tolerance.
     """
-    xn = 0.0 if x is None else float(np.linalg.norm(np.asarray(x, dtype=float)))
+    xn = 0.0 if x is None else _norm(x)
     out = np.zeros(h.depth)
     for k in range(h.depth):
         s = h.level_rows(k)
         b = np.concatenate([h.lower[s], h.upper[s]])
         b = b[np.isfinite(b)]
-        out[k] = np.linalg.norm(h.A[s]) * xn + np.linalg.norm(b)
+        out[k] = _norm(h.A[s]) * xn + _norm(b)
     return out
 
 

@@ -106,6 +106,36 @@ def test_verdicts_do_not_depend_on_the_units(h, data, e):
         assert vs.difference == v.difference * f
 
 
+@pytest.mark.parametrize("e", [-990, -600, 600, 900], ids=lambda e: f"2^{e}")
+def test_verdicts_at_the_ends_of_the_double_range(e):
+    """The same, deterministic, at exponents where the squares of the violations leave the
+    doubles (below 2^-512 or above 2^512): the norms are taken scaled by each level's largest
+    violation, so they and the verdicts scale exactly. From plain sums of squares, every level
+    norm was 0 at 2^-600 (a wrong answer passed as the reference) and inf at 2^600."""
+    from problems.generators import ik_like
+
+    h = ik_like(12, seed=3)
+    rng = np.random.default_rng(0)
+    f = 2.0 ** e
+    hs = h.with_bounds(h.lower * f, h.upper * f)
+    for trial in range(20):
+        x, x_ref = rng.standard_normal(h.n) * 0.3, rng.standard_normal(h.n) * 0.3
+        np.testing.assert_array_equal(level_norms(hs, x * f), level_norms(h, x) * f)
+        v, vs = verify(h, x, x_ref, rtol=1e-9), verify(hs, x * f, x_ref * f, rtol=1e-9)
+        assert v.level is not None, f"trial {trial}: two random points judged equal"
+        assert (vs.level, vs.lower, vs.difference) == (v.level, v.lower, v.difference * f)
+
+
+def test_norms_keep_nan_and_inf():
+    h = Hierarchy.from_levels([Level.equality(np.eye(2), [0.0, 0.0]), Level.equality(np.ones((1, 2)), [1.0])])
+    assert np.isnan(level_norms(h, [np.nan, 0.0])).all()
+    with np.errstate(over="ignore"):  # (A x overflows at level 1)
+        big = level_norms(h, [1e308, 1e308])
+    np.testing.assert_allclose(big[0], np.sqrt(2) * 1e308, rtol=1e-15)  # its sum of squares overflowed
+    assert big[1] == np.inf
+    np.testing.assert_allclose(level_norms(h, [3e200, 4e200]), [5e200, 7e200], rtol=1e-15)
+
+
 @pytest.mark.parametrize("scale", [1e-7, 1e-3, 1.0, 1e4], ids=["1e-7", "1e-3", "1", "1e4"])
 def test_a_small_scaled_level_left_undone_is_worse(scale):
     """[scale (x1 + x2) = scale] > [x = 0]: x = 0 leaves level 0 undone by its whole target and is
