@@ -34,8 +34,8 @@ __all__ = ["PACKAGE_DIR", "install", "sources_digest"]
 
 PACKAGE_DIR = Path(__file__).resolve().parent
 
-# numba >= 0.63 names it CacheImpl (numba 0.59-0.62: _CacheImpl); its list of locator
-# classes is where every cached function looks for its locator, first that applies
+# numba's class that picks a cached function's locator: CacheImpl in the numba installed here
+# (0.68), _CacheImpl in older releases; the first class of its list that applies is used
 _IMPL = getattr(caching, "CacheImpl", None) or caching._CacheImpl
 
 
