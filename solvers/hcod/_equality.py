@@ -41,7 +41,6 @@ from solvers.hcod._linalg import (
     reflect_pair,
     reflect_pair4,
     reflect_quad,
-    reflect_quad2,
     reflect_quad4,
     reflect_rows,
     unowned,
@@ -266,11 +265,9 @@ def _apply_quads(At, beta, gm, it0, rj, pj, s0, s1):
         while i + 4 <= s1:
             reflect_quad4(bq, gq, v1, v2, v3, v4, At[i, c0:], At[i + 1, c0:], At[i + 2, c0:], At[i + 3, c0:])
             i += 4
-        if i + 2 <= s1:
-            reflect_quad2(bq, gq, v1, v2, v3, v4, At[i, c0:], At[i + 1, c0:])
-            i += 2
-        if i < s1:
+        while i < s1:  # (the rows past a multiple of four: odd level sizes)
             reflect_quad(bq, gq, v1, v2, v3, v4, At[i, c0:])
+            i += 1
         fl += 2 * mk * (4 * (n - c0) - 6)
         t += 4
     return t, fl

@@ -326,46 +326,6 @@ def reflect_quad4(b, g, v1, v2, v3, v4, x, y, z, w):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def reflect_quad2(b, g, v1, v2, v3, v4, x, y):
-    """:func:`reflect_quad` on two row views together."""
-    ax1, ax2, ax3 = _quad_head(v1, v2, v3, x)
-    ay1, ay2, ay3 = _quad_head(v1, v2, v3, y)
-    ax4 = 0.0
-    ay4 = 0.0
-    v1s = v1[3:]
-    v2s = v2[2:]
-    v3s = v3[1:]
-    xs = x[3:]
-    ys = y[3:]
-    for c in range(v4.shape[0]):
-        e1 = v1s[c]
-        e2 = v2s[c]
-        e3 = v3s[c]
-        e4 = v4[c]
-        xc = xs[c]
-        yc = ys[c]
-        ax1 += e1 * xc
-        ax2 += e2 * xc
-        ax3 += e3 * xc
-        ax4 += e4 * xc
-        ay1 += e1 * yc
-        ay2 += e2 * yc
-        ay3 += e3 * yc
-        ay4 += e4 * yc
-    sx1, sx2, sx3, sx4 = _quad_coef(b, g, ax1, ax2, ax3, ax4)
-    sy1, sy2, sy3, sy4 = _quad_coef(b, g, ay1, ay2, ay3, ay4)
-    _quad_tail(v1, v2, v3, x, sx1, sx2, sx3)
-    _quad_tail(v1, v2, v3, y, sy1, sy2, sy3)
-    for c in range(v4.shape[0]):
-        e1 = v1s[c]
-        e2 = v2s[c]
-        e3 = v3s[c]
-        e4 = v4[c]
-        xs[c] -= sx1 * e1 + sx2 * e2 + sx3 * e3 + sx4 * e4
-        ys[c] -= sy1 * e1 + sy2 * e2 + sy3 * e3 + sy4 * e4
-
-
-@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def householder(v, nrm):
     """Turn ``v`` (norm ``nrm`` > 0) into the vector of the reflector
     ``I - bt v v^T`` that maps it to ``alpha e_1`` (sign chosen against
@@ -429,7 +389,6 @@ __all__ = [
     "reflect_pair",
     "reflect_pair4",
     "reflect_quad",
-    "reflect_quad2",
     "reflect_quad4",
     "reflect_rows",
     "row_dot",
