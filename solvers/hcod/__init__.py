@@ -154,10 +154,13 @@ Result
     No exception escapes for a valid problem.
 
 Compiled with numba (nopython, ``cache=True``); nothing compiles at import:
-the first solve (or :func:`warmup`) compiles or loads the cache, whose
-entries are valid while every ``solvers/hcod/*.py`` file but this one is
-unchanged (:mod:`._cache`; numba alone looks only at the file of the
-function it caches, not at the helpers compiled into it). One
+the first solve (or :func:`warmup`) loads the kernels from numba's cache,
+whose entries are valid while every ``solvers/hcod/*.py`` file but this one
+is unchanged (:mod:`._cache`; numba alone looks only at the file of the
+function it caches, not at the helpers compiled into it). When the cache
+lacks them, a child process compiles them (~90 s) and this one loads them:
+a process that compiled them itself would run other copies of their
+helpers and compute other last bits (:func:`._cache.load_kernels`). One
 compiled call per solve (plus one to scale a new hierarchy), on workspaces
 kept in the solver object; the kernels see them as unowned arrays (no
 reference counting of their views, :func:`._linalg.unowned`) and test every
@@ -180,9 +183,8 @@ WARM_STARTS = ("none", "stage", "time")
 _NAN = float("nan")  # (build_time_s, solve_time_s: not separated)
 _NONE = object()  # (matches no solve() argument, unlike None)
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
-_eq_run = None  # solvers.hcod._equality.eq_run, imported on the first solve (numba compiles then)
-_ineq = None  # (._kernel.hcod_solve, ._setup), imported on the first solve with inequalities
-_warmed = False  # warmup() done in this process
+_eq_run = None  # solvers.hcod._equality.eq_run, set by warmup() (the first solve calls it)
+_ineq = None  # (._kernel.hcod_solve, ._setup), set with it
 
 
 class HcodSolver(Solver):
@@ -258,7 +260,7 @@ class HcodSolver(Solver):
         st = h.starts.tolist()
         fresh = n != self._n or st != self._st  # (None before the first bind)
         if fresh:
-            self._shape(n, st)  # (the first one also imports the kernel into _ineq)
+            self._shape(n, st)
         fw, iw = self._ws
         f = _ineq[1].load(fw, iw, h.A, h.lower, h.upper, h.starts, self.min_norm, fresh)
         fbox = self._fbox
@@ -274,11 +276,8 @@ class HcodSolver(Solver):
         """Workspaces for a problem of n variables and levels ``starts = st``
         (:func:`._setup.workspaces`), and the closure ``self._run`` solving
         the problem loaded into them."""
-        global _ineq
         if _ineq is None:
-            from solvers.hcod import _setup
-            from solvers.hcod._kernel import hcod_solve
-            _ineq = (hcod_solve, _setup)
+            warmup()
         hcod_solve, setup = _ineq
         mn = self.min_norm  # (n > 0 here)
         depth = len(st) - 1
@@ -346,10 +345,9 @@ class HcodSolver(Solver):
         if hierarchy.n == 0 or hierarchy.rows == 0:
             return SolveResult(x=np.zeros(hierarchy.n), status=OPTIMAL, flops=0,
                                iterations_per_level=(0,) * hierarchy.depth)
-        global _eq_run
         if not hierarchy.has_inequalities:
             if _eq_run is None:
-                from solvers.hcod._equality import eq_run as _eq_run
+                warmup()
             self._eq_h = hierarchy
             return self._solve_equality(hierarchy)
         self._eq_h = _NONE
@@ -357,12 +355,38 @@ class HcodSolver(Solver):
 
 
 def warmup() -> None:
-    """Compile (or load from the numba cache) the kernels by solving two tiny
-    problems, one equality-only and one with inequalities; once per process
-    (the benchmark's worker calls it before every job)."""
-    global _warmed
-    if _warmed:
+    """Bring the kernels into this process, loaded from numba's cache (a
+    child process compiles them first when the cache lacks them:
+    :func:`._cache.load_kernels`), by solving two tiny problems, one
+    equality-only and one with inequalities: the same kernels in the same
+    order in every process, so that every process computes the same x to
+    the last bit. Once per process; the first solve calls it, and the
+    benchmark's worker before every job."""
+    global _eq_run, _ineq
+    if _ineq is not None:
         return
+    from solvers.hcod import _cache
+
+    _import_kernels()
+    try:
+        _cache.load_kernels(_tiny_solves, "import solvers.hcod as h; h._compile_kernels()")
+    except BaseException:
+        _eq_run = _ineq = None  # (not loaded: the next solve tries again)
+        raise
+
+
+def _import_kernels() -> None:
+    """The kernels' modules imported (nothing compiles or loads yet) and
+    bound to ``_eq_run`` and ``_ineq``."""
+    global _eq_run, _ineq
+    from solvers.hcod import _setup
+    from solvers.hcod._equality import eq_run
+    from solvers.hcod._kernel import hcod_solve
+
+    _eq_run, _ineq = eq_run, (hcod_solve, _setup)
+
+
+def _tiny_solves() -> None:
     from problems.hierarchy import Level
 
     h_eq = Hierarchy.from_levels([Level.equality(np.eye(2), np.ones(2))], n=2)
@@ -371,7 +395,13 @@ def warmup() -> None:
     s = HcodSolver()
     s.solve(h_eq)
     s.solve(h_in)
-    _warmed = True
+
+
+def _compile_kernels() -> None:
+    """What :func:`warmup`'s child process runs: the two tiny solves, which
+    compile the kernels here and write numba's cache."""
+    _import_kernels()
+    _tiny_solves()
 
 
 SOLVERS = [SolverInfo("hcod", HcodSolver.description, HcodSolver, supports_inequalities=True,

@@ -118,3 +118,64 @@ def test_a_change_in_a_helper_file_recompiles_its_caller(tmp_path, install):
     assert list((pkg / "__pycache__").glob("main.f-*.nbi")), "f was not cached"
     (pkg / "helper.py").write_text(textwrap.dedent(_HELPER.format(v=2)))
     assert _run(tmp_path, install) == (12 if install else 11)
+
+
+_LOAD = """
+import sys, warnings
+from pathlib import Path
+sys.path.insert(0, {root!r})
+sys.path.insert(0, {tmp!r})
+warnings.simplefilter("error")  # (a RuntimeWarning of load_kernels fails the run unless expected)
+if {expect_warning}:
+    warnings.simplefilter("always")
+from solvers.hcod._cache import install, load_kernels
+install(Path({tmp!r}) / "pkg")
+import pkg.main
+how = load_kernels(pkg.main.f, {child!r}, Path({tmp!r}) / "pkg")
+print(how, "|", sum(pkg.main.f.stats.cache_hits.values()), "|", pkg.main.f())
+"""
+
+
+def _load(tmp: Path, child: str, expect_warning: bool = False) -> tuple[list[str], str]:
+    code = _LOAD.format(root=str(ROOT), tmp=str(tmp), child=child, expect_warning=expect_warning)
+    out = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=300,
+                         env={"PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": ""}, cwd=tmp)
+    assert out.returncode == 0, out.stderr
+    return [w.strip() for w in out.stdout.strip().splitlines()[-1].split("|")], out.stderr
+
+
+@pytest.mark.parametrize("helper_first", [False, True], ids=["fresh", "helper-cached"])
+def test_load_kernels_compiles_in_a_child_and_loads(tmp_path, helper_first):
+    """A process whose cache lacks the kernels has a child compile them and
+    loads them from the cache (numba counts a cache hit); the next process
+    loads them at once. Nothing of the package is compiled in either."""
+    pkg = _package(tmp_path)
+    if helper_first:  # the helper alone in the cache: f still has to be compiled (by the child)
+        assert _run(tmp_path, install=True) == 11
+        for f in (pkg / "__pycache__").glob("main.f-*"):
+            f.unlink()
+    child = (f"from pathlib import Path; from solvers.hcod._cache import install; install(Path({str(pkg)!r})); "
+             f"import pkg.main; pkg.main.f()")  # (its sys.path: the parent's)
+    how, stderr = _load(tmp_path, child)
+    assert how == ["compiled by a child process", "1", "11"], stderr
+    how, stderr = _load(tmp_path, "raise SystemExit('the child must not run')")
+    assert how == ["loaded", "1", "11"], stderr
+
+
+def test_load_kernels_says_when_it_compiles_here(tmp_path):
+    """A child that leaves the cache without the kernels (here: it compiles
+    nothing) makes a RuntimeWarning, and the kernels are compiled here."""
+    _package(tmp_path)
+    how, stderr = _load(tmp_path, "pass", expect_warning=True)
+    assert how == ["compiled here", "0", "11"]
+    assert "RuntimeWarning" in stderr and "compiling them in this process" in stderr
+
+
+def test_load_kernels_reports_a_failing_child(tmp_path):
+    _package(tmp_path)
+    code = _LOAD.format(root=str(ROOT), tmp=str(tmp_path), child="import sys; sys.exit('no compiler today')",
+                        expect_warning=False)
+    out = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=300,
+                         env={"PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": ""}, cwd=tmp_path)
+    assert out.returncode != 0
+    assert "failed (exit status 1)" in out.stderr and "no compiler today" in out.stderr
