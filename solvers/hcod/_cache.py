@@ -30,9 +30,10 @@ compiles and loads callees as it types their caller) and runs those; a
 process that loads ``hcod_solve`` from the cache runs the copies inside its
 object, which LLVM optimised again with the caller (fastmath: other
 vectorisation, other rounding). The two gave x differing in up to 260 of
-300 entries by 4e-15 of ``|x|`` on IK-like problems, 1.3e-9 on an
-ill-conditioned one (forty-fourth and forty-fifth sessions, ``NOTES.md``);
-without fastmath they would agree, at 1.4-2.2x the time.
+300 entries by 4e-15 of ``|x|`` on IK-like problems, 1.6e-10 of ``|x|`` on
+an ill-conditioned one (forty-fourth and forty-fifth sessions, ``NOTES.md``).
+Without fastmath LLVM could not change the rounding, but that code took
+1.1-2.2x the time.
 """
 
 from __future__ import annotations

@@ -536,8 +536,8 @@ def test_every_process_computes_the_same_bits(tmp_path):
     kernels from numba's cache: solvers.hcod._cache.load_kernels). Before,
     a process that compiled them ran each non-inlined helper's own object,
     one that loaded them the copies inside the kernel's: x differed in up to
-    260 of 300 entries by 4e-15 of |x| on these IK-like problems, by 1.3e-9
-    on step_out_and_back (a test passing in one kind of process and failing
+    260 of 300 entries by 4e-15 of |x| on these IK-like problems, by 1.6e-10
+    of |x| on step_out_and_back (a test passing in one kind of process and failing
     in the other)."""
     import subprocess
     import sys
