@@ -10,7 +10,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solvers.hcod import warmup
 from solvers.hcod._basis import (
     LAZY_MIN_N,
     basis_head,
@@ -28,14 +27,7 @@ from solvers.hcod._basis import (
 from solvers.hcod._explicit import W_PERMUTED
 from solvers.hcod._factored import Q_ID, Q_M, QH, basis_row, flush, queue_sizes
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _kernels_loaded_first():
-    """hcod's kernels loaded before these tests bring in its helpers alone: a
-    kernel loaded after them would call the helpers' own objects, not the
-    copies inside it, and compute other last bits than in other processes
-    (solvers.hcod._cache.load_kernels)."""
-    warmup()
+pytestmark = pytest.mark.usefixtures("hcod_kernels_loaded_first")
 
 ATOL = 1e-11
 

@@ -11,17 +11,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from solvers.hcod import warmup
 from solvers.hcod._linalg import WEAK_PIVOT, apply_reflectors, cod, cod_append, solve_lower, solve_upper
 
-
-@pytest.fixture(autouse=True, scope="module")
-def _kernels_loaded_first():
-    """hcod's kernels loaded before these tests bring in its helpers alone: a
-    kernel loaded after them would call the helpers' own objects, not the
-    copies inside it, and compute other last bits than in other processes
-    (solvers.hcod._cache.load_kernels)."""
-    warmup()
+pytestmark = pytest.mark.usefixtures("hcod_kernels_loaded_first")
 
 ATOL = 1e-11
 THR = 1e-10
