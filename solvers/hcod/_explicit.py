@@ -216,13 +216,13 @@ def apply_reflectors_to_basis(Wt, qi, p, Mr, beta, r, sv, sv2):
         c = i + 1
         while c + 4 <= nf:  # four rows of Wt per pass over sv, sv2
             a0, a1, a2, a3 = v1[c], v1[c + 1], v1[c + 2], v1[c + 3]
-            b0, b1_, b2_, b3 = v2[c], v2[c + 1], v2[c + 2], v2[c + 3]
-            d12 += a0 * b0 + a1 * b1_ + a2 * b2_ + a3 * b3
+            q0, q1, q2, q3 = v2[c], v2[c + 1], v2[c + 2], v2[c + 3]
+            d12 += a0 * q0 + a1 * q1 + a2 * q2 + a3 * q3
             w0, w1, w2, w3 = Wt[p + c], Wt[p + c + 1], Wt[p + c + 2], Wt[p + c + 3]
             for e in range(n):
                 x0, x1, x2, x3 = w0[e], w1[e], w2[e], w3[e]
                 sv[e] += (a0 * x0 + a1 * x1) + (a2 * x2 + a3 * x3)
-                sv2[e] += (b0 * x0 + b1_ * x1) + (b2_ * x2 + b3 * x3)
+                sv2[e] += (q0 * x0 + q1 * x1) + (q2 * x2 + q3 * x3)
             c += 4
         while c < nf:
             a = v1[c]
@@ -241,15 +241,15 @@ def apply_reflectors_to_basis(Wt, qi, p, Mr, beta, r, sv, sv2):
         c = i + 1
         while c + 4 <= nf:
             a0, a1, a2, a3 = b1 * v1[c], b1 * v1[c + 1], b1 * v1[c + 2], b1 * v1[c + 3]
-            b0, b1_, b2_, b3 = b2 * v2[c], b2 * v2[c + 1], b2 * v2[c + 2], b2 * v2[c + 3]
+            q0, q1, q2, q3 = b2 * v2[c], b2 * v2[c + 1], b2 * v2[c + 2], b2 * v2[c + 3]
             w0, w1, w2, w3 = Wt[p + c], Wt[p + c + 1], Wt[p + c + 2], Wt[p + c + 3]
             for e in range(n):
                 s1 = sv[e]
                 s2 = sv2[e]
-                w0[e] -= a0 * s1 + b0 * s2
-                w1[e] -= a1 * s1 + b1_ * s2
-                w2[e] -= a2 * s1 + b2_ * s2
-                w3[e] -= a3 * s1 + b3 * s2
+                w0[e] -= a0 * s1 + q0 * s2
+                w1[e] -= a1 * s1 + q1 * s2
+                w2[e] -= a2 * s1 + q2 * s2
+                w3[e] -= a3 * s1 + q3 * s2
             c += 4
         while c < nf:
             a = b1 * v1[c]

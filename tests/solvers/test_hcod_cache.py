@@ -179,3 +179,15 @@ def test_load_kernels_reports_a_failing_child(tmp_path):
                          env={"PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": ""}, cwd=tmp_path)
     assert out.returncode != 0
     assert "failed (exit status 1)" in out.stderr and "no compiler today" in out.stderr
+
+
+def test_load_kernels_stops_a_child_past_its_timeout(tmp_path):
+    pkg = _package(tmp_path)
+    code = (f"import sys; sys.path[:0] = [{str(ROOT)!r}, {str(tmp_path)!r}]\n"
+            f"from pathlib import Path\nfrom solvers.hcod._cache import install, load_kernels\n"
+            f"install(Path({str(pkg)!r}))\nimport pkg.main\n"
+            f"load_kernels(pkg.main.f, 'import time; time.sleep(60)', Path({str(pkg)!r}), timeout=2)\n")
+    out = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=300,
+                         env={"PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": ""}, cwd=tmp_path)
+    assert out.returncode != 0
+    assert "took more than 2 s; it was killed" in out.stderr, out.stderr
