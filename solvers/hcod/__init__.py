@@ -112,10 +112,16 @@ Warm start (sec. XI), option ``warm_start``
     back to O(1)) is done once more cold (``info["cold_after_warm"]``; the
     counters add both passes): the steps back cancel and leave ``eps
     ||u_hat||`` along the working rows, a violation of the levels above.
-    The same within a solve, in any mode: a level's optimum u_k with
+    Within a solve, in any mode: an LSE step through a weak pivot of the
+    level's COD (19) (within 10x of the rank threshold: a direction of
+    ``J_k Z`` that may be rounding, a level in the span of the rows above)
+    that is taken past ``1e6 (1 + ||u||)`` (``tau ||p||``, after the blocking
+    rows) leaves out the pivots from that one on, and its step length is found
+    again (``info["weak_pivots_cut"]``, the number of such cuts): its
+    rounding, ``eps`` times the step along the working rows, would violate
+    the levels above. And a level's optimum u_k with
     ``||u|| > 1e6 (1 + ||u_k||)`` at an earlier point of this level or one
-    above (an LSE step along a pivot of ``J_k Z`` that is rounding just above
-    the rank threshold, taken back below) has the solve done again cold, each
+    above (a step out and back) has the solve done again cold, each
     LSE step below working rows cut to ``1e6 (1 + ||u||)`` by leaving out the
     pivots from the first that takes it past (``info["steps_capped"]``; the
     counters add both passes). The cut level is left where its solvable
@@ -311,6 +317,8 @@ class HcodSolver(Solver):
                 info["cold_after_warm"] = True
             if o[8]:
                 info["steps_capped"] = True
+            if o[9]:
+                info["weak_pivots_cut"] = o[9]
             x = xv.copy()
             f = fbox[0]
             if f != 1.0:

@@ -79,7 +79,7 @@ _FM = set(FASTMATH)
 INACTIVE, WORK, IMPLIED, OBJECTIVE, DEPENDENT = 0, 1, 2, 3, 4
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
-O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_COLD, O_CAPPED = range(9)
+O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_COLD, O_CAPPED, O_WEAKCUT = range(10)
 G_ROUNDING = 1e-2  #: a row's rounding in the noise floor of g, a fraction of its _floor (1e-15)
 BLAND_AFTER = 32  #: consecutive iterations that leave u where it is before the anti-cycling rule takes over
 #: a ``time`` re-solve is done again cold when a level's optimum u_k has ``||u_hat|| > COLD_AFTER_WARM
@@ -91,6 +91,14 @@ COLD_AFTER_WARM = 1e6
 #: back by a level below or the min-norm stage) left eps ||u|| along the working rows. The solve is
 #: done again cold with each LSE step below working rows cut to ``CANCELLED (1 + ||u||)``
 CANCELLED = COLD_AFTER_WARM
+#: a pivot of a level's COD (19) within this factor of the rank threshold is weak: its direction in
+#: Z may be rounding (a level in the span of the rows above, projected on Z just above the
+#: threshold). In a solve's first pass an LSE step that goes through a weak pivot past
+#: ``CANCELLED (1 + ||u||)`` *and is taken that far* (tau ||ps||, after the blocking rows) leaves
+#: out the pivots from that one on, and its step length is found again
+#: (``info["weak_pivots_cut"]``). A level whose huge optimum is real (rows of norm 1e-11, full rank
+#: at their own scale) has pivots of order its own norm, far from the threshold.
+WEAK_PIVOT = 10.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -264,6 +272,7 @@ def hcod_solve(fw, iw):
     warm_failed = 0
     cold_again = 0
     capped = 0
+    wcut = 0
     itl[:] = 0
     for attempt in range(2):  # (a block, left by break; a second pass: cold_again or capped below)
         use_hist = warm == 2 and attempt == 0
@@ -560,6 +569,8 @@ def hcod_solve(fw, iw):
                     for j in range(nO):
                         piv[j] = j
                 cod_done = False
+                wc = -1  # (a weak pivot the LSE step crosses CANCELLED at, see below)
+                ycap = 0.0
                 if has_ineq and nf > 0 and nO == n and levid[k] != 0:
                     # identity-like level: J_k Z = D S Z has orthogonal columns (S a permutation,
                     # D = d I), so the LSE solution of eq. (28) is z = (J_k Z)^T b / d^2
@@ -612,52 +623,84 @@ def hcod_solve(fw, iw):
                                     for c2 in range(c, r):
                                         y[c2] = 0.0
                                     break
+                        elif p > 0:
+                            # the first pass: the same cut from a weak pivot on (WEAK_PIVOT), if the
+                            # step is taken that far (below); wc: that pivot, -1 if none
+                            for c in range(r):
+                                if abs(diag[c]) <= WEAK_PIVOT * thr_k:
+                                    wc = c
+                                    break
+                            if wc >= 0:
+                                ycap = CANCELLED * (1.0 + _norm(u))
+                                acc = 0.0
+                                cut = -1
+                                for c in range(r):
+                                    acc += y[c] * y[c]
+                                    if acc > ycap * ycap and c >= wc and abs(diag[c]) <= WEAK_PIVOT * thr_k:
+                                        cut = c
+                                        break
+                                wc = cut
                         for c in range(nf):
                             z[c] = y[c] if c < r else 0.0
                         fl += apply_reflectors(Mr, beta, r, nf, z)
                         ps[p:] = z[:nf]
                         fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
-                tau = 1.0
-                blk = -1
-                bsd = 0
-                moved = False
-                if has_ineq:
-                    pn = _norm(ps)
-                    # a step at rounding level (a warm re-solve: the recorded optimum) moves
-                    # no row by more than the feasibility tolerance: no scan
-                    un = _norm(u)
-                    upeak = max(upeak, un)
-                    moved = pn > 1e-15 * (1.0 + un)
-                    if moved:
-                        for i in range(s1):
-                            if state[i] != INACTIVE or kind[i] != 1:
-                                continue
-                            ap = row_dot(A[i], bcol[i], bval[i], ps)
-                            # rows the step leaves in place: the step is orthogonal to them, or they
-                            # lie in the span of the working rows to the rank threshold and the step
-                            # moves them by less than 1e-3 of the feasibility tolerance (a row held
-                            # at its bound by the working rows, rounding aside, must not block: it
-                            # could not enter W)
-                            if abs(ap) <= 1e-13 * rnorm[i] * pn or (
-                                    abs(ap) <= rank_rtol * lnorm[rowlev[i]] * pn
-                                    and abs(ap) <= 1e-3 * feas_rtol * (rnorm[i] * (1.0 + un) + 1.0)):
-                                continue
-                            av = row_dot(A[i], bcol[i], bval[i], u)
-                            if ap > 0.0 and up[i] < np.inf:
-                                rt = (up[i] - av) / ap
-                                sd = 1
-                            elif ap < 0.0 and lo[i] > -np.inf:
-                                rt = (lo[i] - av) / ap
-                                sd = -1
-                            else:
-                                continue
-                            if rt < 0.0 and degen >= BLAND_AFTER:
-                                rt = 0.0  # (Bland: of the rows at ratio 0, the first)
-                            if rt < tau:
-                                tau = max(rt, 0.0)
-                                blk = i
-                                bsd = sd
-                        fl += 2 * n * (s1 - s0)
+                while True:  # (a second time after a weak pivot's cut, below)
+                    tau = 1.0
+                    blk = -1
+                    bsd = 0
+                    moved = False
+                    if has_ineq:
+                        pn = _norm(ps)
+                        # a step at rounding level (a warm re-solve: the recorded optimum) moves
+                        # no row by more than the feasibility tolerance: no scan
+                        un = _norm(u)
+                        upeak = max(upeak, un)
+                        moved = pn > 1e-15 * (1.0 + un)
+                        if moved:
+                            for i in range(s1):
+                                if state[i] != INACTIVE or kind[i] != 1:
+                                    continue
+                                ap = row_dot(A[i], bcol[i], bval[i], ps)
+                                # rows the step leaves in place: the step is orthogonal to them, or they
+                                # lie in the span of the working rows to the rank threshold and the step
+                                # moves them by less than 1e-3 of the feasibility tolerance (a row held
+                                # at its bound by the working rows, rounding aside, must not block: it
+                                # could not enter W)
+                                if abs(ap) <= 1e-13 * rnorm[i] * pn or (
+                                        abs(ap) <= rank_rtol * lnorm[rowlev[i]] * pn
+                                        and abs(ap) <= 1e-3 * feas_rtol * (rnorm[i] * (1.0 + un) + 1.0)):
+                                    continue
+                                av = row_dot(A[i], bcol[i], bval[i], u)
+                                if ap > 0.0 and up[i] < np.inf:
+                                    rt = (up[i] - av) / ap
+                                    sd = 1
+                                elif ap < 0.0 and lo[i] > -np.inf:
+                                    rt = (lo[i] - av) / ap
+                                    sd = -1
+                                else:
+                                    continue
+                                if rt < 0.0 and degen >= BLAND_AFTER:
+                                    rt = 0.0  # (Bland: of the rows at ratio 0, the first)
+                                if rt < tau:
+                                    tau = max(rt, 0.0)
+                                    blk = i
+                                    bsd = sd
+                            fl += 2 * n * (s1 - s0)
+                    if wc >= 0 and tau * _norm(ps) > ycap:
+                        # the step through a weak pivot is taken past CANCELLED (1 + ||u||): its
+                        # pivots from wc on are left out and the step length found again
+                        for c2 in range(wc, r):
+                            y[c2] = 0.0
+                        wc = -1
+                        wcut += 1
+                        for c in range(nf):
+                            z[c] = y[c] if c < r else 0.0
+                        fl += apply_reflectors(Mr, beta, r, nf, z)
+                        ps[p:] = z[:nf]
+                        fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
+                        continue
+                    break
                 for c in range(n):
                     u[c] += tau * ps[c]
                 # anti-cycling: after a run of iterations that leave u where it is (degenerate
@@ -985,4 +1028,5 @@ def hcod_solve(fw, iw):
     out[O_WARMFAIL] = warm_failed
     out[O_COLD] = cold_again
     out[O_CAPPED] = capped
+    out[O_WEAKCUT] = wcut
 

@@ -16,7 +16,7 @@ from solvers.hcod._linalg import FASTMATH, level_scale
 
 _FM = set(FASTMATH)
 
-N_OUT = 9  #: counters at the head of the "out" block; the iterations per level follow them
+N_OUT = 10  #: counters at the head of the "out" block; the iterations per level follow them
 N_IP = 7  #: integer parameters (n, mt, D, mmax, max_iter, warm_mode, has_ineq)
 N_PRM = 4  #: float parameters (rank_rtol, feas_rtol, dual_rtol, freeze_rtol)
 #: a problem whose finite bounds, each level scaled by 1 / ||A_k||_F, are all below this in
