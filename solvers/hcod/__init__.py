@@ -112,14 +112,17 @@ Warm start (sec. XI), option ``warm_start``
     back to O(1)) is done once more cold (``info["cold_after_warm"]``; the
     counters add both passes): the steps back cancel and leave ``eps
     ||u_hat||`` along the working rows, a violation of the levels above.
-    Within a solve, in any mode: an LSE step through a weak pivot of the
-    level's COD (19) (within 10x of the rank threshold: a direction of
-    ``J_k Z`` that may be rounding, a level in the span of the rows above)
-    that is taken past ``1e6 (1 + ||u||)`` (``tau ||p||``, after the blocking
-    rows) leaves out the pivots from that one on, and its step length is found
-    again (``info["weak_pivots_cut"]``, the number of such cuts): its
-    rounding, ``eps`` times the step along the working rows, would violate
-    the levels above. And a level's optimum u_k with
+    Within a solve, in any mode: an LSE step through a pivot of the level's
+    COD (19) near the rank threshold (within 10x: a direction of ``J_k Z``
+    that may be rounding, a level in the span of the rows above) that is
+    taken past ``1e6 (1 + ||u||)`` (``tau ||p||``, after the blocking rows)
+    leaves out the pivots from that one on, solves the least squares of the
+    ones before, and finds its step length again
+    (``info["near_rank_steps_cut"]``, the number of such cuts; the equality
+    recursion takes the level's rank as those pivots, so that the levels
+    below get the directions back): its rounding, ``eps`` times the step
+    along the working rows, would violate the levels above. And a level's
+    optimum u_k with
     ``||u|| > 1e6 (1 + ||u_k||)`` at an earlier point of this level or one
     above (a step out and back) has the solve done again cold, each
     LSE step below working rows cut to ``1e6 (1 + ||u||)`` by leaving out the
@@ -243,7 +246,7 @@ class HcodSolver(Solver):
     def _solve_equality(self, h: Hierarchy) -> SolveResult:
         """One compiled call (workspaces allocated inside it)."""
         try:
-            x, itl, fl = _eq_run(h.A, h.lower, h.starts, self.rank_rtol)
+            x, itl, fl, cuts = _eq_run(h.A, h.lower, h.starts, self.rank_rtol)
         except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
             return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
                                iterations_per_level=(0,) * h.depth)
@@ -253,7 +256,7 @@ class HcodSolver(Solver):
                                iterations=sum(it), iterations_per_level=tuple(it))
         # (x_finite: eq_solve tested every entry of x with isfinite, fl = -1 otherwise)
         return SolveResult(x=x, status=OPTIMAL, iterations=sum(it), iterations_per_level=tuple(it), flops=fl,
-                           x_finite=True)
+                           info={"near_rank_steps_cut": cuts} if cuts else {}, x_finite=True)
 
     # -- hierarchies with inequalities: the active set (_kernel.py) -------------------------------
     def _bind(self, h: Hierarchy):
@@ -318,7 +321,7 @@ class HcodSolver(Solver):
             if o[8]:
                 info["steps_capped"] = True
             if o[9]:
-                info["weak_pivots_cut"] = o[9]
+                info["near_rank_steps_cut"] = o[9]
             x = xv.copy()
             f = fbox[0]
             if f != 1.0:

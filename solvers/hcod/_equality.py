@@ -35,6 +35,8 @@ from numba import njit
 from solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
 from solvers.hcod._linalg import (
     FASTMATH,
+    NEAR_RANK,
+    NEAR_RANK_STEP,
     householder,
     level_scale,
     quad_gram,
@@ -75,7 +77,8 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl
     lev_p, lev_r, itl : (N,) int scratch / output (p and rank of each level,
     iterations = 1 per nonempty level).
 
-    Returns the multiply-add count, or -1 when x is not finite (breakdown).
+    Returns the multiply-add count, or -1 when x is not finite (breakdown),
+    and the number of steps cut at a weak pivot (._linalg.NEAR_RANK).
     """
     # (unowned: no reference counting of the row views taken in the loops below)
     A = unowned(A)
@@ -87,6 +90,7 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl
     _m, n = A.shape
     D = starts.shape[0] - 1
     fl = 0
+    cuts = 0
     for c in range(n):
         xi[c] = 0.0
     p = 0
@@ -208,6 +212,22 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl
         elif r > 0:
             # L (mk, r) of full column rank: least squares by Givens rotations (_lsq_lower)
             fl += _lsq_lower(At, s0, s1, p, r, xi, b, x)
+        if p > 0 and r > 0 and abs(xi[p + r - 1]) <= NEAR_RANK * thr:
+            # a step through a pivot near the rank threshold (the pivots decrease: the last is
+            # the smallest) past NEAR_RANK_STEP (1 + ||u||), ||u|| = ||xi[:p]||: the level's rank
+            # is taken as the pivots before that one, and y solved again by least squares on
+            # them (._linalg.NEAR_RANK; the pivots' reflectors act on later columns only, so
+            # L[:, :t] is intact); the columns it leaves go back to Z for the levels below
+            ycap = NEAR_RANK_STEP * (1.0 + math.sqrt(vdot(xi[:p], xi[:p])))
+            acc = 0.0
+            for t in range(r):
+                acc += x[t] * x[t]
+                if acc > ycap * ycap and abs(xi[p + t]) <= NEAR_RANK * thr:
+                    r = t
+                    if r > 0:
+                        fl += _lsq_lower(At, s0, s1, p, r, xi, b, x)
+                    cuts += 1
+                    break
         for t in range(r):
             xi[p + t] = x[t]
         for c in range(p + r, n):
@@ -236,8 +256,8 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl
             fl += 2 * (n - c0)
     for c in range(n):
         if not math.isfinite(x[c]):
-            return -1
-    return fl
+            return -1, cuts
+    return fl, cuts
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -324,7 +344,7 @@ def _lsq_lower(At, s0, s1, p, r, xi, b, y):
 def eq_run(A, e, starts, rank_rtol):
     """:func:`eq_solve` with its workspaces allocated here (one compiled call
     per solve, no Python-side set-up). Returns (x (n,), iterations per level
-    (N,), flops)."""
+    (N,), flops, steps cut at a weak pivot)."""
     m, n = A.shape
     D = starts.shape[0] - 1
     # At on a 64-byte boundary (numba's allocations guarantee 32): its rows are then aligned
@@ -340,5 +360,5 @@ def eq_run(A, e, starts, rank_rtol):
     lev_p = np.empty(D, np.int64)
     lev_r = np.empty(D, np.int64)
     itl = np.empty(D, np.int64)
-    fl = eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl)
-    return x, itl, fl
+    fl, cuts = eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl)
+    return x, itl, fl, cuts

@@ -60,6 +60,8 @@ from solvers.hcod._basis import (
 )
 from solvers.hcod._linalg import (
     FASTMATH,
+    NEAR_RANK,
+    NEAR_RANK_STEP,
     apply_reflectors,
     cod,
     cod_append,
@@ -91,14 +93,6 @@ COLD_AFTER_WARM = 1e6
 #: back by a level below or the min-norm stage) left eps ||u|| along the working rows. The solve is
 #: done again cold with each LSE step below working rows cut to ``CANCELLED (1 + ||u||)``
 CANCELLED = COLD_AFTER_WARM
-#: a pivot of a level's COD (19) within this factor of the rank threshold is weak: its direction in
-#: Z may be rounding (a level in the span of the rows above, projected on Z just above the
-#: threshold). In a solve's first pass an LSE step that goes through a weak pivot past
-#: ``CANCELLED (1 + ||u||)`` *and is taken that far* (tau ||ps||, after the blocking rows) leaves
-#: out the pivots from that one on, and its step length is found again
-#: (``info["weak_pivots_cut"]``). A level whose huge optimum is real (rows of norm 1e-11, full rank
-#: at their own scale) has pivots of order its own norm, far from the threshold.
-WEAK_PIVOT = 10.0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -569,7 +563,7 @@ def hcod_solve(fw, iw):
                     for j in range(nO):
                         piv[j] = j
                 cod_done = False
-                wc = -1  # (a weak pivot the LSE step crosses CANCELLED at, see below)
+                wc = -1  # (a weak pivot the LSE step crosses NEAR_RANK_STEP at, see below)
                 ycap = 0.0
                 if has_ineq and nf > 0 and nO == n and levid[k] != 0:
                     # identity-like level: J_k Z = D S Z has orthogonal columns (S a permutation,
@@ -624,19 +618,20 @@ def hcod_solve(fw, iw):
                                         y[c2] = 0.0
                                     break
                         elif p > 0:
-                            # the first pass: the same cut from a weak pivot on (WEAK_PIVOT), if the
-                            # step is taken that far (below); wc: that pivot, -1 if none
+                            # the first pass: the same cut from a weak pivot on (._linalg.NEAR_RANK),
+                            # if the step taken (tau ||ps||, after the blocking rows) goes that far:
+                            # below, where the step length is then found again; wc: that pivot or -1
                             for c in range(r):
-                                if abs(diag[c]) <= WEAK_PIVOT * thr_k:
+                                if abs(diag[c]) <= NEAR_RANK * thr_k:
                                     wc = c
                                     break
                             if wc >= 0:
-                                ycap = CANCELLED * (1.0 + _norm(u))
+                                ycap = NEAR_RANK_STEP * (1.0 + _norm(u))
                                 acc = 0.0
                                 cut = -1
                                 for c in range(r):
                                     acc += y[c] * y[c]
-                                    if acc > ycap * ycap and c >= wc and abs(diag[c]) <= WEAK_PIVOT * thr_k:
+                                    if acc > ycap * ycap and c >= wc and abs(diag[c]) <= NEAR_RANK * thr_k:
                                         cut = c
                                         break
                                 wc = cut
@@ -688,8 +683,15 @@ def hcod_solve(fw, iw):
                                     bsd = sd
                             fl += 2 * n * (s1 - s0)
                     if wc >= 0 and tau * _norm(ps) > ycap:
-                        # the step through a weak pivot is taken past CANCELLED (1 + ||u||): its
-                        # pivots from wc on are left out and the step length found again
+                        # the step through a pivot near the rank threshold is taken past
+                        # NEAR_RANK_STEP (1 + ||u||): the pivots from wc on are left out, y solved
+                        # again by least squares on the ones before (the first wc columns of L),
+                        # and the step length found again
+                        if wc > 0:
+                            for j in range(nO):
+                                i = Olist[piv[j]]
+                                bvec[j] = target[i] - row_dot(A[i], bcol[i], bval[i], u)
+                            fl += solve_lower(Mr, diag, nO, wc, bvec, Lb, y)
                         for c2 in range(wc, r):
                             y[c2] = 0.0
                         wc = -1

@@ -25,6 +25,15 @@ from solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps o
 #: fast-math flags of every kernel: reassociation (vectorised reductions) and FMA
 #: contraction; no "nnan"/"ninf" (the kernels test finiteness)
 FASTMATH = frozenset({"reassoc", "contract", "nsz", "arcp"})
+#: a pivot of a level's COD (19) within NEAR_RANK times the rank threshold may be rounding: a
+#: level in the span of the rows above, projected on Z just above the threshold. An LSE step
+#: through such a pivot that moves u by more than ``NEAR_RANK_STEP (1 + ||u||)`` leaves out the
+#: pivots from that one on (``info["near_rank_steps_cut"]``; ._kernel, ._equality): its rounding,
+#: eps times the step along the rows above, would violate them. A level whose huge optimum is
+#: real (rows of norm 1e-11, full rank at their own scale) has pivots of order its own norm, far
+#: from the threshold.
+NEAR_RANK = 10.0
+NEAR_RANK_STEP = 1e6
 _FM = set(FASTMATH)
 #: the products of many general rows with an explicit basis (``_explicit.project_into``,
 #: ``_factored.basis_rows``) call BLAS from these sizes up; below, the vectorised loops beat a

@@ -609,14 +609,14 @@ def test_a_step_out_and_back_leaves_the_levels_above(warm_start, min_norm):
     with the LSE steps cut to 1e6 (1 + ||u||) (``info["steps_capped"]``) mended it only where the
     step came back: without the min-norm stage, or with the helpers' code of a process that
     compiled them, x stayed at ~1.5e15 and level 0 at 36-87. The step goes through a weak pivot
-    (``_kernel.WEAK_PIVOT``) and is now cut in the first pass (``info["weak_pivots_cut"]``): a
+    (``_linalg.NEAR_RANK``) and is now cut in the first pass (``info["near_rank_steps_cut"]``): a
     level below leaves the levels above where they were, in every mode."""
     h = load_npz(DATA / "step_out_and_back.npz")
     top = Hierarchy(h.A[:h.starts[2]], h.lower[:h.starts[2]], h.upper[:h.starts[2]], h.level[:h.starts[2]],
                     n=h.n, depth=2)
     above = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(top)
     res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(h)
-    assert res.status == OPTIMAL and res.info.get("weak_pivots_cut"), res
+    assert res.status == OPTIMAL and res.info.get("near_rank_steps_cut"), res
     np.testing.assert_allclose(level_norms(h, res.x)[:2], level_norms(top, above.x), rtol=1e-6)
     assert np.linalg.norm(res.x) < 1e7, np.linalg.norm(res.x)  # (the reference's: 1.05e6)
     v = verify(h, res.x, reference_solution(h), rtol=RTOL_ILL)
@@ -630,15 +630,29 @@ def test_a_step_through_a_weak_pivot_leaves_the_top_level(min_norm):
     threshold: its step went to ||u|| 1.3e14, and the rounding it left put level 0 at 0.812,
     where its optimum (and the reference's) is 0.6805 -- within verify's tolerance at this
     scale (7e3), so the sweep called ``hcod`` lower at level 2. That step is now cut
-    (``info["weak_pivots_cut"]``): level 0 is the reference's."""
+    (``info["near_rank_steps_cut"]``): level 0 is the reference's."""
     h = load_npz(DATA / "weak_pivot_step.npz")
     top = Hierarchy(h.A[:h.starts[1]], h.lower[:h.starts[1]], h.upper[:h.starts[1]], h.level[:h.starts[1]],
                     n=h.n, depth=1)
     res = HcodSolver(min_norm=min_norm).solve(h)
-    assert res.status == OPTIMAL and res.info.get("weak_pivots_cut"), res
+    assert res.status == OPTIMAL and res.info.get("near_rank_steps_cut"), res
     level0 = level_norms(h, res.x)[0]
     np.testing.assert_allclose(level0, level_norms(top, HcodSolver().solve(top).x)[0], rtol=1e-9)
     np.testing.assert_allclose(level0, level_norms(h, reference_solution(h))[0], rtol=1e-6)
+
+
+def test_an_equality_step_near_the_rank_threshold_leaves_the_levels_above():
+    """Conditioning sweep, trial 1191 (equality levels of 8, 13 and 12 rows, n = 26, cond 1e6):
+    level 1's last pivot is 1.8x the rank threshold (its smallest singular value 3.6e-11 of its
+    norm, below it), and its step took ||x|| from 1.9e5 to 2.5e15; the rounding put level 0 at
+    8.452 where its optimum (the reference's) is 8.3771 (within verify's tolerance at that scale,
+    so the sweep called ``hcod`` lower at level 1, 2.3 against 9.4e5). The equality recursion now
+    takes the level's rank as the pivots before that one and solves their least squares
+    (``info["near_rank_steps_cut"]``): levels 0 and 1 are the reference's."""
+    h = load_npz(DATA / "near_rank_equality.npz")
+    res = HcodSolver().solve(h)
+    assert res.status == OPTIMAL and res.info.get("near_rank_steps_cut") == 1, res
+    np.testing.assert_allclose(level_norms(h, res.x)[:2], level_norms(h, reference_solution(h))[:2], rtol=1e-6)
 
 
 @pytest.mark.parametrize("min_norm", [True, False], ids=["min_norm", "no_min_norm"])
