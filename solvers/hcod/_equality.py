@@ -213,21 +213,13 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl
             # L (mk, r) of full column rank: least squares by Givens rotations (_lsq_lower)
             fl += _lsq_lower(At, s0, s1, p, r, xi, b, x)
         if p > 0 and r > 0 and abs(xi[p + r - 1]) <= NEAR_RANK * thr:
-            # a step through a pivot near the rank threshold (the pivots decrease: the last is
-            # the smallest) past NEAR_RANK_STEP (1 + ||u||), ||u|| = ||xi[:p]||: the level's rank
-            # is taken as the pivots before that one, and y solved again by least squares on
-            # them (._linalg.NEAR_RANK; the pivots' reflectors act on later columns only, so
-            # L[:, :t] is intact); the columns it leaves go back to Z for the levels below
-            ycap = NEAR_RANK_STEP * (1.0 + math.sqrt(vdot(xi[:p], xi[:p])))
-            acc = 0.0
-            for t in range(r):
-                acc += x[t] * x[t]
-                if acc > ycap * ycap and abs(xi[p + t]) <= NEAR_RANK * thr:
-                    r = t
-                    if r > 0:
-                        fl += _lsq_lower(At, s0, s1, p, r, xi, b, x)
-                    cuts += 1
-                    break
+            # (the pivots decrease: the last is the smallest) a step through a pivot near the
+            # rank threshold: see _near_rank_cut
+            r2, f = _near_rank_cut(At, s0, s1, p, r, thr, xi, b, x)
+            fl += f
+            if r2 < r:
+                r = r2
+                cuts += 1
         for t in range(r):
             xi[p + t] = x[t]
         for c in range(p + r, n):
@@ -291,6 +283,27 @@ def _apply_quads(At, beta, gm, it0, rj, pj, s0, s1):
         fl += 2 * mk * (4 * (n - c0) - 6)
         t += 4
     return t, fl
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _near_rank_cut(At, s0, s1, p, r, thr, xi, b, y):
+    """A level's solution ``y`` (r,) of the COD (19) through a pivot near the rank
+    threshold (._linalg.NEAR_RANK) past ``NEAR_RANK_STEP (1 + ||u||)``, ``||u|| =
+    ||xi[:p]||``: the level's rank is taken as the t pivots before that one, and y[:t]
+    solved again by least squares on them (:func:`_lsq_lower`; the pivots' reflectors act
+    on later columns only, so ``L[:, :t]`` is intact); the columns it leaves go back to Z
+    for the levels below. Returns (the rank, flops). (Not inlined: in eq_solve's body its
+    loops cost registers where they never run.)"""
+    ycap = NEAR_RANK_STEP * (1.0 + math.sqrt(vdot(xi[:p], xi[:p])))
+    acc = 0.0
+    for t in range(r):
+        acc += y[t] * y[t]
+        if acc > ycap * ycap and abs(xi[p + t]) <= NEAR_RANK * thr:
+            fl = 0
+            if t > 0:
+                fl = _lsq_lower(At, s0, s1, p, t, xi, b, y)
+            return t, fl
+    return r, 0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
