@@ -78,7 +78,7 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl
     iterations = 1 per nonempty level).
 
     Returns the multiply-add count, or -1 when x is not finite (breakdown),
-    and the number of steps cut at a weak pivot (._linalg.NEAR_RANK).
+    and the number of steps cut at a pivot near the rank threshold (._linalg.NEAR_RANK).
     """
     # (unowned: no reference counting of the row views taken in the loops below)
     A = unowned(A)
@@ -357,7 +357,7 @@ def _lsq_lower(At, s0, s1, p, r, xi, b, y):
 def eq_run(A, e, starts, rank_rtol):
     """:func:`eq_solve` with its workspaces allocated here (one compiled call
     per solve, no Python-side set-up). Returns (x (n,), iterations per level
-    (N,), flops, steps cut at a weak pivot)."""
+    (N,), flops, steps cut at a pivot near the rank threshold)."""
     m, n = A.shape
     D = starts.shape[0] - 1
     # At on a 64-byte boundary (numba's allocations guarantee 32): its rows are then aligned

@@ -81,7 +81,7 @@ _FM = set(FASTMATH)
 INACTIVE, WORK, IMPLIED, OBJECTIVE, DEPENDENT = 0, 1, 2, 3, 4
 ST_OPTIMAL, ST_MAXIT, ST_NUMERICAL = 0, 1, 2
 # out[] slots
-O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_COLD, O_CAPPED, O_WEAKCUT = range(10)
+O_STATUS, O_ITERS, O_ACT, O_DEACT, O_FLOPS, O_LEVEL, O_WARMFAIL, O_COLD, O_CAPPED, O_NEARCUT = range(10)
 G_ROUNDING = 1e-2  #: a row's rounding in the noise floor of g, a fraction of its _floor (1e-15)
 BLAND_AFTER = 32  #: consecutive iterations that leave u where it is before the anti-cycling rule takes over
 #: a ``time`` re-solve is done again cold when a level's optimum u_k has ``||u_hat|| > COLD_AFTER_WARM
@@ -266,7 +266,7 @@ def hcod_solve(fw, iw):
     warm_failed = 0
     cold_again = 0
     capped = 0
-    wcut = 0
+    nearcut = 0
     itl[:] = 0
     for attempt in range(2):  # (a block, left by break; a second pass: cold_again or capped below)
         use_hist = warm == 2 and attempt == 0
@@ -563,7 +563,7 @@ def hcod_solve(fw, iw):
                     for j in range(nO):
                         piv[j] = j
                 cod_done = False
-                wc = -1  # (a weak pivot the LSE step crosses NEAR_RANK_STEP at, see below)
+                wc = -1  # (a near-rank pivot where the LSE step passes NEAR_RANK_STEP, below)
                 ycap = 0.0
                 if has_ineq and nf > 0 and nO == n and levid[k] != 0:
                     # identity-like level: J_k Z = D S Z has orthogonal columns (S a permutation,
@@ -618,9 +618,10 @@ def hcod_solve(fw, iw):
                                         y[c2] = 0.0
                                     break
                         elif p > 0:
-                            # the first pass: the same cut from a weak pivot on (._linalg.NEAR_RANK),
-                            # if the step taken (tau ||ps||, after the blocking rows) goes that far:
-                            # below, where the step length is then found again; wc: that pivot or -1
+                            # the first pass: the same cut from a pivot near the rank threshold on
+                            # (._linalg.NEAR_RANK), if the step taken (tau ||ps||, after the blocking
+                            # rows) goes that far: below, where the step length is then found again;
+                            # wc: that pivot or -1
                             for c in range(r):
                                 if abs(diag[c]) <= NEAR_RANK * thr_k:
                                     wc = c
@@ -640,7 +641,7 @@ def hcod_solve(fw, iw):
                         fl += apply_reflectors(Mr, beta, r, nf, z)
                         ps[p:] = z[:nf]
                         fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
-                while True:  # (a second time after a weak pivot's cut, below)
+                while True:  # (a second time after a near-rank cut, below)
                     tau = 1.0
                     blk = -1
                     bsd = 0
@@ -695,7 +696,7 @@ def hcod_solve(fw, iw):
                         for c2 in range(wc, r):
                             y[c2] = 0.0
                         wc = -1
-                        wcut += 1
+                        nearcut += 1
                         for c in range(nf):
                             z[c] = y[c] if c < r else 0.0
                         fl += apply_reflectors(Mr, beta, r, nf, z)
@@ -1030,5 +1031,5 @@ def hcod_solve(fw, iw):
     out[O_WARMFAIL] = warm_failed
     out[O_COLD] = cold_again
     out[O_CAPPED] = capped
-    out[O_WEAKCUT] = wcut
+    out[O_NEARCUT] = nearcut
 

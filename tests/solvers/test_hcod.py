@@ -608,9 +608,10 @@ def test_a_step_out_and_back_leaves_the_levels_above(warm_start, min_norm):
     5617, against 0.967 and 0.009 without level 2 (the reference: 1.93 and 1.50). A second pass
     with the LSE steps cut to 1e6 (1 + ||u||) (``info["steps_capped"]``) mended it only where the
     step came back: without the min-norm stage, or with the helpers' code of a process that
-    compiled them, x stayed at ~1.5e15 and level 0 at 36-87. The step goes through a weak pivot
-    (``_linalg.NEAR_RANK``) and is now cut in the first pass (``info["near_rank_steps_cut"]``): a
-    level below leaves the levels above where they were, in every mode."""
+    compiled them, x stayed at ~1.5e15 and level 0 at 36-87. The step goes through a pivot near
+    the rank threshold (``_linalg.NEAR_RANK``) and is now cut in the first pass
+    (``info["near_rank_steps_cut"]``): a level below leaves the levels above where they were, in
+    every mode."""
     h = load_npz(DATA / "step_out_and_back.npz")
     top = Hierarchy(h.A[:h.starts[2]], h.lower[:h.starts[2]], h.upper[:h.starts[2]], h.level[:h.starts[2]],
                     n=h.n, depth=2)
@@ -624,14 +625,14 @@ def test_a_step_out_and_back_leaves_the_levels_above(warm_start, min_norm):
 
 
 @pytest.mark.parametrize("min_norm", [True, False], ids=["min_norm", "no_min_norm"])
-def test_a_step_through_a_weak_pivot_leaves_the_top_level(min_norm):
+def test_a_step_through_a_near_rank_pivot_leaves_the_top_level(min_norm):
     """Conditioning sweep, trial 2842 (n = 30, one-sided levels of 16, 20, 15 and 2 rows,
     cond 1e3, rows spread over 1e4). Level 1's first LSE has a single pivot, 5.9x the rank
     threshold: its step went to ||u|| 1.3e14, and the rounding it left put level 0 at 0.812,
     where its optimum (and the reference's) is 0.6805 -- within verify's tolerance at this
     scale (7e3), so the sweep called ``hcod`` lower at level 2. That step is now cut
     (``info["near_rank_steps_cut"]``): level 0 is the reference's."""
-    h = load_npz(DATA / "weak_pivot_step.npz")
+    h = load_npz(DATA / "near_rank_step.npz")
     top = Hierarchy(h.A[:h.starts[1]], h.lower[:h.starts[1]], h.upper[:h.starts[1]], h.level[:h.starts[1]],
                     n=h.n, depth=1)
     res = HcodSolver(min_norm=min_norm).solve(h)
@@ -660,12 +661,11 @@ def test_an_equality_step_near_the_rank_threshold_leaves_the_levels_above():
 def test_the_capped_second_pass_gives_the_reference(warm_start, min_norm):
     """Conditioning sweep, trial 2678 (n = 9, one-sided levels of 1, 2, 10 and 5 rows, cond 1e6,
     rows spread over 1e4): with ``stage`` and ``time``, ||u|| goes out past 1e6 (1 + ||u_k||)
-    and back, not through a weak pivot, so the second pass with every LSE step below working
-    rows cut runs (``info["steps_capped"]``; one of the two cases in the sweep's 6000 solves
-    since the weak pivots are cut, the other without a reference). Its answer is the
-    reference's. (A copy
-    of the kernel without the second pass gave the same level norms here: this covers the pass,
-    not a damage it mends.)"""
+    and back, not through a pivot near the rank threshold, so the second pass with every LSE
+    step below working rows cut runs (``info["steps_capped"]``; one of the two cases in the
+    sweep's 6000 solves since the near-rank steps are cut, the other without a reference). Its
+    answer is the reference's. (A copy of the kernel without the second pass gave the same
+    level norms here: this covers the pass, not a damage it mends.)"""
     h = load_npz(DATA / "capped_second_pass.npz")
     res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(h)
     assert res.status == OPTIMAL and res.info.get("steps_capped"), res
