@@ -177,6 +177,80 @@ def _levels_met(A, bcol, bval, kind, lo, up, rnorm, i0, i1, u, dual_rtol):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _lse_residual(A, Olist, piv, nO, target, bcol, bval, u, bvec):
+    """The right-hand side of the level's LSE (28) in the COD's pivot order:
+    ``bvec[j] = e_i - J_i u`` for the objective row ``i = Olist[piv[j]]``,
+    ``j < nO``."""
+    for j in range(nO):
+        i = Olist[piv[j]]
+        bvec[j] = target[i] - row_dot(A[i], bcol[i], bval[i], u)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, Wt, qv, qi, sv, sv2):
+    """The LSE step of eqs. (30)-(31), ``ps = Z Y [y; 0]`` (n,), from the COD's
+    solution ``y`` (r,): Y's reflectors (in ``Mr``, ``beta``) on ``z`` (nf,),
+    then Z = the columns p: of W. Returns the multiply-add count."""
+    for c in range(nf):
+        z[c] = y[c] if c < r else 0.0
+    fl = apply_reflectors(Mr, beta, r, nf, z)
+    ps[p:] = z[:nf]
+    return fl + basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def _step_length(has_ineq, A, bcol, bval, kind, lo, up, rnorm, lnorm, rowlev, state, s0, s1, u, ps,
+                 rank_rtol, feas_rtol, bland):
+    """The step length tau (sec. VIII) of ``u + tau ps``: 1, or the ratio of the
+    first inactive inequality row of the levels ``< s1`` the step takes to its
+    bound. ``bland``: a row already past it blocks at 0 (the anti-cycling rule,
+    then the first such row). Returns (tau, the blocking row or -1, its side
+    +1 / -1, whether the step moves u past rounding, ||u||, multiply-adds)."""
+    tau = 1.0
+    blk = -1
+    bsd = 0
+    un = 0.0
+    moved = False
+    if not has_ineq:
+        return tau, blk, bsd, moved, un, 0
+    pn = _norm(ps)
+    # a step at rounding level (a warm re-solve: the recorded optimum) moves no row by more
+    # than the feasibility tolerance: no scan
+    un = _norm(u)
+    moved = pn > 1e-15 * (1.0 + un)
+    if not moved:
+        return tau, blk, bsd, moved, un, 0
+    for i in range(s1):
+        if state[i] != INACTIVE or kind[i] != 1:
+            continue
+        ap = row_dot(A[i], bcol[i], bval[i], ps)
+        # rows the step leaves in place: the step is orthogonal to them, or they lie in the span
+        # of the working rows to the rank threshold and the step moves them by less than 1e-3 of
+        # the feasibility tolerance (a row held at its bound by the working rows, rounding
+        # aside, must not block: it could not enter W)
+        if abs(ap) <= 1e-13 * rnorm[i] * pn or (
+                abs(ap) <= rank_rtol * lnorm[rowlev[i]] * pn
+                and abs(ap) <= 1e-3 * feas_rtol * (rnorm[i] * (1.0 + un) + 1.0)):
+            continue
+        av = row_dot(A[i], bcol[i], bval[i], u)
+        if ap > 0.0 and up[i] < np.inf:
+            rt = (up[i] - av) / ap
+            sd = 1
+        elif ap < 0.0 and lo[i] > -np.inf:
+            rt = (lo[i] - av) / ap
+            sd = -1
+        else:
+            continue
+        if rt < 0.0 and bland:
+            rt = 0.0  # (Bland: of the rows at ratio 0, the first)
+        if rt < tau:
+            tau = max(rt, 0.0)
+            blk = i
+            bsd = sd
+    return tau, blk, bsd, moved, un, 2 * u.shape[0] * (s1 - s0)
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def hcod_solve(fw, iw):
     """Solve the hierarchy held in the workspaces fw/iw (:mod:`._setup`: the
     int workspace starts with the offsets of the blocks of both, and the ends of
@@ -600,9 +674,7 @@ def hcod_solve(fw, iw):
                         cod_weak = cod_weak or weak
                     ncod = nO
                     cod_done = True
-                    for j in range(nO):
-                        i = Olist[piv[j]]
-                        bvec[j] = target[i] - row_dot(A[i], bcol[i], bval[i], u)
+                    _lse_residual(A, Olist, piv, nO, target, bcol, bval, u, bvec)
                     if r > 0:
                         fl += solve_lower(Mr, diag, nO, r, bvec, Lb, y)
                         if cap_on and p > 0:
@@ -636,74 +708,28 @@ def hcod_solve(fw, iw):
                                         cut = c
                                         break
                                 wc = cut
-                        for c in range(nf):
-                            z[c] = y[c] if c < r else 0.0
-                        fl += apply_reflectors(Mr, beta, r, nf, z)
-                        ps[p:] = z[:nf]
-                        fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
-                while True:  # (a second time after a near-rank cut, below)
-                    tau = 1.0
-                    blk = -1
-                    bsd = 0
-                    moved = False
-                    if has_ineq:
-                        pn = _norm(ps)
-                        # a step at rounding level (a warm re-solve: the recorded optimum) moves
-                        # no row by more than the feasibility tolerance: no scan
-                        un = _norm(u)
-                        upeak = max(upeak, un)
-                        moved = pn > 1e-15 * (1.0 + un)
-                        if moved:
-                            for i in range(s1):
-                                if state[i] != INACTIVE or kind[i] != 1:
-                                    continue
-                                ap = row_dot(A[i], bcol[i], bval[i], ps)
-                                # rows the step leaves in place: the step is orthogonal to them, or they
-                                # lie in the span of the working rows to the rank threshold and the step
-                                # moves them by less than 1e-3 of the feasibility tolerance (a row held
-                                # at its bound by the working rows, rounding aside, must not block: it
-                                # could not enter W)
-                                if abs(ap) <= 1e-13 * rnorm[i] * pn or (
-                                        abs(ap) <= rank_rtol * lnorm[rowlev[i]] * pn
-                                        and abs(ap) <= 1e-3 * feas_rtol * (rnorm[i] * (1.0 + un) + 1.0)):
-                                    continue
-                                av = row_dot(A[i], bcol[i], bval[i], u)
-                                if ap > 0.0 and up[i] < np.inf:
-                                    rt = (up[i] - av) / ap
-                                    sd = 1
-                                elif ap < 0.0 and lo[i] > -np.inf:
-                                    rt = (lo[i] - av) / ap
-                                    sd = -1
-                                else:
-                                    continue
-                                if rt < 0.0 and degen >= BLAND_AFTER:
-                                    rt = 0.0  # (Bland: of the rows at ratio 0, the first)
-                                if rt < tau:
-                                    tau = max(rt, 0.0)
-                                    blk = i
-                                    bsd = sd
-                            fl += 2 * n * (s1 - s0)
-                    if wc >= 0 and tau * _norm(ps) > ycap:
-                        # the step through a pivot near the rank threshold is taken past
-                        # NEAR_RANK_STEP (1 + ||u||): the pivots from wc on are left out, y solved
-                        # again by least squares on the ones before (the first wc columns of L),
-                        # and the step length found again
-                        if wc > 0:
-                            for j in range(nO):
-                                i = Olist[piv[j]]
-                                bvec[j] = target[i] - row_dot(A[i], bcol[i], bval[i], u)
-                            fl += solve_lower(Mr, diag, nO, wc, bvec, Lb, y)
-                        for c2 in range(wc, r):
-                            y[c2] = 0.0
-                        wc = -1
-                        nearcut += 1
-                        for c in range(nf):
-                            z[c] = y[c] if c < r else 0.0
-                        fl += apply_reflectors(Mr, beta, r, nf, z)
-                        ps[p:] = z[:nf]
-                        fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
-                        continue
-                    break
+                        fl += _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, Wt, qv, qi, sv, sv2)
+                tau, blk, bsd, moved, un, f = _step_length(has_ineq, A, bcol, bval, kind, lo, up, rnorm, lnorm,
+                                                           rowlev, state, s0, s1, u, ps, rank_rtol, feas_rtol,
+                                                           degen >= BLAND_AFTER)
+                fl += f
+                upeak = max(upeak, un)
+                if wc >= 0 and tau * _norm(ps) > ycap:
+                    # the step through a pivot near the rank threshold is taken past
+                    # NEAR_RANK_STEP (1 + ||u||): the pivots from wc on are left out, y solved
+                    # again by least squares on the ones before (the first wc columns of L),
+                    # and the step length found again
+                    nearcut += 1
+                    if wc > 0:
+                        _lse_residual(A, Olist, piv, nO, target, bcol, bval, u, bvec)
+                        fl += solve_lower(Mr, diag, nO, wc, bvec, Lb, y)
+                    for c in range(wc, r):
+                        y[c] = 0.0
+                    fl += _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, Wt, qv, qi, sv, sv2)
+                    tau, blk, bsd, moved, un, f = _step_length(has_ineq, A, bcol, bval, kind, lo, up, rnorm,
+                                                               lnorm, rowlev, state, s0, s1, u, ps, rank_rtol,
+                                                               feas_rtol, degen >= BLAND_AFTER)
+                    fl += f
                 for c in range(n):
                     u[c] += tau * ps[c]
                 # anti-cycling: after a run of iterations that leave u where it is (degenerate
