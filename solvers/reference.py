@@ -19,10 +19,14 @@ Two methods that share no code with the HCOD solver:
   tolerances, each level *polished*: its active set is read off the QP
   solution and the equality-constrained least-squares problem on that set is
   solved exactly (SVD null-space method); the polished point is kept only if it
-  is feasible and no worse. Higher levels are frozen exactly, the optimal
+  is feasible and no worse, or, where the QP's point is cheaper for breaking
+  the levels above within its tolerances, certified optimal by the KKT
+  conditions. Higher levels are frozen exactly, the optimal
   slack being unique: a row with nonzero slack w_j* becomes the equality
   ``A_j x = bound_j + w_j*``, a row with zero slack keeps its bounds. Frozen
-  equalities are eliminated (``x = x_p + N y``) before each QP. A last stage
+  equalities are eliminated (``x = x_p + N y``) before each QP, and with them
+  the frozen inequality rows in their span (constant on ``x_p + N y``, met
+  there). A last stage
   picks the minimum-norm x in the optimal set. The QP backends are Clarabel,
   then PIQP when Clarabel fails (the one used is recorded per stage).
   When every backend fails on a stage -- typically "primal infeasible" on a
@@ -117,7 +121,9 @@ def _qp_level(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, widen: float = 0
     The equality rows of the higher levels (frozen rows) are eliminated first,
     ``x = x_p + N y`` with N an orthonormal basis of their null space (SVD,
     rank threshold RANK_RTOL), so that the QP in z = (y, w) has no redundant
-    equality constraints, on which interior-point backends stall. ``widen`` > 0
+    equality constraints, on which interior-point backends stall; so are the
+    inequality rows of A_hi in their span (``||A_i N|| <= RANK_RTOL ||A_i||``)
+    that x_p meets to ``_FEAS_RTOL``. ``widen`` > 0
     moves each remaining bound of A_hi outward by ``widen`` times the row's
     scale (:func:`_row_scale` at x_p).
     Returns x, shape (n,) (n = A_hi's columns), and the backend name."""
@@ -131,7 +137,16 @@ def _qp_level(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, widen: float = 0
         lo_hi, up_hi = np.where(eq_hi, lo_hi, lo_hi - gap), np.where(eq_hi, up_hi, up_hi + gap)
     A_hi, lo_hi, up_hi = A_hi[~eq_hi], lo_hi[~eq_hi] - A_hi[~eq_hi] @ x_p, up_hi[~eq_hi] - A_hi[~eq_hi] @ x_p
     lo_k, up_k = lo_k - A_k @ x_p, up_k - A_k @ x_p
-    A_hi, A_k = A_hi @ N, A_k @ N
+    # an inequality row in the span of the frozen equalities is constant on x_p + N y: its
+    # projection A_i N is round-off, and as a constraint it would cut y along a random direction
+    # (two such rows, 1e-16 of their norm with bounds +-1e-14, had Clarabel report a level's QP
+    # solved at 1.16 where 0.0063 was feasible). Met at x_p (to _FEAS_RTOL), it is left out
+    row_norm = np.linalg.norm(A_hi, axis=1)
+    A_hi = A_hi @ N
+    feas = _FEAS_RTOL * row_norm * (1.0 + np.linalg.norm(x_p))
+    constant = (np.linalg.norm(A_hi, axis=1) <= RANK_RTOL * row_norm) & (lo_hi <= feas) & (up_hi >= -feas)
+    A_hi, lo_hi, up_hi = A_hi[~constant], lo_hi[~constant], up_hi[~constant]
+    A_k = A_k @ N
     n, m = N.shape[1], A_k.shape[0]
     if n == 0:
         return x_p, "none"
@@ -241,8 +256,9 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
     exactly, by the smallest correction of x_qp (so that constraints inactive
     at x_qp stay satisfied).
 
-    Returns the polished x if it is feasible and no worse than x_qp, else x_qp,
-    and whether polishing was kept. With ``certify`` (x_qp from widened bounds,
+    Returns the polished x if it is feasible and no worse than x_qp (or
+    certified optimal by :func:`_kkt_certified` where x_qp is cheaper), else
+    x_qp, and whether polishing was kept. With ``certify`` (x_qp from widened bounds,
     so possibly better than the exact optimum) the polished x must instead pass
     :func:`_kkt_certified`."""
     delta = _ACTIVE_RTOL * _row_scale(A_hi, lo_hi, up_hi, x_qp)
@@ -308,6 +324,11 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
         return (x, True) if _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final) else (x_qp, False)
     c_tol = 0.0 if final else float(np.sum((_FEAS_RTOL * _row_scale(A_k, lo_k, up_k, x)) ** 2))
     if cost(x) <= cost(x_qp) * (1 + 1e-9) + c_tol:
+        return x, True
+    # x_qp may be cheaper for violating the rows above within the QP's tolerances (their
+    # multipliers times that violation): the feasible x is then kept if the KKT conditions
+    # certify it optimal on the exact bounds
+    if _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final):
         return x, True
     return x_qp, False
 

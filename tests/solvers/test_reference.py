@@ -193,8 +193,10 @@ def test_cascade_reference_agrees_with_kkt_enumeration_random(n, depth, rows, mi
 
 def _no_interior():
     """An ill-conditioned hierarchy (cond 1e6, rows scaled over 1e4; problem 67 of the HCOD
-    conditioning sweep) whose frozen set at level 3 and at the minimum-norm stage is feasible
-    but has no interior: every QP backend calls it infeasible or stalls."""
+    conditioning sweep) whose frozen set at the minimum-norm stage is feasible but has no
+    interior: every QP backend calls it infeasible or stalls. (Level 3's was too, until the
+    reference left out the frozen inequality rows in the span of the frozen equalities: two
+    such rows, bounds +-1e-14 apart on round-off, made that sliver.)"""
     return random_hierarchy(7, 4, [5, 10, 1, 3], rank=[5, 1, 1, 3], shared_rank=[0, 1, 0, 2], inequality="mixed",
                             box=True, box_bound=1.0, equality_fraction=0.0, cond=1e6, row_scale=1e4, seed=67)
 
@@ -207,14 +209,16 @@ def test_a_stage_no_backend_solves_is_solved_on_widened_bounds_polished_and_cert
     h = _no_interior()
     x, info = cascade_reference(h)
     widened = [k for k, b in enumerate(info["backend"]) if "bounds widened by" in b]
-    # level 3 first; after it the frozen set has no interior either, and which later stage the
-    # backends fail on depends on their rounding (AVX2: the minimum-norm stage; AVX-512: level 4)
-    assert widened[0] == 3 and set(widened) <= {3, 4, h.depth} and all(info["polished"]), info
+    # which stages the backends fail on depends on their rounding: level 3, then the minimum-norm
+    # stage (AVX2) or level 4 (AVX-512), before the span rows were left out; since, the minimum-
+    # norm stage alone here (AVX2 code, OpenBLAS Haswell kernels)
+    assert widened and set(widened) <= {3, 4, h.depth} and all(info["polished"]), info
     v = verify(h, HcodSolver().solve(h).x, x, rtol=1e-7)  # an independent method finds the same optimum
     assert v.equal, v
     monkeypatch.setattr(reference, "WIDEN_RTOL", ())
-    with pytest.raises(reference.ReferenceError, match=r"^level 3: no QP backend solved the level \(clarabel: "
-                                                       r"PrimalInfeasible; piqp: Status\.PIQP_\w+; .*\)$"):
+    with pytest.raises(reference.ReferenceError, match=r"^(level [34]|the minimum-norm stage): no QP backend "
+                                                       r"solved the level \(clarabel: PrimalInfeasible; piqp: "
+                                                       r"Status\.PIQP_\w+; .*\)$"):
         cascade_reference(h)
 
 
@@ -222,7 +226,8 @@ def test_a_widened_point_that_fails_the_kkt_check_is_no_reference(monkeypatch):
     from solvers import reference
 
     monkeypatch.setattr(reference, "_kkt_certified", lambda *args: False)
-    with pytest.raises(reference.ReferenceError, match=r"^level 3: no QP backend .*; bounds widened by 1e-09: "
+    with pytest.raises(reference.ReferenceError, match=r"^(level [34]|the minimum-norm stage): no QP backend .*; "
+                                                       r"bounds widened by 1e-09: "
                                                        r"clarabel solved it, but its point could not be polished "
                                                        r"onto the exact bounds and certified optimal there \(KKT "
                                                        r"check\); bounds widened by 1e-07: "):
@@ -340,3 +345,46 @@ def test_bounds_of_any_magnitude_give_the_scaled_reference(family, seed, scale):
     assert v.equal, v
     v = verify(h, x, HcodSolver(warm_start="none").solve(h).x, rtol=1e-9)  # (at 1e-300 too: scaled norms)
     assert v.equal, v
+
+
+# Well-conditioned random hierarchies (cond 1, unscaled rows) on which the reference was not the
+# optimum: hcod and the PIQP cascade agreed and the reference did not. Found in a run of 20000 such problems against hcod in every warm mode
+# (19 problems where the reference was above the optimum at a level by 7e-4 .. 1.6, one where
+# it was below by breaking the levels above within tolerance, 6 without a reference); that run
+# now finds none (README, "Limitations").
+# (n, depth, rows per level, random_hierarchy keywords)
+MISSED_OPTIMA = {
+    # a level's QP with frozen inequality rows in the span of the frozen equalities (projected
+    # norm ~1e-16 of theirs, bounds +-1e-14): Clarabel called it solved far above the optimum
+    "span-of-frozen-rows-254": (13, 5, [2, 4, 1, 10, 15],
+                                {"rank": [2, 4, 1, 10, 0], "shared_rank": [0, 2, 1, 0, 0],
+                                 "inequality": "two-sided", "box": True, "seed": 254}),
+    "span-of-frozen-rows-424": (10, 4, [2, 6, 7, 11],
+                                {"rank": [1, 6, 7, 10], "shared_rank": [0, 2, 2, 0],
+                                 "inequality": "one-sided", "box": True, "box_bound": 5.0, "seed": 424}),
+    # level 3's QP point is cheaper than the optimum for breaking the levels above by 1e-11 of
+    # their scale: its polished (exact, feasible) point failed the cost comparison and was
+    # dropped; it is now kept once the KKT conditions certify it
+    "polished-point-dearer-than-qp-937": (38, 4, [10, 25, 10, 2],
+                                          {"rank": [10, 25, 8, 2], "shared_rank": [0, 1, 1, 2],
+                                           "inequality": "two-sided", "seed": 937}),
+}
+
+
+@pytest.mark.parametrize("case", MISSED_OPTIMA.values(), ids=MISSED_OPTIMA.keys())
+@pytest.mark.parametrize("judge", ["hcod", "cascade-piqp"])
+def test_the_reference_reaches_the_optimum_of_degenerate_levels(case, judge):
+    """Every stage polished, and the reference's level norms equal to those of hcod (an active
+    set on the HCOD) and of the PIQP cascade (a cascade of generic QPs), at 1e-9 -- two codes
+    that share none of the reference's. (The other cascades are no judges here: daqp, quadprog
+    and highs each miss a level of one of these problems, some with a status that says so.)"""
+    from solvers import registry
+
+    n, depth, rows, kw = case
+    h = random_hierarchy(n, depth, rows, **kw)
+    x, info = cascade_reference(h)
+    assert all(info["polished"]), info["backend"]
+    other = registry.create(judge).solve(h)
+    assert other.status == OPTIMAL, other.reason
+    verdict = verify(h, x, other.x, rtol=1e-9)
+    assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(other.x))
