@@ -56,6 +56,10 @@ __all__ = ["RANK_RTOL", "UNITS_MIN", "WIDEN_RTOL", "ReferenceSolver", "cascade_r
 
 RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
 _ACTIVE_RTOL = 1e-7  #: a constraint within this (relative) distance of its bound is read as active
+#: where the active set read at _ACTIVE_RTOL polishes to no point that is kept, it is read again at
+#: these, in turn (a QP point that is off the optimum by more than its tolerance on an
+#: ill-conditioned level: badly_scaled n=12 seed 99, level 2, kept at 1e-6, hcod's optimum)
+_ACTIVE_RETRY = (1e-6, 1e-5)
 _ALMOST_SOLVED = ("AlmostSolved",)  #: Clarabel's reduced-accuracy success
 _Y_REG = 1e-9  #: regularisation of the free coordinates y in a level's QP (removed by polishing)
 _FEAS_RTOL = 1e-11  #: feasibility slack allowed to a polished point (relative, per row)
@@ -251,17 +255,19 @@ def _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool) -> bool:
     return float(np.linalg.norm(g + C.T @ lam)) <= 1e-7 * float(np.linalg.norm(g)) + floor
 
 
-def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: bool = False):
-    """Read the active set off x_qp and solve the equality problem on it
-    exactly, by the smallest correction of x_qp (so that constraints inactive
-    at x_qp stay satisfied).
+def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: bool = False,
+            active_rtol: float = _ACTIVE_RTOL):
+    """Read the active set off x_qp (rows within ``active_rtol`` of their
+    scale from a bound) and solve the equality problem on it exactly, by the
+    smallest correction of x_qp (so that constraints inactive at x_qp stay
+    satisfied).
 
     Returns the polished x if it is feasible and no worse than x_qp (or
     certified optimal by :func:`_kkt_certified` where x_qp is cheaper), else
     x_qp, and whether polishing was kept. With ``certify`` (x_qp from widened bounds,
     so possibly better than the exact optimum) the polished x must instead pass
     :func:`_kkt_certified`."""
-    delta = _ACTIVE_RTOL * _row_scale(A_hi, lo_hi, up_hi, x_qp)
+    delta = active_rtol * _row_scale(A_hi, lo_hi, up_hi, x_qp)
     r_hi = A_hi @ x_qp
     eq_hi = lo_hi == up_hi
     at_up = ~eq_hi & np.isfinite(up_hi) & (np.abs(r_hi - up_hi) <= delta)
@@ -272,7 +278,7 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
         G, t = np.eye(A_hi.shape[1]), np.zeros(A_hi.shape[1])
     else:
         r_k = A_k @ x_qp
-        delta = _ACTIVE_RTOL * _row_scale(A_k, lo_k, up_k, x_qp)
+        delta = active_rtol * _row_scale(A_k, lo_k, up_k, x_qp)
         above = r_k > up_k + delta
         below = r_k < lo_k - delta
         eq_k = lo_k == up_k
@@ -350,6 +356,11 @@ def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, name: str):
             failed.append(f"bounds widened by {widen:g}: {err}" if widen else str(err))
             continue
         x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, certify=widen > 0)
+        for active_rtol in () if ok else _ACTIVE_RETRY:
+            x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, certify=widen > 0,
+                            active_rtol=active_rtol)
+            if ok:
+                break
         if not widen:
             return x, ok, backend, (x_qp if ok else None)
         if ok:
