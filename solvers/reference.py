@@ -356,11 +356,12 @@ def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, name: str):
             failed.append(f"bounds widened by {widen:g}: {err}" if widen else str(err))
             continue
         x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, certify=widen > 0)
-        for active_rtol in () if ok else _ACTIVE_RETRY:
-            x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, certify=widen > 0,
-                            active_rtol=active_rtol)
-            if ok:
-                break
+        if not ok:  # (the active set read again, looser: _ACTIVE_RETRY)
+            for active_rtol in _ACTIVE_RETRY:
+                x, ok = _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, certify=widen > 0,
+                                active_rtol=active_rtol)
+                if ok:
+                    break
         if not widen:
             return x, ok, backend, (x_qp if ok else None)
         if ok:

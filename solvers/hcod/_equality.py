@@ -39,6 +39,7 @@ from solvers.hcod._linalg import (
     NEAR_RANK_STEP,
     householder,
     level_scale,
+    near_rank_cut,
     quad_gram,
     reflect_pair,
     reflect_pair4,
@@ -294,16 +295,10 @@ def _near_rank_cut(At, s0, s1, p, r, thr, xi, b, y):
     on later columns only, so ``L[:, :t]`` is intact); the columns it leaves go back to Z
     for the levels below. Returns (the rank, flops). (Not inlined: in eq_solve's body its
     loops cost registers where they never run.)"""
-    ycap = NEAR_RANK_STEP * (1.0 + math.sqrt(vdot(xi[:p], xi[:p])))
-    acc = 0.0
-    for t in range(r):
-        acc += y[t] * y[t]
-        if acc > ycap * ycap and abs(xi[p + t]) <= NEAR_RANK * thr:
-            fl = 0
-            if t > 0:
-                fl = _lsq_lower(At, s0, s1, p, t, xi, b, y)
-            return t, fl
-    return r, 0
+    t = near_rank_cut(y, xi[p:p + r], r, thr, NEAR_RANK_STEP * (1.0 + math.sqrt(vdot(xi[:p], xi[:p]))))
+    if t < 0:
+        return r, 0
+    return t, _lsq_lower(At, s0, s1, p, t, xi, b, y) if t > 0 else 0
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)

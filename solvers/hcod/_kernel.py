@@ -67,6 +67,7 @@ from solvers.hcod._linalg import (
     cod_append,
     matrix_view,
     mf_reflect,
+    near_rank_cut,
     row_axpy,
     row_dot,
     solve_lower,
@@ -700,14 +701,7 @@ def hcod_solve(fw, iw):
                                     break
                             if wc >= 0:
                                 ycap = NEAR_RANK_STEP * (1.0 + _norm(u))
-                                acc = 0.0
-                                cut = -1
-                                for c in range(r):
-                                    acc += y[c] * y[c]
-                                    if acc > ycap * ycap and c >= wc and abs(diag[c]) <= NEAR_RANK * thr_k:
-                                        cut = c
-                                        break
-                                wc = cut
+                                wc = near_rank_cut(y, diag, r, thr_k, ycap)
                         fl += _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, Wt, qv, qi, sv, sv2)
                 tau, blk, bsd, moved, un, f = _step_length(has_ineq, A, bcol, bval, kind, lo, up, rnorm, lnorm,
                                                            rowlev, state, s0, s1, u, ps, rank_rtol, feas_rtol,

@@ -394,6 +394,7 @@ __all__ = [
     "level_scale",
     "matrix_view",
     "mf_reflect",
+    "near_rank_cut",
     "quad_gram",
     "reflect_pair",
     "reflect_pair4",
@@ -404,6 +405,19 @@ __all__ = [
     "solve_lower",
     "unowned",
 ]
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def near_rank_cut(y, d, r, thr, ycap):
+    """Where a level's LSE solution ``y`` (r,) of the COD (19), pivots ``d``
+    (r,), is cut (NEAR_RANK): the first pivot t within ``NEAR_RANK thr`` of
+    zero at which ``||y[:t+1]||`` passes ``ycap``, or -1."""
+    acc = 0.0
+    for t in range(r):
+        acc += y[t] * y[t]
+        if acc > ycap * ycap and abs(d[t]) <= NEAR_RANK * thr:
+            return t
+    return -1
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
