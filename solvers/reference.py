@@ -18,7 +18,10 @@ Two methods that share no code with the HCOD solver:
   eqs. (33)-(36)) as a cascade of QPs in (x, w) solved by Clarabel at tight
   tolerances, each level *polished*: its active set is read off the QP
   solution and the equality-constrained least-squares problem on that set is
-  solved exactly (SVD null-space method); the polished point is kept only if it
+  solved exactly (SVD null-space method); where the KKT conditions do not
+  certify that point (the QP's active set was not the optimal one), a primal
+  active set that also drops rows goes on from it to the optimum
+  (:func:`_descend`); the polished point is kept only if it
   is feasible and no worse, or, where the QP's point is cheaper for breaking
   the levels above within its tolerances, certified optimal by the KKT
   conditions. Higher levels are frozen exactly, the optimal
@@ -57,11 +60,12 @@ __all__ = ["RANK_RTOL", "UNITS_MIN", "WIDEN_RTOL", "ReferenceSolver", "cascade_r
 RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
 _ACTIVE_RTOL = 1e-7  #: a constraint within this (relative) distance of its bound is read as active
 #: where the active set read at _ACTIVE_RTOL polishes to no point that is kept, it is read again at
-#: these, in turn (a QP point that is off the optimum by more than its tolerance on an
-#: ill-conditioned level: badly_scaled n=12 seed 99, level 2, kept at 1e-6, hcod's optimum)
+#: these, in turn (a QP point off the optimum by more than its tolerance on an ill-conditioned
+#: level; conditioning sweep trial 746: the minimum-norm stage, on widened bounds, certified at 1e-6)
 _ACTIVE_RETRY = (1e-6, 1e-5)
 _ALMOST_SOLVED = ("AlmostSolved",)  #: Clarabel's reduced-accuracy success
 _Y_REG = 1e-9  #: regularisation of the free coordinates y in a level's QP (removed by polishing)
+_EPS = float(np.finfo(float).eps)
 _FEAS_RTOL = 1e-11  #: feasibility slack allowed to a polished point (relative, per row)
 #: widenings of the frozen inequality bounds (relative to each row's scale) tried, in order, on a
 #: stage no backend solved; the last is _ACTIVE_RTOL: polishing reads rows that close as active anyway
@@ -260,7 +264,8 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
     """Read the active set off x_qp (rows within ``active_rtol`` of their
     scale from a bound) and solve the equality problem on it exactly, by the
     smallest correction of x_qp (so that constraints inactive at x_qp stay
-    satisfied).
+    satisfied); where that point is feasible but not certified optimal by
+    :func:`_kkt_certified`, go on from it by :func:`_descend`.
 
     Returns the polished x if it is feasible and no worse than x_qp (or
     certified optimal by :func:`_kkt_certified` where x_qp is cheaper), else
@@ -297,7 +302,7 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
         w = _signed_slack(A_k @ z, lo_k, up_k)
         return float(w @ w)
 
-    # Primal active-set refinement (activations only): go from the feasible
+    # Primal active-set refinement (activations; _descend below drops rows too): go from the feasible
     # point toward the exact point of the current active set, stop at the
     # first blocking constraint, activate it, repeat. The rows of the working set (in C) do not
     # block: rounding, not the step, moves them (taking one for the blocking row, again and again,
@@ -326,6 +331,11 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
         d = np.append(d, up_hi[j] if tau_u[j] <= tau_l[j] else lo_hi[j])
     else:
         return x_qp, False
+    if not _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final):
+        # the QP's active set was not the optimal one: on to the optimum, dropping rows too
+        x_opt = _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final)
+        if cost(x_opt) <= cost(x):
+            x = x_opt
     if certify:
         return (x, True) if _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final) else (x_qp, False)
     c_tol = 0.0 if final else float(np.sum((_FEAS_RTOL * _row_scale(A_k, lo_k, up_k, x)) ** 2))
@@ -337,6 +347,100 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
     if _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final):
         return x, True
     return x_qp, False
+
+
+def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
+    """The stage's primal active set with deactivations, from a feasible x
+    that :func:`_kkt_certified` does not certify (the activations of
+    :func:`_polish` reach the exact point of the QP's active set; where that
+    set is not the optimal one, this goes on to the optimum).
+
+    The stage is the QP in (x, w), ICRA 2010 eq. (35): min 1/2 ||w||^2 s.t. the rows of A_hi in
+    their bounds, ``lo_k <= A_k x - w <= up_k`` (final stage: min 1/2 ||x||^2 s.t. the first).
+    A row of level k is free (``w_i = 0``, A_k x inside its bounds) or in the working set at one
+    bound (``w_i = a_i x - bound``, its multiplier is w_i: the row is dropped where w_i takes the
+    wrong sign beyond ``_FEAS_RTOL`` of its scale); a row of A_hi is free or held at a bound (its
+    multiplier from bounded least squares as in :func:`_kkt_certified`; where those leave a
+    residual r of the gradient, the row that ``-r`` leaves fastest is dropped). Each step goes
+    to the exact point of the working set (:func:`_constrained_lstsq`) and stops at the first
+    free row it would push out of its bounds, which enters the working set. Nocedal & Wright,
+    Numerical Optimization, alg. 16.3. Stops where the KKT conditions hold to 1e-9 of the
+    gradient plus its round-off (no rounder: on a badly scaled level, :func:`_kkt_certified`'s
+    floor passed a point 14 % above the optimum), where no row is left to drop, or after
+    ``3 * rows + 10`` steps (cycling on a degenerate set). Returns a feasible x, in exact
+    arithmetic no dearer than the one given."""
+    from scipy.optimize import lsq_linear
+
+    feas_hi = _FEAS_RTOL * _row_scale(A_hi, lo_hi, up_hi, x)
+    r = A_hi @ x
+    eq_hi = lo_hi == up_hi
+    # s: 0 free, +1 at the upper bound, -1 at the lower bound, 2 equality
+    s_hi = np.where(eq_hi, 2, np.where(np.abs(up_hi - r) <= feas_hi, 1, np.where(np.abs(r - lo_hi) <= feas_hi, -1, 0)))
+    if final:
+        s_k = np.zeros(0, dtype=int)
+    else:
+        feas_k = _FEAS_RTOL * _row_scale(A_k, lo_k, up_k, x)
+        r = A_k @ x
+        s_k = np.where(lo_k == up_k, 2, np.where(r >= up_k - feas_k, 1, np.where(r <= lo_k + feas_k, -1, 0)))
+    rows = np.vstack([A_hi, A_k])
+    lo, up = np.concatenate([lo_hi, lo_k]), np.concatenate([up_hi, up_k])
+    n_hi = A_hi.shape[0]
+    for _ in range(3 * rows.shape[0] + 10):
+        s = np.concatenate([s_hi, s_k])
+        bound = np.where(s == 1, up, lo)
+        on_hi, on_k = s_hi != 0, s_k != 0
+        if final:
+            G, t = np.eye(x.size), np.zeros(x.size)
+        else:
+            G, t = A_k[on_k], bound[n_hi:][on_k]
+        x_new = _constrained_lstsq(x, A_hi[on_hi], bound[:n_hi][on_hi], G, t)
+        # ratio test on the free rows
+        r0, r1 = rows @ x, rows @ x_new
+        feas = _FEAS_RTOL * _row_scale(rows, lo, up, x_new)
+        dr = r1 - r0
+        with np.errstate(divide="ignore", invalid="ignore"):
+            tau_u = np.where((s == 0) & (dr > 0) & (r1 > up + feas), (up - r0) / dr, np.inf)
+            tau_l = np.where((s == 0) & (dr < 0) & (r1 < lo - feas), (lo - r0) / dr, np.inf)
+        tau = np.minimum(tau_u, tau_l)
+        j = int(np.argmin(tau))
+        if tau[j] < 1.0:
+            x = x + max(float(tau[j]), 0.0) * (x_new - x)
+            side = 1 if tau_u[j] <= tau_l[j] else -1
+            if j < n_hi:
+                s_hi[j] = side
+            else:
+                s_k[j - n_hi] = side
+            continue
+        x = x_new
+        # multipliers of level k's working rows: their slack, of the sign of their bound
+        if not final:
+            w = A_k @ x - bound[n_hi:]
+            wrong = np.where(s_k == 1, -w, np.where(s_k == -1, w, 0.0)) / _row_scale(A_k, lo_k, up_k, x)
+            i = int(np.argmax(wrong)) if wrong.size else 0
+            if wrong.size and wrong[i] > _FEAS_RTOL:
+                s_k[i] = 0
+                continue
+            g = A_k[on_k].T @ w[on_k]
+            floor = _EPS * float(np.linalg.norm(A_k, axis=1) @ _row_scale(A_k, lo_k, up_k, x))
+        else:
+            g, floor = x, _EPS * (1.0 + float(np.linalg.norm(x)))
+        # multipliers of A_hi's working rows, signed so that a right one is >= 0
+        held = np.flatnonzero(on_hi)
+        sign = np.where(s_hi[held] == -1, -1.0, 1.0)
+        C = A_hi[held] * sign[:, None]
+        if C.shape[0] == 0:
+            break
+        lower = np.where(s_hi[held] == 2, -np.inf, 0.0)
+        lam = lsq_linear(C.T, -g, bounds=(lower, np.inf), method="bvls").x
+        res = g + C.T @ lam
+        if float(np.linalg.norm(res)) <= 1e-9 * float(np.linalg.norm(g)) + floor:
+            break
+        leave = np.where(s_hi[held] == 2, -np.inf, C @ res / (np.linalg.norm(C, axis=1) + 1e-300))
+        i = int(np.argmax(leave))
+        if not leave[i] > 0:
+            break
+        s_hi[held[i]] = 0
+    return x
 
 
 def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, name: str):

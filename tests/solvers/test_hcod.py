@@ -986,13 +986,13 @@ def test_conditioning_sweep(capsys):
     dependent); well-conditioned ones (cond 1, unscaled rows) equal to the reference at 1e-9 (or
     lexicographically lower, a reference that missed the optimum); ill-conditioned ones never
     worse than the reference at the top level beyond 1e-7 of its scale or, where a row dependent
-    on the working rows to the rank threshold moved, ``rank_rtol ||A_0|| ||x||`` (lower levels
-    may differ either way: README, "Limitations"). The tally is printed (``-s``). Over the solves
-    other than the well-conditioned ones (README's rows "the same, perturbed" and
-    "ill-conditioned"), reference-lower verdicts, those at the top level and ``hcod`` failures are
-    bounded at 4x their rates in README's 3000-problem tally (137 and 1 of 5507; failures: 24 in
-    an earlier tally, 0 since), so that a change which makes them common fails here instead of
-    only moving the printed counts."""
+    on the working rows to the rank threshold moved, ``rank_rtol ||A_0||`` times the distance x
+    travelled (lower levels may differ either way: README, "Limitations"). The tally is printed
+    (``-s``). Over the solves other than the well-conditioned ones (README's rows "the same,
+    perturbed" and "ill-conditioned"), reference-lower verdicts, those at the top level and
+    ``hcod`` failures are bounded at 4x their rates in README's 3000-problem tally (59 and 1 of
+    5507; failures: 24 in an earlier tally, 0 since), so that a change which makes them common
+    fails here instead of only moving the printed counts."""
     tally = Counter()
     for trial in range(int(os.environ.get("HIKBENCH_SWEEP", "300"))):
         h, perturbed, kw = _sweep_problem(trial)
@@ -1018,9 +1018,15 @@ def test_conditioning_sweep(capsys):
             elif v.level == 0 and v.lower == "b":
                 # a row of the top level that blocked but is a combination of the working rows to
                 # the rank threshold (DEPENDENT) moves by at most rank_rtol ||A_0|| per unit of
-                # step: below the reference's scale when ||x|| is far above the reference's
-                # (README, "Limitations": 1 of 5014 in the 3000-problem tally)
-                bound = 1e-10 * np.linalg.norm(prob.A[prob.level_rows(0)], 2) * np.linalg.norm(res.x)
+                # step: below the reference's scale when x went far beyond the reference's. The
+                # min-norm stage may have brought x back: its steps are counted as the distance
+                # from the levels' own x, solved again without that stage (README, "Limitations":
+                # trial 2065, ||x|| 2.0e9 before the stage, 3.6e3 after, the reference's 4.7e3)
+                levels_only = HcodSolver(min_norm=False)
+                if prob is perturbed:
+                    levels_only.solve(h)
+                travel = np.linalg.norm(res.x) + np.linalg.norm(levels_only.solve(prob).x)
+                bound = 1e-10 * np.linalg.norm(prob.A[prob.level_rows(0)], 2) * travel
                 assert v.difference <= bound, (trial, kw, v, bound)
                 tally[group, "reference lower at the top"] += 1
             tally[group, "equal" if v.equal else "hcod lower" if v.lower == "a" else "reference lower"] += 1
@@ -1035,7 +1041,7 @@ def test_conditioning_sweep(capsys):
             ill["solves"] += count
     ill["solves"] -= ill["reference lower at the top"]  # (counted twice: also "reference lower")
     assert ill["hcod failure"] <= max(2, 4 * 24 / 5507 * ill["solves"]), ill
-    assert ill["reference lower"] <= max(2, 4 * 137 / 5507 * ill["solves"]), ill
+    assert ill["reference lower"] <= max(2, 4 * 59 / 5507 * ill["solves"]), ill
     assert ill["reference lower at the top"] <= max(2, 4 * 1 / 5507 * ill["solves"]), ill
 
 
