@@ -232,6 +232,19 @@ def _row_scale(A: np.ndarray, lo: np.ndarray, up: np.ndarray, x: np.ndarray) -> 
     return np.linalg.norm(A, axis=1) * (1.0 + np.linalg.norm(x)) + b + 1e-300
 
 
+def _kkt_residual(g: np.ndarray, A: np.ndarray, side: np.ndarray):
+    """The part of the gradient g (shape (n,)) that the working rows A (shape (m, n)) cannot
+    cancel: ``r = g + C^T lam``, with C the rows of A signed so that a right multiplier is >= 0
+    (a row held at its lower bound, ``side`` -1, negated) and lam the bounded least-squares
+    multipliers, free on equality rows (``side`` 2), >= 0 on rows held at a bound. Returns r
+    and C."""
+    from scipy.optimize import lsq_linear
+
+    C = A * np.where(side == -1, -1.0, 1.0)[:, None]
+    lam = lsq_linear(C.T, -g, bounds=(np.where(side == 2, -np.inf, 0.0), np.inf), method="bvls").x
+    return g + C.T @ lam, C
+
+
 def _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool) -> bool:
     """Whether the feasible x is optimal for the stage by the KKT conditions:
     multipliers, free for the equality rows of A_hi and of the right sign for
@@ -242,8 +255,6 @@ def _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool) -> bool:
     within ``_FEAS_RTOL`` of its scale -- where polishing put it -- so that a
     point merely near a bound is not certified (no complementary slackness
     beyond that)."""
-    from scipy.optimize import lsq_linear
-
     if final:
         g, floor = x, 1e-12 * (1.0 + float(np.linalg.norm(x)))
     else:
@@ -255,12 +266,12 @@ def _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool) -> bool:
     eq = lo_hi == up_hi
     at_up = ~eq & np.isfinite(up_hi) & (np.abs(up_hi - r) <= delta) & (up_hi - r <= r - lo_hi)
     at_lo = ~eq & ~at_up & np.isfinite(lo_hi) & (np.abs(r - lo_hi) <= delta)
-    C = np.vstack([A_hi[eq], A_hi[at_up], -A_hi[at_lo]])
-    if C.shape[0] == 0:
+    held = np.vstack([A_hi[eq], A_hi[at_up], A_hi[at_lo]])
+    if held.shape[0] == 0:
         return float(np.linalg.norm(g)) <= floor
-    lower = np.concatenate([np.full(int(eq.sum()), -np.inf), np.zeros(int(at_up.sum() + at_lo.sum()))])
-    lam = lsq_linear(C.T, -g, bounds=(lower, np.inf), method="bvls").x
-    return float(np.linalg.norm(g + C.T @ lam)) <= 1e-7 * float(np.linalg.norm(g)) + floor
+    side = np.repeat([2, 1, -1], [int(eq.sum()), int(at_up.sum()), int(at_lo.sum())])
+    res, _ = _kkt_residual(g, held, side)
+    return float(np.linalg.norm(res)) <= 1e-7 * float(np.linalg.norm(g)) + floor
 
 
 def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: bool = False,
@@ -365,7 +376,7 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
     A row of level k is free (``w_i = 0``, A_k x inside its bounds) or in the working set at one
     bound (``w_i = a_i x - bound``, its multiplier is w_i: the row is dropped where w_i takes the
     wrong sign beyond ``_DROP_RTOL`` of its scale); a row of A_hi is free or held at a bound (its
-    multiplier from bounded least squares as in :func:`_kkt_certified`; where those leave a
+    multiplier from bounded least squares, :func:`_kkt_residual`; where those leave a
     residual r of the gradient, the row that ``-r`` leaves fastest is dropped). Each step goes
     to the exact point of the working set (:func:`_constrained_lstsq`) and stops at the first
     free row it would push out of its bounds, which enters the working set. Nocedal & Wright,
@@ -374,8 +385,6 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
     floor passed a point 14 % above the optimum), where no row is left to drop, or after
     ``3 * rows + 10`` steps (cycling on a degenerate set). Returns a feasible x, in exact
     arithmetic no dearer than the one given."""
-    from scipy.optimize import lsq_linear
-
     feas_hi = _FEAS_RTOL * _row_scale(A_hi, lo_hi, up_hi, x)
     r = A_hi @ x
     eq_hi = lo_hi == up_hi
@@ -420,24 +429,20 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
         # multipliers of level k's working rows: their slack, of the sign of their bound
         if not final:
             w = A_k @ x - bound[n_hi:]
-            wrong = np.where(s_k == 1, -w, np.where(s_k == -1, w, 0.0)) / _row_scale(A_k, lo_k, up_k, x)
-            i = int(np.argmax(wrong)) if wrong.size else 0
-            if wrong.size and wrong[i] > _DROP_RTOL:
-                s_k[i] = 0
+            scale_k = _row_scale(A_k, lo_k, up_k, x)
+            wrong = np.where(s_k == 1, -w, np.where(s_k == -1, w, 0.0)) / scale_k
+            if wrong.size and wrong.max() > _DROP_RTOL:
+                s_k[np.argmax(wrong)] = 0
                 continue
             g = A_k[on_k].T @ w[on_k]
-            floor = _EPS * float(np.linalg.norm(A_k, axis=1) @ _row_scale(A_k, lo_k, up_k, x))
+            floor = _EPS * float(np.linalg.norm(A_k, axis=1) @ scale_k)
         else:
             g, floor = x, _EPS * (1.0 + float(np.linalg.norm(x)))
-        # multipliers of A_hi's working rows, signed so that a right one is >= 0
+        # multipliers of A_hi's working rows
         held = np.flatnonzero(on_hi)
-        sign = np.where(s_hi[held] == -1, -1.0, 1.0)
-        C = A_hi[held] * sign[:, None]
-        if C.shape[0] == 0:
+        if held.size == 0:
             break
-        lower = np.where(s_hi[held] == 2, -np.inf, 0.0)
-        lam = lsq_linear(C.T, -g, bounds=(lower, np.inf), method="bvls").x
-        res = g + C.T @ lam
+        res, C = _kkt_residual(g, A_hi[held], s_hi[held])
         if float(np.linalg.norm(res)) <= 1e-9 * float(np.linalg.norm(g)) + floor:
             break
         leave = np.where(s_hi[held] == 2, -np.inf, C @ res / (np.linalg.norm(C, axis=1) + 1e-300))
