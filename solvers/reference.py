@@ -453,10 +453,10 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
         held = np.flatnonzero(on_hi)
         if held.size + met.size == 0:
             break
-        res, C = _kkt_residual(g, np.vstack([A_hi[held], A_k[met]]), np.concatenate([s_hi[held], s_k[met]]))
+        side = np.concatenate([s_hi[held], s_k[met]])
+        res, C = _kkt_residual(g, np.vstack([A_hi[held], A_k[met]]), side)
         if float(np.linalg.norm(res)) <= 1e-9 * float(np.linalg.norm(g)) + floor:
             break
-        side = np.concatenate([s_hi[held], s_k[met]])
         leave = np.where(side == 2, -np.inf, C @ res / (np.linalg.norm(C, axis=1) + 1e-300))
         i = int(np.argmax(leave))
         if not leave[i] > 0:
