@@ -386,7 +386,10 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
     Numerical Optimization, alg. 16.3. Stops where the KKT conditions hold to 1e-9 of the
     gradient plus its round-off (no rounder: on a badly scaled level, :func:`_kkt_certified`'s
     floor passed a point 14 % above the optimum), where no row is left to drop, or after
-    ``3 * rows + 10`` steps (cycling on a degenerate set). Returns a feasible x, in exact
+    ``3 * rows + 10`` steps (cycling on a degenerate set). A row that the step blocks on at once
+    after its drop (tau = 0: the multipliers' residual, not an exact multiplier, chose it) is not
+    dropped again until a step moves x (badly_scaled n=5 seed 343 dropped and took back one row
+    to the step cap at a vertex). Returns a feasible x, in exact
     arithmetic no dearer than the one given."""
     feas_hi = _FEAS_RTOL * _row_scale(A_hi, lo_hi, up_hi, x)
     r = A_hi @ x
@@ -402,6 +405,7 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
     rows = np.vstack([A_hi, A_k])
     lo, up = np.concatenate([lo_hi, lo_k]), np.concatenate([up_hi, up_k])
     n_hi = A_hi.shape[0]
+    dropped, stuck = -1, set()  # (the last row dropped; rows that blocked at once after their drop)
     for _ in range(3 * rows.shape[0] + 10):
         s = np.concatenate([s_hi, s_k])
         bound = np.where(s == 1, up, lo)
@@ -421,6 +425,11 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
         tau = np.minimum(tau_u, tau_l)
         j = int(np.argmin(tau))
         if tau[j] < 1.0:
+            if j == dropped and tau[j] <= 0.0:
+                stuck.add(j)  # (dropped by its bounded least-squares multiplier, pushed out by the step)
+            elif tau[j] > 0.0:
+                stuck.clear()
+            dropped = -1
             x = x + max(float(tau[j]), 0.0) * (x_new - x)
             side = 1 if tau_u[j] <= tau_l[j] else -1
             if j < n_hi:
@@ -457,10 +466,13 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
         res, C = _kkt_residual(g, np.vstack([A_hi[held], A_k[met]]), side)
         if float(np.linalg.norm(res)) <= 1e-9 * float(np.linalg.norm(g)) + floor:
             break
-        leave = np.where(side == 2, -np.inf, C @ res / (np.linalg.norm(C, axis=1) + 1e-300))
+        index = np.concatenate([held, n_hi + met])
+        leave = np.where((side == 2) | np.isin(index, list(stuck)), -np.inf,
+                         C @ res / (np.linalg.norm(C, axis=1) + 1e-300))
         i = int(np.argmax(leave))
         if not leave[i] > 0:
             break
+        dropped = int(index[i])
         if i < held.size:
             s_hi[held[i]] = 0
         else:

@@ -994,7 +994,7 @@ def test_conditioning_sweep(capsys):
     travelled (lower levels may differ either way: README, "Limitations"). The tally is printed
     (``-s``). Over the solves other than the well-conditioned ones (README's rows "the same,
     perturbed" and "ill-conditioned"), reference-lower verdicts, those at the top level and
-    ``hcod`` failures are bounded at 4x their rates in README's 3000-problem tally (60 and 2 of
+    ``hcod`` failures are bounded at 4x their rates in README's 3000-problem tally (59 and 2 of
     5507; failures: 24 in an earlier tally, 0 since), so that a change which makes them common
     fails here instead of only moving the printed counts."""
     tally = Counter()
@@ -1045,7 +1045,7 @@ def test_conditioning_sweep(capsys):
             ill["solves"] += count
     ill["solves"] -= ill["reference lower at the top"]  # (counted twice: also "reference lower")
     assert ill["hcod failure"] <= max(2, 4 * 24 / 5507 * ill["solves"]), ill
-    assert ill["reference lower"] <= max(2, 4 * 60 / 5507 * ill["solves"]), ill
+    assert ill["reference lower"] <= max(2, 4 * 59 / 5507 * ill["solves"]), ill
     assert ill["reference lower at the top"] <= max(2, 4 * 2 / 5507 * ill["solves"]), ill
 
 
