@@ -386,9 +386,9 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
     Numerical Optimization, alg. 16.3. Stops where the KKT conditions hold to 1e-9 of the
     gradient plus its round-off (no rounder: on a badly scaled level, :func:`_kkt_certified`'s
     floor passed a point 14 % above the optimum), where no row is left to drop, or after
-    ``3 * rows + 10`` steps (cycling on a degenerate set). A row that the step blocks on at once
-    after its drop (tau = 0: the multipliers' residual, not an exact multiplier, chose it) is not
-    dropped again until a step cut short by another row moves x (tau > 0; badly_scaled n=5 seed
+    ``3 * rows + 10`` steps (cycling on a degenerate set). A row that a step blocks on at tau = 0
+    while it is the last row dropped (the multipliers' residual, not an exact multiplier, chose it) is not
+    dropped again until a step cut short by a blocking row moves x (tau > 0; badly_scaled n=5 seed
     343 dropped and took back one row to the step cap at a vertex; clearing that at every full
     step too, 5 fewer solves of the conditioning sweep agree with ``hcod``). Returns a feasible x, in exact
     arithmetic no dearer than the one given."""
