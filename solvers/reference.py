@@ -406,9 +406,10 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
     rows = np.vstack([A_hi, A_k])
     lo, up = np.concatenate([lo_hi, lo_k]), np.concatenate([up_hi, up_k])
     n_hi = A_hi.shape[0]
+    s = np.concatenate([s_hi, s_k])  # (one array for every row: s_hi and s_k are its views)
+    s_hi, s_k = s[:n_hi], s[n_hi:]
     dropped, stuck = -1, set()  # (the last row dropped; rows that blocked at once after their drop)
     for _ in range(3 * rows.shape[0] + 10):
-        s = np.concatenate([s_hi, s_k])
         bound = np.where(s == 1, up, lo)
         on_hi, on_k = s_hi != 0, s_k != 0
         if final:
@@ -432,11 +433,7 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
                 stuck.clear()
             dropped = -1
             x = x + max(float(tau[j]), 0.0) * (x_new - x)
-            side = 1 if tau_u[j] <= tau_l[j] else -1
-            if j < n_hi:
-                s_hi[j] = side
-            else:
-                s_k[j - n_hi] = side
+            s[j] = 1 if tau_u[j] <= tau_l[j] else -1
             continue
         x = x_new
         # multipliers of level k's working rows: their slack, of the sign of their bound
@@ -474,10 +471,7 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
         if not leave[i] > 0:
             break
         dropped = int(index[i])
-        if i < held.size:
-            s_hi[held[i]] = 0
-        else:
-            s_k[met[i - held.size]] = 0
+        s[dropped] = 0
     return x
 
 
