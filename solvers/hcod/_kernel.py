@@ -94,6 +94,10 @@ COLD_AFTER_WARM = 1e6
 #: back by a level below or the min-norm stage) left eps ||u|| along the working rows. The solve is
 #: done again cold with each LSE step below working rows cut to ``CANCELLED (1 + ||u||)``
 CANCELLED = COLD_AFTER_WARM
+#: a met row's projection on ``Z`` under this fraction of its norm does not fix its multiplier (_met_force)
+MET_DETERMINED = 1e-6
+#: a level whose row norms span more than this ratio has its met rows' multipliers fitted at its end (_met_force)
+MET_SPREAD = 1e3
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -175,6 +179,143 @@ def _levels_met(A, bcol, bval, kind, lo, up, rnorm, i0, i1, u, dual_rtol):
                                          dual_rtol):
             return False
     return True
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm, dual_rtol, u, p, n,
+               Wt, qv, qi, sv, sv2, g3):
+    """The level's gradient with its met rows held at their bounds as
+    constraints: ``g3 = sum_unmet w_j a_j + sum_met mu_j a_j`` (g3 (n,)), mu
+    the least squares fit of ``Z^T g3 = 0`` (the LSE optimum of a full step,
+    eq. 31; Z = ``W[:, p:]``), sign-bounded like ``mu = w`` (eq. 38:
+    ``side mu >= 0`` on an inequality row). A met row (``|w_j|`` within its
+    rounding floor, :func:`_floor`) passes the force of the level's unmet
+    rows on to the working rows wherever its projection on ``Z`` fixes its
+    mu: its measured w_j is then that force up to u's error, which its floor
+    hides where the unmet rows are ~1e-8 its size. A met row whose
+    projection, less those of the met rows before it, is under
+    MET_DETERMINED of ``||a_j||`` gets mu = 0 (its w_j is u's error along
+    the working rows), and so does a row whose fitted mu has the wrong sign
+    (the fit is done again without it).
+
+    Only where the unmet rows' force (``sum |w_j| ||a_j||``, a bound of
+    ``||g_unmet||``) is within the met rows' floors (``sum f_j ||a_j||``)
+    and a row is met; otherwise returns ``(flops, -1, -1.0)`` at once, g3
+    then holding g_unmet. Returns ``(flops, jo, ftol)``: ftol the rounding
+    of g_unmet (``G_ROUNDING`` of the unmet rows' floors), the noise floor
+    of the multipliers from g3; jo the position in Olist of the met
+    inequality row whose fitted mu (times its projection) has the wrong
+    sign beyond ftol, and its w too, the most so (it leaves the
+    objective); -1: none."""
+    fl = 0
+    m = 0
+    fu = 0.0  # the unmet rows' force (a bound of ||g_unmet||) ..
+    ftol = 0.0  # .. and its rounding
+    fmet = 0.0  # the met rows' floors
+    for c in range(n):
+        g3[c] = 0.0
+    for j in range(nO):
+        i = Olist[j]
+        w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
+        f = _floor(rnorm[i], unorm, target[i], dual_rtol)
+        if abs(w) <= f:
+            m += 1
+            fmet += rnorm[i] * f
+        else:
+            row_axpy(w, A[i], bcol[i], bval[i], g3)
+            fu += rnorm[i] * abs(w)
+            ftol += rnorm[i] * G_ROUNDING * f
+    fl += 2 * nO * n
+    if m == 0 or fu > fmet:
+        return fl, -1, -1.0
+    nz = n - p
+    mi = np.empty(m, np.int64)
+    P = np.empty((m, nz))  # the met rows' projections Z^T a_j
+    mj = np.empty(m, np.int64)  # (their positions in Olist)
+    x = np.empty(n)
+    t = 0
+    for j in range(nO):
+        i = Olist[j]
+        if abs(row_dot(A[i], bcol[i], bval[i], u) - target[i]) > _floor(rnorm[i], unorm, target[i], dual_rtol):
+            continue
+        mi[t] = i
+        mj[t] = j
+        for c in range(n):
+            x[c] = 0.0
+        row_axpy(1.0, A[i], bcol[i], bval[i], x)
+        fl += basis_t(lazy, Wt, qv, qi, x, p, n, sv, sv2)
+        for c in range(nz):
+            P[t, c] = x[p + c]
+        t += 1
+    for c in range(n):
+        x[c] = g3[c]
+    fl += basis_t(lazy, Wt, qv, qi, x, p, n, sv, sv2)  # x[p:] = Z^T g_unmet
+    keep = np.ones(m, np.bool_)
+    Q = np.empty((m, nz))
+    Rm = np.zeros((m, m))
+    mu = np.zeros(m)
+    jo = -1
+    worst = 0.0
+    for it in range(m + 1):
+        # Q R = the kept projections, in order (modified Gram-Schmidt, twice); an undetermined one
+        # leaves the fit for good
+        for t in range(m):
+            if not keep[t]:
+                continue
+            for c in range(nz):
+                Q[t, c] = P[t, c]
+            for s in range(t):
+                Rm[s, t] = 0.0
+                if keep[s]:
+                    for _r in range(2):
+                        d = 0.0
+                        for c in range(nz):
+                            d += Q[s, c] * Q[t, c]
+                        Rm[s, t] += d
+                        for c in range(nz):
+                            Q[t, c] -= d * Q[s, c]
+            d = 0.0
+            for c in range(nz):
+                d += Q[t, c] * Q[t, c]
+            d = math.sqrt(d)
+            fl += 4 * t * nz + 2 * nz
+            if d <= MET_DETERMINED * rnorm[mi[t]]:
+                keep[t] = False
+                continue
+            Rm[t, t] = d
+            for c in range(nz):
+                Q[t, c] /= d
+        # R mu = -Q^T Z^T g_unmet
+        for t in range(m - 1, -1, -1):
+            mu[t] = 0.0
+            if not keep[t]:
+                continue
+            d = 0.0
+            for c in range(nz):
+                d -= Q[t, c] * x[p + c]
+            for s in range(t + 1, m):
+                if keep[s]:
+                    d -= Rm[t, s] * mu[s]
+            mu[t] = d / Rm[t, t]
+        wrong = False
+        for t in range(m):
+            i = mi[t]
+            if keep[t] and kind[i] == 1 and side[i] * mu[t] < 0.0:
+                if it == 0:
+                    val = side[i] * mu[t] * Rm[t, t]
+                    if (val < -ftol and side[i] * (row_dot(A[i], bcol[i], bval[i], u) - target[i]) < 0.0
+                            and val < worst):
+                        worst = val
+                        jo = mj[t]
+                keep[t] = False
+                wrong = True
+        if jo >= 0 or not wrong:
+            break
+    for t in range(m):
+        if keep[t]:
+            i = mi[t]
+            row_axpy(mu[t], A[i], bcol[i], bval[i], g3)
+    return fl, jo, ftol
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -377,6 +518,13 @@ def hcod_solve(fw, iw):
                     hist_valid[k] = 1
                 continue
             thr_k = rank_rtol * lnorm[k]
+            rmax = 0.0
+            rmin = math.inf
+            for i in range(s0, s1):
+                if rnorm[i] > 0.0:
+                    rmax = max(rmax, rnorm[i])
+                    rmin = min(rmin, rnorm[i])
+            wide = rmax > MET_SPREAD * rmin  # (rows of norms far apart: _met_force at the level's end)
             nO = 0
             warm_level = use_hist and hist_valid[k] != 0
             if warm_level and jm < 0 and hist_valid[k] >= 2:
@@ -888,38 +1036,70 @@ def hcod_solve(fw, iw):
                                             else (jw < 0 or widx[j] < widx[jw])):
                                         worst = max(val, val2)
                                         jw = j
-                        if jw >= 0:
-                            i = widx[jw]
-                            # (lazy: the rotations of W's columns are applied to the projected
-                            # objective rows too, Mf[j] = W^T a_j; otherwise W is explicit and the
-                            # new column p of Z is projected)
-                            fl += delete_row(lazy, jw, R, p, widx, wside, Mf, nO if mf_valid and lazy else 0, Wt,
-                                             qv, qi, sv, sv2)
-                            p -= 1
-                            state[i] = INACTIVE
-                            deacts += 1
-                            ncod = 0
-                            if ndep > 0:  # (W lost a row: a DEPENDENT row may move freely again)
-                                ndep = _release_dependent(state, s0)
-                            if mf_valid and not lazy:
-                                wp = Wt[p]
-                                for j in range(nO):
-                                    io = Olist[j]
-                                    Mf[j, p] = row_dot(A[io], bcol[io], bval[io], wp)
-                                fl += nO * n
-                            for i2 in range(s0):
-                                if state[i2] == IMPLIED:
-                                    ok, f, bt = insert_row(lazy, A, i2, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i2]],
-                                                           q, Wt, qv, qi, sv, sv2)
-                                    fl += f
-                                    if ok and mf_valid:
-                                        fl += mf_reflect(Mf, nO, p, q, bt)
-                                    if ok:
-                                        widx[p] = i2
-                                        wside[p] = 0
-                                        p += 1
-                                        state[i2] = WORK
-                            continue
+                if jw < 0 and nO > 0 and p < n and wide:
+                    # a badly scaled level's end: where the force of its unmet rows is within the
+                    # floors of its met rows, the met rows are held at their bounds as constraints,
+                    # their mu fitted (_met_force; their w is that force up to u's error, below
+                    # their floors). A met row pulled to the feasible side of its bound leaves the
+                    # objective (mu = w, eq. 38), else a working row whose multiplier (39) from the
+                    # fitted g is negative beyond the unmet rows' rounding
+                    g3 = np.empty(n)
+                    f, jo, ftol = _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
+                                             dual_rtol, u, p, n, Wt, qv, qi, sv, sv2, g3)
+                    fl += f
+                    if jo >= 0:
+                        i = Olist[jo]
+                        deacts += 1
+                        Olist[jo] = Olist[nO - 1]
+                        if mf_valid:
+                            Mf[jo, :] = Mf[nO - 1, :]
+                        nO -= 1
+                        ncod = 0
+                        state[i] = INACTIVE
+                        continue
+                    if ftol >= 0.0 and anydel:
+                        nu3 = np.empty(n)
+                        fl += multipliers(lazy, R, p, g3, nu3, hv, Wt, qv, qi, sv, sv2)
+                        worst = 0.0
+                        for j in range(p):
+                            if wside[j] != 0:
+                                val = wside[j] * nu3[j] * rnorm[widx[j]]
+                                if val < -ftol and (val < worst if degen < BLAND_AFTER
+                                                    else (jw < 0 or widx[j] < widx[jw])):
+                                    worst = val
+                                    jw = j
+                if jw >= 0:
+                    i = widx[jw]
+                    # (lazy: the rotations of W's columns are applied to the projected
+                    # objective rows too, Mf[j] = W^T a_j; otherwise W is explicit and the
+                    # new column p of Z is projected)
+                    fl += delete_row(lazy, jw, R, p, widx, wside, Mf, nO if mf_valid and lazy else 0, Wt,
+                                     qv, qi, sv, sv2)
+                    p -= 1
+                    state[i] = INACTIVE
+                    deacts += 1
+                    ncod = 0
+                    if ndep > 0:  # (W lost a row: a DEPENDENT row may move freely again)
+                        ndep = _release_dependent(state, s0)
+                    if mf_valid and not lazy:
+                        wp = Wt[p]
+                        for j in range(nO):
+                            io = Olist[j]
+                            Mf[j, p] = row_dot(A[io], bcol[io], bval[io], wp)
+                        fl += nO * n
+                    for i2 in range(s0):
+                        if state[i2] == IMPLIED:
+                            ok, f, bt = insert_row(lazy, A, i2, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i2]],
+                                                   q, Wt, qv, qi, sv, sv2)
+                            fl += f
+                            if ok and mf_valid:
+                                fl += mf_reflect(Mf, nO, p, q, bt)
+                            if ok:
+                                widx[p] = i2
+                                wside[p] = 0
+                                p += 1
+                                state[i2] = WORK
+                    continue
                 break
             if ndep > 0:
                 ndep = _release_dependent(state, s0)
