@@ -24,7 +24,10 @@ Level k (``starts[k] <= i < starts[k+1]``):
    activation (a level-k row joins the objective, a higher row is inserted in
    ``W``); at a full step, deactivation by the sign of the multipliers:
    ``mu_k = w_k`` (eq. 38) for objective rows, ``lambda`` (eq. 39) from
-   ``R`` for working rows.
+   ``R`` for working rows. At the end of a level whose row norms span more
+   than MET_SPREAD, the rows met to their rounding floors are held as
+   constraints with multipliers fitted on ``Z`` (:func:`_met_force`): their
+   residuals, under the floors, would hide the force of the small rows.
 3. freeze: objective rows with nonzero slack become equality constraints at
    their achieved value (bounds propagated by eq. 36), zero-slack inequality
    rows become working inequality constraints.

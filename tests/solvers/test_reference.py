@@ -444,7 +444,8 @@ def test_the_reference_holds_a_met_row_by_its_multiplier(case, judge):
     levels below then differ by 1e2-1e3). Seed 834's level 1 and seed 686's level 2 ended
     above their optima too, by 1.2e-4 and 2.3e-5. Such a row is now held by its multiplier. The
     judges are the daqp and quadprog cascades (dual active sets, their status flags aside) at
-    1e-9; ``hcod`` is no judge here (on seed 686 it stops above the optimum of level 2)."""
+    1e-9; ``hcod`` is no judge here (on seed 686 it stopped above the optimum of level 2 until
+    its met rows' multipliers were fitted: ``solvers/hcod/NOTES.md``)."""
     from solvers import registry
 
     h = degenerate("badly_scaled", *case)
@@ -462,8 +463,9 @@ def test_the_reference_does_not_drop_again_a_row_the_step_pushes_back(judge):
     the next step pushed it out of its bound at once (tau = 0): dropped and taken back 24 times,
     to the step cap. The stage was left unpolished at the QP's point, level 2 9 % above its
     optimum. A row that blocks at once after its drop is not dropped again until a step moves
-    x. The judges are the daqp and quadprog cascades at 1e-9 (``hcod`` stops above the optimum
-    of level 2 here: ``solvers/hcod/NOTES.md``)."""
+    x. The judges are the daqp and quadprog cascades at 1e-9 (``hcod`` stopped above the
+    optimum of level 2 here until its met rows' multipliers were fitted:
+    ``solvers/hcod/NOTES.md``)."""
     from solvers import registry
 
     h = degenerate("badly_scaled", 5, 343)
