@@ -208,8 +208,10 @@ def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
     of g_unmet (``G_ROUNDING`` of the unmet rows' floors), the noise floor
     of the multipliers from g3; jo the position in Olist of the met
     inequality row whose fitted mu (times its projection) has the wrong
-    sign beyond ftol, and its w too, the most so (it leaves the
-    objective); -1: none."""
+    sign beyond ftol, the most so, its w not beyond its rounding
+    (``G_ROUNDING`` of its floor) on the violated side (it leaves the
+    objective; a w of exactly 0 cannot tell the sign, its mu can); -1:
+    none."""
     fl = 0
     m = 0
     fu = 0.0  # the unmet rows' force (a bound of ||g_unmet||) ..
@@ -306,8 +308,8 @@ def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
             if keep[t] and kind[i] == 1 and side[i] * mu[t] < 0.0:
                 if it == 0:
                     val = side[i] * mu[t] * Rm[t, t]
-                    if (val < -ftol and side[i] * (row_dot(A[i], bcol[i], bval[i], u) - target[i]) < 0.0
-                            and val < worst):
+                    if (val < -ftol and side[i] * (row_dot(A[i], bcol[i], bval[i], u) - target[i])
+                            < G_ROUNDING * _floor(rnorm[i], unorm, target[i], dual_rtol) and val < worst):
                         worst = val
                         jo = mj[t]
                 keep[t] = False
