@@ -184,6 +184,18 @@ def _levels_met(A, bcol, bval, kind, lo, up, rnorm, i0, i1, u, dual_rtol):
     return True
 
 
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
+def _leave_objective(j, Olist, nO, Mf, mf_valid, state):
+    """The objective row at position j of Olist leaves (INACTIVE): the last
+    one takes its place, in Mf too (whole rows: the freeze reads
+    ``Mf[:, :p]``). Returns the new nO (the COD is to be redone)."""
+    state[Olist[j]] = INACTIVE
+    Olist[j] = Olist[nO - 1]
+    if mf_valid:
+        Mf[j, :] = Mf[nO - 1, :]
+    return nO - 1
+
+
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm, dual_rtol, u, p, n,
                Wt, qv, qi, sv, sv2, g3):
@@ -973,12 +985,8 @@ def hcod_solve(fw, iw):
                         target[i] = up[i]
                         acts += 1
                         continue
-                    Olist[jw] = Olist[nO - 1]
-                    if mf_valid:  # (whole rows: the freeze reads Mf[:, :p])
-                        Mf[jw, :] = Mf[nO - 1, :]
-                    nO -= 1
+                    nO = _leave_objective(jw, Olist, nO, Mf, mf_valid, state)
                     ncod = 0
-                    state[i] = INACTIVE
                     continue
                 anydel = False
                 for j in range(p):
@@ -1053,14 +1061,9 @@ def hcod_solve(fw, iw):
                                              dual_rtol, u, p, n, Wt, qv, qi, sv, sv2, g3)
                     fl += f
                     if jo >= 0:
-                        i = Olist[jo]
                         deacts += 1
-                        Olist[jo] = Olist[nO - 1]
-                        if mf_valid:
-                            Mf[jo, :] = Mf[nO - 1, :]
-                        nO -= 1
+                        nO = _leave_objective(jo, Olist, nO, Mf, mf_valid, state)
                         ncod = 0
-                        state[i] = INACTIVE
                         continue
                     if ftol >= 0.0 and anydel:
                         nu3 = np.empty(n)
