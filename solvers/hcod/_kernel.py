@@ -198,7 +198,7 @@ def _leave_objective(j, Olist, nO, Mf, mf_valid, state):
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm, dual_rtol, u, p, n,
-               Wt, qv, qi, sv, sv2, g3):
+               Wt, qv, qi, sv, sv2):
     """The level's gradient with its met rows held at their bounds as
     constraints: ``g3 = sum_unmet w_j a_j + sum_met mu_j a_j`` (g3 (n,)), mu
     the least squares fit of ``Z^T g3 = 0`` (the LSE optimum of a full step,
@@ -215,10 +215,10 @@ def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
 
     Only where the unmet rows' force (``sum |w_j| ||a_j||``, a bound of
     ``||g_unmet||``) is within the met rows' floors (``sum f_j ||a_j||``)
-    and a row is met; otherwise returns ``(flops, -1, -1.0)`` at once, g3
-    then holding g_unmet. Returns ``(flops, jo, ftol)``: ftol the rounding
-    of g_unmet (``G_ROUNDING`` of the unmet rows' floors), the noise floor
-    of the multipliers from g3; jo the position in Olist of the met
+    and a row is met; otherwise returns ``(flops, -1, -1.0)`` and an empty
+    g3 after one pass over the rows. Returns ``(flops, jo, ftol, g3)``:
+    ftol the rounding of g_unmet (``G_ROUNDING`` of the unmet rows'
+    floors), the noise floor of the multipliers from g3; jo the position in Olist of the met
     inequality row whose fitted mu (times its projection) has the wrong
     sign beyond ftol, the most so, its w not beyond its rounding
     (``G_ROUNDING`` of its floor) on the violated side (it leaves the
@@ -229,8 +229,6 @@ def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
     fu = 0.0  # the unmet rows' force (a bound of ||g_unmet||) ..
     ftol = 0.0  # .. and its rounding
     fmet = 0.0  # the met rows' floors
-    for c in range(n):
-        g3[c] = 0.0
     for j in range(nO):
         i = Olist[j]
         w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
@@ -239,12 +237,12 @@ def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
             m += 1
             fmet += rnorm[i] * f
         else:
-            row_axpy(w, A[i], bcol[i], bval[i], g3)
             fu += rnorm[i] * abs(w)
             ftol += rnorm[i] * G_ROUNDING * f
-    fl += 2 * nO * n
+    fl += nO * n
     if m == 0 or fu > fmet:
-        return fl, -1, -1.0
+        return fl, -1, -1.0, np.empty(0)
+    g3 = np.zeros(n)
     nz = n - p
     mi = np.empty(m, np.int64)
     P = np.empty((m, nz))  # the met rows' projections Z^T a_j
@@ -253,7 +251,9 @@ def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
     t = 0
     for j in range(nO):
         i = Olist[j]
-        if abs(row_dot(A[i], bcol[i], bval[i], u) - target[i]) > _floor(rnorm[i], unorm, target[i], dual_rtol):
+        w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
+        if abs(w) > _floor(rnorm[i], unorm, target[i], dual_rtol):
+            row_axpy(w, A[i], bcol[i], bval[i], g3)
             continue
         mi[t] = i
         mj[t] = j
@@ -264,6 +264,7 @@ def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
         for c in range(nz):
             P[t, c] = x[p + c]
         t += 1
+    fl += nO * n
     for c in range(n):
         x[c] = g3[c]
     fl += basis_t(lazy, Wt, qv, qi, x, p, n, sv, sv2)  # x[p:] = Z^T g_unmet
@@ -332,7 +333,7 @@ def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
         if keep[t]:
             i = mi[t]
             row_axpy(mu[t], A[i], bcol[i], bval[i], g3)
-    return fl, jo, ftol
+    return fl, jo, ftol, g3
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
@@ -1056,9 +1057,8 @@ def hcod_solve(fw, iw):
                     # their floors). A met row pulled to the feasible side of its bound leaves the
                     # objective (mu = w, eq. 38), else a working row whose multiplier (39) from the
                     # fitted g is negative beyond the unmet rows' rounding
-                    g3 = np.empty(n)
-                    f, jo, ftol = _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
-                                             dual_rtol, u, p, n, Wt, qv, qi, sv, sv2, g3)
+                    f, jo, ftol, g3 = _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side,
+                                                 unorm, dual_rtol, u, p, n, Wt, qv, qi, sv, sv2)
                     fl += f
                     if jo >= 0:
                         deacts += 1
