@@ -159,11 +159,13 @@ KNOWN: dict[tuple[str, str, str, str], str | tuple[str, ...]] = {
 
 # The outcomes that differ where numpy's OpenBLAS runs its SkylakeX kernels (baseline_cases.
 # SKYLAKEX_BLAS; an AMD EPYC Zen 4, the same package versions, three runs gave the same; an AMD EPYC
-# Zen 5 with these kernels gives the same): the test problems and the backends'
+# Zen 5 with these kernels gives the same but osqp's first entry): the test problems and the backends'
 # NumPy steps round differently and, on these borderline cases, so does which frozen set they
 # call infeasible.
-KNOWN_SKYLAKEX: dict[tuple[str, str, str, str], str] = {
-    ("cascade-osqp", "default", "shift", "deg-equalities_in_inequality_levels"): "ok",
+KNOWN_SKYLAKEX: dict[tuple[str, str, str, str], str | tuple[str, ...]] = {
+    # "ok" on the Zen 4; on the Zen 5 with SkylakeX kernels level 0 is 1.9e-3 above the optimum
+    # (within the tolerance) and level 4 lower by 1.02 times its tolerance: either accepted
+    ("cascade-osqp", "default", "shift", "deg-equalities_in_inequality_levels"): ("ok", "differs"),
     ("cascade-proxqp", "high", "shift", "rand-mixed"): "differs",  # level 3 1.6e-5 above the reference
     ("cascade-proxqp", "high", "shift", "deg-rank_deficient"): "ok",
     ("cascade-proxqp", "high", "equality", "rand-mixed"): "differs",

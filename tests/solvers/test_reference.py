@@ -290,28 +290,70 @@ def test_every_stage_of_a_robot_problem_is_polished(stack, seed):
     assert verdict.equal, verdict
 
 
-def test_a_level_whose_exact_freeze_leaves_a_sliver_keeps_its_qp_point():
+@pytest.fixture(scope="module")
+def talos_step181() -> Hierarchy:
     """Talos reaching (``hikbench scenario reach --solver reference``), step 181: the right-hand
     level (6 conflicting equalities) is met at 17 joint bounds, and frozen at its polished optimum
-    it leaves the velocity level a feasible set ~1e-6 wide (21 equalities and those bounds) that
-    no backend solves, widened or not. The velocity level is solved again with the hand level
-    frozen at its QP's own point, recorded unpolished with the reason; the hand level's norm
-    is then still the exact optimum's (the polished point's, hcod's) to the QP's tolerance."""
+    it leaves the velocity level a feasible set ~1e-6 wide (21 equalities and those bounds)."""
     from pathlib import Path
 
     from problems.files import load_npz
+
+    return load_npz(Path(__file__).parent / "data" / "talos_reach_step181.npz")
+
+
+def _check_sliver_reference(h: Hierarchy, x: np.ndarray, info: dict) -> None:
+    """The levels above the hand level met to 1e-10 of their scales, the hand level's norm the
+    exact optimum's (hcod's) to 1e-8, and a hand level frozen at its QP's point says why."""
+    from problems.verify import level_scales
     from solvers import registry
 
-    h = load_npz(Path(__file__).parent / "data" / "talos_reach_step181.npz")
-    x, info = cascade_reference(h)
     hand = h.names.index("right_hand")
-    assert info["polished"] == [True, True, True, False, True, True], info["backend"]
-    assert "its QP's point kept: level 4 had no solvable frozen set" in info["backend"][hand]
+    if not info["polished"][hand]:
+        assert "its QP's point kept: level 4 had no solvable frozen set" in info["backend"][hand]
     exact = registry.create("hcod").solve(h)
     assert exact.status == OPTIMAL
     norms, exact_norms = h.level_norms(x), h.level_norms(exact.x)
-    np.testing.assert_allclose(norms[:hand], 0.0, atol=1e-10)
+    assert np.all(norms[:hand] <= 1e-10 * level_scales(h, x)[:hand]), norms[:hand]
     np.testing.assert_allclose(norms[hand], exact_norms[hand], rtol=1e-8)
+
+
+def test_a_sliver_below_a_level_costs_the_levels_above_nothing(talos_step181):
+    """Whether a backend solves the sliver depends on the BLAS kernels: with OpenBLAS's Haswell
+    kernels none does, widened or not, and the hand level is refrozen at its QP's point (next
+    test); with its SkylakeX kernels Clarabel does, and the minimum-norm stage, left no freedom,
+    keeps the frozen equalities' point unpolished. Either way, the levels above the hand level are
+    met and the hand level's norm is the exact optimum's to the QP's tolerance."""
+    h = talos_step181
+    x, info = cascade_reference(h)
+    hand = h.names.index("right_hand")
+    assert all(info["polished"][:hand]) and info["polished"][hand + 1], info["backend"]
+    _check_sliver_reference(h, x, info)
+
+
+def test_a_level_whose_exact_freeze_leaves_a_sliver_keeps_its_qp_point(talos_step181, monkeypatch):
+    """The velocity level's first stage (the hand level frozen at its polished optimum) is made
+    to fail on every BLAS kernel -- it fails on its own with the Haswell kernels (previous test).
+    The velocity level is then solved again with the hand level frozen at its QP's own point,
+    recorded unpolished with the reason, and the hand level's norm is still the exact optimum's
+    to the QP's tolerance."""
+    from solvers import reference
+
+    real_stage, failed = reference._stage, []
+
+    def stage(*args):
+        if args[-1] == "level 4" and not failed:
+            failed.append(args[-1])
+            raise reference.ReferenceError("level 4: no backend solved it (forced by the test)")
+        return real_stage(*args)
+
+    monkeypatch.setattr(reference, "_stage", stage)
+    h = talos_step181
+    x, info = cascade_reference(h)
+    assert failed == ["level 4"]
+    hand = h.names.index("right_hand")
+    assert info["polished"][: hand + 2] == [True] * hand + [False, True], info["backend"]
+    _check_sliver_reference(h, x, info)
 
 
 # Problems whose reference, at bounds x 1e-3 .. 1e-9, was above the exact optimum at some level
@@ -377,7 +419,9 @@ def test_the_reference_reaches_the_optimum_of_degenerate_levels(case, judge):
     """Every stage polished, and the reference's level norms equal to those of hcod (an active
     set on the HCOD) and of the PIQP cascade (a cascade of generic QPs), at 1e-9 -- two codes
     that share none of the reference's. (The other cascades are no judges here: daqp, quadprog
-    and highs each miss a level of one of these problems, some with a status that says so.)"""
+    and highs each miss a level of one of these problems, some with a status that says so.)
+    A judge is judged by its point, its status flag aside: with OpenBLAS's SkylakeX kernels PIQP
+    stops at its iteration limit at level 3 of seed 937, at a point whose norms are the same."""
     from solvers import registry
 
     n, depth, rows, kw = case
@@ -385,7 +429,7 @@ def test_the_reference_reaches_the_optimum_of_degenerate_levels(case, judge):
     x, info = cascade_reference(h)
     assert all(info["polished"]), info["backend"]
     other = registry.create(judge).solve(h)
-    assert other.status == OPTIMAL, other.reason
+    assert other.x is not None, other.reason
     verdict = verify(h, x, other.x, rtol=1e-9)
     assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(other.x))
 
