@@ -4,7 +4,9 @@ primal active set on the HCOD (ICRA 2010, sec. VII-XI). One call per solve.
 Row states (``state``): INACTIVE (a constraint with zero slack, inside its
 bounds), WORK (in the working set of constraints ``J_bar`` of the levels above,
 its row in the decomposition ``W``/``R``), IMPLIED (a frozen row that is a
-combination of working rows: not in ``W``, kept implicitly), OBJECTIVE (a row
+combination of working rows: not in ``W``, kept implicitly; it re-enters ``W``
+when a working row leaves and its projection on ``Z`` is beyond the rank
+threshold at its own norm), OBJECTIVE (a row
 of the current level in the least-squares objective ``J_hat_k``, eq. 43),
 DEPENDENT (an inequality row above that blocked a step but is a combination of
 the working rows to the rank threshold: it cannot enter ``W``, and a step in
@@ -586,8 +588,8 @@ def hcod_solve(fw, iw):
                         dropped = True
                 if dropped:
                     for i in range(s0):
-                        if state[i] == IMPLIED:
-                            ok, f, bt = insert_row(lazy, A, i, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i]], q,
+                        if state[i] == IMPLIED:  # (its rank threshold: see the deletion below)
+                            ok, f, bt = insert_row(lazy, A, i, bcol, bval, R, p, rank_rtol * rnorm[i], q,
                                                    Wt, qv, qi, sv, sv2)
                             fl += f
                             if ok:
@@ -1095,9 +1097,13 @@ def hcod_solve(fw, iw):
                             io = Olist[j]
                             Mf[j, p] = row_dot(A[io], bcol[io], bval[io], wp)
                         fl += nO * n
+                    # an implied row re-enters W where its projection on Z is beyond the rank
+                    # threshold at its own norm: at its level's, a row 1e-7 the size of the others
+                    # (met beside it, so implied at the freeze) stayed out, and the step moved its
+                    # residual by 6e-5 of itself (badly_scaled n = 12 seed 964)
                     for i2 in range(s0):
                         if state[i2] == IMPLIED:
-                            ok, f, bt = insert_row(lazy, A, i2, bcol, bval, R, p, rank_rtol * lnorm[rowlev[i2]],
+                            ok, f, bt = insert_row(lazy, A, i2, bcol, bval, R, p, rank_rtol * rnorm[i2],
                                                    q, Wt, qv, qi, sv, sv2)
                             fl += f
                             if ok and mf_valid:

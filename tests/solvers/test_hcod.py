@@ -397,6 +397,29 @@ def test_met_rows_pass_on_the_force_of_a_levels_small_rows(seed, rtol, judge):
             assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
 
 
+@pytest.mark.parametrize("judge", ["cascade-daqp", "cascade-quadprog"])
+def test_a_frozen_small_row_reenters_w_at_its_own_rank_threshold(judge):
+    """badly_scaled n = 12 seed 964: level 2 ends with a row of norm 1 met at its bound and one
+    of norm 1.3e-7 (scaled) with a residual; frozen, the small one is implied by the large one
+    (``Z`` has one column). At level 3 a box row leaves ``W``, and the small row's projection on
+    the freed direction was under the rank threshold at its level's norm, so it stayed out of
+    ``W``: the step moved its residual by 6e-5 of itself, level 2 ended 1.4288e-3 against
+    1.4287e-3 and level 3 2.171e-2 against 2.244e-2 (in mode "none", which builds ``W`` again at
+    each level, hcod was right). An implied row now re-enters ``W`` at the rank threshold at its
+    own norm. verify does not see level 2 (its scale is the norm-1 row's); the test judges it at
+    1e-5 of its own value (the judges are within 3e-6 of hcod), and the levels by verify at 1e-6
+    (level 3 was 3.6e-6 of its scale above; the judges stop 1.5e-7 of it above hcod at level 4)."""
+    h = G.degenerate("badly_scaled", 12, 964)
+    other = registry.create(judge).solve(h)
+    for warm_start in WARM_STARTS:
+        for min_norm in (True, False):
+            res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(h)
+            assert res.status == OPTIMAL, (warm_start, min_norm, res.reason)
+            np.testing.assert_allclose(h.level_norms(res.x)[2], h.level_norms(other.x)[2], rtol=1e-5)
+            verdict = verify(h, res.x, other.x, rtol=1e-6)
+            assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
+
+
 def _pinned_by_near_parallel_rows(eps: float, variant: str) -> Hierarchy:
     """x0 pinned to 1 by two one-sided rows parallel to eps (x0 <= 1, x0 + eps x1 >= 1), then a
     task 2 x0 + 0.3 x1 <= -4 that only x1 can serve; variants under a box, with the pin an
