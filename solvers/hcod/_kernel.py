@@ -9,8 +9,8 @@ when a working row leaves and its projection on ``Z`` is beyond the rank
 threshold at its own norm), OBJECTIVE (a row
 of the current level in the least-squares objective ``J_hat_k``, eq. 43),
 DEPENDENT (an inequality row above that blocked a step but is a combination of
-the working rows to the rank threshold: it cannot enter ``W``, and a step in
-``Z`` moves it by at most that threshold times the step; it blocks no more
+the working rows to the rank threshold at its own norm: it cannot enter ``W``,
+and a step in ``Z`` moves it by at most that threshold times the step; it blocks no more
 until a working row leaves or the level ends, then it is INACTIVE again).
 ``side``: +1 upper bound, -1 lower bound, 0 equality / frozen (never leaves).
 
@@ -27,9 +27,11 @@ Level k (``starts[k] <= i < starts[k+1]``):
    ``W``); at a full step, deactivation by the sign of the multipliers:
    ``mu_k = w_k`` (eq. 38) for objective rows, ``lambda`` (eq. 39) from
    ``R`` for working rows. At the end of a level whose row norms span more
-   than MET_SPREAD, the rows met to their rounding floors are held as
-   constraints with multipliers fitted on ``Z`` (:func:`_met_force`): their
-   residuals, under the floors, would hide the force of the small rows.
+   than MET_SPREAD, or where a working row's multiplier is negative within
+   the part of its noise floor that the met rows' residuals make, the rows
+   met to their rounding floors are held as constraints with multipliers
+   fitted on ``Z`` (:func:`_met_force`): their residuals, under the floors,
+   would hide the force of the small rows.
 3. freeze: objective rows with nonzero slack become equality constraints at
    their achieved value (bounds propagated by eq. 36), zero-slack inequality
    rows become working inequality constraints.
@@ -200,7 +202,7 @@ def _leave_objective(j, Olist, nO, Mf, mf_valid, state):
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm, dual_rtol, u, p, n,
-               Wt, qv, qi, sv, sv2):
+               Wt, qv, qi, sv, sv2, force):
     """The level's gradient with its met rows held at their bounds as
     constraints: ``g3 = sum_unmet w_j a_j + sum_met mu_j a_j`` (g3 (n,)), mu
     the least squares fit of ``Z^T g3 = 0`` (the LSE optimum of a full step,
@@ -215,9 +217,11 @@ def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
     the working rows), and so does a row whose fitted mu has the wrong sign
     (the fit is done again without it).
 
-    Only where the unmet rows' force (``sum |w_j| ||a_j||``, a bound of
-    ``||g_unmet||``) is within the met rows' floors (``sum f_j ||a_j||``)
-    and a row is met; otherwise returns ``(flops, -1, -1.0)`` and an empty
+    Only where a row is met and either ``force`` (a working row's
+    multiplier is negative within the met rows' part of its noise floor) or
+    the unmet rows' force (``sum |w_j| ||a_j||``, a bound of
+    ``||g_unmet||``) is within the met rows' floors (``sum f_j ||a_j||``);
+    otherwise returns ``(flops, -1, -1.0)`` and an empty
     g3 after one pass over the rows. Returns ``(flops, jo, ftol, g3)``:
     ftol the rounding of g_unmet (``G_ROUNDING`` of the unmet rows'
     floors), the noise floor of the multipliers from g3; jo the position in Olist of the met
@@ -242,7 +246,7 @@ def _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side, unorm,
             fu += rnorm[i] * abs(w)
             ftol += rnorm[i] * G_ROUNDING * f
     fl += nO * n
-    if m == 0 or fu > fmet:
+    if m == 0 or (fu > fmet and not force):
         return fl, -1, -1.0, np.empty(0)
     g3 = np.zeros(n)
     nz = n - p
@@ -913,14 +917,16 @@ def hcod_solve(fw, iw):
                             fl += basis_rows(lazy, A, Olist, nO, nO + 1, bcol, bval, Wt, qv, qi, Mf, p, sv, sv2)
                         nO += 1
                     else:
-                        ok, f, bt = insert_row(lazy, A, blk, bcol, bval, R, p, rank_rtol * lnorm[rowlev[blk]], q,
+                        ok, f, bt = insert_row(lazy, A, blk, bcol, bval, R, p, rank_rtol * rnorm[blk], q,
                                                Wt, qv, qi, sv, sv2)
                         fl += f
                         if not ok:
-                            # in the span of the working rows to the rank threshold: the rank rule
-                            # does not tell it from one of them (a row x0 <= 1 under a working row
-                            # x0 + 1e-12 x1 >= 1); it is not activated and blocks no more while W
-                            # keeps its rows (it was a numerical failure)
+                            # in the span of the working rows to the rank threshold at its own norm
+                            # (at its level's, a row 1e-6 the size of its level's others was moved
+                            # past its bound by 1e-4 of itself: badly_scaled n = 12 seed 528): the
+                            # rank rule does not tell it from one of them (a row x0 <= 1 under a
+                            # working row x0 + 1e-12 x1 >= 1); it is not activated and blocks no
+                            # more while W keeps its rows (it was a numerical failure)
                             state[blk] = DEPENDENT
                             ndep += 1
                             acts -= 1
@@ -996,6 +1002,7 @@ def hcod_solve(fw, iw):
                     if wside[j] != 0:
                         anydel = True
                         break
+                amb = False  # a multiplier below the rounding, within the met rows' part
                 if anydel and nO > 0:
                     # g = J_k^T w and its noise floor: per objective row, ||a_j|| times the
                     # error of its residual w_j, G_ROUNDING of its rounding floor (_floor: the
@@ -1019,7 +1026,6 @@ def hcod_solve(fw, iw):
                     if gn > gtol:
                         fl += multipliers(lazy, R, p, g, nu, hv, Wt, qv, qi, sv, sv2)  # eq. (39)
                         worst = 0.0
-                        amb = False  # a multiplier below the rounding, within the met rows' part
                         for j in range(p):
                             if wside[j] != 0:
                                 val = wside[j] * nu[j] * rnorm[widx[j]]
@@ -1028,39 +1034,19 @@ def hcod_solve(fw, iw):
                                                     else (jw < 0 or widx[j] < widx[jw])):
                                     worst = val
                                     jw = j
-                        if jw < 0 and amb:
-                            # the met rows' residuals are either u's error (then g less their
-                            # terms is the force) or the true optimum's (then g is): a row whose
-                            # multiplier is negative beyond the rounding both ways leaves. (The
-                            # large met rows of a badly scaled level otherwise hid a force of
-                            # its small unmet ones, ~1e-2 of it, that frees a bound row.)
-                            # z: g of the unmet rows alone, y: its multipliers (free scratch here)
-                            for c in range(n):
-                                z[c] = 0.0
-                            for j in range(nO):
-                                i = Olist[j]
-                                w = row_dot(A[i], bcol[i], bval[i], u) - target[i]
-                                if abs(w) > _floor(rnorm[i], unorm, target[i], dual_rtol):
-                                    row_axpy(w, A[i], bcol[i], bval[i], z)
-                            fl += multipliers(lazy, R, p, z, y, hv, Wt, qv, qi, sv, sv2)
-                            for j in range(p):
-                                if wside[j] != 0:
-                                    val = wside[j] * nu[j] * rnorm[widx[j]]
-                                    val2 = wside[j] * y[j] * rnorm[widx[j]]
-                                    if val < -gtol_r and val2 < -gtol_r and (
-                                            max(val, val2) < worst if degen < BLAND_AFTER
-                                            else (jw < 0 or widx[j] < widx[jw])):
-                                        worst = max(val, val2)
-                                        jw = j
-                if jw < 0 and nO > 0 and p < n and wide:
-                    # a badly scaled level's end: where the force of its unmet rows is within the
-                    # floors of its met rows, the met rows are held at their bounds as constraints,
-                    # their mu fitted (_met_force; their w is that force up to u's error, below
-                    # their floors). A met row pulled to the feasible side of its bound leaves the
-                    # objective (mu = w, eq. 38), else a working row whose multiplier (39) from the
-                    # fitted g is negative beyond the unmet rows' rounding
+                if jw < 0 and nO > 0 and p < n and (wide or amb):
+                    # a badly scaled level's end, where the force of its unmet rows is within the
+                    # floors of its met rows, or a multiplier negative within the met rows' part of
+                    # gtol (amb: their measured w is either u's error or the optimum's residual;
+                    # badly_scaled n = 12 seed 281: a met row's w, 2.3e-14 scaled, under its floor
+                    # but the LSE's own, put 2.2e-15 in gtol, above a box row's -7.9e-16): the met rows
+                    # are held at their bounds as constraints, their mu fitted (_met_force; their w
+                    # is that force up to u's error, below their floors). A met row pulled to the
+                    # feasible side of its bound leaves the objective (mu = w, eq. 38), else a
+                    # working row whose multiplier (39) from the fitted g is negative beyond the
+                    # unmet rows' rounding
                     f, jo, ftol, g3 = _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side,
-                                                 unorm, dual_rtol, u, p, n, Wt, qv, qi, sv, sv2)
+                                                 unorm, dual_rtol, u, p, n, Wt, qv, qi, sv, sv2, amb)
                     fl += f
                     if jo >= 0:
                         deacts += 1

@@ -398,26 +398,58 @@ def test_met_rows_pass_on_the_force_of_a_levels_small_rows(seed, rtol, judge):
 
 
 @pytest.mark.parametrize("judge", ["cascade-daqp", "cascade-quadprog"])
-def test_a_frozen_small_row_reenters_w_at_its_own_rank_threshold(judge):
-    """badly_scaled n = 12 seed 964: level 2 ends with a row of norm 1 met at its bound and one
-    of norm 1.3e-7 (scaled) with a residual; frozen, the small one is implied by the large one
-    (``Z`` has one column). At level 3 a box row leaves ``W``, and the small row's projection on
-    the freed direction was under the rank threshold at its level's norm, so it stayed out of
-    ``W``: the step moved its residual by 6e-5 of itself, level 2 ended 1.4288e-3 against
-    1.4287e-3 and level 3 2.171e-2 against 2.244e-2 (in mode "none", which builds ``W`` again at
-    each level, hcod was right). An implied row now re-enters ``W`` at the rank threshold at its
-    own norm. verify does not see level 2 (its scale is the norm-1 row's); the test judges it at
-    1e-5 of its own value (the judges are within 3e-6 of hcod), and the levels by verify at 1e-6
-    (level 3 was 3.6e-6 of its scale above; the judges stop 1.5e-7 of it above hcod at level 4)."""
-    h = G.degenerate("badly_scaled", 12, 964)
+@pytest.mark.parametrize(("seed", "level_rtol", "rtol"), [(964, 1e-5, 1e-6), (281, 1e-8, 1e-9)],
+                         ids=["964-implied-row-reenters-w", "281-met-row-hides-no-multiplier"])
+def test_a_small_rows_level_reaches_the_exact_cascades_point(seed, level_rtol, rtol, judge):
+    """badly_scaled n = 12; level 2 holds rows of very different norms, and verify does not see it
+    (its scale is set by its largest row): it is judged at ``level_rtol`` of its own value, the
+    levels by verify at ``rtol``.
+
+    * seed 964: level 2 ends with a row of norm 1 met at its bound and one of norm 1.3e-7
+      (scaled) with a residual; frozen, the small one is implied by the large one (``Z`` has one
+      column). At level 3 a box row leaves ``W``, and the small row's projection on the freed
+      direction was under the rank threshold at its level's norm, so it stayed out of ``W``: the
+      step moved its residual by 6e-5 of itself, level 2 ended 1.4288e-3 against 1.4287e-3 and
+      level 3 2.171e-2 against 2.244e-2 (in mode "none", which builds ``W`` again at each level,
+      hcod was right). An implied row now re-enters ``W`` at the rank threshold at its own norm.
+      (The judges are within 3e-6 of hcod at level 2; level 3 was 3.6e-6 of its scale above; the
+      judges stop 1.5e-7 of it above hcod at level 4.)
+    * seed 281: level 2 ends with a row of norm 2.3e3 met at its bound, its residual 5.6e-10
+      (the LSE's own, yet under its rounding floor), beside rows of norm 25 and 2.6e-2 left
+      unmet. The met row's residual counted whole in the multipliers' noise floor (2.2e-15,
+      scaled) and hid a box row's multiplier of -7.9e-16: every mode stopped there, level 2 at
+      5.239e-4 against 1.3212e-4 and level 3 at 524.9 against 656.3. A multiplier negative within
+      the met rows' part of the noise floor now has the met rows fitted as constraints
+      (``_kernel._met_force``)."""
+    h = G.degenerate("badly_scaled", 12, seed)
     other = registry.create(judge).solve(h)
     for warm_start in WARM_STARTS:
         for min_norm in (True, False):
             res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(h)
             assert res.status == OPTIMAL, (warm_start, min_norm, res.reason)
-            np.testing.assert_allclose(h.level_norms(res.x)[2], h.level_norms(other.x)[2], rtol=1e-5)
-            verdict = verify(h, res.x, other.x, rtol=1e-6)
+            np.testing.assert_allclose(h.level_norms(res.x)[2], h.level_norms(other.x)[2], rtol=level_rtol)
+            verdict = verify(h, res.x, other.x, rtol=rtol)
             assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
+
+
+def test_a_small_row_that_blocks_enters_w_at_its_own_rank_threshold():
+    """badly_scaled n = 12 seed 528: at level 4 a row of level 1 with norm 4.4e-3 (6.4e-7 of its
+    level's norm) leaves ``W`` and blocks the next step at once; its projection on ``Z``, 9e-5 of
+    its own norm, was under the rank threshold at its level's norm, so it was marked DEPENDENT and
+    the step took it 3.8e-7 past its bound (4e-5 of the bound): levels 1 and 4 at 3.8e-7 and 0
+    against 0 and 0.1077 (`stage` and `time`; mode "none" was right). A blocking row now enters
+    ``W`` at the rank threshold at its own norm. Judged by the reference (the daqp and quadprog
+    cascades stop 9e-10 above it at level 1 and 1.7e-3 below at level 3): level 1 met to 1e-12 of
+    that row's bound, every level by verify at 1e-9."""
+    h = G.degenerate("badly_scaled", 12, 528)
+    xr = reference_solution(h)
+    for warm_start in WARM_STARTS:
+        for min_norm in (True, False):
+            res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(h)
+            assert res.status == OPTIMAL, (warm_start, min_norm, res.reason)
+            assert h.level_norms(res.x)[1] <= 1e-12 * abs(h.lower[h.starts[1] + 1]), (warm_start, min_norm)
+            verdict = verify(h, res.x, xr, rtol=1e-9)
+            assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(xr))
 
 
 def _pinned_by_near_parallel_rows(eps: float, variant: str) -> Hierarchy:
