@@ -166,13 +166,13 @@ def insert_row(lazy, A, i, bcol, bval, R, p, thr, q, Wt, qv, qi, sv, sv2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def insert_rows(lazy, A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, Wt, qv, qi, sv, sv2):
+def insert_rows(lazy, A, cand, m, bcol, bval, R, p, rank_rtol, rnorm, Qb, bq, cok, Wt, qv, qi, sv, sv2):
     """The rows ``A[cand[:m]]`` enter in order, blocked (``cok[j]`` = 1 when
     row j entered). Qb (>= m, n), bq (>= m) scratch. Returns (t, flops)."""
     if lazy:
-        return _factored.insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok,
+        return _factored.insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, rnorm, Qb, bq, cok,
                                      Wt, qv, qi, sv, sv2)
-    return _explicit.insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv,
+    return _explicit.insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, rnorm, Qb, bq, cok, sv,
                                  sv2)
 
 

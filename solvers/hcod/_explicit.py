@@ -343,7 +343,7 @@ def insert_row(A, i, bcol, bval, Wt, qi, R, p, thr, q, sv):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, sv, sv2):
+def insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, rnorm, Qb, bq, cok, sv, sv2):
     """Add the rows ``A[cand[:m]]`` to the working constraints, in order, as m
     calls of :func:`insert_row` would (same rank test, same ``W`` and ``R``),
     but blocked: ``Q = A_cand W`` at once, the QR of ``Q[:, p:]``
@@ -360,12 +360,12 @@ def insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, lnorm, rowlev, 
             t = 0
             for j in range(m):
                 i = cand[j]
-                cok[j] = _swap_in(Wt, qi, R, i, bcol, bval, p + t, rank_rtol * lnorm[rowlev[i]]) >= 0
+                cok[j] = _swap_in(Wt, qi, R, i, bcol, bval, p + t, rank_rtol * rnorm[i]) >= 0
                 t += cok[j]
             return t, 0
     for j in range(m):
         fl += wt_times_row(A, cand[j], bcol, bval, Wt, Qb[j], Wt.shape[0])
-    t, f = qr_rows(Qb, cand, m, p, rank_rtol, lnorm, rowlev, R, bq, cok)
+    t, f = qr_rows(Qb, cand, m, p, rank_rtol, rnorm, R, bq, cok)
     fl += f
     if t > 0:
         fl += apply_reflectors_to_basis(Wt, qi, p, Qb[:, p:], bq, t, sv, sv2)

@@ -488,7 +488,7 @@ def insert_row(A, i, bcol, bval, R, p, thr, q, Wt, qv, qi, sv, sv2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok, Wt, qv, qi, sv, sv2):
+def insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, rnorm, Qb, bq, cok, Wt, qv, qi, sv, sv2):
     """Add the rows ``A[cand[:m]]`` to the working constraints, in order, as m
     calls of :func:`insert_row` would (same rank test, same ``W`` and ``R``),
     but blocked: ``Q = A_cand W`` at once, then the QR of ``Q[:, p:]``
@@ -497,7 +497,7 @@ def insert_rows(A, cand, m, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, 
     Returns (t, flops)."""
     n = Wt.shape[0]
     fl = basis_rows(A, cand, 0, m, bcol, bval, Wt, qv, qi, Qb, sv, sv2)
-    t, f = qr_rows(Qb, cand, m, p, rank_rtol, lnorm, rowlev, R, bq, cok)
+    t, f = qr_rows(Qb, cand, m, p, rank_rtol, rnorm, R, bq, cok)
     fl += f
     for s in range(t):
         fl += push_reflector(Wt, qv, qi, p + s, Qb[s, p + s:n], bq[s], sv, sv2)

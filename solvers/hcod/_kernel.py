@@ -365,7 +365,7 @@ def _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, Wt, qv, qi, sv, sv2):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _step_length(has_ineq, A, bcol, bval, kind, lo, up, rnorm, lnorm, rowlev, state, s0, s1, u, ps,
+def _step_length(has_ineq, A, bcol, bval, kind, lo, up, rnorm, state, s0, s1, u, ps,
                  rank_rtol, feas_rtol, bland):
     """The step length tau (sec. VIII) of ``u + tau ps``: 1, or the ratio of the
     first inactive inequality row of the levels ``< s1`` the step takes to its
@@ -391,11 +391,11 @@ def _step_length(has_ineq, A, bcol, bval, kind, lo, up, rnorm, lnorm, rowlev, st
             continue
         ap = row_dot(A[i], bcol[i], bval[i], ps)
         # rows the step leaves in place: the step is orthogonal to them, or they lie in the span
-        # of the working rows to the rank threshold and the step moves them by less than 1e-3 of
-        # the feasibility tolerance (a row held at its bound by the working rows, rounding
-        # aside, must not block: it could not enter W)
+        # of the working rows to the rank threshold at their own norm and the step moves them by
+        # less than 1e-3 of the feasibility tolerance (a row held at its bound by the working
+        # rows, rounding aside, must not block: it could not enter W)
         if abs(ap) <= 1e-13 * rnorm[i] * pn or (
-                abs(ap) <= rank_rtol * lnorm[rowlev[i]] * pn
+                abs(ap) <= rank_rtol * rnorm[i] * pn
                 and abs(ap) <= 1e-3 * feas_rtol * (rnorm[i] * (1.0 + un) + 1.0)):
             continue
         av = row_dot(A[i], bcol[i], bval[i], u)
@@ -483,7 +483,6 @@ def hcod_solve(fw, iw):
     side = iw[ioff[1]:ioff[2]]
     kind = iw[ioff[2]:ioff[3]]
     bcol = iw[ioff[3]:ioff[4]]
-    rowlev = iw[ioff[4]:ioff[5]]
     widx = iw[ioff[5]:ioff[6]]
     wside = iw[ioff[6]:ioff[7]]
     Olist = iw[ioff[7]:ioff[8]]
@@ -671,7 +670,7 @@ def hcod_solve(fw, iw):
                         cok[j] = dl
                         m_in += 1
                 if m_in > 0:
-                    _, f = insert_rows(lazy, A, cand, m_in, bcol, bval, R, p, rank_rtol, lnorm, rowlev, Qb, bq, cok,
+                    _, f = insert_rows(lazy, A, cand, m_in, bcol, bval, R, p, rank_rtol, rnorm, Qb, bq, cok,
                                        Wt, qv, qi, sv, sv2)
                     fl += f
                     for j in range(m_in):
@@ -875,8 +874,8 @@ def hcod_solve(fw, iw):
                                 ycap = NEAR_RANK_STEP * (1.0 + _norm(u))
                                 wc = near_rank_cut(y, diag, r, thr_k, ycap)
                         fl += _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, Wt, qv, qi, sv, sv2)
-                tau, blk, bsd, moved, un, f = _step_length(has_ineq, A, bcol, bval, kind, lo, up, rnorm, lnorm,
-                                                           rowlev, state, s0, s1, u, ps, rank_rtol, feas_rtol,
+                tau, blk, bsd, moved, un, f = _step_length(has_ineq, A, bcol, bval, kind, lo, up, rnorm,
+                                                           state, s0, s1, u, ps, rank_rtol, feas_rtol,
                                                            degen >= BLAND_AFTER)
                 fl += f
                 upeak = max(upeak, un)
@@ -893,7 +892,7 @@ def hcod_solve(fw, iw):
                         y[c] = 0.0
                     fl += _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, Wt, qv, qi, sv, sv2)
                     tau, blk, bsd, moved, un, f = _step_length(has_ineq, A, bcol, bval, kind, lo, up, rnorm,
-                                                               lnorm, rowlev, state, s0, s1, u, ps, rank_rtol,
+                                                               state, s0, s1, u, ps, rank_rtol,
                                                                feas_rtol, degen >= BLAND_AFTER)
                     fl += f
                 for c in range(n):

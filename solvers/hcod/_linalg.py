@@ -638,13 +638,13 @@ def solve_lower(Mr, diag, nO, r, bvec, Lb, y):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def qr_rows(Qb, cand, m, p, rank_rtol, lnorm, rowlev, R, bq, cok):
+def qr_rows(Qb, cand, m, p, rank_rtol, rnorm, R, bq, cok):
     """The Householder QR, row by row, of ``Qb[:m, p:]`` (the candidate rows
     ``A[cand[:m]]`` projected on the basis, ``Qb[j] = W^T a_j``): row j meets
     the reflectors of the accepted rows before it, and enters (``cok[j]`` = 1)
     when what is left of it on the free columns has norm above
-    ``rank_rtol * lnorm[rowlev[cand[j]]]`` (the rank test of a single
-    insertion). The accepted row t gets ``R[:, p + t] = (Qb[j, :p + t],
+    ``rank_rtol * rnorm[cand[j]]`` (the rank test of a single insertion, at
+    the row's own norm). The accepted row t gets ``R[:, p + t] = (Qb[j, :p + t],
     alpha)``; its reflector ``I - bq[t] v v^T`` on the columns ``p + t:`` is
     left packed in ``Qb[t, p + t:]``. Returns (t, flops)."""
     n = Qb.shape[1]
@@ -654,7 +654,7 @@ def qr_rows(Qb, cand, m, p, rank_rtol, lnorm, rowlev, R, bq, cok):
         c0 = p + t
         v = Qb[j, c0:]
         nrm = math.sqrt(vdot(v, v))
-        if not nrm > rank_rtol * lnorm[rowlev[cand[j]]]:
+        if not nrm > rank_rtol * rnorm[cand[j]]:
             cok[j] = 0
             continue
         cok[j] = 1

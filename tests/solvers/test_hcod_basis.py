@@ -214,8 +214,8 @@ def test_blocked_insertion_matches_one_row_at_a_time(n, p, m, lazy):
     ok1 = [int(b1.insert(i)) for i in range(p, p + m)]
     cand = np.arange(p, p + m, dtype=np.int64)
     cok = np.zeros(m, dtype=np.int64)
-    t, _ = insert_rows(lazy, b2.A, cand, m, b2.bcol, b2.bval, b2.R, p, 1e-10, np.ones(1),
-                       np.zeros(p + m, dtype=np.int64), np.zeros((m, n)), np.zeros(m), cok, *b2.args())
+    t, _ = insert_rows(lazy, b2.A, cand, m, b2.bcol, b2.bval, b2.R, p, 1e-10, np.ones(p + m),
+                       np.zeros((m, n)), np.zeros(m), cok, *b2.args())
     assert cok.tolist() == ok1 and ok1[1] == 0 and t == b1.p - p
     b2.widx[p:p + t] = cand[cok == 1]
     b2.p = p + t
@@ -269,7 +269,7 @@ def test_explicit_identity_flag(update):
     else:
         cok = np.zeros(2, dtype=np.int64)
         t, _ = insert_rows(False, b.A, np.array([1, 5], dtype=np.int64), 2, b.bcol, b.bval, b.R, 0, 1e-10,
-                           np.ones(1), np.zeros(12, dtype=np.int64), np.zeros((2, n)), np.zeros(2), cok, *b.args())
+                           np.ones(12), np.zeros((2, n)), np.zeros(2), cok, *b.args())
         assert t == 2
         b.widx[:2] = [1, 5]
         b.p = 2
@@ -321,8 +321,8 @@ def test_bound_rows_enter_an_identity_basis_by_swaps(blocked):
     if blocked:
         cand = np.array([*rows[:2], dup, *rows[2:]], dtype=np.int64)
         cok = np.zeros(len(cand), dtype=np.int64)
-        t, fl = insert_rows(False, b.A, cand, len(cand), b.bcol, b.bval, b.R, 0, 1e-10, np.ones(1),
-                            np.zeros(len(b.A), dtype=np.int64), np.zeros((len(cand), n)), np.zeros(len(cand)), cok,
+        t, fl = insert_rows(False, b.A, cand, len(cand), b.bcol, b.bval, b.R, 0, 1e-10, np.ones(len(b.A)),
+                            np.zeros((len(cand), n)), np.zeros(len(cand)), cok,
                             *b.args())
         assert cok.tolist() == [1, 1, 0, 1, 1] and t == 4 and fl == 0
         b.widx[:4] = rows
