@@ -33,7 +33,7 @@ F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", 
             "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf", "Qb", "bq", "sv", "A", "lo", "up",
             "prm", "Qv")
 # int blocks; "out" holds the N_OUT counters, then the iterations per level
-I_BLOCKS = ("state", "side", "kind", "bcol", "rowlev", "widx", "wside", "Olist", "hist_state",
+I_BLOCKS = ("state", "side", "kind", "bcol", "widx", "wside", "Olist", "hist_state",
             "hist_side", "hist_valid", "out", "levid", "piv", "cand", "cok", "starts", "ip", "qi")
 #: the int workspace starts with the offsets themselves: foff (starts of the float blocks and
 #: the total, iw[:FEND0]), fend (ends of the float blocks, iw[FEND0:IOFF0]), ioff (iw[IOFF0:N_HEAD])
@@ -43,8 +43,8 @@ N_HEAD = IOFF0 + len(I_BLOCKS) + 1
 # the blocks :func:`workspaces` and :func:`load` write or return
 F_A, F_LO, F_UP, F_BVAL, F_RNORM, F_LNORM, F_PRM, F_U = (
     F_BLOCKS.index(b) for b in ("A", "lo", "up", "bval", "rnorm", "lnorm", "prm", "u"))
-I_STARTS, I_KIND, I_BCOL, I_ROWLEV, I_LEVID, I_WIDX, I_IP, I_OUT = (
-    I_BLOCKS.index(b) for b in ("starts", "kind", "bcol", "rowlev", "levid", "widx", "ip", "out"))
+I_STARTS, I_KIND, I_BCOL, I_LEVID, I_WIDX, I_IP, I_OUT = (
+    I_BLOCKS.index(b) for b in ("starts", "kind", "bcol", "levid", "widx", "ip", "out"))
 
 
 def layout(n: int, mt: int, D: int, mmax: int):
@@ -56,7 +56,7 @@ def layout(n: int, mt: int, D: int, mmax: int):
     mm = max(mmax, 1)
     fsz = (n * n, n * n, n, n, n, n, n, n, n, n, n, mm * n, mm, mm, mm, mm * max(min(n, mm), 1), mt, mt, mt, D,
            D * n, mm * n, n * n, n, 2 * n, mt * n, mt, mt, N_PRM, queue_sizes(n)[0])
-    isz = (mt, mt, mt, mt, mt, n, n, mm, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP, queue_sizes(n)[1])
+    isz = (mt, mt, mt, mt, n, n, mm, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP, queue_sizes(n)[1])
     foff = np.array((0, *accumulate(-(-size // ALIGN) * ALIGN for size in fsz)), dtype=np.int64)
     fend = foff[:-1] + np.array(fsz, dtype=np.int64)
     return foff, fend, np.array((N_HEAD, *(N_HEAD + c for c in accumulate(isz))), dtype=np.int64)
@@ -120,7 +120,7 @@ def iblock(iw, name: str):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, seen, k0, k1):
+def prepare(A, lo, up, starts, kind, bcol, bval, rnorm, lnorm, levid, seen, k0, k1):
     """For levels k0 .. k1-1: row kinds (0 equality, 1 inequality, 2 free),
     bound rows (one nonzero), row norms, the Frobenius norm of each level
     ``||A_k||_F`` (the scale of the rank threshold) and identity-like levels
@@ -131,7 +131,6 @@ def prepare(A, lo, up, starts, kind, bcol, bval, rnorm, rowlev, lnorm, levid, se
     for k in range(k0, k1):
         s = 0.0
         for i in range(starts[k], starts[k + 1]):
-            rowlev[i] = k
             ra = A[i]
             # one vectorised pass: the squared norm, the nonzeros and the sum of their column
             # indices (a bound row's column; a search loop for it cost 5 us of 9 at n=80)
@@ -241,6 +240,6 @@ def load(fw, iw, A, lo, up, starts, min_norm, fresh):
         k1 = D + 1
     prepare(A2, lo2, up2, st2, iw[ioff[I_KIND]:ioff[I_KIND + 1]], iw[ioff[I_BCOL]:ioff[I_BCOL + 1]],
             fw[foff[F_BVAL]:fend[F_BVAL]], fw[foff[F_RNORM]:fend[F_RNORM]],
-            iw[ioff[I_ROWLEV]:ioff[I_ROWLEV + 1]], fw[foff[F_LNORM]:fend[F_LNORM]],
+            fw[foff[F_LNORM]:fend[F_LNORM]],
             iw[ioff[I_LEVID]:ioff[I_LEVID + 1]], iw[ioff[I_WIDX]:ioff[I_WIDX + 1]], 0, k1)
     return f

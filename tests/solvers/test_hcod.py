@@ -371,6 +371,16 @@ def test_time_warm_start_on_badly_scaled_drift_agrees_with_a_cold_solve():
         assert verdict.equal, (t, verdict)
 
 
+def _every_mode(h):
+    """(warm_start, min_norm, result) of a fresh solver's cold solve of h in every mode, each
+    status optimal."""
+    for warm_start in WARM_STARTS:
+        for min_norm in (True, False):
+            res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(h)
+            assert res.status == OPTIMAL, (warm_start, min_norm, res.reason)
+            yield warm_start, min_norm, res
+
+
 @pytest.mark.parametrize("judge", ["cascade-daqp", "cascade-quadprog"])
 @pytest.mark.parametrize(("seed", "rtol"), [(908, 1e-9), (137, 1e-8), (343, 1e-9), (955, 1e-9)],
                          ids=["908", "137", "343", "955"])
@@ -389,12 +399,9 @@ def test_met_rows_pass_on_the_force_of_a_levels_small_rows(seed, rtol, judge):
     reference agrees with ``hcod`` there), hence 1e-8."""
     h = G.degenerate("badly_scaled", 5, seed)
     other = registry.create(judge).solve(h)
-    for warm_start in WARM_STARTS:
-        for min_norm in (True, False):
-            res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(h)
-            assert res.status == OPTIMAL, (warm_start, min_norm, res.reason)
-            verdict = verify(h, res.x, other.x, rtol=rtol)
-            assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
+    for warm_start, min_norm, res in _every_mode(h):
+        verdict = verify(h, res.x, other.x, rtol=rtol)
+        assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
 
 
 @pytest.mark.parametrize("judge", ["cascade-daqp", "cascade-quadprog"])
@@ -423,13 +430,10 @@ def test_a_small_rows_level_reaches_the_exact_cascades_point(seed, level_rtol, r
       (``_kernel._met_force``)."""
     h = G.degenerate("badly_scaled", 12, seed)
     other = registry.create(judge).solve(h)
-    for warm_start in WARM_STARTS:
-        for min_norm in (True, False):
-            res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(h)
-            assert res.status == OPTIMAL, (warm_start, min_norm, res.reason)
-            np.testing.assert_allclose(h.level_norms(res.x)[2], h.level_norms(other.x)[2], rtol=level_rtol)
-            verdict = verify(h, res.x, other.x, rtol=rtol)
-            assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
+    for warm_start, min_norm, res in _every_mode(h):
+        np.testing.assert_allclose(h.level_norms(res.x)[2], h.level_norms(other.x)[2], rtol=level_rtol)
+        verdict = verify(h, res.x, other.x, rtol=rtol)
+        assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
 
 
 def test_a_small_row_that_blocks_enters_w_at_its_own_rank_threshold():
@@ -443,13 +447,10 @@ def test_a_small_row_that_blocks_enters_w_at_its_own_rank_threshold():
     that row's bound, every level by verify at 1e-9."""
     h = G.degenerate("badly_scaled", 12, 528)
     xr = reference_solution(h)
-    for warm_start in WARM_STARTS:
-        for min_norm in (True, False):
-            res = HcodSolver(warm_start=warm_start, min_norm=min_norm).solve(h)
-            assert res.status == OPTIMAL, (warm_start, min_norm, res.reason)
-            assert h.level_norms(res.x)[1] <= 1e-12 * abs(h.lower[h.starts[1] + 1]), (warm_start, min_norm)
-            verdict = verify(h, res.x, xr, rtol=1e-9)
-            assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(xr))
+    for warm_start, min_norm, res in _every_mode(h):
+        assert h.level_norms(res.x)[1] <= 1e-12 * abs(h.lower[h.starts[1] + 1]), (warm_start, min_norm)
+        verdict = verify(h, res.x, xr, rtol=1e-9)
+        assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(xr))
 
 
 def _pinned_by_near_parallel_rows(eps: float, variant: str) -> Hierarchy:
@@ -963,7 +964,7 @@ def test_a_load_into_used_workspaces_writes_what_a_fresh_one_does(min_norm):
     for b in ("A", "lo", "up", "bval", "rnorm", "lnorm"):
         k = _setup.F_BLOCKS.index(b)
         np.testing.assert_array_equal(used[0][foff[k]:fend[k]], new[0][foff[k]:fend[k]], err_msg=b)
-    for b in ("starts", "kind", "bcol", "rowlev", "levid"):
+    for b in ("starts", "kind", "bcol", "levid"):
         k = _setup.I_BLOCKS.index(b)
         np.testing.assert_array_equal(used[1][ioff[k]:ioff[k + 1]], new[1][ioff[k]:ioff[k + 1]], err_msg=b)
 
