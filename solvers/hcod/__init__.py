@@ -68,9 +68,14 @@ Tolerances (data, not options)
     residual is u's error along it; when rows counted at their whole floor,
     the large rows of a badly scaled level, met or not, hid the force of its
     small unmet rows). A multiplier below ``-gtol_r`` (the rounding part of
-    gtol alone) but above ``-gtol`` is computed once more from ``g`` without
-    the met rows' terms: the row leaves when both are below ``-gtol_r``
-    (a met row's residual is u's error or the optimum's: either way);
+    gtol alone) but above ``-gtol`` has the met rows held at their bounds as
+    constraints and their multipliers fitted (``_kernel._met_force``; a met
+    row's residual is u's error or the optimum's: either way), as has every
+    level whose row norms span more than ``MET_SPREAD``; a multiplier below
+    ``-1e-2 gtol_r`` but above ``-gtol_r`` is measured once more after one
+    step more from ``u`` on the same working set, and the row leaves when it
+    is below twice its change (iterative refinement, as for the objective
+    rows below; one such step per level and working set);
     an objective inequality row leaves when its ``mu = w`` has the wrong
     sign beyond its floor ``f`` (``1e-13 (||a|| (1 + ||u||) + |e|)``), or
     beyond ``1e-2 f`` and twice its change under one more step from ``u``

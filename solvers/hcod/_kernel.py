@@ -788,6 +788,9 @@ def hcod_solve(fw, iw):
             ref_row = -1  # (refinement: the objective row whose residual it measures, its side * w,
             ref_val = 0.0  # and acts + deacts when it was recorded)
             ref_ad = -1
+            wref_row = -1  # (the same for a working row's multiplier: its row, side * nu * norm, ad)
+            wref_val = 0.0
+            wref_ad = -1
             ndep = 0  # rows of levels above DEPENDENT in this level
             while True:
                 if total >= max_iter:
@@ -1002,6 +1005,8 @@ def hcod_solve(fw, iw):
                         anydel = True
                         break
                 amb = False  # a multiplier below the rounding, within the met rows' part
+                jb = -1  # the working row most below zero within gtol, beyond G_ROUNDING of its rounding part
+                wb = 0.0
                 if anydel and nO > 0:
                     # g = J_k^T w and its noise floor: per objective row, ||a_j|| times the
                     # error of its residual w_j, G_ROUNDING of its rounding floor (_floor: the
@@ -1033,6 +1038,9 @@ def hcod_solve(fw, iw):
                                                     else (jw < 0 or widx[j] < widx[jw])):
                                     worst = val
                                     jw = j
+                                elif val < -G_ROUNDING * gtol_r and (jb < 0 or val < wb):
+                                    jb = j
+                                    wb = val
                 if jw < 0 and nO > 0 and p < n and (wide or amb):
                     # a badly scaled level's end, where the force of its unmet rows is within the
                     # floors of its met rows, or a multiplier negative within the met rows' part of
@@ -1063,6 +1071,21 @@ def hcod_solve(fw, iw):
                                                     else (jw < 0 or widx[j] < widx[jw])):
                                     worst = val
                                     jw = j
+                if jw < 0 and jb >= 0 and not amb and degen < BLAND_AFTER:
+                    # a working row's multiplier negative beyond G_ROUNDING of gtol's rounding part
+                    # but within it: that part bounds the rounding of g, not the error of u, which
+                    # one step more from u (iterative refinement, same W and COD) measures as the
+                    # multiplier's change; beyond twice that the sign is the optimum's and the row
+                    # leaves (badly_scaled n = 12 seed 1232: a box row's -2.8e-15 scaled, under a
+                    # rounding part of 3.8e-15 set by a row of norm 1.4e4, held level 3 at
+                    # 1.0449e-2 against its optimum 1.0428e-2). One refinement per working set
+                    if wref_ad != ad:
+                        wref_row = widx[jb]
+                        wref_val = wb
+                        wref_ad = ad
+                        continue
+                    if wref_row == widx[jb] and wb < -2.0 * abs(wb - wref_val):
+                        jw = jb
                 if jw >= 0:
                     i = widx[jw]
                     # (lazy: the rotations of W's columns are applied to the projected
