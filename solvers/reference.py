@@ -60,7 +60,8 @@ RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
 _ACTIVE_RTOL = 1e-7  #: a constraint within this (relative) distance of its bound is read as active
 #: where the active set read at _ACTIVE_RTOL polishes to no point that is kept, it is read again at
 #: these, in turn (a QP point off the optimum by more than its tolerance on an ill-conditioned
-#: level; conditioning sweep trial 746: the minimum-norm stage, on widened bounds, certified at 1e-6)
+#: level; conditioning sweep trials 746 and 2798: the minimum-norm stage, on widened bounds, certified on a
+#: second reading)
 _ACTIVE_RETRY = (1e-6, 1e-5)
 _ALMOST_SOLVED = ("AlmostSolved",)  #: Clarabel's reduced-accuracy success
 _Y_REG = 1e-9  #: regularisation of the free coordinates y in a level's QP (removed by polishing)
