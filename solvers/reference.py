@@ -38,7 +38,10 @@ Two methods that share no code with the HCOD solver:
   such a point is kept only if polishing puts it on the exact bounds and the
   KKT conditions certify it optimal there (multipliers of the right signs,
   found by bounded least squares); the widening is recorded in the stage's
-  ``backend``. A problem whose bounds all lie near the origin is solved in
+  ``backend``. Where no try gives a point, the last is the primal active set
+  :func:`_descend` from the level above's point (feasible: the levels above
+  are frozen at it), kept where the KKT conditions certify it at 1e-9
+  (:func:`_descend_stage`). A problem whose bounds all lie near the origin is solved in
   units that bring them to O(1) (:data:`UNITS_MIN`, :func:`cascade_reference`).
 """
 
@@ -530,6 +533,22 @@ def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, name: str):
     raise ReferenceError(f"{name}: " + "; ".join(failed))
 
 
+_DESCENT_FAILED = "the primal active set from the level above's point: not certified optimal (KKT check)"
+
+
+def _descend_stage(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool):
+    """The last try on a stage no QP backend solved (:func:`_stage`): the primal active set
+    :func:`_descend` from x, the level above's point (feasible: the levels above are frozen at
+    it), kept only where the KKT conditions certify it at :data:`_KKT_TIGHT` (no QP point to
+    compare it with). Returns what :func:`_stage` returns, or None. (badly_scaled n = 12 seed 89,
+    with OpenBLAS's SkylakeX kernels: at level 4 Clarabel made insufficient progress and PIQP
+    called the set infeasible, on the exact bounds and on widened ones.)"""
+    x_d = _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final)
+    if not _kkt_certified(x_d, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, rtol=_KKT_TIGHT):
+        return None
+    return x_d, True, "none solved it: primal active set from the level above's point, KKT-certified", None
+
+
 def _freeze(A_k, lo_k, up_k, x):
     """Level k frozen at x (exact, the optimal slack being unique): a row with
     nonzero slack becomes an equality at its achieved value (then eliminated
@@ -614,7 +633,10 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
             return _stage(*above(), A_k, lo_k, up_k, final, name)
         except ReferenceError as err:
             if last_qp is None:
-                raise
+                descended = _descend_stage(x, *above(), A_k, lo_k, up_k, final)
+                if descended is not None:
+                    return descended
+                raise ReferenceError(f"{err}; {_DESCENT_FAILED}") from None
             kept = frozen[last]
             w, lo_f, up_f = _freeze(*levels[last], last_qp)
             frozen[last] = (lo_f, up_f)
@@ -622,8 +644,11 @@ def cascade_reference(h: Hierarchy) -> tuple[np.ndarray, dict]:
                 result = _stage(*above(), A_k, lo_k, up_k, final, name)
             except ReferenceError as again:
                 frozen[last] = kept
+                descended = _descend_stage(x, *above(), A_k, lo_k, up_k, final)
+                if descended is not None:
+                    return descended
                 raise ReferenceError(f"{err}; with level {last} frozen at its QP's point, not its polished "
-                                     f"one: {again}") from None
+                                     f"one: {again}; {_DESCENT_FAILED}") from None
             slacks[last], polished[last] = w, False
             backends[last] += f" (its QP's point kept: {name} had no solvable frozen set at the polished one)"
             return result

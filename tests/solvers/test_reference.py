@@ -216,16 +216,49 @@ def test_a_stage_no_backend_solves_is_solved_on_widened_bounds_polished_and_cert
     v = verify(h, HcodSolver().solve(h).x, x, rtol=1e-7)  # an independent method finds the same optimum
     assert v.equal, v
     monkeypatch.setattr(reference, "WIDEN_RTOL", ())
+    monkeypatch.setattr(reference, "_descend_stage", lambda *args: None)  # (the last try: below)
     with pytest.raises(reference.ReferenceError, match=r"^(level [34]|the minimum-norm stage): no QP backend "
                                                        r"solved the level \(clarabel: PrimalInfeasible; piqp: "
-                                                       r"Status\.PIQP_\w+; .*\)$"):
+                                                       r"Status\.PIQP_\w+; .*\); the primal active set from "
+                                                       r"the level above's point: not certified optimal \(KKT "
+                                                       r"check\)$"):
         cascade_reference(h)
+
+
+@pytest.mark.parametrize("case", ["no-interior-unwidened", "badly-scaled-12-seed-89"])
+def test_a_stage_no_backend_solves_is_descended_to_from_the_level_above(case, monkeypatch):
+    """The last try on a stage that no QP backend solves, on the exact bounds or widened ones: the
+    primal active set ``_descend`` from the level above's point (feasible: the levels above are
+    frozen at it), kept where the KKT conditions certify it at 1e-9. On :func:`_no_interior` with
+    no widening, and on badly_scaled n = 12 seed 89 as OpenBLAS's SkylakeX kernels generate it
+    (saved, ``data/badly_scaled_12_89.npz``): at level 4 Clarabel makes insufficient progress and
+    PIQP calls the set infeasible, widened or not, so there was no reference. The stage is
+    recorded as polished (an exact active-set point), its backend label saying how; the point is
+    that of ``hcod`` in every mode at 1e-9 (the daqp and quadprog cascades are 2.2e-9 above at
+    level 2 there and PIQP's 1e-8 above at level 3: no judges)."""
+    from pathlib import Path
+
+    from problems.files import load_npz
+    from solvers import reference
+    from solvers.hcod import WARM_STARTS, HcodSolver
+
+    if case == "no-interior-unwidened":
+        h = _no_interior()
+        monkeypatch.setattr(reference, "WIDEN_RTOL", ())
+    else:
+        h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_89.npz")
+    x, info = cascade_reference(h)
+    descended = [k for k, b in enumerate(info["backend"]) if b.startswith("none solved it: primal active set")]
+    assert descended and all(info["polished"]), info["backend"]
+    for warm_start in WARM_STARTS:
+        verdict = verify(h, HcodSolver(warm_start=warm_start).solve(h).x, x, rtol=1e-9)
+        assert verdict.equal, (warm_start, verdict)
 
 
 def test_a_widened_point_that_fails_the_kkt_check_is_no_reference(monkeypatch):
     from solvers import reference
 
-    monkeypatch.setattr(reference, "_kkt_certified", lambda *args: False)
+    monkeypatch.setattr(reference, "_kkt_certified", lambda *args, **kwargs: False)
     with pytest.raises(reference.ReferenceError, match=r"^(level [34]|the minimum-norm stage): no QP backend .*; "
                                                        r"bounds widened by 1e-09: "
                                                        r"clarabel solved it, but its point could not be polished "
