@@ -624,3 +624,50 @@ def test_descend_frees_a_row_of_the_level_whose_slack_takes_the_wrong_sign():
     x = _descend(np.array([1.0]), np.zeros((0, 1)), np.zeros(0), np.zeros(0), np.array([[1.0], [1.0]]),
                  np.array([-1.0, 0.0]), np.array([1.0, 0.0]), final=False)
     np.testing.assert_allclose(x, [0.0], rtol=0, atol=1e-15)
+
+
+SMALL_ROW = ([[1e4, 0.0], [0.0, 1e-7]], [0.0, 1e-7])  # x_2's direction: 1e-11 of ||G||_2, all of its row's norm
+
+
+@pytest.mark.parametrize(("G", "t", "rowwise", "expected"), [
+    (*SMALL_ROW, True, [0.0, 1.0]),
+    (*SMALL_ROW, False, [0.0, 0.0]),  # under RANK_RTOL * ||G||_2: cut, x_2 stays at x0's
+    # a row that sees the second direction at 1e-12 of its own norm: round-off, cut row by row
+    # too; least squares of x_1 = 1 and x_1 = 2 along the first (x_1 = 1.5), none along the second
+    # (x_2 = 0 to the first direction's tilt, 5e-13)
+    ([[1.0, 0.0], [1.0, 1e-12]], [1.0, 2.0], True, [1.5, 0.0]),
+], ids=["small-row-rowwise", "small-row-at-the-levels-threshold", "direction-of-round-off-rowwise"])
+def test_the_working_sets_least_squares_decides_rank_by_the_level_or_row_by_row(G, t, rowwise, expected):
+    """``_constrained_lstsq``'s objective rows: by default a direction counts where the rows see
+    it beyond RANK_RTOL * ||G||_2 (the level's threshold); ``rowwise``, where one row sees it
+    beyond RANK_RTOL of that row's own norm, the step then the unweighted least squares. Worked
+    by hand."""
+    from solvers.reference import _constrained_lstsq
+
+    x = _constrained_lstsq(np.zeros(2), np.zeros((0, 2)), np.zeros(0), np.array(G), np.array(t), rowwise)
+    np.testing.assert_allclose(x, expected, rtol=1e-12, atol=1e-11)
+
+
+def test_a_level_whose_small_row_sees_a_direction_under_its_norm_is_descended_along_it():
+    """badly_scaled n = 12 seed 964, as OpenBLAS's Haswell kernels generate it (saved,
+    ``data/badly_scaled_12_964.npz``): level 2's rows have norms 2.6e4, 17, 4.9e-3 and 3.4e-3.
+    On the working set that ``_descend`` reached, the last free direction was seen by the row of
+    norm 3.4e-3 at 2.49e-6, under 1e-10 times the level's norm (2.59e-6): the working set's
+    least squares cut it, the point was not the working set's optimum, no row's drop mended its
+    KKT residual (7e-4 of the gradient), and level 2 ended at 1.428809e-3, above its optimum
+    1.428721e-3 (hcod, every mode), and 3e-2 below at level 3. A descent that stops with the KKT
+    conditions unmet now goes on with the working set's rank decided row by row
+    (``_rowwise_lstsq_update``): the step goes along that direction, box row 9 blocks it and
+    enters, and the reference is hcod's point in every mode at 1e-9. (The daqp
+    and quadprog cascades break level 1 by 1e-9 there, PIQP's is off at level 3: no judges.)"""
+    from pathlib import Path
+
+    from problems.files import load_npz
+    from solvers.hcod import WARM_STARTS, HcodSolver
+
+    h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_964.npz")
+    x, info = cascade_reference(h)
+    assert all(info["polished"]), info["backend"]
+    for warm_start in WARM_STARTS:
+        verdict = verify(h, HcodSolver(warm_start=warm_start).solve(h).x, x, rtol=1e-9)
+        assert verdict.equal, (warm_start, verdict, h.level_norms(x))
