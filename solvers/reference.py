@@ -78,6 +78,8 @@ _FEAS_RTOL = 1e-11  #: feasibility slack allowed to a polished point (relative, 
 #: the KKT test (relative to the gradient) by which a descended point no cheaper than the polished
 #: one to round-off is still taken where it passes and the polished one does not (:func:`_kkt_closer`)
 _KKT_TIGHT = 1e-9
+#: a slack within this of its row's scale is zero when a level is frozen (:func:`_freeze`)
+_FREEZE_RTOL = 1e-13
 #: widenings of the frozen inequality bounds (relative to each row's scale) tried, in order, on a
 #: stage no backend solved; the last is _ACTIVE_RTOL: polishing reads rows that close as active anyway
 WIDEN_RTOL = (1e-9, _ACTIVE_RTOL)
@@ -482,7 +484,11 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, rowwise: bool 
         x_new = _constrained_lstsq(x, A_hi[on_hi], bound[:n_hi][on_hi], G, t, rowwise)
         # ratio test on the free rows
         r0, r1 = rows @ x, rows @ x_new
-        feas = _FEAS_RTOL * _row_scale(rows, lo, up, x_new)
+        # a free row of level k that a step takes out of its bounds blocks beyond what _freeze counts
+        # as a zero slack (1e-13 of its scale), not _FEAS_RTOL's 1e-11: left out by 3.7e-8 (1e-11 of
+        # its scale 3.9e3), badly_scaled n=5 seed 2095's level 1 row 2 was frozen at that slack, its
+        # optimum 0, and level 2 ended 2 % above its optimum
+        feas = _row_scale(rows, lo, up, x_new) * np.where(np.arange(rows.shape[0]) < n_hi, _FEAS_RTOL, _FREEZE_RTOL)
         dr = r1 - r0
         with np.errstate(divide="ignore", invalid="ignore"):
             tau_u = np.where((s == 0) & (dr > 0) & (r1 > up + feas), (up - r0) / dr, np.inf)
@@ -602,11 +608,24 @@ def _freeze(A_k, lo_k, up_k, x):
     """Level k frozen at x (exact, the optimal slack being unique): a row with
     nonzero slack becomes an equality at its achieved value (then eliminated
     by the null-space step of the next QPs); a row with zero slack keeps its
-    bounds. Returns the signed slack w (shape (rows,)) and the frozen bounds."""
+    bounds. Returns the signed slack w (shape (rows,)) and the frozen bounds.
+
+    A slack under 1e-13 of its row's scale counts as zero. One above that but under 1e-13 of
+    the level's largest row scale may be the level's round-off reaching a small row through x
+    (badly_scaled n = 12 seed 2802: level 2's row of norm 1.2e-3 at -8.7e-16 beside a row of
+    norm 2.4e4, where the optimum has that row inside its bounds, 9.7e-4 from the one it was
+    pinned at; level 3 ended 20 % above its optimum): such a row is frozen as ICRA 2010 eq. (35)
+    has it, its bounds shifted by w, ``lo + w <= A_k x <= up + w``, which in exact arithmetic
+    leaves the next levels the same optimum, and where w is round-off lets the row move inside
+    its bounds."""
     achieved = A_k @ x
     w = _signed_slack(achieved, lo_k, up_k)
-    w[np.abs(w) <= 1e-13 * _row_scale(A_k, lo_k, up_k, x)] = 0.0
-    return w, np.where(w != 0, achieved, lo_k), np.where(w != 0, achieved, up_k)
+    scale = _row_scale(A_k, lo_k, up_k, x)
+    w[np.abs(w) <= _FREEZE_RTOL * scale] = 0.0
+    shifted = (w != 0) & (np.abs(w) <= _FREEZE_RTOL * np.max(scale, initial=0.0))
+    pinned = (w != 0) & ~shifted
+    return (w, np.where(pinned, achieved, np.where(shifted, lo_k + w, lo_k)),
+            np.where(pinned, achieved, np.where(shifted, up_k + w, up_k)))
 
 
 def _units(h: Hierarchy) -> float:
