@@ -949,6 +949,7 @@ def hcod_solve(fw, iw):
                 jw = -1
                 ja = -1  # the row most below zero within its rounding floor, beyond G_ROUNDING of it
                 wa = 0.0
+                metneg = False  # a met row's mu = w of the wrong sign, within its floor
                 for j in range(nO):
                     i = Olist[j]
                     if kind[i] != 1:
@@ -956,6 +957,7 @@ def hcod_solve(fw, iw):
                     w = row_dot(A[i], bcol[i], bval[i], u) - target[i]  # eq. (38): mu = w
                     val = side[i] * w
                     tol = _floor(rnorm[i], unorm, target[i], dual_rtol)
+                    metneg = metneg or -tol <= val < 0.0
                     if val < -tol and (val / rnorm[i] < worst if degen < BLAND_AFTER
                                        else (jw < 0 or i < Olist[jw])):
                         worst = val / rnorm[i]
@@ -1053,7 +1055,8 @@ def hcod_solve(fw, iw):
                     # working row whose multiplier (39) from the fitted g is negative beyond the
                     # unmet rows' rounding
                     f, jo, ftol, g3 = _met_force(lazy, A, bcol, bval, Olist, nO, target, rnorm, kind, side,
-                                                 unorm, dual_rtol, u, p, n, Wt, qv, qi, sv, sv2, amb)
+                                                 unorm, dual_rtol, u, p, n, Wt, qv, qi, sv, sv2,
+                                                 amb or (wide and metneg))
                     fl += f
                     if jo >= 0:
                         deacts += 1

@@ -455,6 +455,26 @@ def test_a_working_rows_multiplier_within_the_rounding_of_g_is_measured_by_one_s
         assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
 
 
+@pytest.mark.parametrize("judge", ["cascade-daqp", "cascade-quadprog"])
+def test_a_met_rows_wrong_signed_mu_within_its_floor_fits_the_met_rows_on_a_wide_level(judge):
+    """badly_scaled n = 5 seed 2992 as generated with OpenBLAS's Haswell kernels (saved,
+    ``data/badly_scaled_5_2992.npz``). Level 1's row 0 (norm 411, beside rows of norm 7.2e-4 ..
+    19) ended met at its lower bound, its mu = w = -7.8e-16 scaled, of the wrong sign but under
+    its floor (3.5e-13); the unmet rows' force was above the met rows' floors, so its multiplier
+    was not fitted (``_met_force``), and level 1 ended in every mode at 1.93136e-4 against its
+    optimum 1.929871e-4 (the reference, daqp and quadprog agree to 11 digits), lower at level 2.
+    On a level whose row norms span more than ``MET_SPREAD``, a met row's measured mu of the
+    wrong sign now has the met rows fitted: row 0's fitted mu is negative and it leaves the
+    objective. Judged by the daqp and quadprog cascades: level 1 at 1e-9 of its own value, every
+    level by verify at 1e-9."""
+    h = load_npz(DATA / "badly_scaled_5_2992.npz")
+    other = registry.create(judge).solve(h)
+    for warm_start, min_norm, res in _every_mode(h):
+        np.testing.assert_allclose(h.level_norms(res.x)[1], h.level_norms(other.x)[1], rtol=1e-9)
+        verdict = verify(h, res.x, other.x, rtol=1e-9)
+        assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
+
+
 def test_a_small_row_that_blocks_enters_w_at_its_own_rank_threshold():
     """badly_scaled n = 12 seed 528: at level 4 a row of level 1 with norm 4.4e-3 (6.4e-7 of its
     level's norm) leaves ``W`` and blocks the next step at once; its projection on ``Z``, 9e-5 of
