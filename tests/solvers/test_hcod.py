@@ -381,6 +381,16 @@ def _every_mode(h):
             yield warm_start, min_norm, res
 
 
+def _every_mode_equals_judge(h, judge: str, level: int, level_rtol: float, rtol: float = 1e-9):
+    """Every mode of hcod (:func:`_every_mode`) on h against the solver ``judge``: level ``level``'s
+    norm within ``level_rtol`` of the judge's, every level equal by verify at ``rtol``."""
+    other = registry.create(judge).solve(h)
+    for warm_start, min_norm, res in _every_mode(h):
+        np.testing.assert_allclose(h.level_norms(res.x)[level], h.level_norms(other.x)[level], rtol=level_rtol)
+        verdict = verify(h, res.x, other.x, rtol=rtol)
+        assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
+
+
 @pytest.mark.parametrize("judge", ["cascade-daqp", "cascade-quadprog"])
 @pytest.mark.parametrize(("seed", "rtol"), [(908, 1e-9), (137, 1e-8), (343, 1e-9), (955, 1e-9)],
                          ids=["908", "137", "343", "955"])
@@ -429,11 +439,7 @@ def test_a_small_rows_level_reaches_the_exact_cascades_point(seed, level_rtol, r
       the met rows' part of the noise floor now has the met rows fitted as constraints
       (``_kernel._met_force``)."""
     h = G.degenerate("badly_scaled", 12, seed)
-    other = registry.create(judge).solve(h)
-    for warm_start, min_norm, res in _every_mode(h):
-        np.testing.assert_allclose(h.level_norms(res.x)[2], h.level_norms(other.x)[2], rtol=level_rtol)
-        verdict = verify(h, res.x, other.x, rtol=rtol)
-        assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
+    _every_mode_equals_judge(h, judge, level=2, level_rtol=level_rtol, rtol=rtol)
 
 
 @pytest.mark.parametrize("judge", ["cascade-daqp", "cascade-quadprog"])
@@ -448,11 +454,7 @@ def test_a_working_rows_multiplier_within_the_rounding_of_g_is_measured_by_one_s
     change is under half of it. Judged by the daqp and quadprog cascades: level 3 at 1e-10 of its
     own value, every level by verify at 1e-9."""
     h = load_npz(DATA / "badly_scaled_12_1232.npz")
-    other = registry.create(judge).solve(h)
-    for warm_start, min_norm, res in _every_mode(h):
-        np.testing.assert_allclose(h.level_norms(res.x)[3], h.level_norms(other.x)[3], rtol=1e-10)
-        verdict = verify(h, res.x, other.x, rtol=1e-9)
-        assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
+    _every_mode_equals_judge(h, judge, level=3, level_rtol=1e-10)
 
 
 @pytest.mark.parametrize("judge", ["cascade-daqp", "cascade-quadprog"])
@@ -468,11 +470,7 @@ def test_a_met_rows_wrong_signed_mu_within_its_floor_fits_the_met_rows_on_a_wide
     objective. Judged by the daqp and quadprog cascades: level 1 at 1e-9 of its own value, every
     level by verify at 1e-9."""
     h = load_npz(DATA / "badly_scaled_5_2992.npz")
-    other = registry.create(judge).solve(h)
-    for warm_start, min_norm, res in _every_mode(h):
-        np.testing.assert_allclose(h.level_norms(res.x)[1], h.level_norms(other.x)[1], rtol=1e-9)
-        verdict = verify(h, res.x, other.x, rtol=1e-9)
-        assert verdict.equal, (warm_start, min_norm, verdict, h.level_norms(res.x), h.level_norms(other.x))
+    _every_mode_equals_judge(h, judge, level=1, level_rtol=1e-9)
 
 
 def test_a_small_row_that_blocks_enters_w_at_its_own_rank_threshold():
