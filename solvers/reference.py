@@ -166,6 +166,13 @@ def _signed_slack(r: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
     return r - np.clip(r, lo, up)
 
 
+def _stage_cost(x, A_k, lo_k, up_k, final: bool) -> float:
+    """A stage's cost at x: ||w||^2 of level k's signed slack (eq. 35), or ||x||^2 on the final
+    (minimum-norm) stage."""
+    w = x if final else _signed_slack(A_k @ x, lo_k, up_k)
+    return float(w @ w)
+
+
 def _qp_level(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, widen: float = 0.0):
     """Build and solve the QP of one level.
 
@@ -370,10 +377,7 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
         d = np.concatenate([d, up_k[tight_u], lo_k[tight_l]])
         G, t = A_k[soft], target[soft]
     def cost(z):
-        if final:
-            return float(z @ z)
-        w = _signed_slack(A_k @ z, lo_k, up_k)
-        return float(w @ w)
+        return _stage_cost(z, A_k, lo_k, up_k, final)
 
     # Primal active-set refinement (activations; _descend below drops rows too): go from the feasible
     # point toward the exact point of the current active set, stop at the
@@ -548,12 +552,8 @@ def _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, rowwise: bool 
     # stopped short of the KKT conditions: a direction the working set's least squares cut at the
     # level's rank threshold may be one a small row of the level sees (badly_scaled n=12 seed 964)
     x_row = _descend(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final, rowwise=True)
-
-    def cost(z):
-        w = z if final else _signed_slack(A_k @ z, lo_k, up_k)
-        return float(w @ w)
-
-    return x_row if cost(x_row) < cost(x) * (1 - 1e-12) else x
+    cheaper = _stage_cost(x_row, A_k, lo_k, up_k, final) < _stage_cost(x, A_k, lo_k, up_k, final) * (1 - 1e-12)
+    return x_row if cheaper else x
 
 
 def _stage(A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, name: str):
@@ -622,10 +622,8 @@ def _freeze(A_k, lo_k, up_k, x):
     w = _signed_slack(achieved, lo_k, up_k)
     scale = _row_scale(A_k, lo_k, up_k, x)
     w[np.abs(w) <= _FREEZE_RTOL * scale] = 0.0
-    shifted = (w != 0) & (np.abs(w) <= _FREEZE_RTOL * np.max(scale, initial=0.0))
-    pinned = (w != 0) & ~shifted
-    return (w, np.where(pinned, achieved, np.where(shifted, lo_k + w, lo_k)),
-            np.where(pinned, achieved, np.where(shifted, up_k + w, up_k)))
+    pinned = np.abs(w) > _FREEZE_RTOL * np.max(scale, initial=0.0)  # (else shifted by w, 0 or not)
+    return w, np.where(pinned, achieved, lo_k + w), np.where(pinned, achieved, up_k + w)
 
 
 def _units(h: Hierarchy) -> float:
