@@ -122,21 +122,22 @@ def _floor(rnorm_i, unorm, b, rtol):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def _level_cod(Mr, Mf, nO, p, nf, thr, piv, diag, beta):
+def _level_cod(Mr, Mf, nO, p, nf, thr, piv, diag, beta, rrt, Olist, rnorm):
     """The COD (19) from scratch of the level's nO objective rows projected on
-    Z (``Mf[:nO, p:]``, copied to ``Mr``; ``piv`` starts as the identity).
-    Returns (r, flops)."""
+    Z (``Mf[:nO, p:]``, copied to ``Mr``; ``piv`` starts as the identity;
+    ``rrt``: the row-by-row rank test of a wide level, 0 if not, see
+    :func:`._linalg.cod`). Returns (r, flops)."""
     for j in range(nO):
         piv[j] = j
         mrj = Mr[j, :nf]
         mfj = Mf[j, p:]
         for c in range(nf):
             mrj[c] = mfj[c]
-    return cod(Mr, nO, nf, thr, piv, diag, beta)
+    return cod(Mr, nO, nf, thr, piv, diag, beta, rrt, Olist, rnorm)
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def _level_cod_append(Mr, Mf, j0, nO, p, nf, thr, r, piv, diag, beta):
+def _level_cod_append(Mr, Mf, j0, nO, p, nf, thr, r, piv, diag, beta, rrt, Olist, rnorm):
     """The level's COD of rank r over its objective rows ``:j0`` updated for
     the rows ``j0:nO`` that entered since (:func:`._linalg.cod_append`, one
     row at a time, copied from ``Mf[j, p:]``). Returns (r, flops, weak: a new
@@ -149,7 +150,7 @@ def _level_cod_append(Mr, Mf, j0, nO, p, nf, thr, r, piv, diag, beta):
         mfj = Mf[j, p:]
         for c in range(nf):
             mrj[c] = mfj[c]
-        r, f, w = cod_append(Mr, j, nf, thr, r, piv, diag, beta)
+        r, f, w = cod_append(Mr, j, nf, thr, r, piv, diag, beta, rrt, Olist, rnorm)
         fl += f
         weak = weak or w
     return r, fl, weak
@@ -548,6 +549,7 @@ def hcod_solve(fw, iw):
                     rmax = max(rmax, rnorm[i])
                     rmin = min(rmin, rnorm[i])
             wide = rmax > MET_SPREAD * rmin  # (rows of norms far apart: _met_force at the level's end)
+            rrt_k = rank_rtol if wide else 0.0  # (and the COD's rank decided row by row too)
             nO = 0
             warm_level = use_hist and hist_valid[k] != 0
             if warm_level and jm < 0 and hist_valid[k] >= 2:
@@ -838,13 +840,13 @@ def hcod_solve(fw, iw):
                         mf_valid = True
                     if ncod == 0:
                         # the COD (19) of the projected objective rows, from scratch
-                        r, f = _level_cod(Mr, Mf, nO, p, nf, thr_k, piv, diag, beta)
+                        r, f = _level_cod(Mr, Mf, nO, p, nf, thr_k, piv, diag, beta, rrt_k, Olist, rnorm)
                         fl += f
                         cod_weak = False
                     else:
                         # only objective rows entered since the last COD (Z is the same): it is
                         # updated, one reflector per independent row (sec. IX)
-                        r, f, weak = _level_cod_append(Mr, Mf, ncod, nO, p, nf, thr_k, r, piv, diag, beta)
+                        r, f, weak = _level_cod_append(Mr, Mf, ncod, nO, p, nf, thr_k, r, piv, diag, beta, rrt_k, Olist, rnorm)
                         fl += f
                         cod_weak = cod_weak or weak
                     ncod = nO
@@ -1192,7 +1194,7 @@ def hcod_solve(fw, iw):
                 unorm = _norm(u)
                 if cod_done and cod_weak:
                     # the pivots become working rows: pivoting picks them (see cod_append)
-                    r, f = _level_cod(Mr, Mf, nO, p, n - p, thr_k, piv, diag, beta)
+                    r, f = _level_cod(Mr, Mf, nO, p, n - p, thr_k, piv, diag, beta, rrt_k, Olist, rnorm)
                     fl += f
                 if cod_done:
                     # the COD (19) of the last iteration is the update: its r pivot rows enter

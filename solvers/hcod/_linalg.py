@@ -469,7 +469,7 @@ def row_axpy(w, a, b, bv, y):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def cod(Mr, nO, nf, thr, rows, diag, beta):
+def cod(Mr, nO, nf, thr, rows, diag, beta, rrt, Olist, rnorm):
     """Rank-revealing Householder QR with column pivoting of ``M^T`` (nf, nO),
     whose columns are the rows of ``Mr``: ``M^T Pi = H [R1 R2; 0 0]``, the
     first half of the COD (19) (``L_k = [R1 R2]^T``, ``Y_k = H[:, :r]``,
@@ -477,7 +477,14 @@ def cod(Mr, nO, nf, thr, rows, diag, beta):
 
     Pivoting permutes ``Mr`` and ``rows`` together. The rank r is
     the number of pivots whose remaining norm exceeds ``thr`` (the relative
-    threshold times ``||A_k||``, see the package docstring). Remaining norms
+    threshold times ``||A_k||``, see the package docstring). With ``rrt > 0``
+    (a wide level: row norms spread beyond ``MET_SPREAD``), once no remaining
+    norm exceeds ``thr``, pivoting goes on row by row: the row whose remaining
+    norm is the largest fraction of its own norm ``rnorm[Olist[rows[j]]]``
+    (unprojected) is a pivot while that fraction exceeds ``rrt`` (the rule
+    of a working row, :func:`._basis.insert_row`). A row 1e-8 the size of its
+    level's largest sees directions under the level's threshold that the
+    large rows do not: cut, they were never descended. Remaining norms
     are downdated, and recomputed when cancellation makes the downdate
     unreliable. On return, reflector i is ``I - beta[i] v v^T`` with
     ``v = Mr[i, i:nf]``, ``diag[i]`` is ``R1[i, i]`` and ``Mr[j, i]`` (j > i)
@@ -501,7 +508,20 @@ def cod(Mr, nO, nf, thr, rows, diag, beta):
         fl += nf - i
         nrm = math.sqrt(vdot(mb, mb))
         if not nrm > thr:
-            break
+            if rrt == 0.0:
+                break
+            # row by row: the largest remaining fraction of a row's own norm
+            best = -1.0
+            for j in range(i, nO):
+                rn = rnorm[Olist[rows[j]]]
+                if rn > 0.0 and beta[j] > best * rn * rn:
+                    best = beta[j] / (rn * rn)
+                    jb = j
+            mb = Mr[jb, i:nf]
+            fl += nf - i
+            nrm = math.sqrt(vdot(mb, mb))
+            if not nrm > rrt * rnorm[Olist[rows[jb]]]:
+                break
         if jb != i:
             for c in range(nf):
                 t = Mr[i, c]
@@ -534,12 +554,13 @@ WEAK_PIVOT = 1e-3
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def cod_append(Mr, j, nf, thr, r, rows, diag, beta):
+def cod_append(Mr, j, nf, thr, r, rows, diag, beta, rrt, Olist, rnorm):
     """Update the COD of :func:`cod` (rank r, rows ``Mr[:j]``) for one more
     row, loaded in ``Mr[j, :nf]`` with its index in ``rows[j]`` (sec. IX: a
     row enters by updating the decomposition, not by refactoring it): the r
     reflectors are applied to the row; when what is left of it on the columns
-    ``r:`` has norm above ``thr`` (the rank test of :func:`cod`), it becomes
+    ``r:`` has norm above ``thr``, or ``rrt`` times its own unprojected norm
+    (the rank tests of :func:`cod`), it becomes
     pivot r -- swapped with the first dependent row, reduced by one more
     reflector, which the dependent rows meet too.
 
@@ -560,7 +581,7 @@ def cod_append(Mr, j, nf, thr, r, rows, diag, beta):
     v = mj[r:]
     nrm = math.sqrt(vdot(v, v))
     fl += nf - r
-    if not nrm > thr:
+    if not (nrm > thr or (rrt > 0.0 and nrm > rrt * rnorm[Olist[rows[j]]])):
         return r, fl, False
     if j != r:
         for c in range(nf):

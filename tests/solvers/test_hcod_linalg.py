@@ -26,9 +26,11 @@ def _rows(nO: int, nf: int, rank: int, seed: int) -> np.ndarray:
 
 
 class Cod:
-    """The kernel's arrays of one level COD."""
+    """The kernel's arrays of one level COD. ``rnorm`` (nO,): the rows' norms before their
+    projection on Z, read by the row-by-row rank test when ``rrt > 0`` (a wide level); the
+    objective list is the identity."""
 
-    def __init__(self, M: np.ndarray):
+    def __init__(self, M: np.ndarray, rrt: float = 0.0, rnorm: np.ndarray | None = None):
         self.M = M
         self.nO, self.nf = M.shape
         self.Mr = np.zeros((self.nO, self.nf))
@@ -36,17 +38,22 @@ class Cod:
         self.diag = np.zeros(self.nO)
         self.beta = np.zeros(self.nO)
         self.r = 0
+        self.rrt = rrt
+        self.Olist = np.arange(self.nO)
+        self.rnorm = np.linalg.norm(M, axis=1) if rnorm is None else rnorm
 
     def scratch(self, k: int) -> None:
         """cod() of the first k rows."""
         self.Mr[:k] = self.M[:k]
-        self.r, _ = cod(self.Mr, k, self.nf, THR, self.piv, self.diag, self.beta)
+        self.r, _ = cod(self.Mr, k, self.nf, THR, self.piv, self.diag, self.beta, self.rrt, self.Olist,
+                        self.rnorm)
 
     def append(self, j: int) -> bool:
         """cod_append() of row j (rows before it decomposed); returns its ``weak`` flag."""
         self.Mr[j] = self.M[j]
         self.piv[j] = j
-        self.r, _, weak = cod_append(self.Mr, j, self.nf, THR, self.r, self.piv, self.diag, self.beta)
+        self.r, _, weak = cod_append(self.Mr, j, self.nf, THR, self.r, self.piv, self.diag, self.beta,
+                                     self.rrt, self.Olist, self.rnorm)
         return weak
 
     def row(self, j: int) -> np.ndarray:
@@ -132,6 +139,49 @@ def test_a_nearly_dependent_pivot_is_flagged_weak():
     assert c.r == 2 and 2 in c.piv[:2]  # [0, 1] is a pivot, beside [1, 0] or [1, 1e-4]
     np.testing.assert_allclose(np.abs(c.diag[:2]), [1.0, 1.0], rtol=1e-7)
     assert not _appended(M[[0, 2]])[1]  # orthogonal rows: no weak pivot
+
+
+#: a wide level's rows (projected on Z): a row of norm 1, one of norm 1e-8 whose part outside
+#: the first is 5e-11 (under THR, 5e-3 of its own norm), and one of norm 2e-8 whose part outside
+#: the first is 1e-27 (rounding at its own norm: dependent)
+WIDE = np.array([[1.0, 0.0, 0.0], [1e-8, 5e-11, 0.0], [2e-8, 0.0, 1e-27]])
+
+
+@pytest.mark.parametrize("appended", [False, True], ids=["from-scratch", "appended"])
+def test_a_wide_levels_small_row_is_a_pivot_at_its_own_norm(appended):
+    """On a wide level (``rrt > 0``) the rank test goes on row by row once the level's threshold
+    THR is passed: the small row with 5e-3 of its norm outside the large one is a pivot (diagonal
+    5e-11), the row left with 1e-27 of its 2e-8 (5e-20, under ``rrt``) is not. With ``rrt = 0``
+    both are cut at THR. The least-squares step of the targets of x = (1, 1, 0) reaches that x at
+    ``rrt > 0`` (the one direction the small row sees beyond the large one is descended); at
+    ``rrt = 0`` it stays at (1, 0, 0)."""
+    b = WIDE @ np.array([1.0, 1.0, 0.0])
+    for rrt, rank, x in ((0.0, 1, [1.0, 0.0, 0.0]), (THR, 2, [1.0, 1.0, 0.0])):
+        c = Cod(WIDE, rrt=rrt)
+        if appended:
+            for j in range(3):
+                c.append(j)
+        else:
+            c.scratch(3)
+        assert c.r == rank, rrt
+        assert list(c.piv[:rank]) == list(range(rank))
+        for j in range(3):
+            np.testing.assert_allclose(c.row(j), WIDE[c.piv[j]], rtol=0, atol=1e-20)
+        np.testing.assert_allclose(c.step(b), x, rtol=0, atol=1e-9)
+    np.testing.assert_allclose(abs(c.diag[1]), 5e-11, rtol=1e-12)
+
+
+def test_the_row_by_row_pivot_is_the_largest_fraction_of_its_own_norm():
+    """Past the level's threshold the next pivot is the row whose part outside the pivots is
+    the largest fraction of its own norm, not the largest in absolute: here the row of norm
+    1e-6 with 4e-11 left (4e-5 of it) loses to the row of norm 1e-9 with 2e-11 left (2e-2)."""
+    M = np.array([[1.0, 0.0, 0.0], [1e-6, 4e-11, 0.0], [1e-9, 0.0, 2e-11]])
+    c = Cod(M, rrt=THR)
+    c.scratch(3)
+    assert c.r == 3
+    assert list(c.piv) == [0, 2, 1]
+    for j in range(3):
+        np.testing.assert_allclose(c.row(j), M[c.piv[j]], rtol=0, atol=1e-20)
 
 
 def _appended(M: np.ndarray) -> tuple[Cod, bool]:
