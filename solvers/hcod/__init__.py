@@ -58,10 +58,12 @@ Rank detection
     inequalities (row norms spread beyond ``MET_SPREAD`` = 1e3) the COD
     goes on past that threshold row by row: the next pivot is the row whose
     remaining norm is the largest fraction of its own unprojected norm, and
-    counts while that fraction exceeds ``rank_rtol`` (a row 1e-8 the size of
-    its level's largest sees directions the level's threshold cuts; they were
+    counts while that fraction exceeds ``_linalg.ROW_RANK_RTOL`` = 1e-5 (or
+    ``rank_rtol``, if larger; a projection's rounding can reach 1e-6 of its
+    row at cond 1e6 and rows spread over 1e4). A row 1e-8 the size of its
+    level's largest sees directions the level's threshold cuts; they were
     never descended, and the level ended up to 1.8 % above its optimum on
-    ``badly_scaled`` seeds 128, 1143, 1402, 1696 and 2876). A blocking row
+    ``badly_scaled`` n = 12 seeds 128, 1143, 1402, 1696 and 2876. A blocking row
     inserted in the working set obeys the test at its own norm on its
     component outside the span of the working rows. The equality-only
     kernel keeps the level's threshold on every level.

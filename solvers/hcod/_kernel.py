@@ -69,6 +69,7 @@ from solvers.hcod._linalg import (
     FASTMATH,
     NEAR_RANK,
     NEAR_RANK_STEP,
+    ROW_RANK_RTOL,
     apply_reflectors,
     cod,
     cod_append,
@@ -549,7 +550,7 @@ def hcod_solve(fw, iw):
                     rmax = max(rmax, rnorm[i])
                     rmin = min(rmin, rnorm[i])
             wide = rmax > MET_SPREAD * rmin  # (rows of norms far apart: _met_force at the level's end)
-            rrt_k = rank_rtol if wide else 0.0  # (and the COD's rank decided row by row too)
+            rrt_k = max(ROW_RANK_RTOL, rank_rtol) if wide else 0.0  # (the COD's rank: row by row too)
             nO = 0
             warm_level = use_hist and hist_valid[k] != 0
             if warm_level and jm < 0 and hist_valid[k] >= 2:

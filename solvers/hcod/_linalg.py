@@ -34,6 +34,14 @@ FASTMATH = frozenset({"reassoc", "contract", "nsz", "arcp"})
 #: from the threshold.
 NEAR_RANK = 10.0
 NEAR_RANK_STEP = 1e6
+#: a wide level's COD (:func:`cod`, ``rrt``) takes a pivot past the level's rank threshold when the
+#: row's remaining norm exceeds this fraction of its own norm (or ``rank_rtol``, if larger). A
+#: row's projection on Z carries rounding of about eps x cond(rows above) x (their spread of
+#: norms): up to 1e-6 of its norm at cond 1e6 and rows over 1e4 (the conditioning sweep's trial
+#: 2272: pivots of 1e-6 .. 3e-6 of their rows, taken, left level 1 6.8e-4 above where the level's
+#: threshold leaves it). The cuts this mends were 1.6e-4 .. 6.1e-3 of their rows (badly_scaled
+#: n = 12 seeds 128, 1143, 1402, 1696, 2785, 2876, 3144)
+ROW_RANK_RTOL = 1e-5
 _FM = set(FASTMATH)
 #: the products of many general rows with an explicit basis (``_explicit.project_into``,
 #: ``_factored.basis_rows``) call BLAS from these sizes up; below, the vectorised loops beat a
@@ -481,8 +489,8 @@ def cod(Mr, nO, nf, thr, rows, diag, beta, rrt, Olist, rnorm):
     (a wide level: row norms spread beyond ``MET_SPREAD``), once no remaining
     norm exceeds ``thr``, pivoting goes on row by row: the row whose remaining
     norm is the largest fraction of its own norm ``rnorm[Olist[rows[j]]]``
-    (unprojected) is a pivot while that fraction exceeds ``rrt`` (the rule
-    of a working row, :func:`._basis.insert_row`). A row 1e-8 the size of its
+    (unprojected) is a pivot while that fraction exceeds ``rrt`` (the kernel
+    passes ``max(ROW_RANK_RTOL, rank_rtol)``). A row 1e-8 the size of its
     level's largest sees directions under the level's threshold that the
     large rows do not: cut, they were never descended. Remaining norms
     are downdated, and recomputed when cancellation makes the downdate

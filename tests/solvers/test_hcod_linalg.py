@@ -11,7 +11,15 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from solvers.hcod._linalg import WEAK_PIVOT, apply_reflectors, cod, cod_append, solve_lower, solve_upper
+from solvers.hcod._linalg import (
+    ROW_RANK_RTOL,
+    WEAK_PIVOT,
+    apply_reflectors,
+    cod,
+    cod_append,
+    solve_lower,
+    solve_upper,
+)
 
 pytestmark = pytest.mark.usefixtures("hcod_kernels_loaded_first")
 
@@ -149,14 +157,14 @@ WIDE = np.array([[1.0, 0.0, 0.0], [1e-8, 5e-11, 0.0], [2e-8, 0.0, 1e-27]])
 
 @pytest.mark.parametrize("appended", [False, True], ids=["from-scratch", "appended"])
 def test_a_wide_levels_small_row_is_a_pivot_at_its_own_norm(appended):
-    """On a wide level (``rrt > 0``) the rank test goes on row by row once the level's threshold
-    THR is passed: the small row with 5e-3 of its norm outside the large one is a pivot (diagonal
-    5e-11), the row left with 1e-27 of its 2e-8 (5e-20, under ``rrt``) is not. With ``rrt = 0``
+    """On a wide level (``rrt = ROW_RANK_RTOL``) the rank test goes on row by row once the level's
+    threshold THR is passed: the small row with 5e-3 of its norm outside the large one is a pivot
+    (diagonal 5e-11), the row left with 1e-27 of its 2e-8 (5e-20) is not. With ``rrt = 0``
     both are cut at THR. The least-squares step of the targets of x = (1, 1, 0) reaches that x at
     ``rrt > 0`` (the one direction the small row sees beyond the large one is descended); at
     ``rrt = 0`` it stays at (1, 0, 0)."""
     b = WIDE @ np.array([1.0, 1.0, 0.0])
-    for rrt, rank, x in ((0.0, 1, [1.0, 0.0, 0.0]), (THR, 2, [1.0, 1.0, 0.0])):
+    for rrt, rank, x in ((0.0, 1, [1.0, 0.0, 0.0]), (ROW_RANK_RTOL, 2, [1.0, 1.0, 0.0])):
         c = Cod(WIDE, rrt=rrt)
         if appended:
             for j in range(3):
@@ -176,7 +184,7 @@ def test_the_row_by_row_pivot_is_the_largest_fraction_of_its_own_norm():
     the largest fraction of its own norm, not the largest in absolute: here the row of norm
     1e-6 with 4e-11 left (4e-5 of it) loses to the row of norm 1e-9 with 2e-11 left (2e-2)."""
     M = np.array([[1.0, 0.0, 0.0], [1e-6, 4e-11, 0.0], [1e-9, 0.0, 2e-11]])
-    c = Cod(M, rrt=THR)
+    c = Cod(M, rrt=ROW_RANK_RTOL)
     c.scratch(3)
     assert c.r == 3
     assert list(c.piv) == [0, 2, 1]
