@@ -162,6 +162,12 @@ def _constrained_lstsq(x0: np.ndarray, C: np.ndarray, d: np.ndarray, G: np.ndarr
     return _null_update(x, Z, G, t)[0]
 
 
+def _meets(A: np.ndarray, lo: np.ndarray, up: np.ndarray, x: np.ndarray, rtol: float) -> bool:
+    """Whether every row of ``A x`` is within its bounds to ``rtol`` of its scale (:func:`_row_scale`)."""
+    r, tol = A @ x, rtol * _row_scale(A, lo, up, x)
+    return bool(np.all(r <= up + tol) and np.all(r >= lo - tol))
+
+
 def _signed_slack(r: np.ndarray, lo: np.ndarray, up: np.ndarray) -> np.ndarray:
     """w = r - clip(r, lo, up): positive above upper, negative below lower."""
     return r - np.clip(r, lo, up)
@@ -389,10 +395,9 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
     working = eq_hi | at_up | at_lo
     for _ in range(A_hi.shape[0] + 1):
         x = _constrained_lstsq(x_cur, C, d, G, t)
-        feas = _FEAS_RTOL * _row_scale(A_hi, lo_hi, up_hi, x)
-        r = A_hi @ x
-        if np.all(r <= up_hi + feas) and np.all(r >= lo_hi - feas):
+        if _meets(A_hi, lo_hi, up_hi, x, _FEAS_RTOL):
             break
+        r = A_hi @ x
         r0 = A_hi @ x_cur
         dr = r - r0
         with np.errstate(divide="ignore", invalid="ignore"):
@@ -420,10 +425,9 @@ def _polish(x_qp, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final: bool, certify: boo
     # bound by 2e-4 of its scale (badly_scaled n=12 seed 5034, the minimum-norm stage, level 4 then
     # 1.6e-3 above its optimum); such a point is not taken (_HELD_RTOL: held rows drift by rounding,
     # 3.4e-11 of their scale on the Talos reaching step 181)
-    r_opt, feas = A_hi @ x_opt, _HELD_RTOL * _row_scale(A_hi, lo_hi, up_hi, x_opt)
-    feasible = bool(np.all(r_opt <= up_hi + feas) and np.all(r_opt >= lo_hi - feas))
-    if feasible and (cost_opt < cost_x * (1 - 1e-9) or _kkt_closer(x_opt, x, cost_opt, cost_x, A_hi, lo_hi,
-                                                                   up_hi, A_k, lo_k, up_k, final)):
+    if _meets(A_hi, lo_hi, up_hi, x_opt, _HELD_RTOL) and (
+            cost_opt < cost_x * (1 - 1e-9)
+            or _kkt_closer(x_opt, x, cost_opt, cost_x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final)):
         x = x_opt
     if certify:
         return (x, True) if _kkt_certified(x, A_hi, lo_hi, up_hi, A_k, lo_k, up_k, final) else (x_qp, False)

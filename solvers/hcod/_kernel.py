@@ -847,7 +847,8 @@ def hcod_solve(fw, iw):
                     else:
                         # only objective rows entered since the last COD (Z is the same): it is
                         # updated, one reflector per independent row (sec. IX)
-                        r, f, weak = _level_cod_append(Mr, Mf, ncod, nO, p, nf, thr_k, r, piv, diag, beta, rrt_k, Olist, rnorm)
+                        r, f, weak = _level_cod_append(Mr, Mf, ncod, nO, p, nf, thr_k, r, piv, diag, beta,
+                                                       rrt_k, Olist, rnorm)
                         fl += f
                         cod_weak = cod_weak or weak
                     ncod = nO
