@@ -759,3 +759,65 @@ def test_a_small_rows_slack_of_round_off_does_not_pin_it_for_the_levels_below(sa
     for judge in judges:
         verdict = verify(h, judge, x, rtol=1e-9)
         assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(judge))
+
+
+@pytest.mark.parametrize(("x", "optimal"), [([1.0, 0.0], True), ([1.0, -0.5], False)], ids=["at-bounds", "x1-inside"])
+def test_kkt_certificate_floor_leaves_out_a_large_row_inside_its_bounds(x, optimal):
+    """The level of ``test_kkt_certificate_of_a_level`` (x0 + x1 = 3 under x0 <= 1, x1 <= 0) with
+    a row of norm 1.4e6 well inside its bounds (``1e6 (x0 + x1)`` in [-1e7, 1e7]): its slack is an
+    exact 0, so it adds nothing to the gradient's round-off. Counted in the floor (1e-12 times its
+    norm times its scale, 18), it hid the residual 2.5 of the point off the bound x1 <= 0."""
+    from solvers.reference import _kkt_certified
+
+    A_hi, lo_hi, up_hi = np.eye(2), np.full(2, -np.inf), np.array([1.0, 0.0])
+    A_k = np.array([[1.0, 1.0], [1e6, 1e6]])
+    assert _kkt_certified(np.array(x), A_hi, lo_hi, up_hi, A_k, np.array([3.0, -1e7]), np.array([3.0, 1e7]),
+                          False) is optimal
+
+
+@pytest.mark.parametrize("judge", ["hcod", "cascade-daqp", "cascade-quadprog"])
+def test_a_met_row_of_the_level_does_not_hold_back_its_objective(judge):
+    """badly_scaled n = 12 seed 6444, as OpenBLAS's Haswell kernels generate it (saved,
+    ``data/badly_scaled_12_6444.npz``). Level 3's optimum leaves its row 3 (norm 2.9) 2.7e-8
+    above its upper bound: that slack buys its row 1 (norm 8.7e-4, slack 9.96e-4) more, and level
+    3 ends at 9.955567243937e-4 (50-digit arithmetic on that active set, where the multipliers
+    check; hcod, the daqp and quadprog cascades agree). Polishing held row 3 at its bound, 3.6e-13
+    dearer, and ``_descend`` found the optimum, but its gain (7.2e-10 of the cost) is under
+    ``_polish``'s 1e-9 and ``_kkt_certified`` passed the held point, its round-off floor set by
+    level 3's row of norm 4.7e3 that lies inside its bounds (1e-4 against |g| 8.6e-7). Frozen
+    there, level 4 ended at 73.6997576 against 73.6997551. The floor now counts the rows with a
+    slack or at a bound, and the reference is the judges' point at 1e-9."""
+    from pathlib import Path
+
+    from problems.files import load_npz
+    from solvers import registry
+
+    h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_6444.npz")
+    x, info = cascade_reference(h)
+    assert all(info["polished"]), info["backend"]
+    other = registry.create(judge).solve(h)  # (judged by its norms, not its status flag)
+    verdict = verify(h, x, other.x, rtol=1e-9)
+    assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(other.x))
+
+
+def test_an_unpolished_point_out_of_the_bounds_above_is_not_kept():
+    """badly_scaled n = 12 seed 6112, as OpenBLAS's Haswell kernels generate it (saved,
+    ``data/badly_scaled_12_6112.npz``). Clarabel's almost-solved point of level 3 left level 0 by
+    3.3e-3 and could not be polished; kept as level 3's point, it froze level 3 at 4.0195e4 (the
+    optimum is 4.0359e4, bought by that violation), and level 4 had no feasible set for any
+    backend: no reference. Such a point now counts as a failed QP: the widened QPs fail too, and
+    the primal active set from level 2's point solves level 3, KKT-certified. The reference is
+    then hcod's point and the PIQP cascade's at 1e-9."""
+    from pathlib import Path
+
+    from problems.files import load_npz
+    from solvers import registry
+
+    h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_6112.npz")
+    x, info = cascade_reference(h)
+    assert all(info["polished"]), info["backend"]
+    assert info["backend"][3].startswith("none solved it"), info["backend"]
+    for judge in ("hcod", "cascade-piqp"):
+        other = registry.create(judge).solve(h)
+        verdict = verify(h, x, other.x, rtol=1e-9)
+        assert verdict.equal, (judge, verdict, h.level_norms(x), h.level_norms(other.x))
