@@ -1,0 +1,313 @@
+"""An exact certificate of a lexicographic solution, in multiple-precision arithmetic.
+
+Where two solvers disagree near a level's conditioning, double precision cannot say which one
+is right. :func:`certify` reads an active set off a point x (each row inside its bounds, or
+held at a bound, or violated), solves the sequence of LSIs (ICRA 2010, eqs. (33)-(36)) on that
+set in ``digits``-digit arithmetic (mpmath), and checks that the result is the lexicographic
+optimum: feasible for every row read as inside, and at each stage (every level, then the
+minimum-norm stage) a KKT point with multipliers of the right sign. A certified x* is the
+exact optimum of the problem as stored (the float64 numbers of A and the bounds, taken
+exactly); its level norms judge any solver's, whatever their agreement with each other.
+
+On that active set, stage k (levels j < k done) is
+
+    min_x 1/2 ||w_k||^2,  w_k = A_T x - t_T
+    s.t.  A_E x = e_E
+
+with T the rows of level k read at a bound or violated (their targets t the bound they are
+at or beyond; an equality row its value), E the rows of the levels above that are held: a row
+with a nonzero optimal slack at its achieved value (eq. 35, w_j* fixed), one with a zero
+slack at its bound. Each stage is solved by the SVD null-space method (eq. 2) in ``digits``
+digits. A target row whose exact slack has the sign of the inside of its bounds was read
+wrong: not certified. The last stage is min 1/2 ||x||^2 on every held row.
+
+At x*, stage k is optimal iff ``A_T^T w_k + A_E^T lam = 0`` with lam free on the rows held
+at a value and ``lam >= 0`` (row held at its upper bound) or ``<= 0`` (lower) on the others
+(a target row of level k at its bound has the multiplier w_i = 0: it is no constraint).
+The support of lam is found in float64 (bounded least squares); lam is then solved for on it
+in ``digits`` digits, and the residual must vanish to ``10**-(digits // 2)`` of ``|g|``.
+
+Only a certificate that passes every check is returned certified; the reason names the first
+check that failed otherwise. A row read at a bound whose exact slack on its stage points inside
+its bounds (a row of a rank-deficient level that the others place there) is let go for that
+stage, and held at its bound below if the stage's point leaves it there.
+
+What it certifies is the stored problem. A level whose rows are rank-deficient only to float64
+rounding (combinations of others, the ``rank_deficient`` family) has full rank in exact
+arithmetic, with singular values ~1e-17 of the largest: its exact optimum is another point
+than the one a solver's rank threshold gives, and the certificate is refused there. The cost
+is that of dense SVDs in software arithmetic: ~0.1 s at n = 5, ~3 s at n = 20.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from problems.errors import HikbenchError
+from problems.hierarchy import Hierarchy
+
+__all__ = ["Certificate", "certify"]
+
+#: row states read off x
+INSIDE, AT_LOWER, AT_UPPER, EQUALITY = "inside", "lower", "upper", "equality"
+
+
+@dataclass
+class Certificate:
+    """The outcome of :func:`certify`.
+
+    Attributes
+    ----------
+    certified : bool
+        x* passed every check: it is the exact lexicographic optimum.
+    reason : str
+        Empty when certified, else the first check that failed.
+    level_norms : ndarray, shape (levels,)
+        The level norms ``||v_k(x*)||`` of the exact x*, rounded to float64 (NaN where the
+        stages did not reach x*).
+    x : ndarray, shape (n,)
+        x* rounded to float64 (NaN where not reached).
+    states : list of str
+        The state read off the given point for each row (``inside``, ``lower``, ``upper``,
+        ``equality``).
+    """
+
+    certified: bool
+    reason: str
+    level_norms: np.ndarray
+    x: np.ndarray
+    states: list = field(default_factory=list)
+
+
+def _read_states(h: Hierarchy, x: np.ndarray, rtol: float) -> list[str]:
+    """Each row's state at x: at a bound or beyond it within or past ``rtol`` of the row's
+    scale (``|a_i| (1 + ||x||) + |bound|``) reads as held there (or violated, the same target)."""
+    r = h.A @ x
+    norms = np.linalg.norm(h.A, axis=1)
+    states = []
+    for i in range(h.A.shape[0]):
+        lo, up = h.lower[i], h.upper[i]
+        if lo == up:
+            states.append(EQUALITY)
+            continue
+        bound = max(abs(lo) if np.isfinite(lo) else 0.0, abs(up) if np.isfinite(up) else 0.0)
+        tol = rtol * (norms[i] * (1.0 + np.linalg.norm(x)) + bound)
+        if np.isfinite(up) and r[i] >= up - tol and (not np.isfinite(lo) or up - r[i] <= r[i] - lo):
+            states.append(AT_UPPER)
+        elif np.isfinite(lo) and r[i] <= lo + tol:
+            states.append(AT_LOWER)
+        else:
+            states.append(INSIDE)
+    return states
+
+
+class _Exact:
+    """The problem's numbers in ``digits`` digits and the linear algebra on them."""
+
+    def __init__(self, h: Hierarchy, digits: int):
+        import mpmath
+
+        self.ctx = mpmath.MPContext()  # (its own precision: mpmath.mp's is left alone)
+        self.ctx.dps = digits
+        self.digits = digits
+        self.A = [[self.ctx.mpf(float(v)) for v in row] for row in h.A]
+        self.lo = [self.ctx.mpf(float(v)) if np.isfinite(v) else None for v in h.lower]
+        self.up = [self.ctx.mpf(float(v)) if np.isfinite(v) else None for v in h.upper]
+        self.n = h.n
+
+    def matrix(self, rows):
+        return self.ctx.matrix([self.A[i] for i in rows]) if rows else self.ctx.zeros(0, self.n)
+
+    def dot(self, i, x):
+        return self.ctx.fsum(self.A[i][q] * x[q] for q in range(self.n))
+
+    def _svd(self, M):
+        """U, s, Vt and the rank of M (singular values above 10**-(digits * 2 // 3) of the
+        largest: the data's own zeros, not a tolerance)."""
+        U, s, Vt = self.ctx.svd_r(M, full_matrices=True)
+        cut = self.ctx.mpf(10) ** (-(self.digits * 2 // 3))
+        rank = sum(1 for j in range(len(s)) if s[0] > 0 and s[j] > cut * s[0])
+        return U, s, Vt, rank
+
+    def lstsq(self, M, b):
+        """The minimum-norm least-squares solution of M y = b (M m x p), and the null-space
+        basis of M (p x (p - rank), columns)."""
+        ctx = self.ctx
+        p = M.cols
+        if M.rows == 0:
+            return ctx.zeros(p, 1), ctx.eye(p)
+        U, s, Vt, r = self._svd(M)
+        y = ctx.zeros(p, 1)
+        for j in range(r):
+            c = ctx.fsum(U[i, j] * b[i] for i in range(M.rows)) / s[j]
+            for q in range(p):
+                y[q] += c * Vt[j, q]
+        N = ctx.zeros(p, p - r)
+        for j in range(r, p):
+            for q in range(p):
+                N[q, j - r] = Vt[j, q]
+        return y, N
+
+
+def _multipliers_vanish(E: _Exact, g, gscale, held, rtol_exp: int) -> bool:
+    """Whether ``g + C^T lam = 0`` has a solution with lam's signs (``held``: (row, sign) with
+    sign +1 at an upper bound (lam >= 0), -1 at a lower one (its row negated, lam >= 0), 0 free),
+    to ``10**-rtol_exp`` of ``gscale`` (the size of g's terms). The support from float64 bounded
+    least squares, lam on it in E's digits."""
+    from scipy.optimize import lsq_linear
+
+    ctx = E.ctx
+    tol = ctx.mpf(10) ** -rtol_exp * gscale
+    if ctx.sqrt(ctx.fsum(v * v for v in g)) <= tol:
+        return True
+    if not held:
+        return False
+    C = [[E.A[i][q] * (s if s else 1) for q in range(E.n)] for i, s in held]
+    Cf = np.array([[float(v) for v in row] for row in C])
+    gf = np.array([float(v) for v in g])
+    lb = np.array([-np.inf if s == 0 else 0.0 for _, s in held])
+    lam_f = lsq_linear(Cf.T, -gf, bounds=(lb, np.inf), method="bvls").x
+    big = max(float(np.max(np.abs(lam_f))), 1e-300)
+    supports = [[j for j in range(len(held)) if held[j][1] == 0 or abs(lam_f[j]) > 1e-12 * big],
+                list(range(len(held)))]
+    for support in supports:
+        if not support:
+            continue
+        M = ctx.matrix([[C[j][q] for j in support] for q in range(E.n)])  # (n, |support|)
+        lam, _ = E.lstsq(M, ctx.matrix([-v for v in g]))
+        res = [ctx.fsum(M[q, j] * lam[j] for j in range(len(support))) + g[q] for q in range(E.n)]
+        small = ctx.sqrt(ctx.fsum(v * v for v in res)) <= tol
+        lam_tol = tol / max(float(np.max(np.linalg.norm(Cf, axis=1))), 1e-300)
+        signs = all(held[j][1] == 0 or lam[t] >= -lam_tol for t, j in enumerate(support))
+        if small and signs:
+            return True
+    return False
+
+
+def certify(h: Hierarchy, x, rtol: float = 1e-8, digits: int = 50) -> Certificate:
+    """Certify the lexicographic optimum on the active set read off x (module docstring).
+
+    Parameters
+    ----------
+    h : Hierarchy
+    x : array_like, shape (n,)
+        The point the active set is read off (any solver's x).
+    rtol : float
+        A row within ``rtol`` of its scale from a bound (or beyond it) is read as held there.
+    digits : int
+        Decimal digits of the arithmetic (>= 30).
+
+    Returns
+    -------
+    Certificate
+    """
+    x = np.asarray(x, dtype=np.float64)
+    if x.shape != (h.n,) or not np.all(np.isfinite(x)):
+        raise HikbenchError(f"certify: x must be finite with shape ({h.n},); got shape {x.shape}")
+    if not (isinstance(digits, int) and digits >= 30):
+        raise HikbenchError(f"certify: digits must be an int >= 30; got {digits!r}")
+    if not 0.0 < rtol < 1.0:
+        raise HikbenchError(f"certify: rtol must be in (0, 1); got {rtol!r}")
+    states = _read_states(h, x, rtol)
+    E = _Exact(h, digits)
+    ctx = E.ctx
+    # a slack within 10**-(2 digits / 3) of its row's scale is the arithmetic's zero
+    bound = np.maximum(np.abs(np.nan_to_num(h.lower, posinf=0.0, neginf=0.0)),
+                       np.abs(np.nan_to_num(h.upper, posinf=0.0, neginf=0.0)))
+    row_norm = np.linalg.norm(h.A, axis=1)
+    scale = row_norm * (1.0 + np.linalg.norm(x)) + bound
+    zero = [ctx.mpf(float(v)) * ctx.mpf(10) ** (-(digits * 2 // 3)) for v in scale]
+
+    def slack(i, xv, target):
+        w = E.dot(i, xv) - target
+        return w if abs(w) > zero[i] else ctx.mpf(0)
+    nan = np.full(h.depth, np.nan)
+
+    def fail(reason: str) -> Certificate:
+        return Certificate(False, reason, nan, np.full(h.n, np.nan), states)
+
+    held: list[tuple[int, int]] = []  # (row, sign): +1 upper, -1 lower, 0 at a value
+    values: list = []  # the value each held row is held at
+    stages = []  # (target rows, their targets) per level, for the KKT checks at x*
+    x_k = ctx.zeros(h.n, 1)
+    for k in range(h.depth):
+        rows = range(h.starts[k], h.starts[k + 1])
+        C = E.matrix([i for i, _ in held])
+        x0, N = E.lstsq(C, ctx.matrix(values) if values else ctx.zeros(0, 1))
+        let_go = {}  # rows read at a bound that are free on this stage: their bound
+        while True:
+            T = [i for i in rows if states[i] != INSIDE and i not in let_go]
+            t = [E.lo[i] if states[i] in (AT_LOWER, EQUALITY) else E.up[i] for i in T]
+            if not T:
+                break
+            AT = E.matrix(T)
+            y, _ = E.lstsq(AT * N, ctx.matrix(t) - AT * x0)
+            x_k = x0 + N * y
+            w = [slack(i, x_k, ti) for i, ti in zip(T, t)]
+            side = [{AT_UPPER: 1, AT_LOWER: -1, EQUALITY: 0}[states[i]] for i in T]
+            # a row read at a bound whose exact slack points inside its bounds is free on this
+            # stage (a row of a rank-deficient level that the others place there): the one
+            # furthest inside is let go, and the stage solved again
+            inside = [(-sd * wi / zero[i], i) for i, sd, wi in zip(T, side, w) if sd * wi < 0]
+            if not inside:
+                break
+            j = max(inside)[1]
+            let_go[j] = E.lo[j] if states[j] == AT_LOWER else E.up[j]
+        stages.append((T, t, len(held)))
+        for i, ti, wi, sd in (zip(T, t, w, side) if T else ()):
+            if wi != 0 or sd == 0:
+                held.append((i, 0))
+                values.append(ti + wi)
+            else:
+                held.append((i, sd))
+                values.append(ti)
+        # a row let go that the stage's point leaves at its bound is held there below (an
+        # inequality of a level above); one inside is free, and x* must keep it inside
+        for i, b in let_go.items():
+            if T and slack(i, x_k, b) == 0:
+                held.append((i, 1 if states[i] == AT_UPPER else -1))
+                values.append(b)
+            else:
+                states[i] = INSIDE
+    C = E.matrix([i for i, _ in held])
+    xs, _ = E.lstsq(C, ctx.matrix(values) if values else ctx.zeros(0, 1))  # the minimum-norm x*
+    # feasibility: the held rows at their values (the SVD's rank cut may have left a row out),
+    # every other row inside its bounds
+    for i, v in zip((i for i, _ in held), values):
+        if abs(E.dot(i, xs) - v) > zero[i]:
+            k = int(np.searchsorted(h.starts, i, side="right")) - 1
+            return fail(f"level {k}, row {i - h.starts[k]}: held at its value by the active set read off x, "
+                        f"but the exact x* misses it (rows dependent beyond the arithmetic's digits)")
+    for i, s in enumerate(states):
+        if s != INSIDE:
+            continue
+        r = E.dot(i, xs)
+        if (E.lo[i] is not None and r < E.lo[i]) or (E.up[i] is not None and r > E.up[i]):
+            k = int(np.searchsorted(h.starts, i, side="right")) - 1
+            return fail(f"level {k}, row {i - h.starts[k]}: read as inside its bounds, but the exact x* "
+                        f"leaves them")
+    # KKT at x*, stage by stage: the rows held above stage k, the gradient of its objective
+    half = digits // 2
+    for k, (T, t, n_above) in enumerate(stages):
+        if not T:
+            continue
+        w = [slack(i, xs, ti) for i, ti in zip(T, t)]
+        g = [ctx.fsum(E.A[i][q] * wi for i, wi in zip(T, w)) for q in range(h.n)]
+        gscale = ctx.fsum(ctx.mpf(float(row_norm[i])) * abs(wi) for i, wi in zip(T, w))
+        if not _multipliers_vanish(E, g, gscale, held[:n_above], half):
+            return fail(f"level {k}: the exact x* is not optimal for its stage (no multipliers of the "
+                        f"right sign cancel the gradient): the active set read off x is not the optimal one")
+    if not _multipliers_vanish(E, list(xs), ctx.sqrt(ctx.fsum(v * v for v in xs)), held, half):
+        return fail("the minimum-norm stage: the exact x* is not the minimum-norm point of the optimal set")
+    norms = np.zeros(h.depth)
+    for k in range(h.depth):
+        s2 = ctx.mpf(0)
+        for i in range(h.starts[k], h.starts[k + 1]):
+            r = E.dot(i, xs)
+            v = (E.lo[i] - r if E.lo[i] is not None and r < E.lo[i] else 0) + (
+                r - E.up[i] if E.up[i] is not None and r > E.up[i] else 0)
+            s2 += v * v
+        norms[k] = float(ctx.sqrt(s2))
+    return Certificate(True, "", norms, np.array([float(v) for v in xs]), states)

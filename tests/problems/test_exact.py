@@ -1,0 +1,137 @@
+"""The exact certificate (problems.exact): hand-worked hierarchies whose optimum is derived in
+the comments, its refusals, and the problems where double precision could not tell two solvers
+apart."""
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from problems import Hierarchy, HikbenchError, generators
+from problems.exact import certify
+from problems.files import load_npz
+
+INF = np.inf
+DATA = Path(__file__).parents[1] / "solvers" / "data"
+
+# n = 2. Level 0: x0 <= 1, x1 <= 0. Level 1: x0 + x1 = 3. The optimum holds both bounds:
+# x* = (1, 0), level 1's slack 1 - 3 = -2, norms (0, 2).
+BOX_THEN_SUM = Hierarchy([[1, 0], [0, 1], [1, 1]], [-INF, -INF, 3], [1, 0, 3], [0, 0, 1])
+
+
+def test_the_optimum_of_a_hand_worked_hierarchy_is_certified():
+    cert = certify(BOX_THEN_SUM, [1.0, 0.0])
+    assert cert.certified, cert.reason
+    np.testing.assert_allclose(cert.level_norms, [0.0, 2.0], rtol=1e-15, atol=1e-40)
+    np.testing.assert_allclose(cert.x, [1.0, 0.0], rtol=0, atol=1e-40)
+    assert cert.states == ["upper", "upper", "equality"]
+
+
+def test_an_active_set_that_leaves_a_row_out_is_refused():
+    """From (1, -0.5), x1 <= 0 reads as inside. On that set level 1 is met along x1 free:
+    min-norm x* = (1, 2), which leaves x1 <= 0: not certified, the row named."""
+    cert = certify(BOX_THEN_SUM, [1.0, -0.5])
+    assert not cert.certified
+    assert "level 0, row 1" in cert.reason and "inside" in cert.reason
+    assert np.all(np.isnan(cert.level_norms))
+
+
+def test_a_bound_that_holds_the_objective_back_with_a_wrong_sign_is_refused():
+    """Level 0: x0 >= 1; level 1: x0 = 3. From x = 1 the bound reads as held: on that set
+    x* = 1, level 1's gradient is (1 - 3) = -2, and only a multiplier -2 of the lower bound
+    cancels it (the optimum is x = 3, the bound inside)."""
+    h = Hierarchy([[1.0], [1.0]], [1.0, 3.0], [INF, 3.0], [0, 1])
+    cert = certify(h, [1.0])
+    assert not cert.certified and cert.reason.startswith("level 1")
+    right = certify(h, [3.0])
+    assert right.certified, right.reason
+    np.testing.assert_allclose(right.level_norms, [0.0, 0.0], atol=1e-40)
+
+
+def test_the_certified_point_is_the_minimum_norm_one():
+    """Level 0: x0 + x1 = 2 from the point (2, 0): the certificate's x* is (1, 1)."""
+    h = Hierarchy([[1.0, 1.0]], [2.0], [2.0], [0])
+    cert = certify(h, [2.0, 0.0])
+    assert cert.certified, cert.reason
+    np.testing.assert_allclose(cert.x, [1.0, 1.0], rtol=1e-15)
+
+
+def test_a_held_bound_the_minimum_norm_stage_would_leave_is_refused():
+    """Level 0: x0 <= 1, read as held at (1, 0). The minimum-norm point of {x0 <= 1} is 0: the
+    bound's multiplier would be -1."""
+    h = Hierarchy([[1.0, 0.0]], [-INF], [1.0], [0])
+    cert = certify(h, [1.0, 0.0])
+    assert not cert.certified and cert.reason.startswith("the minimum-norm stage")
+
+
+@pytest.mark.parametrize(("x", "kwargs", "match"), [
+    ([1.0], {}, "shape"),
+    ([np.nan, 0.0], {}, "finite"),
+    ([1.0, 0.0], {"digits": 20}, "digits"),
+    ([1.0, 0.0], {"rtol": 0.0}, "rtol"),
+], ids=["shape", "nan", "digits", "rtol"])
+def test_bad_input_is_refused_with_its_name(x, kwargs, match):
+    with pytest.raises(HikbenchError, match=match):
+        certify(BOX_THEN_SUM, x, **kwargs)
+
+
+@pytest.mark.parametrize("case", [c for c in generators.DEGENERATE_CASES if c != "rank_deficient"])
+def test_hcods_points_on_the_degenerate_families_are_certified(case):
+    """hcod's point on each degenerate family (n = 5, seeds 0-2) is certified, and its level
+    norms are the exact ones at 1e-9 of each level (verify's scale). (Seeds 0-9, n = 5 and 12:
+    180 of 180 certified and equal.)"""
+    from problems.verify import level_scales
+    from solvers.hcod import HcodSolver
+
+    for seed in range(3):
+        h = generators.degenerate(case, 5, seed)
+        x = HcodSolver().solve(h).x
+        cert = certify(h, x)
+        assert cert.certified, (seed, cert.reason)
+        tol = 1e-9 * level_scales(h, cert.x) + 1e-12
+        assert np.all(np.abs(h.level_norms(x) - cert.level_norms) <= tol), (seed, h.level_norms(x), cert.level_norms)
+
+
+def test_a_level_rank_deficient_only_to_rounding_is_refused():
+    """rank_deficient n = 12 seed 0: level 1's 6 rows are combinations of 2, to float64 rounding.
+    The stored numbers have full rank (singular values ~1e-17 of the largest), so in exact
+    arithmetic the level's 4 violated rows are met by an x of norm ~1e17 that leaves the box:
+    the active set read off hcod's point (rank 2 at its threshold) is not the stored problem's
+    exact optimum, and the certificate says so rather than certify another problem's answer."""
+    from solvers.hcod import HcodSolver
+
+    h = generators.degenerate("rank_deficient", 12, 0)
+    cert = certify(h, HcodSolver().solve(h).x)
+    assert not cert.certified and "leaves them" in cert.reason, cert.reason
+
+
+def test_seed_6444s_reference_miss_is_shown_exactly():
+    """badly_scaled n = 12 seed 6444 (saved, Haswell kernels; tests/solvers/test_reference.py).
+    The certificate read off either point is the same exact optimum: level 3 at
+    9.955567243937e-4 and level 4 at 73.69975508979, hcod's norms to 1e-12 of each."""
+    from solvers.hcod import HcodSolver
+
+    h = load_npz(DATA / "badly_scaled_12_6444.npz")
+    x = HcodSolver().solve(h).x
+    cert = certify(h, x)
+    assert cert.certified, cert.reason
+    np.testing.assert_allclose(cert.level_norms[3:], [9.955567243937e-4, 73.69975508979], rtol=1e-12)
+    np.testing.assert_allclose(h.level_norms(x)[3:], cert.level_norms[3:], rtol=1e-12)
+
+
+def test_seed_114_is_a_tie_under_double_precision():
+    """badly_scaled n = 5 seed 114 (saved, as OpenBLAS's Haswell kernels generate it), where verify calls the reference lower at level 3. Both
+    points read the same active set, whose exact optimum is hcod's point (levels 2-4 to 1e-13).
+    The reference's is 4e-8 from it along the one direction that set leaves: level 2's cost
+    changes there by 2e-16 of itself, under double precision, and level 3 drops by 2e-8 of
+    itself. So verify sees a tie at level 2 and a lower level 3; the exact optimum is hcod's."""
+    from solvers.hcod import HcodSolver
+    from solvers.reference import cascade_reference
+
+    h = load_npz(DATA / "badly_scaled_5_114.npz")
+    xh = HcodSolver().solve(h).x
+    xr, _ = cascade_reference(h)
+    ch, cr = certify(h, xh), certify(h, xr)
+    assert ch.certified and cr.certified, (ch.reason, cr.reason)
+    np.testing.assert_allclose(cr.level_norms, ch.level_norms, rtol=1e-30, atol=1e-40)
+    np.testing.assert_allclose(h.level_norms(xh)[2:], ch.level_norms[2:], rtol=1e-13)
