@@ -45,6 +45,20 @@ def test_solve_warm_notes_a_solver_without_warm_start(capsys, problem, solver, n
     assert err == (said if note else "")
 
 
+@pytest.mark.parametrize("solver", ["hcod", "cascade-daqp"])
+def test_solve_certify(capsys, problem, solver):
+    """--certify: the exact optimum on the active set read off x, x = (3, -1) with norms (0, 0)
+    (test_solve_json), in the JSON and the text."""
+    path = problem[1]
+    code, out, err = run(capsys, "solve", path, "--solver", solver, "--json", "--certify")
+    assert code == 0, err
+    cert = json.loads(out)["certificate"]
+    assert cert["certified"] and cert["reason"] == "", cert
+    np.testing.assert_allclose(cert["level_norms"], [0.0, 0.0], atol=1e-40)
+    code, out, _ = run(capsys, "solve", path, "--solver", solver, "--certify")
+    assert code == 0 and "certificate exact optimum, level norms" in out
+
+
 def test_solve_text(capsys, problem):
     code, out, _ = run(capsys, "solve", problem[1])
     assert code == 0
