@@ -18,17 +18,18 @@ with T the rows of level k read at a bound or violated (their targets t the boun
 at or beyond; an equality row its value), E the rows of the levels above that are held: a row
 with a nonzero optimal slack at its achieved value (eq. 35, w_j* fixed), one with a zero
 slack at its bound. Each stage is solved by the SVD null-space method (eq. 2) in ``digits``
-digits. A target row whose exact slack has the sign of the inside of its bounds was read
-wrong: not certified. The last stage is min 1/2 ||x||^2 on every held row.
+digits. The last stage is min 1/2 ||x||^2 on every held row.
 
 At x*, stage k is optimal iff ``A_T^T w_k + A_E^T lam = 0`` with lam free on the rows held
 at a value and ``lam >= 0`` (row held at its upper bound) or ``<= 0`` (lower) on the others
 (a target row of level k at its bound has the multiplier w_i = 0: it is no constraint).
 The support of lam is found in float64 (bounded least squares); lam is then solved for on it
-in ``digits`` digits, and the residual must vanish to ``10**-(digits // 2)`` of ``|g|``.
+in ``digits`` digits, and the residual must vanish to ``10**-(digits // 2)`` of the size of
+g's terms. (A support float64 misses refuses a right answer; it never certifies a wrong one.)
 
 Only a certificate that passes every check is returned certified; the reason names the first
-check that failed otherwise. A row read at a bound whose exact slack on its stage points inside
+check that failed otherwise. The active set is read at each tolerance of :data:`READINGS` in
+turn until one certifies. A row read at a bound whose exact slack on its stage points inside
 its bounds (a row of a rank-deficient level that the others place there) is let go for that
 stage, and held at its bound below if the stage's point leaves it there.
 
@@ -86,6 +87,7 @@ def _read_states(h: Hierarchy, x: np.ndarray, rtol: float) -> list[str]:
     scale (``|a_i| (1 + ||x||) + |bound|``) reads as held there (or violated, the same target)."""
     r = h.A @ x
     norms = np.linalg.norm(h.A, axis=1)
+    xn = _norm(x)
     states = []
     for i in range(h.A.shape[0]):
         lo, up = h.lower[i], h.upper[i]
@@ -93,7 +95,7 @@ def _read_states(h: Hierarchy, x: np.ndarray, rtol: float) -> list[str]:
             states.append(EQUALITY)
             continue
         bound = max(abs(lo) if np.isfinite(lo) else 0.0, abs(up) if np.isfinite(up) else 0.0)
-        tol = rtol * (norms[i] * (1.0 + np.linalg.norm(x)) + bound)
+        tol = rtol * (norms[i] * (1.0 + xn) + bound)
         if np.isfinite(up) and r[i] >= up - tol and (not np.isfinite(lo) or up - r[i] <= r[i] - lo):
             states.append(AT_UPPER)
         elif np.isfinite(lo) and r[i] <= lo + tol:
@@ -123,22 +125,27 @@ class _Exact:
     def dot(self, i, x):
         return self.ctx.fsum(self.A[i][q] * x[q] for q in range(self.n))
 
-    def _svd(self, M):
-        """U, s, Vt and the rank of M (singular values above 10**-(digits * 2 // 3) of the
-        largest: the data's own zeros, not a tolerance)."""
+    def _svd(self, M, ref):
+        """U, s, Vt and the rank of M: singular values above 10**-(digits * 2 // 3) of ``ref``
+        (the data's own zeros, not a tolerance), ``ref`` the size of the rows before their
+        projection (projected, a row in the span of the rows above is ~1e-50, not 0: measured
+        against itself, it made a direction of an x of 1e50)."""
         U, s, Vt = self.ctx.svd_r(M, full_matrices=True)
-        cut = self.ctx.mpf(10) ** (-(self.digits * 2 // 3))
-        rank = sum(1 for j in range(len(s)) if s[0] > 0 and s[j] > cut * s[0])
+        cut = self.ctx.mpf(10) ** (-(self.digits * 2 // 3)) * ref
+        rank = sum(1 for j in range(len(s)) if s[j] > cut)
         return U, s, Vt, rank
 
-    def lstsq(self, M, b):
+    def lstsq(self, M, b, ref=None):
         """The minimum-norm least-squares solution of M y = b (M m x p), and the null-space
-        basis of M (p x (p - rank), columns)."""
+        basis of M (p x (p - rank), columns). ``ref``: the scale of the rank cut (default the
+        largest singular value of M)."""
         ctx = self.ctx
         p = M.cols
         if M.rows == 0:
             return ctx.zeros(p, 1), ctx.eye(p)
-        U, s, Vt, r = self._svd(M)
+        if ref is None:
+            ref = ctx.mnorm(M, "f")
+        U, s, Vt, r = self._svd(M, ref)
         y = ctx.zeros(p, 1)
         for j in range(r):
             c = ctx.fsum(U[i, j] * b[i] for i in range(M.rows)) / s[j]
@@ -192,7 +199,11 @@ def _multipliers_vanish(E: _Exact, g, gscale, held, rtol_exp: int) -> bool:
     return False
 
 
-def certify(h: Hierarchy, x, rtol: float = 1e-8, digits: int = 50) -> Certificate:
+#: the reading tolerances :func:`certify` tries in turn (rows within them of a bound read as held)
+READINGS = (1e-8, 1e-11, 1e-14, 0.0)
+
+
+def certify(h: Hierarchy, x, rtol: float | None = None, digits: int = 50) -> Certificate:
     """Certify the lexicographic optimum on the active set read off x (module docstring).
 
     Parameters
@@ -200,22 +211,43 @@ def certify(h: Hierarchy, x, rtol: float = 1e-8, digits: int = 50) -> Certificat
     h : Hierarchy
     x : array_like, shape (n,)
         The point the active set is read off (any solver's x).
-    rtol : float
+    rtol : float >= 0, optional
         A row within ``rtol`` of its scale from a bound (or beyond it) is read as held there.
+        By default each of :data:`READINGS` in turn, until one certifies: a row a solver left
+        2e-9 inside its bound, or a bound of 1e-300 beside x = 0, reads as held at 1e-8 and
+        the exact x* on that set is then not the minimum-norm point.
     digits : int
         Decimal digits of the arithmetic (>= 30).
 
     Returns
     -------
     Certificate
+        The first certified reading's, else the first reading's refusal.
     """
     x = np.asarray(x, dtype=np.float64)
     if x.shape != (h.n,) or not np.all(np.isfinite(x)):
         raise HikbenchError(f"certify: x must be finite with shape ({h.n},); got shape {x.shape}")
-    if not (isinstance(digits, int) and digits >= 30):
+    if not (isinstance(digits, int) and not isinstance(digits, bool) and digits >= 30):
         raise HikbenchError(f"certify: digits must be an int >= 30; got {digits!r}")
-    if not 0.0 < rtol < 1.0:
-        raise HikbenchError(f"certify: rtol must be in (0, 1); got {rtol!r}")
+    if rtol is not None and not 0.0 <= rtol < 1.0:
+        raise HikbenchError(f"certify: rtol must be in [0, 1); got {rtol!r}")
+    first = None
+    for reading in (READINGS if rtol is None else (rtol,)):
+        cert = _certify_reading(h, x, reading, digits)
+        if cert.certified:
+            return cert
+        first = first or cert
+    return first
+
+
+def _norm(v: np.ndarray) -> float:
+    """||v||_2 without overflow (entries up to the largest double)."""
+    m = float(np.max(np.abs(v), initial=0.0))
+    return m * float(np.linalg.norm(v / m)) if m > 0 else 0.0
+
+
+def _certify_reading(h: Hierarchy, x: np.ndarray, rtol: float, digits: int) -> Certificate:
+    """:func:`certify` for one reading tolerance."""
     states = _read_states(h, x, rtol)
     E = _Exact(h, digits)
     ctx = E.ctx
@@ -223,7 +255,7 @@ def certify(h: Hierarchy, x, rtol: float = 1e-8, digits: int = 50) -> Certificat
     bound = np.maximum(np.abs(np.nan_to_num(h.lower, posinf=0.0, neginf=0.0)),
                        np.abs(np.nan_to_num(h.upper, posinf=0.0, neginf=0.0)))
     row_norm = np.linalg.norm(h.A, axis=1)
-    scale = row_norm * (1.0 + np.linalg.norm(x)) + bound
+    scale = row_norm * (1.0 + _norm(x)) + bound
     zero = [ctx.mpf(float(v)) * ctx.mpf(10) ** (-(digits * 2 // 3)) for v in scale]
 
     def slack(i, xv, target):
@@ -249,7 +281,7 @@ def certify(h: Hierarchy, x, rtol: float = 1e-8, digits: int = 50) -> Certificat
             if not T:
                 break
             AT = E.matrix(T)
-            y, _ = E.lstsq(AT * N, ctx.matrix(t) - AT * x0)
+            y, _ = E.lstsq(AT * N, ctx.matrix(t) - AT * x0, ref=ctx.mnorm(AT, "f"))
             x_k = x0 + N * y
             w = [slack(i, x_k, ti) for i, ti in zip(T, t)]
             side = [{AT_UPPER: 1, AT_LOWER: -1, EQUALITY: 0}[states[i]] for i in T]

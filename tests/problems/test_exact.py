@@ -68,7 +68,7 @@ def test_a_held_bound_the_minimum_norm_stage_would_leave_is_refused():
     ([1.0], {}, "shape"),
     ([np.nan, 0.0], {}, "finite"),
     ([1.0, 0.0], {"digits": 20}, "digits"),
-    ([1.0, 0.0], {"rtol": 0.0}, "rtol"),
+    ([1.0, 0.0], {"rtol": -1e-8}, "rtol"),
 ], ids=["shape", "nan", "digits", "rtol"])
 def test_bad_input_is_refused_with_its_name(x, kwargs, match):
     with pytest.raises(HikbenchError, match=match):
