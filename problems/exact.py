@@ -82,20 +82,30 @@ class Certificate:
     states: list = field(default_factory=list)
 
 
-def _read_states(h: Hierarchy, x: np.ndarray, rtol: float) -> list[str]:
+def _row_scales(h: Hierarchy, x: np.ndarray) -> np.ndarray:
+    """Each row's scale at x, ``|a_i| (1 + ||x||) + |bound_i|`` (the larger finite bound), shape (rows,)."""
+    bound = np.maximum(np.abs(np.nan_to_num(h.lower, posinf=0.0, neginf=0.0)),
+                       np.abs(np.nan_to_num(h.upper, posinf=0.0, neginf=0.0)))
+    return np.linalg.norm(h.A, axis=1) * (1.0 + _norm(x)) + bound
+
+
+def _where(h: Hierarchy, i: int) -> str:
+    """``level k, row j`` of the stacked row i."""
+    k = int(np.searchsorted(h.starts, i, side="right")) - 1
+    return f"level {k}, row {i - h.starts[k]}"
+
+
+def _read_states(h: Hierarchy, x: np.ndarray, rtol: float, scale: np.ndarray) -> list[str]:
     """Each row's state at x: at a bound or beyond it within or past ``rtol`` of the row's
-    scale (``|a_i| (1 + ||x||) + |bound|``) reads as held there (or violated, the same target)."""
+    scale (:func:`_row_scales`) reads as held there (or violated, the same target)."""
     r = h.A @ x
-    norms = np.linalg.norm(h.A, axis=1)
-    xn = _norm(x)
     states = []
     for i in range(h.A.shape[0]):
         lo, up = h.lower[i], h.upper[i]
         if lo == up:
             states.append(EQUALITY)
             continue
-        bound = max(abs(lo) if np.isfinite(lo) else 0.0, abs(up) if np.isfinite(up) else 0.0)
-        tol = rtol * (norms[i] * (1.0 + xn) + bound)
+        tol = rtol * scale[i]
         if np.isfinite(up) and r[i] >= up - tol and (not np.isfinite(lo) or up - r[i] <= r[i] - lo):
             states.append(AT_UPPER)
         elif np.isfinite(lo) and r[i] <= lo + tol:
@@ -137,8 +147,8 @@ class _Exact:
 
     def lstsq(self, M, b, ref=None):
         """The minimum-norm least-squares solution of M y = b (M m x p), and the null-space
-        basis of M (p x (p - rank), columns). ``ref``: the scale of the rank cut (default the
-        largest singular value of M)."""
+        basis of M (p x (p - rank), columns). ``ref``: the scale of the rank cut (default
+        ``||M||_F``)."""
         ctx = self.ctx
         p = M.cols
         if M.rows == 0:
@@ -179,6 +189,7 @@ def _multipliers_vanish(E: _Exact, g, gscale, held, rtol_exp: int) -> bool:
     # rows, norms 1e-4 .. 1e4 around a gradient of 3e-7, bounded least squares stopped at 20 % of
     # |g|: badly_scaled n=12 seed 101), then every row
     rn = np.maximum(np.linalg.norm(Cf, axis=1), 1e-300)
+    lam_tol = tol / float(rn.max())  # (a multiplier that small moves g by under tol)
     supports = []
     for M, b in ((Cf, gf), (Cf / rn[:, None], gf / max(float(np.linalg.norm(gf)), 1e-300))):
         lam_f = lsq_linear(M.T, -b, bounds=(lb, np.inf), method="bvls").x
@@ -192,7 +203,6 @@ def _multipliers_vanish(E: _Exact, g, gscale, held, rtol_exp: int) -> bool:
         lam, _ = E.lstsq(M, ctx.matrix([-v for v in g]))
         res = [ctx.fsum(M[q, j] * lam[j] for j in range(len(support))) + g[q] for q in range(E.n)]
         small = ctx.sqrt(ctx.fsum(v * v for v in res)) <= tol
-        lam_tol = tol / max(float(np.max(np.linalg.norm(Cf, axis=1))), 1e-300)
         signs = all(held[j][1] == 0 or lam[t] >= -lam_tol for t, j in enumerate(support))
         if small and signs:
             return True
@@ -248,14 +258,12 @@ def _norm(v: np.ndarray) -> float:
 
 def _certify_reading(h: Hierarchy, x: np.ndarray, rtol: float, digits: int) -> Certificate:
     """:func:`certify` for one reading tolerance."""
-    states = _read_states(h, x, rtol)
+    scale = _row_scales(h, x)
+    states = _read_states(h, x, rtol, scale)
     E = _Exact(h, digits)
     ctx = E.ctx
-    # a slack within 10**-(2 digits / 3) of its row's scale is the arithmetic's zero
-    bound = np.maximum(np.abs(np.nan_to_num(h.lower, posinf=0.0, neginf=0.0)),
-                       np.abs(np.nan_to_num(h.upper, posinf=0.0, neginf=0.0)))
     row_norm = np.linalg.norm(h.A, axis=1)
-    scale = row_norm * (1.0 + _norm(x)) + bound
+    # a slack within 10**-(2 digits / 3) of its row's scale is the arithmetic's zero
     zero = [ctx.mpf(float(v)) * ctx.mpf(10) ** (-(digits * 2 // 3)) for v in scale]
 
     def slack(i, xv, target):
@@ -268,8 +276,7 @@ def _certify_reading(h: Hierarchy, x: np.ndarray, rtol: float, digits: int) -> C
 
     held: list[tuple[int, int]] = []  # (row, sign): +1 upper, -1 lower, 0 at a value
     values: list = []  # the value each held row is held at
-    stages = []  # (target rows, their targets) per level, for the KKT checks at x*
-    x_k = ctx.zeros(h.n, 1)
+    stages = []  # (target rows, their targets, rows held above) per level, for the KKT checks at x*
     for k in range(h.depth):
         rows = range(h.starts[k], h.starts[k + 1])
         C = E.matrix([i for i, _ in held])
@@ -315,16 +322,14 @@ def _certify_reading(h: Hierarchy, x: np.ndarray, rtol: float, digits: int) -> C
     # every other row inside its bounds
     for i, v in zip((i for i, _ in held), values):
         if abs(E.dot(i, xs) - v) > zero[i]:
-            k = int(np.searchsorted(h.starts, i, side="right")) - 1
-            return fail(f"level {k}, row {i - h.starts[k]}: held at its value by the active set read off x, "
+            return fail(f"{_where(h, i)}: held at its value by the active set read off x, "
                         f"but the exact x* misses it (rows dependent beyond the arithmetic's digits)")
     for i, s in enumerate(states):
         if s != INSIDE:
             continue
         r = E.dot(i, xs)
         if (E.lo[i] is not None and r < E.lo[i]) or (E.up[i] is not None and r > E.up[i]):
-            k = int(np.searchsorted(h.starts, i, side="right")) - 1
-            return fail(f"level {k}, row {i - h.starts[k]}: read as inside its bounds, but the exact x* "
+            return fail(f"{_where(h, i)}: read as inside its bounds, but the exact x* "
                         f"leaves them")
     # KKT at x*, stage by stage: the rows held above stage k, the gradient of its objective
     half = digits // 2
