@@ -23,9 +23,12 @@ digits. The last stage is min 1/2 ||x||^2 on every held row.
 At x*, stage k is optimal iff ``A_T^T w_k + A_E^T lam = 0`` with lam free on the rows held
 at a value and ``lam >= 0`` (row held at its upper bound) or ``<= 0`` (lower) on the others
 (a target row of level k at its bound has the multiplier w_i = 0: it is no constraint).
-The support of lam is found in float64 (bounded least squares); lam is then solved for on it
-in ``digits`` digits, and the residual must vanish to ``10**-(digits // 2)`` of the size of
-g's terms. (A support float64 misses refuses a right answer; it never certifies a wrong one.)
+lam is solved for in ``digits`` digits on the supports float64 bounded least squares gives,
+and where none of them serves, by an exact NNLS (Lawson and Hanson), so that a refusal at a
+stage means that no multipliers of the right sign exist; the residual must vanish to
+``10**-(digits // 2)`` of the size of g's terms. The held rows' equations and the multipliers'
+least squares are solved with each row divided by its norm: the same solutions, and a rank
+cut at each row's own scale (rows of norm 1e200 and 1 side by side).
 
 Only a certificate that passes every check is returned certified; the reason names the first
 check that failed otherwise. The active set is read at each tolerance of :data:`READINGS` in
@@ -86,7 +89,14 @@ def _row_scales(h: Hierarchy, x: np.ndarray) -> np.ndarray:
     """Each row's scale at x, ``|a_i| (1 + ||x||) + |bound_i|`` (the larger finite bound), shape (rows,)."""
     bound = np.maximum(np.abs(np.nan_to_num(h.lower, posinf=0.0, neginf=0.0)),
                        np.abs(np.nan_to_num(h.upper, posinf=0.0, neginf=0.0)))
-    return np.linalg.norm(h.A, axis=1) * (1.0 + _norm(x)) + bound
+    return _row_norms(h.A) * (1.0 + _norm(x)) + bound
+
+
+def _row_norms(A: np.ndarray) -> np.ndarray:
+    """Each row's 2-norm without overflow (entries up to the largest double), shape (rows,)."""
+    m = np.max(np.abs(A), axis=1, initial=0.0)
+    safe = np.where(m > 0, m, 1.0)
+    return m * np.linalg.norm(A / safe[:, None], axis=1)
 
 
 def _where(h: Hierarchy, i: int) -> str:
@@ -132,6 +142,18 @@ class _Exact:
     def matrix(self, rows):
         return self.ctx.matrix([self.A[i] for i in rows]) if rows else self.ctx.zeros(0, self.n)
 
+    def solve_held(self, rows, values):
+        """The minimum-norm x of ``A_rows x = values`` and the null-space basis of ``A_rows``
+        (:meth:`lstsq`), each row divided by its norm: the same solution set, and a rank cut
+        at the rows' own scale (relative to the stacked rows' norm it dropped a row 1e-200 the
+        size of another)."""
+        ctx = self.ctx
+        if not rows:
+            return self.lstsq(ctx.zeros(0, self.n), ctx.zeros(0, 1))
+        norms = [ctx.sqrt(ctx.fsum(v * v for v in self.A[i])) or ctx.mpf(1) for i in rows]
+        M = ctx.matrix([[v / s for v in self.A[i]] for i, s in zip(rows, norms)])
+        return self.lstsq(M, ctx.matrix([v / s for v, s in zip(values, norms)]))
+
     def dot(self, i, x):
         return self.ctx.fsum(self.A[i][q] * x[q] for q in range(self.n))
 
@@ -171,8 +193,9 @@ class _Exact:
 def _multipliers_vanish(E: _Exact, g, gscale, held, rtol_exp: int) -> bool:
     """Whether ``g + C^T lam = 0`` has a solution with lam's signs (``held``: (row, sign) with
     sign +1 at an upper bound (lam >= 0), -1 at a lower one (its row negated, lam >= 0), 0 free),
-    to ``10**-rtol_exp`` of ``gscale`` (the size of g's terms). The support from float64 bounded
-    least squares, lam on it in E's digits."""
+    to ``10**-rtol_exp`` of ``gscale`` (the size of g's terms). First on the supports that float64
+    bounded least squares gives, lam on each in E's digits; where none passes, by
+    :func:`_nnls` in E's digits, which settles it."""
     from scipy.optimize import lsq_linear
 
     ctx = E.ctx
@@ -183,13 +206,20 @@ def _multipliers_vanish(E: _Exact, g, gscale, held, rtol_exp: int) -> bool:
         return False
     C = [[E.A[i][q] * (s if s else 1) for q in range(E.n)] for i, s in held]
     Cf = np.array([[float(v) for v in row] for row in C])
-    gf = np.array([float(v) for v in g])
+    gmax = max(abs(v) for v in g)
+    gf = np.array([float(v / gmax) for v in g])  # (g scaled: its terms may exceed a double)
     lb = np.array([-np.inf if s == 0 else 0.0 for _, s in held])
     # the support from the rows as they are and from the rows and g scaled to norm 1 (on the raw
     # rows, norms 1e-4 .. 1e4 around a gradient of 3e-7, bounded least squares stopped at 20 % of
     # |g|: badly_scaled n=12 seed 101), then every row
-    rn = np.maximum(np.linalg.norm(Cf, axis=1), 1e-300)
+    rn = np.maximum(_row_norms(Cf), 1e-300)
     lam_tol = tol / float(rn.max())  # (a multiplier that small moves g by under tol)
+
+    def passes(support, lam) -> bool:
+        res = [ctx.fsum(C[j][q] * lam[t] for t, j in enumerate(support)) + g[q] for q in range(E.n)]
+        small = ctx.sqrt(ctx.fsum(v * v for v in res)) <= tol
+        return small and all(held[j][1] == 0 or lam[t] >= -lam_tol for t, j in enumerate(support))
+
     supports = []
     for M, b in ((Cf, gf), (Cf / rn[:, None], gf / max(float(np.linalg.norm(gf)), 1e-300))):
         lam_f = lsq_linear(M.T, -b, bounds=(lb, np.inf), method="bvls").x
@@ -197,16 +227,61 @@ def _multipliers_vanish(E: _Exact, g, gscale, held, rtol_exp: int) -> bool:
         supports.append([j for j in range(len(held)) if held[j][1] == 0 or abs(lam_f[j]) > 1e-12 * big])
     supports.append(list(range(len(held))))
     for support in supports:
-        if not support:
-            continue
-        M = ctx.matrix([[C[j][q] for j in support] for q in range(E.n)])  # (n, |support|)
-        lam, _ = E.lstsq(M, ctx.matrix([-v for v in g]))
-        res = [ctx.fsum(M[q, j] * lam[j] for j in range(len(support))) + g[q] for q in range(E.n)]
-        small = ctx.sqrt(ctx.fsum(v * v for v in res)) <= tol
-        signs = all(held[j][1] == 0 or lam[t] >= -lam_tol for t, j in enumerate(support))
-        if small and signs:
+        if support and passes(support, _lstsq_on(E, C, g, support)):
             return True
-    return False
+    lam = _nnls(E, C, g, [s == 0 for _, s in held], gscale)
+    return passes(list(range(len(held))), lam)
+
+
+def _lstsq_on(E: _Exact, C, g, support) -> list:
+    """A lam of ``min ||g + C_S^T lam||`` on the rows S = ``support`` of C: the minimum-norm one
+    of the rows divided by their norms (the rank cut at the rows' own scale), scaled back."""
+    ctx = E.ctx
+    norms = [ctx.sqrt(ctx.fsum(v * v for v in C[j])) or ctx.mpf(1) for j in support]
+    M = ctx.matrix([[C[j][q] / s for j, s in zip(support, norms)] for q in range(E.n)])  # (n, |S|)
+    lam, _ = E.lstsq(M, ctx.matrix([-v for v in g]))
+    return [lam[t] / s for t, s in enumerate(norms)]
+
+
+def _nnls(E: _Exact, C, g, free, gscale) -> list:
+    """lam minimising ``||g + C^T lam||`` with ``lam_j >= 0`` where not ``free[j]``: the active
+    set method of Lawson and Hanson (Solving Least Squares Problems, 1974, ch. 23, NNLS), the
+    free multipliers always in the passive set P, each least squares on P solved in E's digits.
+    A row enters P where the residual's gain along it, ``-c_j . (g + C^T lam)``, exceeds the
+    arithmetic's zero (``10**-(2 digits / 3)`` of ``|c_j| gscale``). C: (rows, n) lists of E's
+    numbers; returns lam, a list of (rows,)."""
+    ctx = E.ctx
+    m, n = len(C), E.n
+    eps = ctx.mpf(10) ** (-(E.digits * 2 // 3))
+    gain_zero = [eps * gscale * ctx.sqrt(ctx.fsum(v * v for v in row)) for row in C]
+    P = [j for j in range(m) if free[j]]
+
+    def solve(P):
+        z = [ctx.mpf(0)] * m
+        for t, v in zip(P, _lstsq_on(E, C, g, P) if P else ()):
+            z[t] = v
+        return z
+
+    lam = solve(P)
+    for _ in range(3 * m + 3):  # (finite in exact arithmetic: a cap against the rank cut)
+        r = [-(ctx.fsum(C[j][q] * lam[j] for j in range(m)) + g[q]) for q in range(n)]
+        gains = [(ctx.fsum(C[j][q] * r[q] for q in range(n)), j) for j in range(m)
+                 if j not in P]
+        gains = [(w, j) for w, j in gains if w > gain_zero[j]]
+        if not gains:
+            break
+        P.append(max(gains)[1])
+        while True:
+            z = solve(P)
+            out = [j for j in P if not free[j] and z[j] <= 0]
+            if not out:
+                break
+            # back along lam -> z to the first multiplier that reaches 0; it leaves P
+            alpha = min(lam[j] / (lam[j] - z[j]) if lam[j] > 0 else ctx.mpf(0) for j in out)
+            lam = [lam[j] + alpha * (z[j] - lam[j]) for j in range(m)]
+            P = [j for j in P if free[j] or lam[j] > 0]
+        lam = z
+    return lam
 
 
 #: the reading tolerances :func:`certify` tries in turn (rows within them of a bound read as held)
@@ -262,7 +337,7 @@ def _certify_reading(h: Hierarchy, x: np.ndarray, rtol: float, digits: int) -> C
     states = _read_states(h, x, rtol, scale)
     E = _Exact(h, digits)
     ctx = E.ctx
-    row_norm = np.linalg.norm(h.A, axis=1)
+    row_norm = _row_norms(h.A)
     # a slack within 10**-(2 digits / 3) of its row's scale is the arithmetic's zero
     zero = [ctx.mpf(float(v)) * ctx.mpf(10) ** (-(digits * 2 // 3)) for v in scale]
 
@@ -279,8 +354,7 @@ def _certify_reading(h: Hierarchy, x: np.ndarray, rtol: float, digits: int) -> C
     stages = []  # (target rows, their targets, rows held above) per level, for the KKT checks at x*
     for k in range(h.depth):
         rows = range(h.starts[k], h.starts[k + 1])
-        C = E.matrix([i for i, _ in held])
-        x0, N = E.lstsq(C, ctx.matrix(values) if values else ctx.zeros(0, 1))
+        x0, N = E.solve_held([i for i, _ in held], values)
         let_go = {}  # rows read at a bound that are free on this stage: their bound
         while True:
             T = [i for i in rows if states[i] != INSIDE and i not in let_go]
@@ -316,8 +390,7 @@ def _certify_reading(h: Hierarchy, x: np.ndarray, rtol: float, digits: int) -> C
                 values.append(b)
             else:
                 states[i] = INSIDE
-    C = E.matrix([i for i, _ in held])
-    xs, _ = E.lstsq(C, ctx.matrix(values) if values else ctx.zeros(0, 1))  # the minimum-norm x*
+    xs, _ = E.solve_held([i for i, _ in held], values)  # the minimum-norm x*
     # feasibility: the held rows at their values (the SVD's rank cut may have left a row out),
     # every other row inside its bounds
     for i, v in zip((i for i, _ in held), values):
@@ -351,6 +424,6 @@ def _certify_reading(h: Hierarchy, x: np.ndarray, rtol: float, digits: int) -> C
             r = E.dot(i, xs)
             v = (E.lo[i] - r if E.lo[i] is not None and r < E.lo[i] else 0) + (
                 r - E.up[i] if E.up[i] is not None and r > E.up[i] else 0)
-            s2 += v * v
+            s2 += v * v if abs(v) > zero[i] else 0  # (a violation within the arithmetic's zero is none)
         norms[k] = float(ctx.sqrt(s2))
     return Certificate(True, "", norms, np.array([float(v) for v in xs]), states)

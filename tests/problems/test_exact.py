@@ -119,19 +119,81 @@ def test_seed_6444s_reference_miss_is_shown_exactly():
     np.testing.assert_allclose(h.level_norms(x)[3:], cert.level_norms[3:], rtol=1e-12)
 
 
-def test_seed_114_is_a_tie_under_double_precision():
-    """badly_scaled n = 5 seed 114 (saved, as OpenBLAS's Haswell kernels generate it), where verify calls the reference lower at level 3. Both
-    points read the same active set, whose exact optimum is hcod's point (levels 2-4 to 1e-13).
-    The reference's is 4e-8 from it along the one direction that set leaves: level 2's cost
-    changes there by 2e-16 of itself, under double precision, and level 3 drops by 2e-8 of
-    itself. So verify sees a tie at level 2 and a lower level 3; the exact optimum is hcod's."""
+@pytest.mark.parametrize("name", ["badly_scaled_5_114", "badly_scaled_12_12591"], ids=["seed114", "seed12591"])
+def test_a_tie_under_double_precision_is_hcods_exact_optimum(name):
+    """badly_scaled n = 5 seed 114 and n = 12 seed 12591 (the second found on seeds 10000-13999), saved as
+    OpenBLAS's Haswell kernels generate them, where verify calls the reference lower at level 3
+    (12591: by 1.70e-6 against a tolerance of 1.69e-6). Both points read the same active set,
+    whose exact optimum is hcod's point (levels 2-4 to 1e-13). The reference's is 4e-8 (114)
+    and 9.4e-9 (12591) from it, along a direction where level 2's cost grows by under double
+    precision (114: 3.5e-13, 2e-16 of itself; 12591: 3.2e-13, 3e-18 of the level's scale 1.1e5)
+    and level 3 drops by 6.3e-6 and 1.7e-6. So verify sees a tie at level 2 and a lower level 3;
+    the exact optimum is hcod's."""
+    from problems.verify import level_scales
     from solvers.hcod import HcodSolver
     from solvers.reference import cascade_reference
 
-    h = load_npz(DATA / "badly_scaled_5_114.npz")
+    h = load_npz(DATA / f"{name}.npz")
     xh = HcodSolver().solve(h).x
     xr, _ = cascade_reference(h)
     ch, cr = certify(h, xh), certify(h, xr)
     assert ch.certified and cr.certified, (ch.reason, cr.reason)
     np.testing.assert_allclose(cr.level_norms, ch.level_norms, rtol=1e-30, atol=1e-40)
     np.testing.assert_allclose(h.level_norms(xh)[2:], ch.level_norms[2:], rtol=1e-13)
+    over = h.level_norms(xr) - ch.level_norms
+    assert 0 < over[2] < 1e-16 * level_scales(h, xr)[2] and over[3] < -1e-6, over
+
+
+def test_rows_of_very_different_norms_are_certified():
+    """Level 0: 1e200 x0 >= 1e190; level 1: x0 + x1 = 0. The optimum is x0 = 1e-10 (the exact
+    quotient of the two doubles), x1 = -x0, both levels met. Stacked, the two rows' singular
+    values are 1e200 and ~1: a rank cut relative to the stacked rows dropped level 1's row (and
+    the squared row norms overflowed). Each row is now taken at its own norm."""
+    h = Hierarchy([[1e200, 0.0], [1.0, 1.0]], [1e190, 0.0], [INF, 0.0], [0, 1])
+    cert = certify(h, np.array([1e-10, -1e-10]))
+    assert cert.certified, cert.reason
+    np.testing.assert_allclose(cert.x, [1e-10, -1e-10], rtol=1e-15)
+    np.testing.assert_array_equal(cert.level_norms, [0.0, 0.0])
+
+
+def _exact_of(rows, g):
+    from problems.exact import _Exact
+
+    E = _Exact(Hierarchy([[1.0, 0.0]], [0.0], [0.0], [0]), 50)
+    mp = E.ctx.mpf
+    return E, [[mp(v) for v in r] for r in rows], [mp(v) for v in g]
+
+
+def test_exact_nnls_finds_multipliers_the_minimum_norm_solution_misses():
+    """Rows c = (1, 0), (1, 1), (0, 1), all multipliers >= 0, g = (-1, 0): g + C^T lam = 0 has
+    lam = (1, 0, 0). The least-squares lam over all three rows (minimum-norm with each row
+    at norm 1: mu = M^T (M M^T)^-1 (1, 0) = (3/4, 1/(2 sqrt 2), -1/4), lam_1 = mu_1 / sqrt 2) is
+    (3/4, 1/4, -1/4), a wrong sign; Lawson and Hanson's NNLS, in 50 digits, finds (1, 0, 0)."""
+    from problems.exact import _lstsq_on, _nnls
+
+    E, C, g = _exact_of([[1, 0], [1, 1], [0, 1]], [-1, 0])
+    lam = _lstsq_on(E, C, g, [0, 1, 2])
+    np.testing.assert_allclose([float(v) for v in lam], [3 / 4, 1 / 4, -1 / 4], rtol=1e-15)
+    lam = _nnls(E, C, g, [False] * 3, E.ctx.mpf(1))
+    np.testing.assert_allclose([float(v) for v in lam], [1.0, 0.0, 0.0], rtol=1e-45, atol=1e-45)
+
+
+@pytest.mark.parametrize(
+    "rows, free, g, expected",
+    [
+        # g + C^T lam = 0 asks lam0 + lam1 = 1 and lam1 + lam2 = -1: no lam >= 0 does
+        ([[1, 0], [1, 1], [0, 1]], [False] * 3, [-1, 1], False),
+        # a free row takes either sign: lam0 = -1 on (1, 0), and lam1 = 2 >= 0 on (0, 1)
+        ([[1, 0], [0, 1]], [True, False], [1, -2], True),
+        # the same with the second row's multiplier asked the wrong sign
+        ([[1, 0], [0, 1]], [True, False], [1, 2], False),
+    ],
+    ids=["no-nonnegative-lam", "free-row-any-sign", "signed-row-wrong-sign"],
+)
+def test_multipliers_vanish_only_where_multipliers_of_the_right_sign_exist(rows, free, g, expected):
+    from problems.exact import _multipliers_vanish
+
+    E, _, gm = _exact_of(rows, g)
+    E.A = [[E.ctx.mpf(v) for v in r] for r in rows]  # (held rows indexed into E.A)
+    held = [(j, 0 if f else 1) for j, f in enumerate(free)]
+    assert _multipliers_vanish(E, gm, E.ctx.mpf(1), held, 25) is expected
