@@ -1177,8 +1177,9 @@ def test_conditioning_sweep(capsys):
                 # the rank threshold (DEPENDENT) moves by at most rank_rtol ||A_0|| per unit of
                 # step: below the reference's scale when x went far beyond the reference's. The
                 # min-norm stage may have brought x back: its steps are counted as the distance
-                # from the levels' own x, solved again without that stage (README, "Limitations":
-                # trial 2065, ||x|| 2.0e9 before the stage, 3.6e3 after, the reference's 4.7e3)
+                # from the levels' own x, solved again without that stage (trial 2065, ||x||
+                # 2.0e9 before the stage, 3.6e3 after, the reference's 4.7e3:
+                # solvers/REFERENCE_NOTES.md, the conditioning sweep)
                 levels_only = HcodSolver(min_norm=False)
                 if prob is perturbed:
                     levels_only.solve(h)

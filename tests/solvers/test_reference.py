@@ -426,7 +426,7 @@ def test_bounds_of_any_magnitude_give_the_scaled_reference(family, seed, scale):
 # optimum: hcod and the PIQP cascade agreed and the reference did not. Found in a run of 20000 such problems against hcod in every warm mode
 # (19 problems where the reference was above the optimum at a level by 7e-4 .. 1.6, one where
 # it was below by breaking the levels above within tolerance, 6 without a reference); that run
-# now finds none (README, "Limitations").
+# now finds none (README, "Limitations"; the cases: solvers/REFERENCE_NOTES.md).
 # (n, depth, rows per level, random_hierarchy keywords)
 MISSED_OPTIMA = {
     # a level's QP with frozen inequality rows in the span of the frozen equalities (projected
