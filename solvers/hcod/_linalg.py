@@ -451,7 +451,9 @@ def level_scale(A, s0, s1, n):
             s += a * a
     sc = 1.0 / (amax * math.sqrt(s))
     if not (sc > 0.0 and sc < np.inf):
-        sc = 1.0 / amax
+        # amax near the largest double, or subnormal: 1 / amax overflows below ~5.6e-309, where
+        # the largest power of 2 brings the level to a norm of 2^1023 amax (0.28 at 3e-309)
+        sc = min(1.0 / amax, math.ldexp(1.0, 1023))
     return sc
 
 

@@ -902,6 +902,22 @@ def test_bounds_of_any_magnitude_give_the_scaled_minimisers(case, scale, warm_st
     assert v.equal or (h0.has_inequalities and v.lower == "a"), (v, level_norms(h0, res.x / scale))
 
 
+@pytest.mark.parametrize("warm_start", ["none", "stage", "time"])
+@pytest.mark.parametrize("n", [1, 2], ids=lambda n: f"n{n}")
+def test_a_level_of_subnormal_rows_is_solved(n, warm_start):
+    """``a x = b`` with every a_i = -2.225e-309 and b = -1.113e-308 (subnormal doubles): x_i =
+    b / (n a_i) (minimum norm), the level met. Each level is scaled by ``1 / ||A_k||_F``, which
+    overflows below ~5.6e-309: the level was multiplied by inf and the solve ended in
+    ``numerical_failure`` ("x is not finite"). The scale is now at most 2^1023, which brings
+    this level to a norm of 0.2-0.28."""
+    a, b = -2.225e-309, -1.113e-308
+    h = Hierarchy(np.full((1, n), a), [b], [b], [0])
+    res = HcodSolver(warm_start=warm_start).solve(h)
+    assert res.status == OPTIMAL, res.reason
+    np.testing.assert_allclose(res.x, np.full(n, b / (n * a)), rtol=1e-12)
+    assert level_norms(h, res.x)[0] <= 5e-324 * n
+
+
 def _largest_scaled_bound(h: Hierarchy) -> float:
     """max |finite bound| / ||A_k||_F over the levels (what ``._setup.load`` scales by)."""
     out = 0.0
