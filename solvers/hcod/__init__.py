@@ -51,8 +51,9 @@ Inequalities at any level (sec. VII-X, :mod:`._kernel`)
 Rank detection
     Each level is scaled by ``1 / ||A_k||_F`` (same minimisers, overflow-free
     reflectors for row norms from 1e-300 to 1e300; the factor is at most
-    2^1023, which brings a level of subnormal rows of norm 3e-309 to 0.28,
-    and one of norm ~1e-316 below the rank threshold). A pivot counts when its
+    2^1023, which brings a level of subnormal rows of norm 3e-309 to 0.28:
+    such levels are solved down to norms of ~1e-318, and read as zero rows
+    from ~1e-320, scaled to ~1e-12). A pivot counts when its
     remaining norm exceeds ``rank_rtol`` (default 1e-10) times the norm of
     the *unprojected* level, like the reference's ``s_i > 1e-10 ||A_k||_2``
     (``||A_k||_2 <= ||A_k||_F <= sqrt(rank) ||A_k||_2``: a compatible,
