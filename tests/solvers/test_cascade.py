@@ -23,7 +23,7 @@ import re
 import numpy as np
 import pytest
 from baseline_cases import BIG_CASES, CASES, SKYLAKEX_BLAS, case, reference
-from hypothesis import assume, given, settings
+from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
 from problems import generators as g
@@ -545,7 +545,12 @@ ROBUST = ("cascade-clarabel",)
 @settings(max_examples=10)
 @given(n=st.integers(4, 9), depth=st.integers(1, 3), rows=st.integers(1, 3),
        inequality=st.sampled_from(g.INEQUALITY_MIXES), box=st.booleans(), seed=st.integers(0, 10_000))
+@example(n=9, depth=3, rows=1, inequality="none", box=True, seed=1143)
 def test_robust_cascades_match_reference_on_random_hierarchies(n, depth, rows, inequality, box, seed):
+    """Equal to the reference, or lower below a level the cascade left above the reference's
+    within the tolerance (which leaves the levels below room to look better: README,
+    "Limitations"). n = 9, 3 levels of 1 row under a box, seed 1143: Clarabel's level 2 at
+    0.10578903903 against the exact optimum 0.10578903733, level 3 then 6.8e-6 lower."""
     assume(depth * rows < n)
     h = g.random_hierarchy(n, depth, rows, inequality=inequality, box=box, seed=seed)
     x_ref = reference_solution(h)
@@ -553,7 +558,9 @@ def test_robust_cascades_match_reference_on_random_hierarchies(n, depth, rows, i
         res = registry.create(name).solve(h)
         assert res.status == OPTIMAL, res.reason
         v = verify(h, res.x, x_ref, rtol=RTOL["high"][name])
-        assert v.equal, (name, v)
+        if not v.equal:
+            above = h.level_norms(res.x)[:v.level] - h.level_norms(x_ref)[:v.level]
+            assert v.lower == "a" and np.any(above > 0), (name, v, above)
 
 
 def test_equality_freeze_pins_only_rows_with_nonzero_slack():
