@@ -346,11 +346,35 @@ def reflect_quad4(b, g, v1, v2, v3, v4, x, y, z, w):
 def householder(v, nrm):
     """Turn ``v`` (norm ``nrm`` > 0) into the vector of the reflector
     ``I - bt v v^T`` that maps it to ``alpha e_1`` (sign chosen against
-    cancellation): ``v[0] -= alpha``. Returns (alpha, bt)."""
+    cancellation): ``v[0] -= alpha``. Returns (alpha, bt).
+
+    Outside 1e-150 < nrm < 1e150, ``bt ~ 1 / nrm^2`` overflows (or underflows)
+    and ``nrm`` itself may have lost its last bits to subnormal squares: v is
+    first scaled by a power of 2 to a norm in [0.5, 1) (the same reflector,
+    with bt for the scaled v; LAPACK's dlarfg rescales likewise), and alpha
+    scaled back. A level's rows 1e-155 the size of its largest meet this."""
+    if not (1e-150 < nrm < 1e150):
+        return _householder_scaled(v, nrm)
     x0 = v[0]
     alpha = -nrm if x0 >= 0.0 else nrm
     v[0] = x0 - alpha
     return alpha, 1.0 / (nrm * (nrm + abs(x0)))
+
+
+@njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
+def _householder_scaled(v, nrm):
+    """:func:`householder` for a norm outside (1e-150, 1e150): v times 2^e in two
+    factors (2^e alone overflows for a subnormal nrm), its norm computed again."""
+    e = -math.frexp(nrm)[1]
+    s1 = math.ldexp(1.0, e // 2)
+    s2 = math.ldexp(1.0, e - e // 2)
+    for c in range(v.shape[0]):
+        v[c] = (v[c] * s1) * s2
+    nrm = math.sqrt(vdot(v, v))
+    x0 = v[0]
+    alpha = -nrm if x0 >= 0.0 else nrm
+    v[0] = x0 - alpha
+    return (alpha / s1) / s2, 1.0 / (nrm * (nrm + abs(x0)))
 
 
 @intrinsic

@@ -918,6 +918,24 @@ def test_a_level_of_subnormal_rows_is_solved(n, warm_start):
     assert level_norms(h, res.x)[0] <= 5e-324 * n
 
 
+@pytest.mark.parametrize("warm_start", ["none", "stage", "time"])
+def test_a_pivot_of_norm_under_1e150_gets_a_finite_reflector(warm_start):
+    """n = 1. Level 0: x >= 1e-7; level 1: -10 x in [-6.745, 1], 3e-154 x >= 1e-10, -3.6e-164 x
+    = -1 (a hypothesis draw of floats in [-10, 10]). Level 1 wants x larger: its two tiny rows
+    are violated, and level 0's row leaves W. Scaled by the level's norm, the row of norm
+    3e-154 is a pivot at its own norm (the wide-level rule), and its Householder reflector's
+    ``1 / nrm^2`` overflowed: mode ``none`` ended in ``numerical_failure``. The reflector now
+    scales such a vector by a power of 2 first. The optimum: x anywhere in [1e-7, 0.6745]
+    meets row 0 of level 1 and leaves the tiny rows' violations the same to 1e-164."""
+    h = Hierarchy([[-1.0], [-10.0], [3e-154], [-3.6e-164]], [-np.inf, -6.745, 1e-10, -1.0],
+                  [-1e-7, 1.0, np.inf, -1.0], [0, 1, 1, 1])
+    res = HcodSolver(warm_start=warm_start).solve(h)
+    assert res.status == OPTIMAL, res.reason
+    assert 1e-7 <= res.x[0] <= 0.6745 * (1 + 1e-15), res.x
+    v = verify(h, res.x, reference_solution(h), rtol=RTOL)
+    assert v.equal, v
+
+
 def _largest_scaled_bound(h: Hierarchy) -> float:
     """max |finite bound| / ||A_k||_F over the levels (what ``._setup.load`` scales by)."""
     out = 0.0
