@@ -150,9 +150,13 @@ class _Exact:
         ctx = self.ctx
         if not rows:
             return self.lstsq(ctx.zeros(0, self.n), ctx.zeros(0, 1))
-        norms = [ctx.sqrt(ctx.fsum(v * v for v in self.A[i])) or ctx.mpf(1) for i in rows]
+        norms = [self.norm(self.A[i]) for i in rows]
         M = ctx.matrix([[v / s for v in self.A[i]] for i, s in zip(rows, norms)])
         return self.lstsq(M, ctx.matrix([v / s for v, s in zip(values, norms)]))
+
+    def norm(self, row):
+        """||row||_2 of a list of this context's numbers (1 for a zero row: a divisor)."""
+        return self.ctx.sqrt(self.ctx.fsum(v * v for v in row)) or self.ctx.mpf(1)
 
     def dot(self, i, x):
         return self.ctx.fsum(self.A[i][q] * x[q] for q in range(self.n))
@@ -237,7 +241,7 @@ def _lstsq_on(E: _Exact, C, g, support) -> list:
     """A lam of ``min ||g + C_S^T lam||`` on the rows S = ``support`` of C: the minimum-norm one
     of the rows divided by their norms (the rank cut at the rows' own scale), scaled back."""
     ctx = E.ctx
-    norms = [ctx.sqrt(ctx.fsum(v * v for v in C[j])) or ctx.mpf(1) for j in support]
+    norms = [E.norm(C[j]) for j in support]
     M = ctx.matrix([[C[j][q] / s for j, s in zip(support, norms)] for q in range(E.n)])  # (n, |S|)
     lam, _ = E.lstsq(M, ctx.matrix([-v for v in g]))
     return [lam[t] / s for t, s in enumerate(norms)]
@@ -253,7 +257,7 @@ def _nnls(E: _Exact, C, g, free, gscale) -> list:
     ctx = E.ctx
     m, n = len(C), E.n
     eps = ctx.mpf(10) ** (-(E.digits * 2 // 3))
-    gain_zero = [eps * gscale * ctx.sqrt(ctx.fsum(v * v for v in row)) for row in C]
+    gain_zero = [eps * gscale * E.norm(row) for row in C]
     P = [j for j in range(m) if free[j]]
 
     def solve(P):

@@ -353,28 +353,25 @@ def householder(v, nrm):
     first scaled by a power of 2 to a norm in [0.5, 1) (the same reflector,
     with bt for the scaled v; LAPACK's dlarfg rescales likewise), and alpha
     scaled back. A level's rows 1e-155 the size of its largest meet this."""
+    back = 1.0
     if not (1e-150 < nrm < 1e150):
-        return _householder_scaled(v, nrm)
+        back, nrm = _scale_to_unit(v, nrm)
     x0 = v[0]
     alpha = -nrm if x0 >= 0.0 else nrm
     v[0] = x0 - alpha
-    return alpha, 1.0 / (nrm * (nrm + abs(x0)))
+    return alpha * back, 1.0 / (nrm * (nrm + abs(x0)))
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def _householder_scaled(v, nrm):
-    """:func:`householder` for a norm outside (1e-150, 1e150): v times 2^e in two
-    factors (2^e alone overflows for a subnormal nrm), its norm computed again."""
+def _scale_to_unit(v, nrm):
+    """v times 2^e, its norm brought to [0.5, 1) (two factors: 2^e alone overflows for a
+    subnormal nrm). Returns (2^-e, the norm computed again); 2^-e is exact, subnormal or not."""
     e = -math.frexp(nrm)[1]
     s1 = math.ldexp(1.0, e // 2)
     s2 = math.ldexp(1.0, e - e // 2)
     for c in range(v.shape[0]):
         v[c] = (v[c] * s1) * s2
-    nrm = math.sqrt(vdot(v, v))
-    x0 = v[0]
-    alpha = -nrm if x0 >= 0.0 else nrm
-    v[0] = x0 - alpha
-    return (alpha / s1) / s2, 1.0 / (nrm * (nrm + abs(x0)))
+    return math.ldexp(1.0, -e), math.sqrt(vdot(v, v))
 
 
 @intrinsic
