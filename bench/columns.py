@@ -33,10 +33,14 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("status", ("solver status (optimal, max_iterations, infeasible_level, numerical_failure, "
                 "unsupported, error) or harness status (timeout: killed after --timeout; "
                 "crashed: the worker process died, e.g. segfault)")),
-    ("reason", "detail for any status other than optimal"),
+    ("reason", ("detail for any status other than optimal; also, when the row reports a timed "
+                "repetition other than the last, which one and why (see verified)")),
     ("verified", ("True when the level norms recomputed from x are lexicographically not worse than "
                   "the reference's (tolerance from the suite's accuracy profile); False otherwise; "
-                  "empty when the reference itself failed")),
+                  "empty when the reference itself failed. x, status and the counts are those of the "
+                  "last timed repetition unless an earlier one was worse: a status other than optimal "
+                  "beside the last's optimal, or an x above the last's at some level beyond 1e-9 of its "
+                  "scale (bench.timing.reported_result); the row then reports that one")),
     ("verdict_level", "first level whose norm differs from the reference beyond tolerance (empty: none)"),
     ("verdict_side", ("at verdict_level: 'worse' (solver higher than reference), 'better', "
                       "'no x' (no solution), 'no reference'; empty when equal")),
