@@ -13,6 +13,8 @@ import importlib.util
 import json
 import os
 import re
+import sys
+import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,22 +35,53 @@ def load_object(spec: str):
         path = Path(modname)
         if not path.exists():
             raise HikbenchError(f"{spec!r}: no such file {path}")
-        name = "_hikbench_user_" + re.sub(r"\W", "_", str(path.resolve()))
-        mod = importlib.sys.modules.get(name)
-        if mod is None:
-            s = importlib.util.spec_from_file_location(name, path)
-            mod = importlib.util.module_from_spec(s)
-            importlib.sys.modules[name] = mod
-            s.loader.exec_module(mod)
+        mod = _load_file(spec, path)
     else:
         try:
             mod = importlib.import_module(modname)
         except ModuleNotFoundError as err:
-            raise HikbenchError(f"{spec!r}: cannot import module {modname!r} ({err})") from err
+            hint = (f"; the current directory is not searched: give the file ({modname.replace('.', '/')}.py:"
+                    f"{attr}) or set PYTHONPATH" if Path(modname.replace(".", "/") + ".py").exists() else "")
+            raise HikbenchError(f"{spec!r}: cannot import module {modname!r} ({err}){hint}") from err
+        except Exception as err:  # noqa: BLE001 - the user's module failed at import: name it, no traceback
+            raise HikbenchError(f"{spec!r}: importing module {modname!r} raised {_what(err)}") from err
     try:
         return getattr(mod, attr)
     except AttributeError as err:
         raise HikbenchError(f"{spec!r}: module {modname!r} has no attribute {attr!r}") from err
+
+
+def _load_file(spec: str, path: Path):
+    """The module of a user's ``file.py``, imported once per process as
+    ``_hikbench_user_<path>``, with its directory on ``sys.path`` meanwhile (as
+    ``python file.py`` has it: a sibling module imports). An exception at import
+    is a HikbenchError naming the file and line, and leaves no half-made module."""
+    name = "_hikbench_user_" + re.sub(r"\W", "_", str(path.resolve()))
+    mod = sys.modules.get(name)
+    if mod is not None:
+        return mod
+    s = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(s)
+    sys.modules[name] = mod
+    where = str(path.resolve().parent)
+    sys.path.insert(0, where)
+    try:
+        s.loader.exec_module(mod)
+    except BaseException as err:
+        del sys.modules[name]
+        if not isinstance(err, Exception):  # KeyboardInterrupt, SystemExit: not the file's answer
+            raise
+        raise HikbenchError(f"{spec!r}: importing {path} raised {_what(err)}") from err
+    finally:
+        sys.path.remove(where)
+    return mod
+
+
+def _what(err: Exception) -> str:
+    """``Type: message at file:line`` of an exception from a user's code."""
+    tb = traceback.extract_tb(err.__traceback__)
+    where = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
+    return f"{type(err).__name__}: {err}" + ("" if isinstance(err, SyntaxError) else where)  # (names its line)
 
 
 def _fmt(v) -> str:

@@ -157,8 +157,10 @@ def build(info: SolverInfo, **options) -> Solver:
 
     Option names are checked against the factory's signature (unless it takes
     ``**kwargs``): an unknown one raises SolverOptionError naming it and the
-    allowed ones. Errors raised by the factory itself propagate unchanged (a
-    wrong option *value* should raise SolverOptionError there)."""
+    allowed ones; options that leave a required argument of the factory
+    unbound, or a factory returning no solver, raise SolverOptionError too.
+    Errors raised by the factory itself propagate unchanged (a wrong option
+    *value* should raise SolverOptionError there)."""
     name = info.name
     opts = {**info.options, **options}
     allowed = option_names(info)
@@ -169,7 +171,27 @@ def build(info: SolverInfo, **options) -> Solver:
             raise SolverOptionError(
                 f"solver {name!r}: unknown option(s) {', '.join(map(repr, unknown))}; "
                 f"allowed options: {listed}")
-    return info.factory(**opts)
+    _check_binds(info, opts)
+    solver = info.factory(**opts)
+    if not callable(getattr(solver, "solve", None)):
+        raise SolverOptionError(f"solver {name!r}: its factory returned {type(solver).__name__}: expected a "
+                                f"solver, an object with a solve(hierarchy) method (a solvers.base.Solver)")
+    return solver
+
+
+def _check_binds(info: SolverInfo, opts: dict) -> None:
+    """SolverOptionError when the factory cannot be called with ``opts`` alone
+    (a required argument missing: a solver's factory takes keyword options only)."""
+    try:
+        sig = inspect.signature(info.factory)
+    except (TypeError, ValueError):  # a builtin without a signature: the call itself decides
+        return
+    try:
+        sig.bind(**opts)
+    except TypeError as err:
+        given = ", ".join(map(repr, opts)) or "none"
+        raise SolverOptionError(f"solver {info.name!r}: cannot be built with the options given ({given}): "
+                                f"{err}; a solver's factory is called with keyword options only") from err
 
 
 # ------------------------------------------------------------ option values

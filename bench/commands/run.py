@@ -3,14 +3,18 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from problems.errors import HikbenchError
 
 HELP = "run a benchmark suite; rows are appended to OUT/results.csv and the run resumes where it stopped"
 
 
 def add_arguments(p) -> None:
-    p.add_argument("--suite", default="quick", help="built-in suite name (quick, paper, peers, full, ci) "
-                   "or a TOML file (default: quick)")
+    names = sorted(f.stem for f in (Path(__file__).parents[1] / "suites").glob("*.toml"))  # (bench.suites'
+    # builtin_suites(), without importing the solvers on every command's start)
+    p.add_argument("--suite", default="quick", help=f"built-in suite name ({', '.join(names)}; "
+                   f"`hikbench list suites` says what each holds) or a TOML file (default: quick)")
     p.add_argument("--solvers", nargs="+", default=None, metavar="SOLVER",
                    help="replace the suite's solvers: names, glob patterns ('cascade-*'), module:Class, "
                         "or external:NAME=CMD")

@@ -10,7 +10,7 @@ import threading
 from bench.worker import solver_info
 from problems.errors import HikbenchError
 from problems.files import load
-from problems.verify import level_norms
+from problems.verify import level_norms, verify
 from solvers import registry
 from solvers.base import ERROR
 
@@ -78,17 +78,27 @@ def run(args) -> int:
     h = load(args.file)
     options = parse_options(args.option)
     info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
-    solver = registry.build(info, **options)  # validate name and options before timing
-    if args.warm and not getattr(solver, "supports_warm_start", False):
-        print(f"note: {args.solver} has no warm start: --warm times re-solves that redo a cold solve's work",
-              file=sys.stderr)
     try:
+        # names and options are checked here, before timing (a HikbenchError: exit 2); an exception
+        # of the solver's own constructor or solve (a user's file.py:Class) is its answer: status error
+        solver = registry.build(info, **options)
+        if args.warm and not getattr(solver, "supports_warm_start", False):
+            print(f"note: {args.solver} has no warm start: --warm times re-solves that redo a cold solve's "
+                  f"work", file=sys.stderr)
         with solver_calls_killable():  # a backend looping in C code still ends on SIGTERM / Ctrl-C
             _warm_up(solver, args.solver)
             timing = time_solves(lambda: registry.build(info, **options), h, repeat=args.repeat,
                                  mode="warm" if args.warm else "cold")
+    except HikbenchError:
+        raise
     except Exception as err:  # noqa: BLE001 - the solver's exception (a user's file.py:Class), not hikbench's
-        print(f"solver      {args.solver}\nstatus      error ({type(err).__name__}: {err})")
+        reason = f"{type(err).__name__}: {err}"
+        if args.json:
+            print(json.dumps({"solver": args.solver, "status": ERROR, "reason": reason, "x": None,
+                              "level_norms": None, "iterations": None, "time_s": None}
+                             | ({"certificate": None} if args.certify else {})))
+        else:
+            print(f"solver      {args.solver}\nstatus      {ERROR} ({reason})")
         return 1
     res = timing.result
     norms = level_norms(h, res.x).tolist() if res.x is not None else None
@@ -108,10 +118,16 @@ def run(args) -> int:
         from problems.exact import certify
 
         cert = certify(h, res.x)
+    attains = None if cert is None or not cert.certified else verify(h, res.x, cert.x)
     if args.certify:
         out["certificate"] = None if cert is None else {
             "certified": cert.certified, "reason": cert.reason,
-            "level_norms": [_finite_or_none(float(v)) for v in cert.level_norms]}
+            "level_norms": [_finite_or_none(float(v)) for v in cert.level_norms],
+            # whether x itself reaches the certified optimum's level norms (verify, rtol 1e-9): the
+            # certificate is of the optimum on the active set read off x, which any x has
+            "x_is_optimal": None if attains is None else attains.equal,
+            "x_above_at_level": None if attains is None or attains.equal else attains.level,
+            "x_above_by": None if attains is None or attains.equal else attains.difference}
     if args.json:
         print(json.dumps(out))
     else:
@@ -125,4 +141,9 @@ def run(args) -> int:
             print("certificate " + ("none: no finite x" if cert is None else
                                     f"exact optimum, level norms {cert.level_norms.tolist()}" if cert.certified
                                     else f"refused: {cert.reason}"))
+            if attains is not None:
+                print("x           " + ("attains it (the same level norms within 1e-9 of each level's scale)"
+                                        if attains.equal else
+                                        f"is NOT optimal: above the certified optimum at level {attains.level} "
+                                        f"by {attains.difference:.3g}"))
     return 1 if res.status == ERROR else 0  # (an exception in the solver, or an answer off the contract)

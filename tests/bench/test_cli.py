@@ -55,8 +55,27 @@ def test_solve_certify(capsys, problem, solver):
     cert = json.loads(out)["certificate"]
     assert cert["certified"] and cert["reason"] == "", cert
     np.testing.assert_allclose(cert["level_norms"], [0.0, 0.0], atol=1e-40)
+    assert cert["x_is_optimal"] is True and cert["x_above_at_level"] is None, cert
     code, out, _ = run(capsys, "solve", path, "--solver", solver, "--certify")
     assert code == 0 and "certificate exact optimum, level norms" in out
+    assert "x           attains it" in out
+
+
+def test_solve_certify_says_when_x_is_not_the_certified_optimum(capsys, problem, tmp_path):
+    """The certificate is of the exact optimum on the active set read off x, which every x
+    has: an x above it is named not optimal (x = (0, 0): level 0's row x0 + x1 = 2 is off by 2,
+    and its bound x1 <= 0.5 holds)."""
+    f = tmp_path / "zero.py"
+    f.write_text("import numpy as np\nfrom solvers.base import SolveResult\n\nclass Zero:\n    name = 'zero'\n\n"
+                 "    def solve(self, h):\n        return SolveResult(np.zeros(h.n), 'optimal')\n")
+    code, out, err = run(capsys, "solve", problem[1], "--solver", f"{f}:Zero", "--json", "--certify")
+    assert code == 0, err
+    cert = json.loads(out)["certificate"]
+    assert cert["certified"] and cert["x_is_optimal"] is False and cert["x_above_at_level"] == 0, cert
+    assert cert["x_above_by"] == pytest.approx(json.loads(out)["level_norms"][0] - cert["level_norms"][0],
+                                               rel=1e-12)
+    code, out, _ = run(capsys, "solve", problem[1], "--solver", f"{f}:Zero", "--certify")
+    assert code == 0 and "x           is NOT optimal: above the certified optimum at level 0 by 2" in out
 
 
 def test_solve_text(capsys, problem):

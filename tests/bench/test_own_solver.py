@@ -186,3 +186,110 @@ def test_an_answer_off_the_contract_is_an_error_row_naming_it(tmp_path, capsys, 
     capsys.readouterr()
     assert main(["solve", str(problem), "--solver", f"{tmp_path / 'bad.py'}:{cls}"]) == 1
     assert f"status      error ({reason})" in capsys.readouterr().out
+
+
+_FACTORIES = """
+from solvers.base import Solver
+
+
+class NeedsModel(Solver):
+    name = "needs-model"
+
+    def __init__(self, model):
+        self.model = model
+
+    def solve(self, h):
+        raise AssertionError("never built")
+
+
+def plain_function(h, x):
+    return x
+
+
+def makes_an_int():
+    return 42
+
+
+class RaisesInInit(Solver):
+    name = "raises-in-init"
+
+    def __init__(self):
+        raise RuntimeError("cannot open the model")
+
+    def solve(self, h):
+        raise AssertionError("never built")
+
+
+class RaisesInSolve(Solver):
+    name = "raises-in-solve"
+
+    def solve(self, h):
+        raise RuntimeError("singular")
+"""
+
+
+@pytest.mark.parametrize("cls, fragment", [
+    ("NeedsModel", "solver '{f}:NeedsModel': cannot be built with the options given (none): missing a required "
+                   "argument: 'model'; a solver's factory is called with keyword options only"),
+    ("plain_function", "cannot be built with the options given (none): missing a required argument: 'h'"),
+    ("makes_an_int", "solver '{f}:makes_an_int': its factory returned int: expected a solver, an object with a "
+                     "solve(hierarchy) method"),
+], ids=["required argument", "a function of the problem", "factory returns no solver"])
+def test_a_factory_that_cannot_make_a_solver_is_a_user_error(capsys, tmp_path, equality_file, cls, fragment):
+    f = tmp_path / "factories.py"
+    f.write_text(_FACTORIES)
+    code, _, err = run(capsys, "solve", equality_file[1], "--solver", f"{f}:{cls}")
+    assert_user_error(code, err, fragment.format(f=f))
+
+
+@pytest.mark.parametrize("cls, reason", [
+    ("RaisesInInit", "RuntimeError: cannot open the model"),
+    ("RaisesInSolve", "RuntimeError: singular"),
+], ids=["constructor", "solve"])
+def test_solve_command_reports_a_solvers_exception_as_status_error(capsys, tmp_path, equality_file, cls, reason):
+    """The solver's own exception is its answer (exit 1, status error), in text and in JSON:
+    the constructor's gave a traceback, and --json printed text."""
+    f = tmp_path / "factories.py"
+    f.write_text(_FACTORIES)
+    code, out, err = run(capsys, "solve", equality_file[1], "--solver", f"{f}:{cls}")
+    assert (code, err) == (1, "") and f"status      error ({reason})" in out
+    code, out, err = run(capsys, "solve", equality_file[1], "--solver", f"{f}:{cls}", "--json", "--certify")
+    assert (code, err) == (1, "")
+    assert json.loads(out) == {"solver": f"{f}:{cls}", "status": "error", "reason": reason, "x": None,
+                               "level_norms": None, "iterations": None, "time_s": None, "certificate": None}
+
+
+def test_a_solver_file_imports_its_sibling_modules(capsys, tmp_path, equality_file):
+    """``python mine.py`` finds a module beside it; so does ``--solver mine.py:Class``
+    (it was a traceback: ModuleNotFoundError)."""
+    (tmp_path / "helpers_of_mine.py").write_text("from solvers.nullspace import SOLVERS\n"
+                                                 "PINV = next(i.factory for i in SOLVERS if i.name == 'pinv-all')\n")
+    (tmp_path / "mine.py").write_text("import helpers_of_mine\n\n\nclass Mine(helpers_of_mine.PINV):\n"
+                                      "    name = 'mine'\n")
+    code, out, err = run(capsys, "solve", equality_file[1], "--solver", f"{tmp_path / 'mine.py'}:Mine", "--json")
+    assert code == 0, err
+    np.testing.assert_allclose(json.loads(out)["x"], reference_solution(equality_file[0]), rtol=0, atol=1e-12)
+    assert str(tmp_path) not in sys.path
+
+
+@pytest.mark.parametrize("text, fragment", [
+    ("x = 1 / 0\n", "importing {f} raised ZeroDivisionError: division by zero at broken.py:1"),
+    ("def f(:\n", "importing {f} raised SyntaxError: invalid syntax (broken.py, line 1)"),
+    ("import no_such_module_of_mine\n", "importing {f} raised ModuleNotFoundError: No module named "
+                                         "'no_such_module_of_mine' at broken.py:1"),
+], ids=["raises", "syntax", "missing import"])
+def test_a_solver_file_that_fails_to_import_is_a_user_error(capsys, tmp_path, equality_file, text, fragment):
+    f = tmp_path / "broken.py"
+    f.write_text(text)
+    code, _, err = run(capsys, "solve", equality_file[1], "--solver", f"{f}:Mine")
+    assert_user_error(code, err, fragment.format(f=f))
+    assert not any(name.startswith("_hikbench_user_") and "broken" in name for name in sys.modules)
+
+
+def test_a_module_in_the_current_directory_gets_a_hint(capsys, tmp_path, equality_file, monkeypatch):
+    (tmp_path / "mine.py").write_text("")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(sys, "path", [p for p in sys.path if p not in ("", ".", str(tmp_path))])
+    code, _, err = run(capsys, "solve", equality_file[1], "--solver", "mine:Mine")
+    assert_user_error(code, err, "cannot import module 'mine'", "the current directory is not searched: give the "
+                                 "file (mine.py:Mine) or set PYTHONPATH")
