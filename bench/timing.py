@@ -129,21 +129,22 @@ def reported_result(results: list[SolveResult], h: Hierarchy, rtol: float = 1e-9
                                                            f"the last gave status {OPTIMAL}"))
     if last.x is None or not np.all(np.isfinite(last.x)):
         return last
-    worst, worst_i, worst_norms, verdict = last, count - 1, level_norms(h, last.x), None
+    last_norms = level_norms(h, last.x)
     scales = level_scales(h, last.x)
+    worst_i, worst_norms = count - 1, last_norms
     for i, r in enumerate(results[:-1]):
         if r.status != last.status or r.x is None or np.array_equal(r.x, last.x):
             continue
         norms = level_norms(h, r.x) if np.all(np.isfinite(r.x)) else np.full(h.depth, np.inf)
-        v = compare_lexicographic(norms, worst_norms, scales, rtol)
-        if v.lower == "b":
-            worst, worst_i, worst_norms = r, i, norms
-            verdict = compare_lexicographic(norms, level_norms(h, last.x), scales, rtol)
-    if verdict is None:
+        if compare_lexicographic(norms, worst_norms, scales, rtol).lower == "b":
+            worst_i, worst_norms = i, norms
+    if worst_i == count - 1:
         return last
-    return replace(worst, reason=_joined(worst.reason, f"repetition {worst_i + 1} of {count} is reported: its x "
-                                                       f"is above the last's at level {verdict.level} by "
-                                                       f"{verdict.difference:.3g}"))
+    v = compare_lexicographic(worst_norms, last_norms, scales, rtol)
+    worst = results[worst_i]
+    note = (f"repetition {worst_i + 1} of {count} is reported: its x is above the last's at level {v.level} "
+            f"by {v.difference:.3g}")
+    return replace(worst, reason=_joined(worst.reason, note))
 
 
 def _joined(reason: str, note: str) -> str:

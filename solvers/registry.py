@@ -136,12 +136,20 @@ def get(name: str) -> SolverInfo:
 def option_names(info: SolverInfo) -> tuple[str, ...] | None:
     """Keyword options accepted by ``info.factory`` (from its signature), or
     None when it takes ``**kwargs`` (then the factory validates them itself)."""
+    return _names(_signature(info))
+
+
+def _signature(info: SolverInfo) -> inspect.Signature | None:
+    """The factory's signature; None for a builtin without one (cannot tell)."""
     try:
-        sig = inspect.signature(info.factory)
-    except (TypeError, ValueError):  # a builtin without a signature: cannot tell
+        return inspect.signature(info.factory)
+    except (TypeError, ValueError):
         return None
-    params = sig.parameters.values()
-    if any(p.kind is p.VAR_KEYWORD for p in params):
+
+
+def _names(sig: inspect.Signature | None) -> tuple[str, ...] | None:
+    params = () if sig is None else sig.parameters.values()
+    if sig is None or any(p.kind is p.VAR_KEYWORD for p in params):
         return None
     return tuple(p.name for p in params if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY))
 
@@ -163,7 +171,8 @@ def build(info: SolverInfo, **options) -> Solver:
     *value* should raise SolverOptionError there)."""
     name = info.name
     opts = {**info.options, **options}
-    allowed = option_names(info)
+    sig = _signature(info)  # (once: build runs before every cold repetition)
+    allowed = _names(sig)
     if allowed is not None:
         unknown = [k for k in opts if k not in allowed]
         if unknown:
@@ -171,7 +180,7 @@ def build(info: SolverInfo, **options) -> Solver:
             raise SolverOptionError(
                 f"solver {name!r}: unknown option(s) {', '.join(map(repr, unknown))}; "
                 f"allowed options: {listed}")
-    _check_binds(info, opts)
+    _check_binds(info, sig, opts)
     solver = info.factory(**opts)
     if not callable(getattr(solver, "solve", None)):
         raise SolverOptionError(f"solver {name!r}: its factory returned {type(solver).__name__}: expected a "
@@ -179,12 +188,11 @@ def build(info: SolverInfo, **options) -> Solver:
     return solver
 
 
-def _check_binds(info: SolverInfo, opts: dict) -> None:
+def _check_binds(info: SolverInfo, sig: inspect.Signature | None, opts: dict) -> None:
     """SolverOptionError when the factory cannot be called with ``opts`` alone
-    (a required argument missing: a solver's factory takes keyword options only)."""
-    try:
-        sig = inspect.signature(info.factory)
-    except (TypeError, ValueError):  # a builtin without a signature: the call itself decides
+    (a required argument missing: a solver's factory takes keyword options only);
+    without a signature (``sig`` None) the call itself decides."""
+    if sig is None:
         return
     try:
         sig.bind(**opts)
