@@ -2,9 +2,11 @@
 
 One module per sub-command in ``bench/commands/``; each defines ``HELP``,
 ``add_arguments(parser)`` and ``run(args) -> int``. User mistakes
-(:class:`~problems.errors.HikbenchError`, and command lines argparse rejects)
-print one line on stderr and exit 2, as does a MemoryError (sizes beyond the
-machine); ``--help`` exits 0; anything else is a bug and keeps its traceback.
+(:class:`~hikbench.problems.errors.HikbenchError`, and command lines argparse rejects)
+print one line on stderr and exit 2, as do a MemoryError (sizes beyond the
+machine) and a missing optional dependency (the line names the extra that
+installs it: :mod:`hikbench.extras`); ``--help`` and ``--version`` exit 0;
+anything else is a bug and keeps its traceback.
 """
 
 from __future__ import annotations
@@ -17,9 +19,11 @@ import signal
 import sys
 import threading
 
-from problems.errors import HikbenchError
+from hikbench import __version__
+from hikbench.extras import extra_for, install_hint
+from hikbench.problems.errors import HikbenchError
 
-# sub-command name -> module in bench.commands
+# sub-command name -> module in hikbench.bench.commands
 COMMANDS: dict[str, str] = {
     "solve": "solve",
     "generate": "generate",
@@ -32,6 +36,7 @@ COMMANDS: dict[str, str] = {
     "claims": "claims",
     "columns": "columns",
     "scenario": "scenario",
+    "warmup": "warmup",
 }
 
 
@@ -55,9 +60,10 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
         prog="hikbench", description="Benchmark of hierarchized (prioritized) inverse kinematics solvers.")
+    parser.add_argument("--version", action="version", version=f"hikbench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, modname in COMMANDS.items():
-        mod = importlib.import_module(f"bench.commands.{modname}")
+        mod = importlib.import_module(f"hikbench.bench.commands.{modname}")
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
@@ -84,6 +90,11 @@ def main(argv: list[str] | None = None) -> int:
         return 128 + signal.SIGTERM
     except HikbenchError as err:
         print(f"hikbench {args.command}: error: {_one_line(err)}", file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as err:
+        if extra_for(err.name) is None:  # not an optional dependency: a bug, with its traceback
+            raise
+        print(f"hikbench {args.command}: error: {install_hint(err.name)}", file=sys.stderr)
         return 2
     except MemoryError as err:  # sizes asked for beyond the machine (generate --param rows=1e12)
         print(f"hikbench {args.command}: error: out of memory ({_one_line(err) or 'MemoryError'}); "
@@ -128,8 +139,7 @@ def solver_calls_killable():
     inside the block: around a command's in-process solver calls (``solve``,
     ``scenario``). Python runs its own handlers only between bytecodes, so a
     backend looping in C or numba code, which never returns to the
-    interpreter, could not be stopped by ``kill`` or Ctrl-C (audit 35,
-    finding 3). ``run`` does not need it: its solves run in the isolated
+    interpreter, could not be stopped by ``kill`` or Ctrl-C. ``run`` does not need it: its solves run in the isolated
     worker. A signal ignored by the parent (``nohup``, a background job) stays
     ignored. Elsewhere than in the main thread nothing changes."""
     if threading.current_thread() is not threading.main_thread():

@@ -15,7 +15,7 @@ constrain x) this computes the singular values of
 *conflicts*). Every row of a higher level counts as if it were active, so for
 inequality levels ``p_k`` is a lower bound of the rank left at the optimum.
 A singular value counts in a rank when it exceeds ``rtol * ||A_k||_2`` (the
-threshold of :mod:`solvers.reference`, relative to the unprojected level, so
+threshold of :mod:`hikbench.solvers.yardstick`, relative to the unprojected level, so
 that a level fully decided by the levels above gets projected rank 0).
 """
 
@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from problems.hierarchy import Hierarchy, check_fits_in_memory
+from hikbench.problems.hierarchy import Hierarchy, check_fits_in_memory
 
 __all__ = ["RANK_RTOL", "LevelStructure", "level_structure"]
 

@@ -41,14 +41,3 @@ class UnknownFamilyError(HikbenchError, KeyError):
 
     def __str__(self) -> str:  # KeyError would quote the message
         return str(self.args[0]) if self.args else ""
-
-
-class SolverNotFoundError(HikbenchError, KeyError):
-    """A solver that is not registered or whose backend is not installed."""
-
-    def __str__(self) -> str:
-        return str(self.args[0]) if self.args else ""
-
-
-class SolverOptionError(HikbenchError, ValueError):
-    """A solver option with a wrong name or value."""

@@ -49,8 +49,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from problems.errors import HikbenchError
-from problems.hierarchy import Hierarchy
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.hierarchy import Hierarchy
 
 __all__ = ["Certificate", "certify"]
 

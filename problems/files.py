@@ -1,4 +1,4 @@
-"""Problem files in ``.npz`` (DESIGN.md): ``A`` (rows x n, float64), ``lower``,
+"""Problem files in ``.npz`` (docs/problem-files.md): ``A`` (rows x n, float64), ``lower``,
 ``upper`` (rows,), ``level`` (rows, int, nondecreasing), ``n`` (scalar int);
 optional ``names`` (one per level) and ``x0``. Load/save round-trips exactly
 (``names`` is always written so that empty trailing levels survive).
@@ -11,8 +11,8 @@ import zipfile
 
 import numpy as np
 
-from problems.errors import InvalidHierarchyError, ProblemFileError
-from problems.hierarchy import Hierarchy
+from hikbench.problems.errors import InvalidHierarchyError, ProblemFileError
+from hikbench.problems.hierarchy import Hierarchy
 
 __all__ = ["load", "load_npz", "save", "save_npz"]
 
@@ -85,7 +85,7 @@ def load(path: str | os.PathLike) -> Hierarchy:
         raise ProblemFileError(f"{p}: no such file" if not os.path.exists(p) else f"{p}: not a file")
     if p.endswith(".npz"):
         return load_npz(p)
-    from problems.soth import load_soth  # SOTH text format
+    from hikbench.problems.soth import load_soth  # SOTH text format
     return load_soth(p)
 
 
@@ -95,5 +95,5 @@ def save(h: Hierarchy, path: str | os.PathLike) -> None:
     if p.endswith(".npz"):
         save_npz(h, p)
     else:
-        from problems.soth import save_soth
+        from hikbench.problems.soth import save_soth
         save_soth(h, p)

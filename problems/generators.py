@@ -21,14 +21,15 @@ change which constraints are active.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from collections.abc import Sequence
 from numbers import Integral
 
 import numpy as np
 
-from problems.errors import HikbenchError, UnknownFamilyError
-from problems.hierarchy import Hierarchy, Level, check_fits_in_memory
+from hikbench.problems.errors import HikbenchError, UnknownFamilyError
+from hikbench.problems.family import Family
+from hikbench.problems.family import finite_number as _number
+from hikbench.problems.hierarchy import Hierarchy, Level, check_fits_in_memory
 
 __all__ = ["DEGENERATE_CASES", "FAMILIES", "INEQUALITY_MIXES", "Family", "all_families", "degenerate",
            "equality_stack",
@@ -43,18 +44,6 @@ def _integer(v, label: str) -> int:
             or v != int(v):
         raise HikbenchError(f"{label} must be an integer; got {v!r}")
     return int(v)
-
-
-def _number(v, label: str, low: float, what: str = "", high: float = np.inf, low_open: bool = False) -> float:
-    """v as a finite float in [low, high] (``(low, high]`` when ``low_open``);
-    HikbenchError naming ``label`` otherwise (a string, True, NaN, inf, or a
-    value outside the interval)."""
-    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer, float, np.floating)) \
-            or not np.isfinite(v) or not low <= v <= high or (low_open and v == low):
-        bound = f" and <= {high:g}" if np.isfinite(high) else ""
-        raise HikbenchError(f"{label} must be a finite number {'>' if low_open else '>='} {low:g}{bound}{what}; "
-                            f"got {v!r}")
-    return float(v)
 
 
 def _seed(seed) -> int:
@@ -220,7 +209,7 @@ def equality_stack(n: int, depth: int, rows: int, seed: int = 0, rank: int | Non
 
 
 def ik_like(n: int, seed: int = 0) -> Hierarchy:
-    """The IK-like family of the HCOD speed targets (issue 3).
+    """The IK-like family of hcod's speed table (README).
 
     Level 0: box ``-0.5 <= x_i <= 0.5`` on every variable (identity rows);
     level 1: 6 equalities, A N(0,1), targets N(0,1); level 2: ``2n // 3``
@@ -312,51 +301,6 @@ def degenerate(case: str, n: int = 12, seed: int = 0) -> Hierarchy:
     raise UnknownFamilyError(f"unknown degenerate case {case!r}; expected one of {', '.join(DEGENERATE_CASES)}")
 
 
-@dataclass(frozen=True)
-class Family:
-    """A named problem family.
-
-    Attributes
-    ----------
-    name, description : str
-    make : callable
-        ``make(seed=..., **params) -> Hierarchy``.
-    defaults : dict
-        Default parameters.
-    sweep : dict
-        Suggested grid for sweeps: parameter -> list of values.
-    """
-
-    name: str
-    description: str
-    make: Callable[..., Hierarchy]
-    defaults: dict = field(default_factory=dict)
-    sweep: dict = field(default_factory=dict)
-
-    def __post_init__(self):
-        # every family takes bound_scale (see generate); its default is in defaults, for the CLI
-        object.__setattr__(self, "defaults", {**self.defaults, "bound_scale": 1.0})
-
-    def generate(self, seed: int = 0, **params) -> Hierarchy:
-        """The family's problem for ``seed`` and ``params`` (the defaults for
-        the others). ``bound_scale`` (every family, default 1) multiplies every
-        bound, equality targets included: the problem in other units of x,
-        whose lexicographic optima are the scaled ones (the problem is
-        homogeneous in (x, bounds)). Small scales test a solver's absolute
-        tolerances."""
-        unknown = sorted(set(params) - set(self.defaults))
-        if unknown:
-            raise HikbenchError(f"family {self.name!r}: unknown parameter(s) {unknown}; "
-                                f"expected some of {sorted(self.defaults)}")
-        params = {**self.defaults, **params}
-        scale = _number(params.pop("bound_scale"), f"family {self.name!r}: bound_scale", 0,
-                        " (it multiplies every bound)", low_open=True)
-        h = self.make(seed=seed, **params)
-        if scale != 1.0:
-            h = h.with_bounds(h.lower * scale, h.upper * scale)
-        return h
-
-
 FAMILIES: dict[str, Family] = {f.name: f for f in (
     Family("equality", "equality levels, A and targets N(0,1), full rank unless rank is given",
            equality_stack, {"n": 36, "depth": 6, "rows": 6, "rank": None}),
@@ -379,9 +323,9 @@ FAMILIES: dict[str, Family] = {f.name: f for f in (
 
 def all_families() -> dict[str, Family]:
     """The named families: :data:`FAMILIES` and the robot stacks'
-    (``problems.robots.testsets.ROBOT_FAMILIES``: ``robot-stack``, params
+    (``hikbench.problems.robots.testsets.ROBOT_FAMILIES``: ``robot-stack``, params
     ``stack`` and ``robot``; pinocchio is imported on its first problem)."""
-    from problems.robots.testsets import ROBOT_FAMILIES  # (it imports Family from here)
+    from hikbench.problems.robots.testsets import ROBOT_FAMILIES  # (it imports Family from here)
 
     return {**FAMILIES, **ROBOT_FAMILIES}
 

@@ -9,11 +9,11 @@ A hierarchy has levels ``0 .. depth-1``, level 0 the highest priority. Row i is
 
 Levels may be empty. The solution is defined by the sequence of least-squares
 problems with inequalities of Escande, Mansard, Wieber (ICRA 2010), eqs.
-(33)-(36); see ``problems.verify`` for the solver-independent yardstick.
+(33)-(36); see ``hikbench.problems.verify`` for the solver-independent yardstick.
 
 A :class:`Hierarchy` is immutable: its arrays are private read-only copies,
 validated once at construction. Every validation error is an
-:class:`~problems.errors.InvalidHierarchyError` naming the level and the row.
+:class:`~hikbench.problems.errors.InvalidHierarchyError` naming the level and the row.
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ from functools import cached_property
 import numpy as np
 import psutil
 
-from problems.errors import InvalidHierarchyError, ProblemTooLargeError
+from hikbench.problems.errors import InvalidHierarchyError, ProblemTooLargeError
 
 __all__ = ["MEMORY_BYTES", "Hierarchy", "Level", "check_fits_in_memory"]
 
@@ -406,17 +406,6 @@ class Hierarchy:
         init(new, "upper", _frozen(upper))
         new.__dict__["starts"] = self.starts
         return new
-
-    # -- verification shortcuts (see problems.verify) --------------------------
-    def violation(self, x) -> np.ndarray:
-        """Per-row violation v(x), shape (m,); see :func:`problems.verify.violation`."""
-        from problems.verify import violation
-        return violation(self, x)
-
-    def level_norms(self, x) -> np.ndarray:
-        """``(||v_0(x)||, ..., ||v_{N-1}(x)||)``, shape (depth,)."""
-        from problems.verify import level_norms
-        return level_norms(self, x)
 
     def __repr__(self) -> str:
         return (f"Hierarchy(n={self.n}, depth={self.depth}, rows={self.rows_per_level.tolist()}, "

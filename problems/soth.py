@@ -1,4 +1,4 @@
-"""SOTH's text problem format: import and export (DESIGN.md).
+"""SOTH's text problem format: import and export (docs/problem-files.md).
 
 The format, as read by ``readProblemFromFile`` and written by
 ``writeProblemToFile`` in SOTH's ``unitTesting/RandomGenerator.cpp``
@@ -74,8 +74,8 @@ import os
 
 import numpy as np
 
-from problems.errors import InvalidHierarchyError, ProblemFileError
-from problems.hierarchy import Hierarchy
+from hikbench.problems.errors import InvalidHierarchyError, ProblemFileError
+from hikbench.problems.hierarchy import Hierarchy
 
 __all__ = ["NO_BOUND", "SOTH_NO_BOUND", "from_soth_text", "load_soth", "save_soth", "soth_order", "to_soth_text"]
 

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from problems.errors import HikbenchError
-from problems.hierarchy import Hierarchy
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.hierarchy import Hierarchy
 
 __all__ = ["Verdict", "compare_lexicographic", "level_norms", "level_scales", "verify", "violation"]
 
@@ -89,8 +89,7 @@ def level_scales(h: Hierarchy, x=None) -> np.ndarray:
     floored: a level of small coefficients (a task in other units, scaled by
     1e-7) is judged relative to its own size; a floor at 1 let rtol 1e-6 pass
     an answer that left such a level wholly undone (and then, free of it, was
-    lower at the next level). Nor is ``||x||`` (the forty-third session
-    dropped its ``1 +``): with every bound and x at 1e-9, ``||A_k||_F``
+    lower at the next level). Nor is ``||x||`` given a ``1 +``: with every bound and x at 1e-9, ``||A_k||_F``
     alone was 1e9 times the level's size, and any answer passed. Scaling
     the bounds and both x by one factor scales the tolerance alike.
     ``atol`` of :func:`verify` is the one absolute part of a tolerance.

@@ -1,8 +1,8 @@
 """How it is solved: one module per solver family, one interface
-(:class:`solvers.base.Solver`), one result type (:class:`solvers.base.SolveResult`)
-and a registry (:mod:`solvers.registry`). Imports ``problems``, never ``bench``."""
+(:class:`hikbench.solvers.base.Solver`), one result type (:class:`hikbench.solvers.base.SolveResult`)
+and a registry (:mod:`hikbench.solvers.registry`). Imports ``problems``, never ``bench``."""
 
-from solvers.base import STATUSES, Solver, SolveResult
-from solvers.registry import SolverInfo, available, create, get
+from hikbench.solvers.base import STATUSES, Solver, SolveResult
+from hikbench.solvers.registry import SolverInfo, available, create, get
 
 __all__ = ["STATUSES", "SolveResult", "Solver", "SolverInfo", "available", "create", "get"]

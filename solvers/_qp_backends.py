@@ -79,7 +79,7 @@ MAX_ITER_NAME: dict[str, str | None] = {
 
 #: an iteration cap where the backend's own default has none: HiGHS's QP solver (qp_iteration_limit
 #: 2^31 - 1) looped for more than 10 min on degenerate/badly_scaled seed 1 and the arm_reach robot
-#: stack; with 10000 it answers in 0.03 s (audit of 2026-11-23). The option max_iter replaces it.
+#: stack; with 10000 it answers in 0.03 s. The option max_iter replaces it.
 DEFAULT_MAX_ITER: dict[str, int] = {"highs": 10_000}
 
 WARM_START: dict[str, bool] = {

@@ -1,7 +1,7 @@
 """The one solver interface and the one result type.
 
 A solver is an object built with its options and called on a
-:class:`~problems.hierarchy.Hierarchy`; it may keep warm-start state between
+:class:`~hikbench.problems.hierarchy.Hierarchy`; it may keep warm-start state between
 calls (the benchmark's ``warm`` mode re-solves on the same object). It never
 sees a robot, never raises for a valid problem (one too large for the
 machine's memory excepted, :meth:`Solver.check_hierarchy`), never returns NaN
@@ -16,22 +16,19 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from problems.hierarchy import Hierarchy, check_fits_in_memory
+from hikbench.problems.hierarchy import Hierarchy, check_fits_in_memory
 
-__all__ = ["CRASHED", "ERROR", "INFEASIBLE_LEVEL", "MAX_ITERATIONS", "NUMERICAL_FAILURE", "OPTIMAL",
-           "STATUSES", "TIMEOUT", "UNSUPPORTED", "SolveResult", "Solver", "checked_result"]
+__all__ = ["ERROR", "INFEASIBLE_LEVEL", "MAX_ITERATIONS", "NUMERICAL_FAILURE", "OPTIMAL",
+           "STATUSES", "UNSUPPORTED", "SolveResult", "Solver", "checked_result"]
 
 OPTIMAL = "optimal"                      #: every level solved to the solver's accuracy
 MAX_ITERATIONS = "max_iterations"        #: an iteration cap was hit; x is the last iterate
 INFEASIBLE_LEVEL = "infeasible_level"    #: a level could not be solved after freezing the ones above
 NUMERICAL_FAILURE = "numerical_failure"  #: NaN / breakdown inside the solver
 UNSUPPORTED = "unsupported"              #: the solver cannot handle this problem (e.g. inequalities)
-TIMEOUT = "timeout"                      #: the harness killed the solve after its time limit
-CRASHED = "crashed"                      #: the worker process died (segfault, abort)
 ERROR = "error"                          #: an exception escaped from a backend
 
-STATUSES = (OPTIMAL, MAX_ITERATIONS, INFEASIBLE_LEVEL, NUMERICAL_FAILURE, UNSUPPORTED, TIMEOUT,
-            CRASHED, ERROR)
+STATUSES = (OPTIMAL, MAX_ITERATIONS, INFEASIBLE_LEVEL, NUMERICAL_FAILURE, UNSUPPORTED, ERROR)
 
 
 @dataclass
@@ -104,7 +101,7 @@ class Solver(abc.ABC):
     starts with ``self.check_hierarchy(hierarchy)`` (a TypeError for anything
     but a Hierarchy passed from Python). Options are
     keyword arguments of ``__init__``; a wrong option raises
-    :class:`~problems.errors.SolverOptionError` at construction.
+    :class:`~hikbench.problems.errors.SolverOptionError` at construction.
     """
 
     name: ClassVar[str] = ""
@@ -129,19 +126,19 @@ class Solver(abc.ABC):
 
     def check_hierarchy(self, hierarchy: object) -> None:
         """The type check at the start of :meth:`solve`: ``hierarchy`` must be a
-        :class:`~problems.hierarchy.Hierarchy` (every CLI path builds one; a
+        :class:`~hikbench.problems.hierarchy.Hierarchy` (every CLI path builds one; a
         call from Python may pass anything). Raises TypeError naming the
         solver, the expected type and the type it got.
 
-        Also refuses, with :class:`~problems.errors.ProblemTooLargeError`, a
+        Also refuses, with :class:`~hikbench.problems.errors.ProblemTooLargeError`, a
         hierarchy whose ``n`` makes one ``n x n`` matrix of doubles larger
         than this machine's memory
-        (:func:`~problems.hierarchy.check_fits_in_memory`)."""
+        (:func:`~hikbench.problems.hierarchy.check_fits_in_memory`)."""
         who = self.name or type(self).__name__
         if not isinstance(hierarchy, Hierarchy):
             t = type(hierarchy)
             got = t.__qualname__ if t.__module__ == "builtins" else f"{t.__module__}.{t.__qualname__}"
-            raise TypeError(f"{who}.solve expects a problems.hierarchy.Hierarchy "
+            raise TypeError(f"{who}.solve expects a hikbench.problems.hierarchy.Hierarchy "
                             f"(e.g. Hierarchy.from_levels), got {got}")
         check_fits_in_memory(hierarchy.n, who)
 
@@ -160,7 +157,7 @@ def checked_result(res, h: Hierarchy, solver) -> SolveResult:
     who = getattr(solver, "name", type(solver).__name__)
     if not isinstance(res, SolveResult):
         return SolveResult(None, ERROR, reason=f"{who}: solve() returned {type(res).__name__}: expected a "
-                                                f"solvers.base.SolveResult")
+                                                f"hikbench.solvers.base.SolveResult")
     if res.x is not None and np.shape(res.x) != (h.n,):
         return SolveResult(None, ERROR, reason=f"{who}: solve() returned x of shape {np.shape(res.x)}: expected "
                                                 f"({h.n},), one value per variable")

@@ -1,6 +1,6 @@
 """The cascade of QPs written in cvxpy (modelling overhead included).
 
-Same QP per level, same freezing and same statuses as :mod:`solvers.cascade`
+Same QP per level, same freezing and same statuses as :mod:`hikbench.solvers.cascade`
 (Kanoun et al.; ICRA 2010 eqs. (33)-(36)); here each level is modelled with
 cvxpy variables ``x`` (n,) and ``w`` (m_k,):
 
@@ -12,7 +12,7 @@ cvxpy variables ``x`` (n,) and ``w`` (m_k,):
 time of ``Problem.solve`` — which includes cvxpy's canonicalisation: that is
 what a cvxpy user pays. Option ``solver`` picks the cvxpy solver (default
 ``"CLARABEL"``); accuracy profiles map onto that solver's own parameter names
-through :data:`solvers._qp_backends.CVXPY_ACCURACY`. No warm start (cvxpy
+through :data:`hikbench.solvers._qp_backends.CVXPY_ACCURACY`. No warm start (cvxpy
 re-canonicalises a new Problem at every level).
 """
 
@@ -23,10 +23,11 @@ import warnings
 
 import numpy as np
 
-from problems.errors import SolverOptionError
-from solvers import _qp_backends as tables
-from solvers.cascade import CascadeBase
-from solvers.registry import SolverInfo, check_choice
+from hikbench.solvers.errors import SolverOptionError
+from hikbench.extras import install_hint
+from hikbench.solvers import _qp_backends as tables
+from hikbench.solvers.cascade import CascadeBase
+from hikbench.solvers.registry import SolverInfo, check_choice
 
 __all__ = ["CvxpyCascade"]
 
@@ -122,4 +123,4 @@ SOLVERS = ([SolverInfo(CvxpyCascade.name, CvxpyCascade.description, CvxpyCascade
                        supports_warm_start=False, strict=True, options=dict(_DEFAULTS))]
            if _cvxpy_installed() else [])
 MISSING = ({} if _cvxpy_installed()
-           else {"cascade-cvxpy": "cvxpy is not installed; install it with: pip install cvxpy"})
+           else {"cascade-cvxpy": install_hint("cvxpy")})

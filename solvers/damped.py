@@ -64,9 +64,9 @@ from __future__ import annotations
 import numpy as np
 import scipy.linalg
 
-from problems.hierarchy import Hierarchy
-from solvers.base import INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
-from solvers.registry import SolverInfo, check_int, check_number, check_numbers
+from hikbench.problems.hierarchy import Hierarchy
+from hikbench.solvers.base import INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
+from hikbench.solvers.registry import SolverInfo, check_int, check_number, check_numbers
 
 __all__ = ["BOX_RTOL", "DLS", "DLSLiegeois", "Weighted", "box_excess", "box_limits", "liegeois_gradient"]
 

@@ -50,9 +50,9 @@ from collections.abc import Sequence
 import numpy as np
 import scipy.linalg
 
-from problems.hierarchy import Hierarchy
-from solvers.base import NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
-from solvers.registry import SolverInfo, check_number
+from hikbench.problems.hierarchy import Hierarchy
+from hikbench.solvers.base import NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
+from hikbench.solvers.registry import SolverInfo, check_number
 
 __all__ = ["RANK_RTOL", "NullspaceCOD", "NullspaceSVD", "PinvAll", "flops_cod_all_at_once",
            "flops_cod_recursion", "flops_svd_all_at_once", "flops_svd_recursion"]

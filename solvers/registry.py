@@ -23,21 +23,24 @@ from numbers import Integral, Real
 
 import numpy as np
 
-from problems.errors import SolverNotFoundError, SolverOptionError
-from solvers.base import Solver
+from hikbench.solvers.errors import SolverNotFoundError, SolverOptionError
+from hikbench.extras import install_hint
+from hikbench.solvers.base import Solver
 
 __all__ = ["SolverInfo", "available", "build", "check_bool", "check_choice", "check_int", "check_number",
            "check_numbers", "create", "get", "missing", "option_names"]
 
 _BUILTIN_MODULES: tuple[str, ...] = (
-    "solvers.reference",
-    "solvers.hcod",
-    "solvers.cascade",
-    "solvers.cascade_cvxpy",
-    "solvers.nullspace",
-    "solvers.damped",
+    "hikbench.solvers.yardstick",
+    "hikbench.solvers.hcod",
+    "hikbench.solvers.cascade",
+    "hikbench.solvers.cascade_cvxpy",
+    "hikbench.solvers.nullspace",
+    "hikbench.solvers.damped",
 )
-_OWN_PACKAGES = ("solvers", "problems", "bench")
+_OWN_PACKAGES = ("hikbench",)
+#: other names of registered solvers: ``reference`` is the yardstick's earlier name
+ALIASES = {"reference": "yardstick"}
 
 
 @dataclass(frozen=True)
@@ -89,7 +92,7 @@ def _load() -> dict[str, SolverInfo]:
         except ModuleNotFoundError as err:
             if not _is_missing_dependency(err):
                 raise
-            _missing[modname] = f"{modname} needs '{err.name}'; install it with: pip install {err.name}"
+            _missing[modname] = f"{modname} needs {install_hint(err.name)}"
             continue
         for info in getattr(mod, "SOLVERS", ()):
             _add(reg, info)
@@ -124,6 +127,7 @@ def get(name: str) -> SolverInfo:
     """The :class:`SolverInfo` of ``name``; raises SolverNotFoundError with the
     list of available solvers and, for a known backend, how to install it."""
     reg = _load()
+    name = ALIASES.get(name, name)
     if name in reg:
         return reg[name]
     hint = _missing.get(name)
@@ -184,7 +188,7 @@ def build(info: SolverInfo, **options) -> Solver:
     solver = info.factory(**opts)
     if not callable(getattr(solver, "solve", None)):
         raise SolverOptionError(f"solver {name!r}: its factory returned {type(solver).__name__}: expected a "
-                                f"solver, an object with a solve(hierarchy) method (a solvers.base.Solver)")
+                                f"solver, an object with a solve(hierarchy) method (a hikbench.solvers.base.Solver)")
     return solver
 
 

@@ -17,7 +17,7 @@ def hcod_kernels_loaded_first():
     """hcod's kernels loaded before a test module that calls its helpers
     directly: a kernel loaded after them would call the helpers' own
     objects, not the copies inside it, and compute other last bits than in
-    other processes (solvers.hcod._cache.load_kernels)."""
-    from solvers.hcod import warmup
+    other processes (hikbench.solvers.hcod._cache.load_kernels)."""
+    from hikbench.solvers.hcod import warmup
 
     warmup()

@@ -4,13 +4,13 @@
 import numpy as np
 from hypothesis import strategies as st
 
-from problems import Hierarchy
+from hikbench.problems import Hierarchy
 
 ROW_KINDS = ("equality", "lower only", "upper only", "two-sided", "free")
 
 #: any finite double (exact round-trips must survive 1e-308 and 1e308 alike)
 any_finite = st.floats(allow_nan=False, allow_infinity=False, width=64)
-#: bounds the SOTH format can hold (|bound| < 1e25, see problems.soth)
+#: bounds the SOTH format can hold (|bound| < 1e25, see hikbench.problems.soth)
 soth_bound = st.floats(min_value=-1e24, max_value=1e24, allow_nan=False)
 moderate = st.floats(min_value=-10.0, max_value=10.0, allow_nan=False)
 #: level names that numpy's unicode arrays keep unchanged (no control characters: a

@@ -1,1 +1,1 @@
-"""Sub-commands of ``hikbench``; see ``bench.cli``."""
+"""Sub-commands of ``hikbench``; see ``hikbench.bench.cli``."""

@@ -17,7 +17,7 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from bench.claims import FAIL, MISSING, check_claims
+    from hikbench.bench.analysis.claims import FAIL, MISSING, check_claims
 
     claims = check_claims(args.run_dir, args.scenario)
     print("### Claims of the ICRA 2010 paper")

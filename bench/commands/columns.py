@@ -6,11 +6,11 @@ HELP = "describe every column of results.csv"
 
 
 def add_arguments(p) -> None:
-    p.add_argument("--markdown", action="store_true", help="print a markdown table (as in README)")
+    p.add_argument("--markdown", action="store_true", help="print a markdown table (as in docs/columns.md)")
 
 
 def run(args) -> int:
-    from bench.columns import COLUMNS, markdown
+    from hikbench.bench.harness.columns import COLUMNS, markdown
 
     if args.markdown:
         print(markdown())

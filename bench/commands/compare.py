@@ -26,7 +26,7 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from bench.compare import (
+    from hikbench.bench.analysis.compare import (
         NoBaseline,
         baseline_for,
         compare_runs,
@@ -34,7 +34,7 @@ def run(args) -> int:
         format_table,
         machine_class_of,
     )
-    from problems.errors import HikbenchError
+    from hikbench.problems.errors import HikbenchError
 
     if not (1.0 < args.threshold < math.inf):  # also refuses nan
         raise HikbenchError(f"--threshold must be a finite number > 1 (a time ratio); got {args.threshold:g}")

@@ -7,9 +7,9 @@ import sys
 
 import numpy as np
 
-from problems.errors import HikbenchError, ProblemFileError
-from problems.files import load, save_npz
-from problems.soth import SOTH_NO_BOUND, soth_order, to_soth_text, write_soth_text
+from hikbench.problems.errors import HikbenchError, ProblemFileError
+from hikbench.problems.files import load, save_npz
+from hikbench.problems.soth import SOTH_NO_BOUND, soth_order, to_soth_text, write_soth_text
 
 HELP = "convert a problem file to SOTH text or .npz"
 
@@ -31,7 +31,7 @@ def default_out(path: str, fmt: str) -> str:
 
 def soth_losses(h) -> list[str]:
     """What a SOTH export of h drops or changes, and what SOTH's own reader
-    would refuse (see problems.soth)."""
+    would refuse (see hikbench.problems.soth)."""
     notes = []
     if h.names != tuple(f"level {k}" for k in range(h.depth)):
         notes.append("level names are dropped")

@@ -7,10 +7,10 @@ import json
 import os
 import re
 
-from problems.errors import HikbenchError, ProblemFileError, UnknownFamilyError
-from problems.files import save_npz
-from problems.generators import all_families, generate
-from problems.soth import save_soth
+from hikbench.problems.errors import HikbenchError, ProblemFileError, UnknownFamilyError
+from hikbench.problems.files import save_npz
+from hikbench.problems.generators import all_families, generate
+from hikbench.problems.soth import save_soth
 
 HELP = "generate problems of a named family (see `hikbench list families`) into files"
 

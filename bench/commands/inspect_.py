@@ -5,8 +5,8 @@ from __future__ import annotations
 import json
 import math
 
-from problems.analysis import level_structure
-from problems.files import load
+from hikbench.problems.analysis import level_structure
+from hikbench.problems.files import load
 
 HELP = "show rows, rank and conditioning of each level of a problem file"
 

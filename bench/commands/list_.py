@@ -4,16 +4,16 @@ from __future__ import annotations
 
 import importlib
 
-from problems.errors import HikbenchError
+from hikbench.problems.errors import HikbenchError
 
 HELP = "list solvers, problem families, suites or robots"
 
 # what -> "module:function" returning rows of (name, description)
 PROVIDERS: dict[str, str] = {
-    "solvers": "bench.commands.list_:_solvers",
-    "families": "bench.commands.list_:_families",
-    "suites": "bench.commands.list_:_suites",
-    "robots": "problems.robots.models:robot_rows",
+    "solvers": "hikbench.bench.commands.list_:_solvers",
+    "families": "hikbench.bench.commands.list_:_families",
+    "suites": "hikbench.bench.commands.list_:_suites",
+    "robots": "hikbench.problems.robots.models:robot_rows",
 }
 
 
@@ -22,7 +22,7 @@ def add_arguments(p) -> None:
 
 
 def _solvers():
-    from solvers import registry
+    from hikbench.solvers import registry
 
     rows = []
     for name, info in registry.available().items():
@@ -36,13 +36,13 @@ def _solvers():
 
 
 def _suites():
-    from bench.suites import builtin_suites, load_suite
+    from hikbench.bench.suites import builtin_suites, load_suite
 
     return [(name, load_suite(name).description) for name in builtin_suites()]
 
 
 def _families():
-    from problems.generators import all_families
+    from hikbench.problems.generators import all_families
 
     rows = []
     for name, fam in all_families().items():

@@ -10,7 +10,7 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from bench.report import write_report
+    from hikbench.bench.analysis.report import write_report
 
     out = write_report(args.run_dir)
     print(f"hikbench report: wrote {out} and {out.parent / 'plots'}/")

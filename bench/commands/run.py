@@ -5,13 +5,13 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from problems.errors import HikbenchError
+from hikbench.problems.errors import HikbenchError
 
 HELP = "run a benchmark suite; rows are appended to OUT/results.csv and the run resumes where it stopped"
 
 
 def add_arguments(p) -> None:
-    names = sorted(f.stem for f in (Path(__file__).parents[1] / "suites").glob("*.toml"))  # (bench.suites'
+    names = sorted(f.stem for f in (Path(__file__).parents[1] / "suites").glob("*.toml"))  # (hikbench.bench.suites'
     # builtin_suites(), without importing the solvers on every command's start)
     p.add_argument("--suite", default="quick", help=f"built-in suite name ({', '.join(names)}; "
                    f"`hikbench list suites` says what each holds) or a TOML file (default: quick)")
@@ -64,7 +64,7 @@ def _check_args(args) -> None:
     if args.limit is not None and args.limit < 0:
         raise HikbenchError(f"--limit must be >= 0 (new rows to write before stopping); got {args.limit}")
     if args.scheduler is not None:
-        from bench.executors import _check_scheduler_address
+        from hikbench.bench.harness.executors import _check_scheduler_address
         _check_scheduler_address(args.scheduler)
 
 
@@ -82,8 +82,8 @@ def run(args) -> int:
     import dataclasses
     from pathlib import Path
 
-    from bench.runner import run_suite
-    from bench.suites import load_suite
+    from hikbench.bench.harness.runner import run_suite
+    from hikbench.bench.suites import load_suite
 
     _check_args(args)
     suite = load_suite(args.suite)
@@ -93,7 +93,7 @@ def run(args) -> int:
     _check_out(out)
     executor = None
     if args.workers or args.scheduler:
-        from bench.executors import DaskExecutor
+        from hikbench.bench.harness.executors import DaskExecutor
         executor = DaskExecutor(workers=args.workers, scheduler=args.scheduler)
     try:
         s = run_suite(suite, out, solvers=args.solvers, repeat=args.repeat, timeout=args.timeout,

@@ -3,7 +3,7 @@
 
 Runs a closed-loop robot scenario (``problems/robots/scenarios/NAME.toml`` or a
 TOML path) once per (solver, warm-start mode), writes one per-step CSV per run
-(columns documented in ``bench/scenario.py``) and, with ``--plot``, the figures
+(columns documented in ``bench/scenarios/runner.py``) and, with ``--plot``, the figures
 of ICRA 2010 sec. XII; prints the scenario's checks. Exit code 1 when a check fails.
 """
 
@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.commands.solve import parse_options
-from problems.errors import HikbenchError
+from hikbench.bench.commands.solve import parse_options
+from hikbench.problems.errors import HikbenchError
 
 HELP = "run a closed-loop robot scenario (reach, step, or a TOML file) and write CSV + figures"
 
@@ -26,7 +26,7 @@ def add_arguments(p) -> None:
                         "`hikbench scenario --list` lists them")
     p.add_argument("--robot", default=None, help="run on another robot (default: the scenario's)")
     p.add_argument("--solver", action="append", default=None,
-                   help="solver name or module:Class / file.py:Class (repeatable; default: reference)")
+                   help="solver name or module:Class / file.py:Class (repeatable; default: yardstick)")
     p.add_argument("--warm-start", nargs="+", default=None, metavar="MODE",
                    help="warm-start modes to run, one run each, for solvers with a warm_start option "
                         "(hcod: none stage time; a module:Class solver: the values its warm_start "
@@ -44,12 +44,12 @@ def _slug(text: str) -> str:
 
 
 def run(args) -> int:
-    from bench.cli import solver_calls_killable
-    from bench.scenario import check_run, run_scenario, warm_start_default
-    from bench.worker import solver_info
-    from problems.robots.scenarios import load_scenario, scenario_names
-    from problems.robots.stacks import stack_names
-    from solvers.registry import build
+    from hikbench.bench.cli import solver_calls_killable
+    from hikbench.bench.scenarios.runner import check_run, run_scenario, warm_start_default
+    from hikbench.bench.harness.worker import solver_info
+    from hikbench.problems.robots.scenarios import load_scenario, scenario_names
+    from hikbench.problems.robots.stacks import stack_names
+    from hikbench.solvers.registry import build
 
     if args.list:
         print("scenarios: " + ", ".join(scenario_names()))
@@ -61,7 +61,7 @@ def run(args) -> int:
     if args.steps is not None and args.steps < 1:
         raise HikbenchError(f"--steps must be >= 1; got {args.steps}")
     scenario = load_scenario(args.name, robot=args.robot)
-    solvers = args.solver or ["reference"]
+    solvers = args.solver or ["yardstick"]
     options = parse_options(args.option)
     if "warm_start" in options and args.warm_start:
         raise HikbenchError("give the warm-start mode either with --warm-start or --option warm_start=..., "
@@ -104,7 +104,7 @@ def run(args) -> int:
     if len(runs) > 1:
         _print_side_by_side(runs)
     if args.plot:
-        from bench.scenario_plots import plot_runs
+        from hikbench.bench.scenarios.plots import plot_runs
 
         for path in plot_runs(runs, out, joints=scenario.plot_joints):
             print(f"figure {path}")

@@ -7,20 +7,20 @@ import math
 import sys
 import threading
 
-from bench.worker import solver_info
-from problems.errors import HikbenchError
-from problems.files import load
-from problems.verify import level_norms, verify
-from solvers import registry
-from solvers.base import ERROR
+from hikbench.bench.harness.worker import solver_info
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.files import load
+from hikbench.problems.verify import level_norms, verify
+from hikbench.solvers import registry
+from hikbench.solvers.base import ERROR
 
 HELP = "solve one problem file with one solver and print the result"
 
 
 def add_arguments(p) -> None:
     p.add_argument("file", help="problem file (.npz or SOTH text)")
-    p.add_argument("--solver", default="reference",
-                   help="solver name (see `hikbench list solvers`; default: reference), or module:Class / "
+    p.add_argument("--solver", default="yardstick",
+                   help="solver name (see `hikbench list solvers`; default: yardstick), or module:Class / "
                         "file.py:Class (a Solver subclass of your own: README, \"Adding a solver\")")
     p.add_argument("--repeat", type=int, default=1, help="timed repetitions (default 1)")
     p.add_argument("--warm", action="store_true",
@@ -29,7 +29,7 @@ def add_arguments(p) -> None:
                    help="solver option (repeatable); VALUE is parsed as JSON when it can be")
     p.add_argument("--certify", action="store_true",
                    help="also certify x in 50-digit arithmetic: the exact optimum on the active set read off x, "
-                        "and its level norms (problems.exact; ~0.1 s at n = 5, ~3 s at n = 20)")
+                        "and its level norms (hikbench.problems.exact; ~0.1 s at n = 5, ~3 s at n = 20)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -70,8 +70,8 @@ def _warm_up(solver, name: str) -> None:
 
 
 def run(args) -> int:
-    from bench.cli import solver_calls_killable
-    from bench.timing import time_solves
+    from hikbench.bench.cli import solver_calls_killable
+    from hikbench.bench.harness.timing import time_solves
 
     if args.repeat < 1:
         raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
@@ -115,7 +115,7 @@ def run(args) -> int:
     }
     cert = None
     if args.certify and res.x is not None and all(map(math.isfinite, res.x)):
-        from problems.exact import certify
+        from hikbench.problems.exact import certify
 
         cert = certify(h, res.x)
     attains = None if cert is None or not cert.certified else verify(h, res.x, cert.x)

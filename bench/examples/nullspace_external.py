@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""A tiny external solver for ``--solvers external:NAME=CMD`` (README,
+"""A tiny external solver for ``--solvers external:NAME=CMD`` (docs/adding-a-solver.md,
 "External solvers"). It uses numpy only (no hikbench), like a C++ program would
 use its own reader:
 

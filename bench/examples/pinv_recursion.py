@@ -1,4 +1,4 @@
-"""A solver of your own in the benchmark: the template of README, "Adding a solver".
+"""A solver of your own in the benchmark: the template of docs/adding-a-solver.md.
 
 The numerical work is a function you already have: here the null-space
 recursion of the external example (``nullspace_external.solve``: ICRA 2010,
@@ -15,10 +15,10 @@ without registering it:
 
 from __future__ import annotations
 
-from bench.examples.nullspace_external import solve as nullspace_solve
-from problems.hierarchy import Hierarchy
-from solvers.base import OPTIMAL, Solver, SolveResult
-from solvers.registry import SolverInfo, check_number
+from hikbench.bench.examples.nullspace_external import solve as nullspace_solve
+from hikbench.problems.hierarchy import Hierarchy
+from hikbench.solvers.base import OPTIMAL, Solver, SolveResult
+from hikbench.solvers.registry import SolverInfo, check_number
 
 
 class PinvRecursion(Solver):
@@ -38,11 +38,11 @@ class PinvRecursion(Solver):
         if h.has_inequalities:
             return self.unsupported(h, "equality rows only")
         x = nullspace_solve(h.A, h.lower, h.upper, h.level, h.n, rtol=self.rcond)
-        # statuses: solvers.base.STATUSES; x is judged by the harness from x alone
+        # statuses: hikbench.solvers.base.STATUSES; x is judged by the harness from x alone
         return SolveResult(x, OPTIMAL, iterations_per_level=(0,) * h.depth)
 
 
 # What a package's entry point names (group "hikbench.solvers"): the solver
-# then has a registry name, like the built-in ones (README, "Adding a solver").
+# then has a registry name, like the built-in ones (docs/adding-a-solver.md, "A registered name").
 SOLVERS = [SolverInfo(PinvRecursion.name, PinvRecursion.description, PinvRecursion,
                       supports_inequalities=False, supports_warm_start=False, strict=True)]

@@ -7,8 +7,8 @@ import functools
 import numpy as np
 import pinocchio as pin
 
-from problems.errors import HikbenchError
-from problems.robots.models import Robot
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.robots.models import Robot
 
 __all__ = ["KinematicState", "TaskError", "skew"]
 

@@ -11,8 +11,8 @@ from typing import ClassVar
 import numpy as np
 import pinocchio as pin
 
-from problems.robots.models import Robot
-from problems.robots.tasks import Task, TaskError, number
+from hikbench.problems.robots.models import Robot
+from hikbench.problems.robots.tasks import Task, TaskError, number
 
 __all__ = ["INEQUALITY_TASKS", "FrameDistance", "JointPositionLimits", "JointVelocityLimits"]
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pinocchio as pin
 
-from problems.errors import HikbenchError
+from hikbench.problems.errors import HikbenchError
 
 __all__ = [
     "ROBOTS",

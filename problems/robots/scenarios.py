@@ -2,7 +2,7 @@
 schedule of target changes (jumps and sixth-order polynomial trajectories).
 
 The loop itself (solve, integrate q <- q (+) u dt, repeat) is in
-``bench/scenario.py``; this module only says, for each time t, what every task's
+``bench/scenarios/runner.py``; this module only says, for each time t, what every task's
 target (and target velocity, the feed-forward of eq. 47) is.
 
 TOML format (``problems/robots/scenarios/*.toml``)::
@@ -44,11 +44,11 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from problems.errors import HikbenchError
-from problems.robots.kinematics import KinematicState
-from problems.robots.stacks import Stack, build_stack
-from problems.robots.tasks import ComTask, PoseTask, PositionTask, Task
-from problems.robots.trajectories import PointSegment, PoseSegment
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.robots.kinematics import KinematicState
+from hikbench.problems.robots.stacks import Stack, build_stack
+from hikbench.problems.robots.tasks import ComTask, PoseTask, PositionTask, Task
+from hikbench.problems.robots.trajectories import PointSegment, PoseSegment
 
 __all__ = ["SCENARIO_DIR", "Scenario", "ScenarioError", "load_scenario", "scenario_names"]
 

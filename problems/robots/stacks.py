@@ -1,5 +1,5 @@
 """Stacks of tasks: a robot, ordered levels of tasks, gains and dt, read from TOML,
-that turn a configuration q into a :class:`~problems.hierarchy.Hierarchy` in the
+that turn a configuration q into a :class:`~hikbench.problems.hierarchy.Hierarchy` in the
 velocity u (n = nv). Level names are the task names (``"+"``-joined when a level
 holds several tasks).
 
@@ -36,12 +36,12 @@ from pathlib import Path
 
 import numpy as np
 
-from problems.errors import HikbenchError
-from problems.hierarchy import Hierarchy, Level
-from problems.robots.kinematics import KinematicState
-from problems.robots.limits import FrameDistance, JointPositionLimits, JointVelocityLimits
-from problems.robots.models import Robot, load_robot
-from problems.robots.tasks import (
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.hierarchy import Hierarchy, Level
+from hikbench.problems.robots.kinematics import KinematicState
+from hikbench.problems.robots.limits import FrameDistance, JointPositionLimits, JointVelocityLimits
+from hikbench.problems.robots.models import Robot, load_robot
+from hikbench.problems.robots.tasks import (
     AlignmentTask,
     ComTask,
     DirectionTask,

@@ -8,7 +8,7 @@ a level by the exponential decrease of its error (ICRA 2010, eq. 47)::
     e_dot* = -lambda e + e_dot_ff   ->   J u = -lambda e + e_dot_ff
 
 (``e_dot_ff`` a feed-forward term from a moving target, 0 for a fixed one).
-Inequality tasks (``problems.robots.limits``) give bounds instead.
+Inequality tasks (``hikbench.problems.robots.limits``) give bounds instead.
 
 Shapes: q (nq,), u (nv,), J (d, nv).
 """
@@ -22,8 +22,8 @@ from typing import ClassVar
 import numpy as np
 import pinocchio as pin
 
-from problems.robots.kinematics import KinematicState, TaskError, skew
-from problems.robots.models import Robot
+from hikbench.problems.robots.kinematics import KinematicState, TaskError, skew
+from hikbench.problems.robots.models import Robot
 
 __all__ = [
     "AlignmentTask",

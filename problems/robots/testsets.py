@@ -11,9 +11,9 @@ from pathlib import Path
 
 import numpy as np
 
-from problems.files import save_npz
-from problems.generators import Family
-from problems.hierarchy import Hierarchy
+from hikbench.problems.files import save_npz
+from hikbench.problems.family import Family
+from hikbench.problems.hierarchy import Hierarchy
 
 __all__ = ["DEFAULT_SEEDS", "ROBOT_FAMILIES", "SHIPPED_STACKS", "save_test_set", "stack_problem"]
 
@@ -28,13 +28,13 @@ def stack_problem(stack_name: str, seed: int = 0, robot: str | None = None) -> H
     Parameters
     ----------
     stack_name : str
-        A shipped stack (``problems.robots.stacks.stack_names()``) or a TOML path.
+        A shipped stack (``hikbench.problems.robots.stacks.stack_names()``) or a TOML path.
     seed : int
         Seeds ``numpy.random.default_rng``: q first, then the target configuration.
     robot : str, optional
         Run the stack on another robot having the frame aliases it uses.
     """
-    from problems.robots.stacks import build_stack  # pinocchio is imported on first use only
+    from hikbench.problems.robots.stacks import build_stack  # pinocchio is imported on first use only
 
     stack = build_stack(stack_name, robot=robot)
     rng = np.random.default_rng(seed)
@@ -46,7 +46,7 @@ def stack_problem(stack_name: str, seed: int = 0, robot: str | None = None) -> H
 def save_test_set(out_dir: str | os.PathLike, stacks: list[str] | None = None,
                   seeds=DEFAULT_SEEDS) -> list[Path]:
     """Write ``<stack>-seed<k>.npz`` for every stack and seed; returns the paths."""
-    from problems.robots.stacks import stack_names
+    from hikbench.problems.robots.stacks import stack_names
 
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -63,8 +63,8 @@ def _robot_stack(seed: int = 0, stack: str = "humanoid_reach", robot: str | None
     return stack_problem(stack, seed=seed, robot=robot)
 
 
-#: generator families (``problems.generators.Family``) for the harness: merge them into
-#: ``problems.generators.FAMILIES`` to sweep the robot stacks by seed and stack name.
+#: generator families (``hikbench.problems.generators.Family``) for the harness: merge them into
+#: ``hikbench.problems.generators.FAMILIES`` to sweep the robot stacks by seed and stack name.
 ROBOT_FAMILIES: dict[str, Family] = {f.name: f for f in (
     Family("robot-stack", "a robot task stack (problems/robots/stacks) at a random configuration within "
            "the limits with reachable targets; variables u (n = nv)", _robot_stack,

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from problems.errors import HikbenchError
+from hikbench.problems.errors import HikbenchError
 
 __all__ = ["PointSegment", "Polynomial", "PoseSegment", "TrajectoryError", "bump", "progress", "sixth_order"]
 

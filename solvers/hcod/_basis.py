@@ -38,13 +38,13 @@ from __future__ import annotations
 
 from numba import njit
 
-from solvers.hcod import (
+from hikbench.solvers.hcod import (
     _cache,  # noqa: F401  (before any @njit: cache stamps over every hcod file)
     _explicit,
     _factored,
 )
-from solvers.hcod._factored import Q_ID
-from solvers.hcod._linalg import FASTMATH
+from hikbench.solvers.hcod._factored import Q_ID
+from hikbench.solvers.hcod._linalg import FASTMATH
 
 __all__ = [
     "LAZY_MAX_ITER",

@@ -6,9 +6,8 @@ defined in another file are not recognised). hcod's kernels compile in
 helpers of five other files (``_linalg``, ``_explicit``, ``_factored``,
 ``_basis``, ``_setup``): an edit of ``_linalg.py`` alone, or a ``git pull``
 that changes only it, left ``_kernel.hcod_solve`` running the old helpers
-from its cache -- stale code tested and timed, with nothing to show it (seen
-in the forty-fourth session: an A/B timing of a changed ``_explicit.py``
-measured the old code twice).
+from its cache -- stale code tested and timed, with nothing to show it (an
+A/B timing of a changed ``_explicit.py`` measured the old code twice).
 
 :func:`install` puts a cache locator in front of numba's own ones for the
 functions of a package directory: it defers to the locator numba would have
@@ -31,7 +30,7 @@ process that loads ``hcod_solve`` from the cache runs the copies inside its
 object, which LLVM optimised again with the caller (fastmath: other
 vectorisation, other rounding). The two gave x differing in up to 260 of
 300 entries by 4e-15 of ``|x|`` on IK-like problems, 1.6e-10 of ``|x|`` on
-an ill-conditioned one (forty-fourth and forty-fifth sessions, ``NOTES.md``).
+an ill-conditioned one (docs/hcod.md, "The kernels' cache").
 Without fastmath LLVM could not change the rounding, but that code took
 1.1-2.2x the time.
 """

@@ -32,8 +32,8 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
-from solvers.hcod._linalg import (
+from hikbench.solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
+from hikbench.solvers.hcod._linalg import (
     FASTMATH,
     NEAR_RANK,
     NEAR_RANK_STEP,

@@ -14,7 +14,7 @@ once (``2 n L`` multiply-adds per reflector of length L); on short vectors
 this beats the queue of :mod:`._basis`, whose per-entry overheads dominate.
 The products read only the columns they need (``Z`` for the projections).
 Every routine returns its multiply-adds (the flop counter of
-:class:`~solvers.base.SolveResult`).
+:class:`~hikbench.solvers.base.SolveResult`).
 
 Rows are read from ``A`` (m, n); a *bound row* (one nonzero, e.g. a box row
 ``e_i``) has ``bcol[i] >= 0`` and coefficient ``bval[i]``: its products cost
@@ -31,9 +31,9 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
-from solvers.hcod._factored import Q_ID, QH
-from solvers.hcod._linalg import (
+from hikbench.solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
+from hikbench.solvers.hcod._factored import Q_ID, QH
+from hikbench.solvers.hcod._linalg import (
     BLAS_MIN_N,
     BLAS_MIN_ROWS,
     BLAS_MIN_WORK,

@@ -37,7 +37,7 @@ for the pair kernels), per rotation sequence ``[c_0, s_0, c_1, s_1, ...]``;
 identity, madds of one product, madds spent), then per entry ``(o, L, f)``
 with ``L > 0`` a reflector of length L, ``L = -t`` a sequence of t rotations,
 f its start in ``qv``. Every routine returns its multiply-adds (the flop
-counter of :class:`~solvers.base.SolveResult`).
+counter of :class:`~hikbench.solvers.base.SolveResult`).
 
 Rows are read from ``A`` (m, n); a *bound row* (one nonzero, e.g. a box row
 ``e_i``) has ``bcol[i] >= 0`` and coefficient ``bval[i]``: its products cost
@@ -51,8 +51,8 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
-from solvers.hcod._linalg import (
+from hikbench.solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
+from hikbench.solvers.hcod._linalg import (
     BLAS_MIN_N,
     BLAS_MIN_ROWS,
     BLAS_MIN_WORK,

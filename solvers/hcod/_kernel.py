@@ -48,8 +48,8 @@ import math
 import numpy as np
 from numba import njit
 
-from solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
-from solvers.hcod._basis import (
+from hikbench.solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
+from hikbench.solvers.hcod._basis import (
     LAZY_MAX_ITER,
     LAZY_MIN_N,
     basis_explicit,
@@ -65,7 +65,7 @@ from solvers.hcod._basis import (
     multipliers,
     push_reflectors,
 )
-from solvers.hcod._linalg import (
+from hikbench.solvers.hcod._linalg import (
     FASTMATH,
     NEAR_RANK,
     NEAR_RANK_STEP,
@@ -83,7 +83,7 @@ from solvers.hcod._linalg import (
     vaxpy,
     vdot,
 )
-from solvers.hcod._setup import FEND0, IOFF0, N_HEAD, N_OUT
+from hikbench.solvers.hcod._setup import FEND0, IOFF0, N_HEAD, N_OUT
 
 _FM = set(FASTMATH)
 

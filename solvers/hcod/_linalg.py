@@ -6,7 +6,7 @@ constraint decomposition are in :mod:`._basis`; the orthogonal factors
 applied to the columns of a basis stored by columns are at the end.
 
 Every routine that computes returns the number of multiply-adds it did (the
-flop counter of :class:`~solvers.base.SolveResult`). Rows are read from
+flop counter of :class:`~hikbench.solvers.base.SolveResult`). Rows are read from
 ``A`` (m, n); a *bound row* (one nonzero, e.g. a box row ``e_i``) has
 ``bcol[i] >= 0`` and coefficient ``bval[i]``: its products cost O(1).
 """
@@ -20,7 +20,7 @@ from numba import njit, types
 from numba.extending import intrinsic
 from numba.np.arrayobj import make_array, populate_array
 
-from solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
+from hikbench.solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
 
 #: fast-math flags of every kernel: reassociation (vectorised reductions) and FMA
 #: contraction; no "nnan"/"ninf" (the kernels test finiteness)

@@ -10,9 +10,9 @@ from itertools import accumulate
 import numpy as np
 from numba import njit
 
-from solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
-from solvers.hcod._factored import queue_sizes
-from solvers.hcod._linalg import FASTMATH, level_scale
+from hikbench.solvers.hcod import _cache  # noqa: F401  (before any @njit: cache stamps over every hcod file)
+from hikbench.solvers.hcod._factored import queue_sizes
+from hikbench.solvers.hcod._linalg import FASTMATH, level_scale
 
 _FM = set(FASTMATH)
 

@@ -7,13 +7,13 @@ import subprocess
 import sys
 from pathlib import Path
 
-from bench.cli import main
+from hikbench.bench.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
 #: ``python -c START ARGV`` is ``hikbench ARGV`` from the source tree, with Python's own SIGINT
 #: handler even where pytest runs with SIGINT ignored (a background job)
 START = ("import runpy, signal; signal.signal(signal.SIGINT, signal.default_int_handler); "
-         "runpy.run_module('bench', run_name='__main__')")
+         "runpy.run_module('hikbench', run_name='__main__')")
 
 
 def run(capsys, *argv):

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from problems import Hierarchy, Level
-from problems.files import save_npz
+from hikbench.problems import Hierarchy, Level
+from hikbench.problems.files import save_npz
 
 
 @pytest.fixture

@@ -10,9 +10,9 @@ from pathlib import Path
 
 import numpy as np
 
-from problems.hierarchy import Hierarchy, Level
-from solvers.base import OPTIMAL, Solver, SolveResult
-from solvers.reference import nullspace_reference
+from hikbench.problems.hierarchy import Hierarchy, Level
+from hikbench.solvers.base import OPTIMAL, Solver, SolveResult
+from hikbench.solvers.yardstick import nullspace_yardstick
 
 HERE = Path(__file__).with_name("doubles.py")
 
@@ -41,7 +41,7 @@ class SleepSolver(Solver):
     def solve(self, hierarchy):
         if self.delay:
             time.sleep(self.delay)
-        return SolveResult(nullspace_reference(hierarchy), OPTIMAL, iterations=1)
+        return SolveResult(nullspace_yardstick(hierarchy), OPTIMAL, iterations=1)
 
 
 class WrongSolver(Solver):
@@ -123,13 +123,13 @@ class WarmReference:
     ``activations`` is 1 in mode none, 0 otherwise (so that a test sees the mode arrive)."""
 
     def __init__(self, warm_start="time"):
-        from solvers.reference import ReferenceSolver
+        from hikbench.solvers.yardstick import YardstickSolver
 
         if warm_start not in ("none", "stage", "time"):
-            from problems.errors import SolverOptionError
+            from hikbench.solvers.errors import SolverOptionError
             raise SolverOptionError(f"warm_start must be none, stage or time; got {warm_start!r}")
         self.warm_start = warm_start
-        self._ref = ReferenceSolver()
+        self._ref = YardstickSolver()
 
     def solve(self, h):
         res = self._ref.solve(h)
@@ -141,13 +141,13 @@ class WarmOnOff(WarmReference):
     """A warm_start parameter with its own modes, "on" and "off" (not hcod's)."""
 
     def __init__(self, warm_start="on"):
-        from solvers.reference import ReferenceSolver
+        from hikbench.solvers.yardstick import YardstickSolver
 
         if warm_start not in ("on", "off"):
-            from problems.errors import SolverOptionError
+            from hikbench.solvers.errors import SolverOptionError
             raise SolverOptionError(f"warm_start must be on or off; got {warm_start!r}")
         self.warm_start = warm_start
-        self._ref = ReferenceSolver()
+        self._ref = YardstickSolver()
 
 
 class WarmRequired(WarmReference):
@@ -203,10 +203,10 @@ class Sleep4ms(Sleep2ms):
 def still_run(sc, steps: int, status=None, err: float = 1e-3):
     """A ScenarioRun of ``steps`` steps standing at ``sc.q_init`` (no solve), every task error
     ``err``, statuses ``status`` (default all optimal); a last status "diverged" adds no q, as
-    in bench.scenario.run_scenario."""
+    in hikbench.bench.scenarios.runner.run_scenario."""
     import pandas as pd
 
-    from bench.scenario import ScenarioRun
+    from hikbench.bench.scenarios.runner import ScenarioRun
 
     status = list(status or ["optimal"] * steps)
     rec = pd.DataFrame({"step": np.arange(steps), "time_s": np.arange(steps) * sc.dt, "solve_time_s": 1e-4,

@@ -3,9 +3,9 @@
 import json
 import sys
 
-from problems.soth import load_soth
-from solvers.reference import nullspace_reference
+from hikbench.problems.soth import load_soth
+from hikbench.solvers.yardstick import nullspace_yardstick
 
 h = load_soth(sys.argv[1])
 with open(sys.argv[2], "w") as f:
-    json.dump({"x": nullspace_reference(h).tolist()}, f)
+    json.dump({"x": nullspace_yardstick(h).tolist()}, f)

@@ -7,8 +7,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.claims import FAIL, MISSING, PASS, claim_a, claim_b, claim_c, claim_d, slope_interval
-from bench.columns import names
+from hikbench.bench.analysis.claims import FAIL, MISSING, PASS, claim_a, claim_b, claim_c, claim_d, slope_interval
+from hikbench.bench.harness.columns import names
 
 
 def _row(solver, n, depth, rows, t, seed=0, flops=None, verified=True):

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 from clitools import assert_user_error, run
 
-from bench.cli import COMMANDS
-from problems import Hierarchy, Level
-from problems.files import load, save_npz
-from problems.generators import FAMILIES, all_families, generate
-from problems.soth import save_soth, soth_order
-from problems.verify import level_norms
+from hikbench.bench.cli import COMMANDS
+from hikbench.problems import Hierarchy, Level
+from hikbench.problems.files import load, save_npz
+from hikbench.problems.generators import FAMILIES, all_families, generate
+from hikbench.problems.soth import save_soth, soth_order
+from hikbench.problems.verify import level_norms
 
 INF = np.inf
 
@@ -23,12 +23,12 @@ INF = np.inf
                          ids=["once", "repeat", "warm"])
 def test_solve_json(capsys, problem, extra):
     h, path = problem
-    code, out, err = run(capsys, "solve", path, "--solver", "reference", "--json", *extra)
+    code, out, err = run(capsys, "solve", path, "--solver", "yardstick", "--json", *extra)
     assert code == 0, err
     res = json.loads(out)
     assert {"solver", "status", "x", "level_norms", "iterations", "time_s"} <= set(res)
     assert set(res["time_s"]) >= {"median", "min"}
-    assert res["solver"] == "reference" and res["status"] == "optimal"
+    assert res["solver"] == "yardstick" and res["status"] == "optimal"
     assert 0 < res["time_s"]["min"] <= res["time_s"]["median"]
     # level norms are recomputed from x by the problem model
     np.testing.assert_allclose(res["level_norms"], level_norms(h, np.array(res["x"])), rtol=1e-15, atol=0)
@@ -36,7 +36,7 @@ def test_solve_json(capsys, problem, extra):
     np.testing.assert_allclose(res["x"], [3.0, -1.0], atol=1e-8)
 
 
-@pytest.mark.parametrize("solver, note", [("reference", True), ("cascade-daqp", False)],
+@pytest.mark.parametrize("solver, note", [("yardstick", True), ("cascade-daqp", False)],
                          ids=["no warm start", "warm start"])
 def test_solve_warm_notes_a_solver_without_warm_start(capsys, problem, solver, note):
     code, out, err = run(capsys, "solve", problem[1], "--solver", solver, "--warm", "--repeat", "2")
@@ -66,7 +66,7 @@ def test_solve_certify_says_when_x_is_not_the_certified_optimum(capsys, problem,
     has: an x above it is named not optimal (x = (0, 0): level 0's row x0 + x1 = 2 is off by 2,
     and its bound x1 <= 0.5 holds)."""
     f = tmp_path / "zero.py"
-    f.write_text("import numpy as np\nfrom solvers.base import SolveResult\n\nclass Zero:\n    name = 'zero'\n\n"
+    f.write_text("import numpy as np\nfrom hikbench.solvers.base import SolveResult\n\nclass Zero:\n    name = 'zero'\n\n"
                  "    def solve(self, h):\n        return SolveResult(np.zeros(h.n), 'optimal')\n")
     code, out, err = run(capsys, "solve", problem[1], "--solver", f"{f}:Zero", "--json", "--certify")
     assert code == 0, err
@@ -219,7 +219,7 @@ def test_export_user_errors(capsys, problem, tmp_path, argv, fragments):
 
 
 # -------------------------------------------------------------------- list
-@pytest.mark.parametrize("what, expected", [("solvers", "reference"), ("families", "ik-like"), ("robots", "talos")],
+@pytest.mark.parametrize("what, expected", [("solvers", "yardstick"), ("families", "ik-like"), ("robots", "talos")],
                          ids=["solvers", "families", "robots"])
 def test_list(capsys, what, expected):
     code, out, _ = run(capsys, "list", what)
@@ -243,7 +243,7 @@ def test_list_families_shows_every_family(capsys):
     (["list", "planets"], "cannot list 'planets'"),
 ], ids=["no command", "unknown command", "missing file", "unknown option", "bad int", "bad choice", "list"])
 def test_usage_errors_exit_2_with_one_line(capsys, argv, fragment):
-    """README, "Errors": `hikbench COMMAND: error: ...`, pointing at that command's --help."""
+    """docs/cli.md, "Exit codes": `hikbench COMMAND: error: ...`, pointing at that command's --help."""
     code, _, err = run(capsys, *argv)
     assert_user_error(code, err, fragment)
     prog = "hikbench" if not argv or argv[0] not in COMMANDS else f"hikbench {argv[0]}"
@@ -269,8 +269,7 @@ def test_export_notes_what_soth_loses(capsys, tmp_path):
 
 
 def test_export_notes_bounds_soth_drops(capsys, tmp_path):
-    """SOTH reads an inequality bound beyond +-1e10 as no bound (audit 35,
-    finding 10); an equality target is not thresholded, so it is not noted."""
+    """SOTH reads an inequality bound beyond +-1e10 as no bound; an equality target is not thresholded, so it is not noted."""
     h = Hierarchy([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]], [0.0, -5e11, 3e12], [5e10, 1.0, 3e12], [0, 0, 1])
     save_npz(h, tmp_path / "b.npz")
     code, out, err = run(capsys, "export", str(tmp_path / "b.npz"), "--format", "soth", "--out", "-")
@@ -295,7 +294,7 @@ def test_solve_notes_a_long_warm_up(capsys, tmp_path, monkeypatch, cls, note):
     """hcod's first solve in a fresh process compiles for about 70 s: not in silence."""
     from doubles import tiny
 
-    from bench.commands import solve
+    from hikbench.bench.commands import solve
 
     monkeypatch.setattr(solve, "NOTE_AFTER_S", 0.1)
     (tmp_path / "slow.py").write_text(SLOW_WARMUP)

@@ -114,7 +114,7 @@ def test_malformed_npz(capsys, tmp_path, problem, command, kind, fragment):
 @pytest.fixture
 def empty_run(tmp_path):
     """A run directory with a results.csv (claims reads it before the scenario)."""
-    from bench.columns import names
+    from hikbench.bench.harness.columns import names
     d = tmp_path / "run"
     d.mkdir()
     (d / "results.csv").write_text(",".join(names()) + "\n")
@@ -137,7 +137,7 @@ def test_claims_bad_scenario(capsys, tmp_path, empty_run, make, fragment):
 
 
 def _results_csv(path):
-    from bench.columns import names
+    from hikbench.bench.harness.columns import names
 
     path.write_text(",".join(names()) + "\n")
     return path
@@ -177,12 +177,12 @@ def test_compare_option_errors(capsys, empty_run, argv, fragment):
 
 # ------------------------------------------------------------------- solve
 @pytest.mark.parametrize("solver, text, value", [
-    ("reference", "iterations  -", None),
+    ("yardstick", "iterations  -", None),
     ("cascade-clarabel", "iterations  -", None),
     ("hcod", "iterations  ", 2),
-], ids=["reference", "cascade", "hcod"])
+], ids=["yardstick", "cascade", "hcod"])
 def test_solve_iterations_not_reported(capsys, problem, solver, text, value):
-    from solvers import registry
+    from hikbench.solvers import registry
     if solver not in registry.available():
         pytest.skip(f"{solver} not installed")
     path = problem[1]

@@ -8,8 +8,8 @@ import pandas as pd
 import pytest
 from doubles import spec, write_suite
 
-from bench.cli import main
-from bench.compare import compare_frames
+from hikbench.bench.cli import main
+from hikbench.bench.analysis.compare import compare_frames
 
 
 def _frame(samples: dict, calib=1_000_000, verified=True, host="h"):
@@ -91,7 +91,7 @@ def test_injected_slowdown_end_to_end(tmp_path, capsys):
     `.ci/run` judges it, with a confirmation run: one run alone flagged a
     2 ms sleep against a 2 ms sleep in 1 of 20 tries (sleeps overshoot by
     what the host's load gives them)."""
-    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4], "depth": [1, 2]}, modes=("cold",),
+    suite = write_suite(tmp_path / "s.toml", ["yardstick"], grid={"n": [4], "depth": [1, 2]}, modes=("cold",),
                         repeat=7)
 
     def run(out, double):
@@ -121,7 +121,7 @@ def test_per_job_calibration_absorbs_transient_load():
 
 
 def test_a_case_must_fail_in_every_confirmation_run():
-    from bench.compare import confirmed
+    from hikbench.bench.analysis.compare import confirmed
 
     rng = np.random.default_rng(6)
     base = _frame(_samples(rng))
@@ -138,7 +138,7 @@ def test_a_case_must_fail_in_every_confirmation_run():
 def test_table_shows_each_verdicts_p_value_and_stays_aligned():
     # a "faster" row showed the p-value of the "slower" test (~1.0); a "slower, not reproduced"
     # verdict pushed its row's numbers out of their columns
-    from bench.compare import Comparison, confirmed, format_table
+    from hikbench.bench.analysis.compare import Comparison, confirmed, format_table
 
     rng = np.random.default_rng(7)
     base = _samples(rng, n_cases=3, noise=0.01)
@@ -174,16 +174,16 @@ def test_a_verdict_needs_the_minima_too(direction):
 
 
 def test_a_slowdown_the_samples_cannot_confirm_is_inconclusive_not_ok():
-    """The audit of 2026-11-23 measured hcod's `ci` samples (9 repetitions, the first timed ones
+    """hcod's `ci` samples, as measured (9 repetitions, the first timed ones
     up to 2x the others) and a real +45 % that read "ok 1.45 1.48 p=0.047": past the threshold
     both ways, not significant. It is `inconclusive` (shown and counted, exit 0), not `ok`."""
-    base = np.array([10876, 9324, 6620, 5869, 6260, 12349, 6310, 5268, 4918])  # the audit's samples
+    base = np.array([10876, 9324, 6620, 5869, 6260, 12349, 6310, 5268, 4918])  # measured samples
     new = (base * 1.45).astype(int)[[8, 7, 0, 2, 5, 1, 3, 6, 4]]
     c = compare_frames(_frame({("p0", "s"): base}), _frame({("p0", "s"): new}), {}, {})
     row = c.table.iloc[0]
     assert row["ratio"] > 1.15 and row["ratio_min"] > 1.15 and row["p_value"] >= 0.01
     assert row["verdict"] == "inconclusive" and len(c.inconclusive) == 1 and not c.failed
-    from bench.compare import format_table
+    from hikbench.bench.analysis.compare import format_table
     assert format_table(c).splitlines()[1].split()[:3] == ["inconclusive", "1.45", "1.45"]
     doubled = compare_frames(_frame({("p0", "s"): base}), _frame({("p0", "s"): base * 3}), {}, {})
     assert doubled.table.iloc[0]["verdict"] == "SLOWER"  # (the same samples 3x slower: significant)
@@ -192,7 +192,7 @@ def test_a_slowdown_the_samples_cannot_confirm_is_inconclusive_not_ok():
 @pytest.fixture(scope="module")
 def one_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("one-run")
-    suite = write_suite(d / "s.toml", ["reference"], grid={"n": [4], "depth": [1, 2]}, modes=("cold",), repeat=3)
+    suite = write_suite(d / "s.toml", ["yardstick"], grid={"n": [4], "depth": [1, 2]}, modes=("cold",), repeat=3)
     assert main(["run", "--quiet", "--suite", str(suite), "--out", str(d / "run")]) == 0
     return d / "run"
 
@@ -219,7 +219,7 @@ def _edited_copy(run, dest, column, value, drop_run_json=False):
 @pytest.mark.parametrize("column, value, drop_run_json, fragments", [
     ("samples_ns", "not json", False, ["results.csv: data row 1: column 'samples_ns' holds 'not json', not JSON"]),
     ("level_norms", "[0.1, ", False, ["results.csv: data row 1: column 'level_norms' holds '[0.1, ', not JSON"]),
-    ("calib_ns", "", True, ["results.csv: data row 1 (reference, ", "has timing samples but no calibration",
+    ("calib_ns", "", True, ["results.csv: data row 1 (yardstick, ", "has timing samples but no calibration",
                             "run.json has no calibration_ns"]),
 ], ids=["samples-not-json", "norms-cut", "no-calibration"])
 def test_a_hand_edited_run_is_a_one_line_error(one_run, tmp_path, capsys, column, value, drop_run_json,
@@ -246,7 +246,7 @@ def test_a_later_run_failing_another_way_or_without_the_case_does_not_clear_it()
     """A 3x slowdown in runs 1 and 3 that times out in run 2 (or has no row there: the run was
     cut) stays SLOWER; each run alone exits 1, so together they must too. Only a run where the
     case passes clears it."""
-    from bench.compare import confirmed
+    from hikbench.bench.analysis.compare import confirmed
 
     rng = np.random.default_rng(7)
     base = _frame(_samples(rng))
@@ -289,7 +289,7 @@ def test_a_verified_case_without_a_row_is_missing_when_the_run_selected_its_solv
 
 
 def test_the_output_says_why_a_case_fails_and_which_runs_differ(tmp_path, capsys):
-    from bench.columns import names
+    from hikbench.bench.harness.columns import names
 
     rng = np.random.default_rng(9)
     base = _frame(_samples(rng, n_cases=2))
@@ -306,7 +306,7 @@ def test_the_output_says_why_a_case_fails_and_which_runs_differ(tmp_path, capsys
 
 
 def _env(cpu: str, arch: str, target: str | None = None) -> dict:
-    """run.json's environment as bench.environment writes it, reduced to what names the machine class
+    """run.json's environment as hikbench.bench.harness.environment writes it, reduced to what names the machine class
     (``target``: numba's; None as in the run.json files written before it was recorded)."""
     return {"cpu": cpu, **({"numba_target": target} if target else {}), "blas": {"threadpools": [
         {"user_api": "blas", "internal_api": "openblas", "architecture": "Zen",
@@ -316,7 +316,7 @@ def _env(cpu: str, arch: str, target: str | None = None) -> dict:
 
 
 def _write_run(d, frame: pd.DataFrame, env: dict | None):
-    from bench.columns import names
+    from hikbench.bench.harness.columns import names
 
     d.mkdir(parents=True)
     frame.reindex(columns=names()).to_csv(d / "results.csv", index=False)
@@ -339,7 +339,7 @@ def baselines(tmp_path):
 
 
 def test_the_machine_class_is_the_cpu_and_numpys_openblas_kernels():
-    from bench.environment import environment, machine_class
+    from hikbench.bench.harness.environment import environment, machine_class
 
     assert machine_class(_env("AMD EPYC", "SkylakeX")) == "AMD EPYC, OpenBLAS SkylakeX"
     assert machine_class(_env("AMD EPYC", "SkylakeX", "znver5")) == "AMD EPYC, OpenBLAS SkylakeX, numba znver5"
@@ -359,7 +359,7 @@ def test_numbas_target_picks_among_baselines_of_one_cpu_and_kernels(tmp_path, ha
     """A run on a Zen 5 (numba znver5) takes the baseline recorded on its target; failing that,
     one recorded before run.json named the target, on its CPU and kernels; never one of another
     target (against a Zen 4's, 5 cases of hcod on a Zen 5 read 1.23-1.30x slower in 2 of 2 runs)."""
-    from bench.compare import NoBaseline, baseline_for
+    from hikbench.bench.analysis.compare import NoBaseline, baseline_for
 
     rng = np.random.default_rng(3)
     targets = {"epyc-skylakex": None, "epyc-skylakex-znver5": "znver5", "epyc-skylakex-znver4": "znver4"}

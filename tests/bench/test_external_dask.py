@@ -6,9 +6,9 @@ import pandas as pd
 import pytest
 from doubles import spec, write_suite
 
-from bench.cli import main
-from bench.columns import KEY
-from bench.results import read_results
+from hikbench.bench.cli import main
+from hikbench.bench.harness.columns import KEY
+from hikbench.bench.harness.results import read_results
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "bench" / "examples" / "nullspace_external.py"
@@ -16,11 +16,11 @@ EXAMPLE = ROOT / "bench" / "examples" / "nullspace_external.py"
 
 def test_external_example_program(tmp_path):
     import sys
-    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4, 6], "depth": [2]}, repeat=2)
+    suite = write_suite(tmp_path / "s.toml", ["yardstick"], grid={"n": [4, 6], "depth": [2]}, repeat=2)
     ext = f"external:nsx={sys.executable} {EXAMPLE} {{problem}} {{out}}"
     bad = f"external:bad={sys.executable} -c 'import sys; sys.exit(3)' {{out}}"
     assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "out"),
-                 "--solvers", "reference", ext, bad]) == 0
+                 "--solvers", "yardstick", ext, bad]) == 0
     df = read_results(tmp_path / "out")
     nsx = df[df["solver"] == "external:nsx"]
     assert len(nsx) == 2 and set(nsx["mode"]) == {"cold"}
@@ -31,14 +31,14 @@ def test_external_example_program(tmp_path):
 
 
 def test_external_spec_needs_out_placeholder(tmp_path, capsys):
-    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4]})
+    suite = write_suite(tmp_path / "s.toml", ["yardstick"], grid={"n": [4]})
     assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "o"),
                  "--solvers", "external:x=prog {problem}"]) == 2
     assert "{out}" in capsys.readouterr().err
 
 
 def test_dask_workers_give_the_same_rows_as_serial(tmp_path):
-    suite = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), spec("WrongSolver"),
+    suite = write_suite(tmp_path / "s.toml", ["yardstick", spec("SleepSolver"), spec("WrongSolver"),
                                               spec("SegfaultSolver")], grid={"n": [4, 6], "depth": [1, 2]})
     assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "serial")]) == 0
     assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "dask"), "--workers",
@@ -66,7 +66,7 @@ def test_existing_scheduler(tmp_path):
 
 def test_external_reads_soth_text(tmp_path):
     import sys
-    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [5], "depth": [2]}, repeat=1,
+    suite = write_suite(tmp_path / "s.toml", ["yardstick"], grid={"n": [5], "depth": [2]}, repeat=1,
                         modes=("cold",))
     prog = Path(__file__).with_name("soth_external.py")
     ext = f"external:soth={sys.executable} {prog} {{problem_soth}} {{out}}"
@@ -94,7 +94,7 @@ def test_a_stopped_run_prints_one_line_and_keeps_the_rows(tmp_path, workers, sig
 
     from clitools import start
 
-    from bench.results import finished_keys
+    from hikbench.bench.harness.results import finished_keys
 
     suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], grid={"n": [4, 5, 6, 7, 8, 9]},
                         modes=("cold",))
@@ -135,7 +135,7 @@ def test_the_local_workers_drop_only_the_races_of_a_closing_cluster(msg, kept):
     heartbeat traceback after hikbench's one line (test above). Any other record is kept."""
     import logging
 
-    from bench.executors import _drop_close_races
+    from hikbench.bench.harness.executors import _drop_close_races
 
     record = logging.LogRecord("distributed.worker", logging.ERROR, __file__, 1, msg, None, None)
     assert _drop_close_races(record) is kept

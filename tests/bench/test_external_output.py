@@ -1,5 +1,5 @@
 """External programs that break the output protocol cost one error row (with
-a reason naming the field), never the run (bench/external.py)."""
+a reason naming the field), never the run (bench/harness/external.py)."""
 
 import json
 import sys
@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from doubles import tiny, write_suite
 
-from bench.cli import main
-from bench.external import run_external
-from bench.results import read_results
+from hikbench.bench.cli import main
+from hikbench.bench.harness.external import run_external
+from hikbench.bench.harness.results import read_results
 
 # writes argv[3] (a JSON object; "X" stands for a correct-length zero x) to {out}
 PROG = """
@@ -80,17 +80,17 @@ def test_good_output(prog, payload, status, iterations, reported):
 
 def test_run_goes_on_after_a_bad_output(prog, tmp_path, capsys):
     """The audit's case: "iterations": "many" aborted the whole run with a traceback."""
-    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4, 6], "depth": [2]}, repeat=1,
+    suite = write_suite(tmp_path / "s.toml", ["yardstick"], grid={"n": [4, 6], "depth": [2]}, repeat=1,
                         modes=("cold",))
     bad = f"external:bad={sys.executable} {prog} {{problem}} {{out}} '{{\"x\": \"X\", \"iterations\": \"many\"}}'"
     assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "o"),
-                 "--solvers", "reference", bad]) == 0
+                 "--solvers", "yardstick", bad]) == 0
     assert "Traceback" not in capsys.readouterr().err
     df = read_results(tmp_path / "o")
     rows = df[df["solver"] == "external:bad"]
     assert len(rows) == 2 and set(rows["status"]) == {"error"}
     assert rows["reason"].str.contains('"iterations" must be an integer').all()
-    assert set(df[df["solver"] == "reference"]["status"]) == {"optimal"}
+    assert set(df[df["solver"] == "yardstick"]["status"]) == {"optimal"}
 
 
 def test_a_timed_out_program_leaves_no_background_child(tmp_path):

@@ -1,4 +1,4 @@
-"""A solver of one's own (README, "Adding a solver"): the template in
+"""A solver of one's own (docs/adding-a-solver.md): the template in
 bench/examples/pinv_recursion.py through `hikbench solve`, `hikbench run` and a
 package's entry point, without touching the registry."""
 
@@ -14,11 +14,11 @@ import tomli_w
 from clitools import assert_user_error, run
 from doubles import write_suite
 
-from bench.cli import main
-from bench.results import read_results
-from problems import generators as G
-from problems.files import save_npz
-from solvers.reference import reference_solution
+from hikbench.bench.cli import main
+from hikbench.bench.harness.results import read_results
+from hikbench.problems import generators as G
+from hikbench.problems.files import save_npz
+from hikbench.solvers.yardstick import yardstick_solution
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "bench" / "examples" / "pinv_recursion.py"
@@ -39,7 +39,7 @@ def test_solve_command_takes_a_module_class(capsys, equality_file):
     assert code == 0, err
     res = json.loads(out)
     assert res["solver"] == SPEC and res["status"] == "optimal"
-    np.testing.assert_allclose(res["x"], reference_solution(h), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(res["x"], yardstick_solution(h), rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("solver, option, fragment", [
@@ -81,7 +81,7 @@ def test_an_entry_point_gives_it_a_registry_name(tmp_path, equality_file):
     env = {"PATH": "/usr/bin:/bin", "PYTHONPATH": str(site), "OPENBLAS_NUM_THREADS": "1"}
 
     def hikbench(*argv):
-        return subprocess.run([sys.executable, "-m", "bench", *map(str, argv)], capture_output=True, text=True,
+        return subprocess.run([sys.executable, "-m", "hikbench", *map(str, argv)], capture_output=True, text=True,
                               env=env, cwd=tmp_path, timeout=300, check=False)
 
     listed = hikbench("list", "solvers")
@@ -91,11 +91,11 @@ def test_an_entry_point_gives_it_a_registry_name(tmp_path, equality_file):
     assert solved.returncode == 0, solved.stderr
     res = json.loads(solved.stdout)
     assert res["status"] == "optimal"
-    np.testing.assert_allclose(res["x"], reference_solution(equality_file[0]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(res["x"], yardstick_solution(equality_file[0]), rtol=0, atol=1e-12)
 
 
 USER_FILE = '''
-from solvers.nullspace import SOLVERS
+from hikbench.solvers.nullspace import SOLVERS
 
 PinvAll = next(i.factory for i in SOLVERS if i.name == "pinv-all")
 
@@ -132,7 +132,7 @@ def test_a_run_refuses_a_solver_whose_rows_would_land_under_another_name(capsys,
     f = tmp_path / "mine.py"
     f.write_text(USER_FILE)
     suite = tmp_path / "s.toml"
-    suite.write_bytes(tomli_w.dumps({"repeat": 1, "modes": ["cold"], "solvers": ["reference"], "problems": [
+    suite.write_bytes(tomli_w.dumps({"repeat": 1, "modes": ["cold"], "solvers": ["yardstick"], "problems": [
         {"family": "equality", "grid": {"n": [6], "depth": [2], "rows": [2]}, "seeds": [0]}]}).encode())
     code, _, err = run(capsys, "run", "--quiet", "--suite", suite, "--out", tmp_path / "out", "--solvers",
                        *[s.format(f=f) for s in solvers])
@@ -149,7 +149,7 @@ def test_solve_command_refuses_a_class_without_solve(capsys, tmp_path, equality_
 
 _BAD = """
 import numpy as np
-from solvers.base import SolveResult
+from hikbench.solvers.base import SolveResult
 
 
 class WrongShape:
@@ -169,14 +169,14 @@ class Array:
 
 @pytest.mark.parametrize("cls, reason", [
     ("WrongShape", "wrong-shape: solve() returned x of shape (5,): expected (4,), one value per variable"),
-    ("Array", "array: solve() returned ndarray: expected a solvers.base.SolveResult"),
+    ("Array", "array: solve() returned ndarray: expected a hikbench.solvers.base.SolveResult"),
 ], ids=["wrong-shape", "ndarray"])
 def test_an_answer_off_the_contract_is_an_error_row_naming_it(tmp_path, capsys, cls, reason):
     """x of the wrong length was recorded `optimal` with an empty reason (verdict "no x"), an
     ndarray instead of a SolveResult gave "AttributeError ... at worker.py:55" (run) or a
     traceback (solve, scenario)."""
     (tmp_path / "bad.py").write_text(_BAD)
-    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4], "depth": [1]}, modes=("cold",),
+    suite = write_suite(tmp_path / "s.toml", ["yardstick"], grid={"n": [4], "depth": [1]}, modes=("cold",),
                         repeat=1)
     assert main(["run", "--quiet", "--suite", str(suite), "--out", str(tmp_path / "out"),
                  "--solvers", f"{tmp_path / 'bad.py'}:{cls}"]) == 0
@@ -189,7 +189,7 @@ def test_an_answer_off_the_contract_is_an_error_row_naming_it(tmp_path, capsys, 
 
 
 _FACTORIES = """
-from solvers.base import Solver
+from hikbench.solvers.base import Solver
 
 
 class NeedsModel(Solver):
@@ -262,13 +262,13 @@ def test_solve_command_reports_a_solvers_exception_as_status_error(capsys, tmp_p
 def test_a_solver_file_imports_its_sibling_modules(capsys, tmp_path, equality_file):
     """``python mine.py`` finds a module beside it; so does ``--solver mine.py:Class``
     (it was a traceback: ModuleNotFoundError)."""
-    (tmp_path / "helpers_of_mine.py").write_text("from solvers.nullspace import SOLVERS\n"
+    (tmp_path / "helpers_of_mine.py").write_text("from hikbench.solvers.nullspace import SOLVERS\n"
                                                  "PINV = next(i.factory for i in SOLVERS if i.name == 'pinv-all')\n")
     (tmp_path / "mine.py").write_text("import helpers_of_mine\n\n\nclass Mine(helpers_of_mine.PINV):\n"
                                       "    name = 'mine'\n")
     code, out, err = run(capsys, "solve", equality_file[1], "--solver", f"{tmp_path / 'mine.py'}:Mine", "--json")
     assert code == 0, err
-    np.testing.assert_allclose(json.loads(out)["x"], reference_solution(equality_file[0]), rtol=0, atol=1e-12)
+    np.testing.assert_allclose(json.loads(out)["x"], yardstick_solution(equality_file[0]), rtol=0, atol=1e-12)
     assert str(tmp_path) not in sys.path
 
 

@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 from doubles import spec, write_suite
 
-from bench.claims import (
+from hikbench.bench.analysis.claims import (
     FAIL,
     MISSING,
     PASS,
@@ -19,14 +19,14 @@ from bench.claims import (
     claim_e,
     paper_flops_formula,
 )
-from bench.cli import main
-from bench.columns import names
+from hikbench.bench.cli import main
+from hikbench.bench.harness.columns import names
 
 
 @pytest.fixture(scope="module")
 def sweep_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("sweep")
-    suite = write_suite(d / "s.toml", ["reference", spec("SleepSolver"), spec("WrongSolver")],
+    suite = write_suite(d / "s.toml", ["yardstick", spec("SleepSolver"), spec("WrongSolver")],
                         grid={"n": [4, 8, 16], "depth": [1, 2, 3]}, repeat=2)
     assert main(["run", "--quiet", "--suite", str(suite), "--out", str(d / "out")]) == 0
     return d / "out"
@@ -144,7 +144,7 @@ def test_claims_command_exit_codes(sweep_run, tmp_path, capsys):
 
 def test_scenario_csvs_are_found_and_concatenated(sweep_run, tmp_path):
     """`hikbench scenario reach` writes one CSV per (solver, warm-start mode)."""
-    from bench.claims import load_scenario
+    from hikbench.bench.analysis.claims import load_scenario
 
     d = tmp_path / "scenarios" / "reach"
     d.mkdir(parents=True)
@@ -164,7 +164,7 @@ def test_scenario_csvs_are_found_and_concatenated(sweep_run, tmp_path):
 
 
 def test_times_from_several_hosts_are_normalised():
-    from bench.report import normalise_hosts
+    from hikbench.bench.analysis.report import normalise_hosts
 
     df = pd.DataFrame({"host": ["a", "a", "b"], "calib_ns": [1e6, 1e6, 2e6], "time_median_s": [1.0, 1.0, 2.0],
                        "time_min_s": [1.0, 1.0, 2.0], "time_p95_s": [1.0, 1.0, 2.0]})

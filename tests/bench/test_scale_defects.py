@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 from doubles import spec, tiny
 
-from bench.executors import DaskExecutor
+from hikbench.bench.harness.executors import DaskExecutor
 
 NO_DASHBOARD = {"dashboard_address": "127.0.0.1:0", "scheduler_kwargs": {"dashboard": False}}  # no port warning
 
@@ -41,7 +41,7 @@ def test_a_second_run_on_the_same_cluster_solves_with_the_edited_solver_file(clu
     """Each Dask worker kept one isolated process for its whole life: a second run on a
     long-lived cluster solved with the module of the first run, after the user edited it."""
     path = tmp_path / "mysolver.py"
-    text = ("from solvers.base import Solver, SolveResult\n"
+    text = ("from hikbench.solvers.base import Solver, SolveResult\n"
             "class Versioned(Solver):\n"
             "    name = 'versioned'\n"
             "    def solve(self, h):\n"
@@ -93,10 +93,10 @@ def test_jobs_that_kill_their_dask_worker_cost_their_rows_only():
 def test_a_local_cluster_left_without_workers_ends_the_run_with_an_error(monkeypatch):
     """The local cluster lost every worker (its nannies dropped under repeated worker deaths;
     here the cluster is scaled to 0): the run waited for them forever, silently."""
-    import bench.executors
-    from problems.errors import HikbenchError
+    import hikbench.bench.harness.executors
+    from hikbench.problems.errors import HikbenchError
 
-    monkeypatch.setattr(bench.executors, "NO_WORKER_GRACE", 1.0)
+    monkeypatch.setattr(hikbench.bench.harness.executors, "NO_WORKER_GRACE", 1.0)
     ex = DaskExecutor(workers=1)
     try:
         ex.cluster.scale(0)
@@ -119,10 +119,10 @@ def test_a_watchdog_whose_polls_fail_ends_the_run_with_an_error(monkeypatch, err
     watchdog without a word (a connection error while the client still ran): the run went on
     unguarded (a local cluster losing its workers would then hang). A connection error counts as
     no worker, for the grace."""
-    import bench.executors
-    from problems.errors import HikbenchError
+    import hikbench.bench.harness.executors
+    from hikbench.problems.errors import HikbenchError
 
-    monkeypatch.setattr(bench.executors, "NO_WORKER_GRACE", 1.0)
+    monkeypatch.setattr(hikbench.bench.harness.executors, "NO_WORKER_GRACE", 1.0)
     ex = DaskExecutor(workers=1)
     try:
         def broken():
@@ -139,9 +139,9 @@ def test_an_external_cluster_without_workers_is_waited_for_with_a_warning(monkey
     """A cluster whose workers all left mid-run: the run waited without a word."""
     from distributed import LocalCluster
 
-    import bench.executors
+    import hikbench.bench.harness.executors
 
-    monkeypatch.setattr(bench.executors, "NO_WORKER_GRACE", 0.5)
+    monkeypatch.setattr(hikbench.bench.harness.executors, "NO_WORKER_GRACE", 0.5)
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, **NO_DASHBOARD) as c:
         ex = DaskExecutor(scheduler=c.scheduler_address)
         back = threading.Timer(5.0, c.scale, args=(1,))  # a worker comes back (the warning: after ~2 s)
@@ -195,7 +195,7 @@ def _gone(pid: int, within: float = 5.0) -> bool:
 def test_a_timed_out_solve_leaves_no_helper_process_behind(tmp_path):
     """Only the worker was killed on a timeout: a process the solver started kept running
     (and burning CPU through the timings of the rest of the run, and after it)."""
-    from bench.isolation import IsolatedWorker
+    from hikbench.bench.harness.isolation import IsolatedWorker
 
     pidfile = tmp_path / "helper.pid"
     job = {**_solve_job(f"{__file__}:SpawnThenHangSolver"), "options": {"pidfile": str(pidfile)}}
@@ -212,13 +212,13 @@ class _ReferenceCrashes:
     name = "reference-crashes"
 
     def __init__(self, log):
-        from bench.executors import SerialExecutor
+        from hikbench.bench.harness.executors import SerialExecutor
 
         self.inner = SerialExecutor(log=log)
 
     def map(self, items):
         for tag, job, timeout in items:
-            if job["kind"] == "reference":
+            if job["kind"] == "yardstick":
                 yield tag, {"status": "crashed", "reason": "worker process killed by signal SIGKILL",
                             "x": None, "samples_ns": []}
             else:
@@ -233,9 +233,9 @@ def test_a_crashed_reference_is_computed_again_by_the_next_run(tmp_path):
     of that --out reused the failure, and none of its rows could be verified."""
     from doubles import write_suite
 
-    from bench.results import read_results
-    from bench.runner import run_suite
-    from bench.suites import load_suite
+    from hikbench.bench.harness.results import read_results
+    from hikbench.bench.harness.runner import run_suite
+    from hikbench.bench.suites import load_suite
 
     suite = load_suite(str(write_suite(tmp_path / "s.toml", [spec("SleepSolver")],
                                        grid={"n": [4], "depth": [1]})))
@@ -257,9 +257,9 @@ def test_a_scheduler_without_workers_is_a_one_line_error(tmp_path, capsys, monke
     from distributed import LocalCluster
     from doubles import write_suite
 
-    import bench.executors
+    import hikbench.bench.harness.executors
 
-    monkeypatch.setattr(bench.executors, "_CONNECT_TIMEOUT", 1.0)
+    monkeypatch.setattr(hikbench.bench.harness.executors, "_CONNECT_TIMEOUT", 1.0)
     suite = write_suite(tmp_path / "s.toml", [spec("SleepSolver")], grid={"n": [4], "depth": [1]})
     with LocalCluster(n_workers=0, processes=False, **NO_DASHBOARD) as c:
         code, _, err = run(capsys, "run", "--quiet", "--suite", suite, "--out", tmp_path / "out",
@@ -349,7 +349,7 @@ def _write_run(out, problems, solver="s") -> str:
     """A run directory whose results.csv holds one verified cold row per problem id."""
     import json
 
-    from bench.results import ResultsWriter
+    from hikbench.bench.harness.results import ResultsWriter
 
     with ResultsWriter(out) as w:
         for p in problems:
@@ -386,8 +386,8 @@ def test_compare_lists_the_cases_only_in_one_run(tmp_path, capsys):
 def test_a_header_cut_off_by_a_kill_is_written_again(tmp_path):
     """A run killed while writing the header left a partial line; it was cut off, and the rows
     were then appended to the empty file without a header (the first row read as the header)."""
-    from bench.columns import names
-    from bench.results import RESULTS, ResultsWriter, read_results
+    from hikbench.bench.harness.columns import names
+    from hikbench.bench.harness.results import RESULTS, ResultsWriter, read_results
 
     out = tmp_path / "out"
     out.mkdir()
@@ -402,7 +402,7 @@ def test_a_header_cut_off_by_a_kill_is_written_again(tmp_path):
 def test_a_row_still_being_written_is_not_read(tmp_path):
     """report / claims on a run in progress read the half-written last row as a row with
     status, mode and verified all NaN (charged as a failure in the report)."""
-    from bench.results import RESULTS, read_results
+    from hikbench.bench.harness.results import RESULTS, read_results
 
     out = tmp_path / "out"
     _write_run(out, ["p0", "p1"])
@@ -432,19 +432,19 @@ def test_a_relative_solver_file_is_found_by_workers_running_elsewhere(tmp_path, 
     from distributed import LocalCluster
     from doubles import write_suite
 
-    from bench.cli import main
-    from bench.results import read_results
+    from hikbench.bench.cli import main
+    from hikbench.bench.harness.results import read_results
 
     (tmp_path / "workers").mkdir()
     (tmp_path / "user").mkdir()
     (tmp_path / "user" / "mysolver.py").write_text(
-        "from solvers.base import OPTIMAL, Solver, SolveResult\n"
-        "from solvers.reference import nullspace_reference\n"
+        "from hikbench.solvers.base import OPTIMAL, Solver, SolveResult\n"
+        "from hikbench.solvers.yardstick import nullspace_yardstick\n"
         "class Mine(Solver):\n"
         "    name = 'mine'\n"
         "    def solve(self, h):\n"
-        "        return SolveResult(nullspace_reference(h), OPTIMAL)\n")
-    suite = write_suite(tmp_path / "s.toml", ["reference"], grid={"n": [4], "depth": [1]}, modes=("cold",))
+        "        return SolveResult(nullspace_yardstick(h), OPTIMAL)\n")
+    suite = write_suite(tmp_path / "s.toml", ["yardstick"], grid={"n": [4], "depth": [1]}, modes=("cold",))
     monkeypatch.chdir(tmp_path / "workers")
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=True, **NO_DASHBOARD) as c:
         monkeypatch.chdir(tmp_path / "user")
@@ -461,7 +461,7 @@ def test_a_lost_scheduler_is_an_error_that_says_how_to_resume(cluster, tmp_path)
 
     from distributed import Future
 
-    from problems.errors import HikbenchError
+    from hikbench.problems.errors import HikbenchError
 
     ex = DaskExecutor(scheduler=cluster.scheduler_address)
     items = [(0, _solve_job(spec("SleepSolver")), 10.0),
@@ -484,7 +484,7 @@ def test_a_lost_scheduler_is_an_error_that_says_how_to_resume(cluster, tmp_path)
 def test_the_job_timeout_includes_the_first_solve_when_there_is_no_larger_allowance(first_timeout):
     """The deadline was restarted after the job's first (untimed) solve even when no larger
     first-solve allowance applied: a job of 2 x 0.6 s passed a 1 s hard limit as `optimal`."""
-    from bench.isolation import IsolatedWorker
+    from hikbench.bench.harness.isolation import IsolatedWorker
 
     job = {**_solve_job(spec("SleepSolver")), "options": {"delay": 0.6}}  # first solve + 1 repetition
     with IsolatedWorker() as w:
@@ -515,17 +515,17 @@ class ReadsStdinSolver:
     def solve(self, h):
         import sys
 
-        from solvers.base import OPTIMAL, SolveResult
-        from solvers.reference import nullspace_reference
+        from hikbench.solvers.base import OPTIMAL, SolveResult
+        from hikbench.solvers.yardstick import nullspace_yardstick
 
         data = sys.stdin.buffer.read(4)
-        return SolveResult(nullspace_reference(h), OPTIMAL, reason=f"stdin gave {data!r}")
+        return SolveResult(nullspace_yardstick(h), OPTIMAL, reason=f"stdin gave {data!r}")
 
 
 def test_a_solver_reading_stdin_reads_nothing_instead_of_the_job_channel():
     """The worker's stdin was the job channel: a solver reading it waited there until the
     job timeout (a `timeout` row whose reason blamed the solver's speed)."""
-    from bench.isolation import IsolatedWorker
+    from hikbench.bench.harness.isolation import IsolatedWorker
 
     with IsolatedWorker() as w:
         res = w.run(_solve_job(f"{__file__}:ReadsStdinSolver"), timeout=3.0)
@@ -573,7 +573,7 @@ def test_a_solver_that_hangs_on_every_problem_gets_the_first_solve_allowance_onc
     the allowance per row, not the job timeout."""
     import time
 
-    from bench.isolation import IsolatedWorker
+    from hikbench.bench.harness.isolation import IsolatedWorker
 
     job = _solve_job(spec("HangSolver"))
     with IsolatedWorker() as w:
@@ -594,7 +594,7 @@ def test_after_a_restart_a_solver_gets_twice_its_first_solve_not_the_full_allowa
     the first solve it took (its caches are on disk), and a slow first solve still fits."""
     import time
 
-    from bench.isolation import IsolatedWorker
+    from hikbench.bench.harness.isolation import IsolatedWorker
 
     narrow = {**_solve_job(spec("HangOnWideSolver")), "hierarchy": tiny(n=4)}
     wide = {**narrow, "hierarchy": tiny(n=8)}
@@ -630,9 +630,9 @@ def test_a_scheduler_address_that_is_not_a_dask_scheduler_is_a_one_line_error(tm
     from clitools import assert_user_error, run
     from doubles import write_suite
 
-    import bench.executors
+    import hikbench.bench.harness.executors
 
-    monkeypatch.setattr(bench.executors, "_CONNECT_TIMEOUT", 0.5)
+    monkeypatch.setattr(hikbench.bench.harness.executors, "_CONNECT_TIMEOUT", 0.5)
     server = socket.create_server(("127.0.0.1", 0))
     port = server.getsockname()[1]
 
@@ -660,14 +660,14 @@ def test_a_scheduler_address_that_is_not_a_dask_scheduler_is_a_one_line_error(tm
 
 @pytest.mark.parametrize("flag, status", [(None, "timeout"), ("5", "optimal")], ids=["suite", "flag"])
 def test_first_solve_timeout_flag(tmp_path, flag, status):
-    """``run --first-solve-timeout`` overrides the suite's allowance (audit 35, 11):
+    """``run --first-solve-timeout`` overrides the suite's allowance:
     a 1 s first solve under the suite's 0.5 s limit times out, under the flag's 5 s it
     is given its time, and run.json records the allowance used."""
     import json
 
     from doubles import write_suite
 
-    from bench.cli import main
+    from hikbench.bench.cli import main
 
     suite = write_suite(tmp_path / "s.toml", [spec("FirstSlowSolver")], grid={"n": [4], "depth": [1]},
                         modes=("cold",), repeat=1, timeout=0.5)
@@ -680,7 +680,7 @@ def test_first_solve_timeout_flag(tmp_path, flag, status):
 
 
 def test_first_solve_timeout_flag_must_be_positive(capsys):
-    from bench.cli import main
+    from hikbench.bench.cli import main
 
     assert main(["run", "--first-solve-timeout", "0"]) == 2
     assert "--first-solve-timeout must be a number of seconds > 0; got 0.0" in capsys.readouterr().err

@@ -5,10 +5,10 @@ import pandas as pd
 import pytest
 from doubles import WarmReference, spec, still_run
 
-from bench.cli import main
-from bench.scenario import COLUMNS, NO_WARM_START, check_run, run_scenario
-from problems.robots.scenarios import ScenarioError, load_scenario, scenario_names
-from problems.robots.stacks import StackError
+from hikbench.bench.cli import main
+from hikbench.bench.scenarios.runner import COLUMNS, NO_WARM_START, check_run, run_scenario
+from hikbench.problems.robots.scenarios import ScenarioError, load_scenario, scenario_names
+from hikbench.problems.robots.stacks import StackError
 
 
 def test_shipped_scenarios():
@@ -17,7 +17,7 @@ def test_shipped_scenarios():
 
 def test_reach_runs_a_few_steps_with_reference():
     sc = load_scenario("reach")
-    run = run_scenario(sc, "reference", steps=4)
+    run = run_scenario(sc, "yardstick", steps=4)
     df = run.records
     assert list(df.columns[:len(COLUMNS)]) == list(COLUMNS)
     for task in ("com", "left_foot", "right_foot", "right_hand", "velocity"):
@@ -36,7 +36,7 @@ def test_reach_runs_a_few_steps_with_reference():
 
 def test_step_targets_follow_the_schedule():
     """At t = 0 the swing foot target is its nominal placement; during the swing it lifts."""
-    from problems.robots.kinematics import KinematicState
+    from hikbench.problems.robots.kinematics import KinematicState
 
     sc = load_scenario("step")
     sc.reset()
@@ -73,7 +73,7 @@ def test_user_scenario_on_an_arm(tmp_path):
     f.write_text('name = "arm"\nstack = "arm_reach"\nsteps = 30\n'
                  '[[trajectories]]\ntask = "ee"\nstart = 0.0\nduration = 0.5\noffset = [0.05, 0.0, -0.05]\n'
                  '[checks]\nlimits = true\ntracked = { ee = 5e-3 }\n')
-    run = run_scenario(load_scenario(f), "reference")
+    run = run_scenario(load_scenario(f), "yardstick")
     checks = check_run(run)
     assert checks and all(c.passed for c in checks), checks
 
@@ -114,7 +114,7 @@ def _solver_params(names):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("solver", _solver_params(["hcod", "cascade-daqp", "cascade-quadprog", "reference"]))
+@pytest.mark.parametrize("solver", _solver_params(["hcod", "cascade-daqp", "cascade-quadprog", "yardstick"]))
 def test_reach_checks_pass(solver):
     """ICRA 2010 sec. XII: limits respected, CoM/feet regulated, reach error to its lowest value
     while out of reach, then to 0 (700 steps; ~1 s with a cascade, ~10 s with the reference)."""
@@ -125,7 +125,7 @@ def test_reach_checks_pass(solver):
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("solver", _solver_params(["hcod", "cascade-daqp", "reference"]))
+@pytest.mark.parametrize("solver", _solver_params(["hcod", "cascade-daqp", "yardstick"]))
 def test_step_checks_pass(solver):
     run = run_scenario(load_scenario("step"), solver)
     checks = check_run(run)
@@ -149,8 +149,8 @@ def test_step_with_dls_liegeois_shows_its_posture_fighting_the_feet():
 
 @pytest.fixture
 def warm_solver(monkeypatch):
-    from solvers import registry
-    from solvers.registry import SolverInfo
+    from hikbench.solvers import registry
+    from hikbench.solvers.registry import SolverInfo
 
     reg = dict(registry._load())
     reg["fake-warm"] = SolverInfo("fake-warm", "test double", WarmReference, supports_inequalities=True,
@@ -199,11 +199,11 @@ def test_a_run_cut_by_steps_is_not_judged_on_final_errors(last_status, passed, f
 def test_a_solver_given_as_file_and_class(tmp_path, capsys):
     """`scenario --solver file.py:Class` runs like `solve` and `run` take it; a factory with a
     warm_start parameter gets the modes, its default labels the run without --warm-start."""
-    rc = main(["scenario", "reach", "--solver", spec("WarmReference"), "--solver", "solvers.reference:ReferenceSolver",
+    rc = main(["scenario", "reach", "--solver", spec("WarmReference"), "--solver", "hikbench.solvers.yardstick:YardstickSolver",
                "--steps", "2", "--out", str(tmp_path)])
     out = capsys.readouterr().out
     assert rc == 0, out
-    assert f"{spec('WarmReference')} (time): 2 steps" in out and "solvers.reference:ReferenceSolver: 2 steps" in out
+    assert f"{spec('WarmReference')} (time): 2 steps" in out and "hikbench.solvers.yardstick:YardstickSolver: 2 steps" in out
     csvs = sorted(p.name for p in tmp_path.glob("*.csv"))
     assert len(csvs) == 2 and any(c.endswith("doubles.py_WarmReference_time.csv") for c in csvs), csvs
     run = run_scenario(load_scenario("reach"), spec("WarmReference"), warm_start="none", steps=2)
@@ -211,8 +211,8 @@ def test_a_solver_given_as_file_and_class(tmp_path, capsys):
 
 
 def test_warm_start_modes_are_the_solvers_own(tmp_path, capsys):
-    """--warm-start takes the values of the solver's warm_start parameter, not only hcod's
-    (audit 35, 11); a mode that a solver refuses fails before any run, naming the value."""
+    """--warm-start takes the values of the solver's warm_start parameter, not only hcod's;
+    a mode that a solver refuses fails before any run, naming the value."""
     rc = main(["scenario", "reach", "--solver", spec("WarmOnOff"), "--warm-start", "on", "off",
                "--steps", "2", "--out", str(tmp_path)])
     assert rc == 0, capsys.readouterr()
@@ -220,7 +220,7 @@ def test_warm_start_modes_are_the_solvers_own(tmp_path, capsys):
         assert (pd.read_csv(next(tmp_path.glob(f"*WarmOnOff_{mode}.csv")))["warm_start"] == mode).all()
     capsys.readouterr()
     out = tmp_path / "bad"
-    rc = main(["scenario", "reach", "--solver", "reference", "--solver", "hcod", "--warm-start", "time", "tme",
+    rc = main(["scenario", "reach", "--solver", "yardstick", "--solver", "hcod", "--warm-start", "time", "tme",
                "--steps", "2", "--out", str(out)])
     _, err = capsys.readouterr()
     assert rc == 2 and "'tme'" in err and "warm_start" in err, err
@@ -229,7 +229,7 @@ def test_warm_start_modes_are_the_solvers_own(tmp_path, capsys):
 
 def test_a_solver_that_raises_costs_its_run_not_the_command(tmp_path, capsys):
     """The exception is the step's status and reason, the run stops there and fails its check."""
-    rc = main(["scenario", "reach", "--solver", spec("RaisingSolver"), "--solver", "reference",
+    rc = main(["scenario", "reach", "--solver", spec("RaisingSolver"), "--solver", "yardstick",
                "--steps", "2", "--out", str(tmp_path)])
     out = capsys.readouterr().out
     assert rc == 1

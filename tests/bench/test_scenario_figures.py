@@ -5,8 +5,8 @@ import matplotlib.axes
 import pytest
 from doubles import still_run
 
-from bench.scenario_plots import plot_runs
-from problems.robots.scenarios import load_scenario
+from hikbench.bench.scenarios.plots import plot_runs
+from hikbench.problems.robots.scenarios import load_scenario
 
 
 @pytest.mark.parametrize("steps", [10, 310], ids=["run-ends-before-the-event", "run-covers-the-event"])

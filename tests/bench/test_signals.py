@@ -1,5 +1,5 @@
 """In-process solver calls (``solve``, ``scenario``) end on SIGTERM and Ctrl-C
-even when the solver never returns to the interpreter (audit 35, finding 3)."""
+even when the solver never returns to the interpreter."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import pytest
 from clitools import start
 from doubles import spec, tiny
 
-from problems.files import save_npz
+from hikbench.problems.files import save_npz
 
 
 @pytest.mark.parametrize("sig", ["SIGTERM", "SIGINT"])

@@ -4,10 +4,10 @@ stderr naming solver, option, value and what is expected; no traceback."""
 import numpy as np
 import pytest
 
-from bench.cli import main
-from problems import Hierarchy, Level
-from problems.files import save_npz
-from solvers import registry
+from hikbench.bench.cli import main
+from hikbench.problems import Hierarchy, Level
+from hikbench.problems.files import save_npz
+from hikbench.solvers import registry
 
 
 @pytest.fixture

@@ -1,11 +1,11 @@
 """Suites: built-in TOML files parse and generate; solver patterns, settings,
-modes and skipped solvers expand as documented in bench/suites.py."""
+modes and skipped solvers expand as documented in bench/suites/__init__.py."""
 
 import pytest
 from doubles import spec, write_suite
 
-from bench.problemset import ProblemSpec, file_stem, generate
-from bench.suites import SuiteError, builtin_suites, expand, load_suite, suite_from_dict
+from hikbench.bench.suites.problemset import ProblemSpec, file_stem, generate
+from hikbench.bench.suites import SuiteError, builtin_suites, expand, load_suite, suite_from_dict
 
 
 @pytest.mark.parametrize("name", sorted(builtin_suites()), ids=str)
@@ -40,16 +40,16 @@ def test_generation_is_deterministic():
 
 
 def test_expand_modes_settings_and_skips(tmp_path):
-    path = write_suite(tmp_path / "s.toml", ["reference", spec("SleepSolver"), "nomatch-*"], grid={"n": [4]})
+    path = write_suite(tmp_path / "s.toml", ["yardstick", spec("SleepSolver"), "nomatch-*"], grid={"n": [4]})
     path.write_text(path.read_text() + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.1 }\n')
     tasks, skipped = expand(load_suite(str(path)))
     got = sorted((t.entry.solver, t.entry.settings, t.mode) for t in tasks)
-    assert got == [("reference", "default", "cold"),  # no warm start: no warm row
+    assert got == [("yardstick", "default", "cold"),  # no warm start: no warm row
                    ("sleep", "default", "cold"), ("sleep", "default", "warm"),
                    ("sleep", "slow", "cold"), ("sleep", "slow", "warm")]
     assert skipped == {"nomatch-*": "pattern matches no installed solver"}
-    tasks, _ = expand(load_suite(str(path)), solver_patterns=["reference"])
-    assert {t.entry.solver for t in tasks} == {"reference"}
+    tasks, _ = expand(load_suite(str(path)), solver_patterns=["yardstick"])
+    assert {t.entry.solver for t in tasks} == {"yardstick"}
 
 
 @pytest.mark.parametrize("data, match", [
@@ -77,26 +77,26 @@ def test_settings_of_a_solver_the_suite_does_not_run_are_an_error():
     """A [[settings]] for an installed solver missing from the suite's solvers was dropped
     without a word (the user forgot to add the solver). With --solvers the settings of the
     solvers left out are expected to go."""
-    suite = suite_from_dict({"solvers": ["reference"], "problems": [{"family": "equality"}],
+    suite = suite_from_dict({"solvers": ["yardstick"], "problems": [{"family": "equality"}],
                              "settings": [{"solver": "cascade-osqp", "name": "low",
                                            "options": {"accuracy": "low"}}]}, "mine")
     with pytest.raises(SuiteError, match="\\[\\[settings\\]\\] 'low': solver 'cascade-osqp' is not one of "
                                          "the suite's solvers \\(reference\\)"):
         expand(suite)
-    assert {t.entry.solver for t in expand(suite, solver_patterns=["reference"])[0]} == {"reference"}
+    assert {t.entry.solver for t in expand(suite, solver_patterns=["yardstick"])[0]} == {"yardstick"}
 
 
 def test_unknown_solver_is_an_error_listing_the_known_ones():
-    from bench.suites import resolve_solvers
-    from problems.errors import SolverNotFoundError
+    from hikbench.bench.suites import resolve_solvers
+    from hikbench.solvers.errors import SolverNotFoundError
 
     with pytest.raises(SolverNotFoundError, match=r"unknown solver 'no-such-solver' \(in the suite\); "
                                                   r"known solvers: .*hcod.*reference"):
-        resolve_solvers(["reference", "no-such-solver"])
+        resolve_solvers(["yardstick", "no-such-solver"])
 
 
 def test_unknown_family_names_the_known_ones():
-    from problems.errors import UnknownFamilyError
+    from hikbench.problems.errors import UnknownFamilyError
     with pytest.raises(UnknownFamilyError, match="equality"):
         generate(ProblemSpec("nope", {}, 0))
 
@@ -115,11 +115,11 @@ def test_relative_py_paths_resolve_next_to_the_suite(tmp_path):
 
 
 def test_robot_stacks_are_a_family_by_name(tmp_path):
-    """`family = "robot-stack"` (README: the robot stacks' family for the harness) was an unknown
+    """`family = "robot-stack"` (docs/robots.md: the robot stacks' family for the harness) was an unknown
     family; a user's stack file is a value of its `stack` parameter."""
-    from bench.cli import main
-    from bench.results import read_results
-    from problems.robots.testsets import stack_problem
+    from hikbench.bench.cli import main
+    from hikbench.bench.harness.results import read_results
+    from hikbench.problems.robots.testsets import stack_problem
 
     stack = tmp_path / "arm.toml"
     stack.write_text('name = "arm"\nrobot = "ur5"\ndt = 0.02\n[[levels]]\ntasks = [{ type = "joint_limits" }]\n'

@@ -1,18 +1,18 @@
-"""bench.worker.execute: the untimed start of a solve job."""
+"""hikbench.bench.harness.worker.execute: the untimed start of a solve job."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from bench.worker import execute
-from problems import generators as G
-from solvers.reference import ReferenceSolver
+from hikbench.bench.harness.worker import execute
+from hikbench.problems import generators as G
+from hikbench.solvers.yardstick import YardstickSolver
 
 CALLS: list[str] = []
 
 
-class RecordingSolver(ReferenceSolver):
+class RecordingSolver(YardstickSolver):
     """The reference solver, recording warmup() and solve() calls (module:Class spec)."""
 
     def warmup(self) -> None:
@@ -38,7 +38,7 @@ def test_warmup_comes_before_the_first_solve_and_the_notice():
     assert np.all(np.isfinite(out["x"]))
 
 
-class GcRecordingSolver(ReferenceSolver):
+class GcRecordingSolver(YardstickSolver):
     """The reference solver, recording for each solve whether the collector was on."""
 
     def solve(self, hierarchy):

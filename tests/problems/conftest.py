@@ -5,13 +5,13 @@ import pytest
 
 @pytest.fixture(scope="session")
 def talos():
-    from problems.robots.models import load_robot
+    from hikbench.problems.robots.models import load_robot
 
     return load_robot("talos")
 
 
 @pytest.fixture(scope="session")
 def panda():
-    from problems.robots.models import load_robot
+    from hikbench.problems.robots.models import load_robot
 
     return load_robot("panda")

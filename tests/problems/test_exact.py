@@ -1,4 +1,4 @@
-"""The exact certificate (problems.exact): hand-worked hierarchies whose optimum is derived in
+"""The exact certificate (hikbench.problems.exact): hand-worked hierarchies whose optimum is derived in
 the comments, its refusals, and the problems where double precision could not tell two solvers
 apart."""
 
@@ -7,9 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from problems import Hierarchy, HikbenchError, generators
-from problems.exact import certify
-from problems.files import load_npz
+from hikbench.problems import Hierarchy, HikbenchError, generators
+from hikbench.problems.exact import certify
+from hikbench.problems.files import load_npz
+from hikbench.problems.verify import level_norms
 
 INF = np.inf
 DATA = Path(__file__).parents[1] / "solvers" / "data"
@@ -80,8 +81,8 @@ def test_hcods_points_on_the_degenerate_families_are_certified(case):
     """hcod's point on each degenerate family (n = 5, seeds 0-2) is certified, and its level
     norms are the exact ones at 1e-9 of each level (verify's scale). (Seeds 0-9, n = 5 and 12:
     180 of 180 certified and equal.)"""
-    from problems.verify import level_scales
-    from solvers.hcod import HcodSolver
+    from hikbench.problems.verify import level_scales
+    from hikbench.solvers.hcod import HcodSolver
 
     for seed in range(3):
         h = generators.degenerate(case, 5, seed)
@@ -89,7 +90,7 @@ def test_hcods_points_on_the_degenerate_families_are_certified(case):
         cert = certify(h, x)
         assert cert.certified, (seed, cert.reason)
         tol = 1e-9 * level_scales(h, cert.x) + 1e-12
-        assert np.all(np.abs(h.level_norms(x) - cert.level_norms) <= tol), (seed, h.level_norms(x), cert.level_norms)
+        assert np.all(np.abs(level_norms(h, x) - cert.level_norms) <= tol), (seed, level_norms(h, x), cert.level_norms)
 
 
 def test_a_level_rank_deficient_only_to_rounding_is_refused():
@@ -98,7 +99,7 @@ def test_a_level_rank_deficient_only_to_rounding_is_refused():
     arithmetic the level's 4 violated rows are met by an x of norm ~1e17 that leaves the box:
     the active set read off hcod's point (rank 2 at its threshold) is not the stored problem's
     exact optimum, and the certificate says so rather than certify another problem's answer."""
-    from solvers.hcod import HcodSolver
+    from hikbench.solvers.hcod import HcodSolver
 
     h = generators.degenerate("rank_deficient", 12, 0)
     cert = certify(h, HcodSolver().solve(h).x)
@@ -109,14 +110,14 @@ def test_seed_6444s_reference_miss_is_shown_exactly():
     """badly_scaled n = 12 seed 6444 (saved, Haswell kernels; tests/solvers/test_reference.py).
     The certificate read off either point is the same exact optimum: level 3 at
     9.955567243937e-4 and level 4 at 73.69975508979, hcod's norms to 1e-12 of each."""
-    from solvers.hcod import HcodSolver
+    from hikbench.solvers.hcod import HcodSolver
 
     h = load_npz(DATA / "badly_scaled_12_6444.npz")
     x = HcodSolver().solve(h).x
     cert = certify(h, x)
     assert cert.certified, cert.reason
     np.testing.assert_allclose(cert.level_norms[3:], [9.955567243937e-4, 73.69975508979], rtol=1e-12)
-    np.testing.assert_allclose(h.level_norms(x)[3:], cert.level_norms[3:], rtol=1e-12)
+    np.testing.assert_allclose(level_norms(h, x)[3:], cert.level_norms[3:], rtol=1e-12)
 
 
 @pytest.mark.parametrize("name", ["badly_scaled_5_114", "badly_scaled_12_12591"], ids=["seed114", "seed12591"])
@@ -129,18 +130,18 @@ def test_a_tie_under_double_precision_is_hcods_exact_optimum(name):
     precision (114: 3.5e-13, 2e-16 of itself, 0 in float64 with the Haswell kernels; 12591:
     3.2e-13, 3e-18 of the level's scale 1.1e5) and level 3 drops by 6.3e-6 and 1.7e-6. So
     verify sees a tie at level 2 and a lower level 3; the exact optimum is hcod's."""
-    from problems.verify import level_scales
-    from solvers.hcod import HcodSolver
-    from solvers.reference import cascade_reference
+    from hikbench.problems.verify import level_scales
+    from hikbench.solvers.hcod import HcodSolver
+    from hikbench.solvers.yardstick import cascade_yardstick
 
     h = load_npz(DATA / f"{name}.npz")
     xh = HcodSolver().solve(h).x
-    xr, _ = cascade_reference(h)
+    xr, _ = cascade_yardstick(h)
     ch, cr = certify(h, xh), certify(h, xr)
     assert ch.certified and cr.certified, (ch.reason, cr.reason)
     np.testing.assert_allclose(cr.level_norms, ch.level_norms, rtol=1e-30, atol=1e-40)
-    np.testing.assert_allclose(h.level_norms(xh)[2:], ch.level_norms[2:], rtol=1e-13)
-    over = h.level_norms(xr) - ch.level_norms
+    np.testing.assert_allclose(level_norms(h, xh)[2:], ch.level_norms[2:], rtol=1e-13)
+    over = level_norms(h, xr) - ch.level_norms
     assert 0 <= over[2] < 1e-16 * level_scales(h, xr)[2] and over[3] < -1e-6, over
 
 
@@ -157,7 +158,7 @@ def test_rows_of_very_different_norms_are_certified():
 
 
 def _exact_of(rows, g):
-    from problems.exact import _Exact
+    from hikbench.problems.exact import _Exact
 
     E = _Exact(Hierarchy([[1.0, 0.0]], [0.0], [0.0], [0]), 50)
     mp = E.ctx.mpf
@@ -169,7 +170,7 @@ def test_exact_nnls_finds_multipliers_the_minimum_norm_solution_misses():
     lam = (1, 0, 0). The least-squares lam over all three rows (minimum-norm with each row
     at norm 1: mu = M^T (M M^T)^-1 (1, 0) = (3/4, 1/(2 sqrt 2), -1/4), lam_1 = mu_1 / sqrt 2) is
     (3/4, 1/4, -1/4), a wrong sign; Lawson and Hanson's NNLS, in 50 digits, finds (1, 0, 0)."""
-    from problems.exact import _lstsq_on, _nnls
+    from hikbench.problems.exact import _lstsq_on, _nnls
 
     E, C, g = _exact_of([[1, 0], [1, 1], [0, 1]], [-1, 0])
     lam = _lstsq_on(E, C, g, [0, 1, 2])
@@ -191,7 +192,7 @@ def test_exact_nnls_finds_multipliers_the_minimum_norm_solution_misses():
     ids=["no-nonnegative-lam", "free-row-any-sign", "signed-row-wrong-sign"],
 )
 def test_multipliers_vanish_only_where_multipliers_of_the_right_sign_exist(rows, free, g, expected):
-    from problems.exact import _multipliers_vanish
+    from hikbench.problems.exact import _multipliers_vanish
 
     E, _, gm = _exact_of(rows, g)
     E.A = [[E.ctx.mpf(v) for v in r] for r in rows]  # (held rows indexed into E.A)

@@ -7,9 +7,9 @@ import pytest
 from hik_strategies import hierarchies
 from hypothesis import given
 
-from problems import Hierarchy, InvalidHierarchyError, Level, ProblemFileError
-from problems.files import load, load_npz, save, save_npz
-from problems.soth import from_soth_text, load_soth, soth_order, to_soth_text
+from hikbench.problems import Hierarchy, InvalidHierarchyError, Level, ProblemFileError
+from hikbench.problems.files import load, load_npz, save, save_npz
+from hikbench.problems.soth import from_soth_text, load_soth, soth_order, to_soth_text
 
 INF = np.inf
 
@@ -226,7 +226,7 @@ def test_soth_parse_errors(text, message):
 
 def test_soth_invalid_numbers_name_the_file_line_and_row(tmp_path):
     """lo > hi is named as the file counts rows (the inequality block's own
-    index, audit 35 finding 9), with its line; ``row`` counts the level's rows."""
+    index), with its line; ``row`` counts the level's rows."""
     path = tmp_path / "bad.soth"
     path.write_text("variable size 1\nlevel\nequalities 1\n1 0\ninequalities 2\n1 0 1\n1 3 2\nend\n")
     message = r"^.*bad\.soth: line 7: level 0, inequality row 1: lower \(3.0\) > upper \(2.0\): expected"

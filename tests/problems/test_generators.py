@@ -1,13 +1,13 @@
 """Generators: requested ranks and conflicts (checked by SVD), inequality mixes,
 conditioning, determinism, the IK-like definition, degenerate cases; and
-problems.analysis, which `hikbench inspect` prints."""
+hikbench.problems.analysis, which `hikbench inspect` prints."""
 
 import numpy as np
 import pytest
 
-from problems import Hierarchy, HikbenchError, UnknownFamilyError
-from problems.analysis import level_structure
-from problems.generators import (
+from hikbench.problems import Hierarchy, HikbenchError, UnknownFamilyError
+from hikbench.problems.analysis import level_structure
+from hikbench.problems.generators import (
     DEGENERATE_CASES,
     FAMILIES,
     INEQUALITY_MIXES,
@@ -56,7 +56,7 @@ def test_random_hierarchy_hits_ranks_and_conflicts(n, rows, rank, shared, expect
     h = random_hierarchy(n, len(rows), rows, rank=rank, shared_rank=shared, inequality=inequality, seed=3)
     np.testing.assert_array_equal(h.rows_per_level, rows)
     assert ranks_and_conflicts(h) == expected
-    # problems.analysis (hikbench inspect) reports the same numbers
+    # hikbench.problems.analysis (hikbench inspect) reports the same numbers
     assert [(L.rank, L.conflicts) for L in level_structure(h)] == expected
 
 

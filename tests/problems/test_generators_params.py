@@ -6,8 +6,8 @@ import warnings
 import numpy as np
 import pytest
 
-from problems.errors import HikbenchError
-from problems.generators import degenerate, equality_stack, generate, ik_like, random_hierarchy
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.generators import degenerate, equality_stack, generate, ik_like, random_hierarchy
 
 
 @pytest.mark.parametrize("params, message", [

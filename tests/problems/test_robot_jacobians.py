@@ -8,9 +8,9 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from problems.robots.kinematics import KinematicState
-from problems.robots.limits import FrameDistance, JointPositionLimits
-from problems.robots.tasks import (
+from hikbench.problems.robots.kinematics import KinematicState
+from hikbench.problems.robots.limits import FrameDistance, JointPositionLimits
+from hikbench.problems.robots.tasks import (
     AlignmentTask,
     ComTask,
     DirectionTask,
@@ -56,7 +56,7 @@ def _cases():
 
 @pytest.mark.parametrize("robot_name,seed", _cases())
 def test_jacobian_matches_finite_differences(robot_name, seed):
-    from problems.robots.models import load_robot
+    from hikbench.problems.robots.models import load_robot
 
     robot = load_robot(robot_name)
     rng = np.random.default_rng(seed)
@@ -81,7 +81,7 @@ def test_jacobian_matches_finite_differences(robot_name, seed):
 def test_pose_feedforward_cancels_a_moving_target(robot_name):
     """e(q, T*) with T* moving at body velocity nu*: the rate -J_log Ad(M^-1) nu* at u = 0
     is what feedforward() returns with the sign flipped (FD on the target)."""
-    from problems.robots.models import load_robot
+    from hikbench.problems.robots.models import load_robot
 
     robot = load_robot(robot_name)
     rng = np.random.default_rng(7)

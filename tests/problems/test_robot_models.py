@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from problems.errors import HikbenchError
-from problems.robots.models import ROBOTS, FrameNotFoundError, RobotNotFoundError, load_robot
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.robots.models import ROBOTS, FrameNotFoundError, RobotNotFoundError, load_robot
 
 EXPECTED_NV = {"talos": 38, "romeo": 61, "g1": 35, "tiago": 48, "panda": 9, "ur5": 6, "solo12": 18}
 

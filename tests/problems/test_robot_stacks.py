@@ -3,10 +3,11 @@
 import numpy as np
 import pytest
 
-from problems.files import load_npz
-from problems.robots.stacks import StackError, StackSpec, build_stack, load_stack_spec, make_task, stack_names
-from problems.robots.testsets import save_test_set, stack_problem
-from solvers.reference import reference_solution
+from hikbench.problems.files import load_npz
+from hikbench.problems.robots.stacks import StackError, StackSpec, build_stack, load_stack_spec, make_task, stack_names
+from hikbench.problems.robots.testsets import save_test_set, stack_problem
+from hikbench.solvers.yardstick import yardstick_solution
+from hikbench.problems.verify import level_norms
 
 
 @pytest.mark.parametrize("name", stack_names())
@@ -48,8 +49,8 @@ def test_saved_test_set_round_trips_and_solves(tmp_path):
     assert [p.name for p in paths] == ["arm_reach-seed0.npz", "arm_reach-seed1.npz"]
     h = load_npz(paths[0])
     assert h == stack_problem("arm_reach", 0)
-    x = reference_solution(h)
-    assert np.all(h.level_norms(x)[:1] <= 1e-8)  # joint limits respected
+    x = yardstick_solution(h)
+    assert np.all(level_norms(h, x)[:1] <= 1e-8)  # joint limits respected
 
 
 def test_toml_errors_name_the_problem(tmp_path, panda):
@@ -113,7 +114,7 @@ def test_targets_given_in_the_file_are_kept(tmp_path, panda):
     kept, also by set_targets_from (stack_problem's random targets move the others only)."""
     import pinocchio as pin
 
-    from problems.robots.kinematics import KinematicState
+    from hikbench.problems.robots.kinematics import KinematicState
 
     f = _stack_file(tmp_path, '{ type = "position", frame = "ee", target = [0.3, 0.3, 0.3] }, '
                               '{ type = "orientation", name = "ee_rot", frame = "ee", target = { rpy = [3.0, 0.1, 0.2] } },'
@@ -134,7 +135,7 @@ def test_targets_given_in_the_file_are_kept(tmp_path, panda):
 
 
 def test_robot_family_for_the_harness():
-    from problems.robots.testsets import ROBOT_FAMILIES, SHIPPED_STACKS
+    from hikbench.problems.robots.testsets import ROBOT_FAMILIES, SHIPPED_STACKS
 
     assert list(SHIPPED_STACKS) == stack_names()
     fam = ROBOT_FAMILIES["robot-stack"]
@@ -143,7 +144,7 @@ def test_robot_family_for_the_harness():
 
 
 def test_an_unknown_frame_suggests_the_closest_names(panda):
-    from problems.robots.models import FrameNotFoundError, load_robot
+    from hikbench.problems.robots.models import FrameNotFoundError, load_robot
 
     with pytest.raises(FrameNotFoundError, match="e.g. tool0"):
         load_robot("ur5").frame_name("tool_0")

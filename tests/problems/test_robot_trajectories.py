@@ -4,7 +4,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
-from problems.robots.trajectories import (
+from hikbench.problems.robots.trajectories import (
     PointSegment,
     PoseSegment,
     TrajectoryError,

@@ -7,8 +7,8 @@ from hik_strategies import hierarchies, moderate
 from hypothesis import given
 from hypothesis import strategies as st
 
-from problems import Hierarchy, HikbenchError, Level, compare_lexicographic, level_norms, level_scales, verify
-from problems.verify import violation
+from hikbench.problems import Hierarchy, HikbenchError, Level, compare_lexicographic, level_norms, level_scales, verify
+from hikbench.problems.verify import violation
 
 INF = np.inf
 
@@ -112,7 +112,7 @@ def test_verdicts_at_the_ends_of_the_double_range(e):
     doubles (below 2^-512 or above 2^512): the norms are taken scaled by each level's largest
     violation, so they and the verdicts scale exactly. From plain sums of squares, every level
     norm was 0 at 2^-600 (a wrong answer passed as the reference) and inf at 2^600."""
-    from problems.generators import ik_like
+    from hikbench.problems.generators import ik_like
 
     h = ik_like(12, seed=3)
     rng = np.random.default_rng(0)

@@ -8,13 +8,13 @@ from functools import cache
 import numpy as np
 from threadpoolctl import threadpool_info
 
-from bench.environment import openblas_kernels
-from problems import generators as g
-from problems.hierarchy import Hierarchy, Level
-from solvers.reference import reference_solution
+from hikbench.bench.harness.environment import openblas_kernels
+from hikbench.problems import generators as g
+from hikbench.problems.hierarchy import Hierarchy, Level
+from hikbench.solvers.yardstick import yardstick_solution
 
 #: the kernels numpy's OpenBLAS chose on this CPU (threadpoolctl's ``architecture``, read as
-#: ``bench.environment.machine_class``), None without one
+#: ``hikbench.bench.harness.environment.machine_class``), None without one
 BLAS_KERNELS = openblas_kernels(threadpool_info())
 #: whether numpy's OpenBLAS runs its AVX-512 "SkylakeX" kernels: the test problems (random
 #: orthogonal factors, products) and the solvers' NumPy steps round otherwise there, and on the
@@ -55,7 +55,7 @@ def case(name: str) -> Hierarchy:
 
 @cache
 def reference(name: str) -> np.ndarray:
-    return reference_solution(case(name))
+    return yardstick_solution(case(name))
 
 
 def conditioned_stack(n: int, depth: int, rows: int, conds, target_scale: float = 1.0,

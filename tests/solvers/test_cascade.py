@@ -2,7 +2,7 @@
 per backend, freeze mode and accuracy profile; failure modes as statuses.
 
 Every (solver, profile, freeze, case) runs; the outcome is ``"ok"`` (status
-optimal and :func:`problems.verify.verify` finds no level that differs beyond
+optimal and :func:`hikbench.problems.verify.verify` finds no level that differs beyond
 the tolerance of :data:`RTOL`), ``"differs"`` (status optimal but the
 verification finds a level that differs: a wrong answer) or the status. The
 expected outcome is ``"ok"`` unless :data:`KNOWN` records otherwise — those
@@ -26,14 +26,14 @@ from baseline_cases import BIG_CASES, CASES, SKYLAKEX_BLAS, case, reference
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
-from problems import generators as g
-from problems.errors import SolverNotFoundError, SolverOptionError
-from problems.hierarchy import Hierarchy, Level
-from problems.verify import verify
-from solvers import _qp_backends as tables
-from solvers import cascade, registry
-from solvers.base import ERROR, INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL
-from solvers.reference import reference_solution
+from hikbench.problems import generators as g
+from hikbench.solvers.errors import SolverNotFoundError, SolverOptionError
+from hikbench.problems.hierarchy import Hierarchy, Level
+from hikbench.problems.verify import level_norms, verify
+from hikbench.solvers import _qp_backends as tables
+from hikbench.solvers import cascade, registry
+from hikbench.solvers.base import ERROR, INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL
+from hikbench.solvers.yardstick import yardstick_solution
 
 QP_SOLVERS = tuple(info.name for info in cascade.SOLVERS)
 ALL_CASCADES = QP_SOLVERS + ("cascade-cvxpy",)
@@ -553,13 +553,13 @@ def test_robust_cascades_match_reference_on_random_hierarchies(n, depth, rows, i
     0.10578903903 against the exact optimum 0.10578903733, level 3 then 6.8e-6 lower."""
     assume(depth * rows < n)
     h = g.random_hierarchy(n, depth, rows, inequality=inequality, box=box, seed=seed)
-    x_ref = reference_solution(h)
+    x_ref = yardstick_solution(h)
     for name in ROBUST:
         res = registry.create(name).solve(h)
         assert res.status == OPTIMAL, res.reason
         v = verify(h, res.x, x_ref, rtol=RTOL["high"][name])
         if not v.equal:
-            above = h.level_norms(res.x)[:v.level] - h.level_norms(x_ref)[:v.level]
+            above = level_norms(h, res.x)[:v.level] - level_norms(h, x_ref)[:v.level]
             assert v.lower == "a" and np.any(above > 0), (name, v, above)
 
 

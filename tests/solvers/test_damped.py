@@ -9,14 +9,14 @@ import numpy as np
 import pytest
 from baseline_cases import CASES, case
 
-from problems import generators as g
-from problems.errors import SolverOptionError
-from problems.files import load
-from problems.hierarchy import Hierarchy, Level
-from problems.verify import level_norms, verify
-from solvers import registry
-from solvers.base import INFEASIBLE_LEVEL, MAX_ITERATIONS, OPTIMAL, UNSUPPORTED
-from solvers.damped import BOX_RTOL, box_limits, liegeois_gradient
+from hikbench.problems import generators as g
+from hikbench.solvers.errors import SolverOptionError
+from hikbench.problems.files import load
+from hikbench.problems.hierarchy import Hierarchy, Level
+from hikbench.problems.verify import level_norms, verify
+from hikbench.solvers import registry
+from hikbench.solvers.base import INFEASIBLE_LEVEL, MAX_ITERATIONS, OPTIMAL, UNSUPPORTED
+from hikbench.solvers.damped import BOX_RTOL, box_limits, liegeois_gradient
 
 DATA = Path(__file__).parent / "data"
 NON_STRICT = ("weighted", "dls", "dls-liegeois")
@@ -236,7 +236,7 @@ def test_weights_length_mismatch_is_unsupported():
 def test_a_posture_task_is_not_taken_for_a_box():
     """Unit equality rows (x = target) are a task, not limits: dls-liegeois
     found no box in such a hierarchy and must say so rather than report the
-    task's own violation as "outside the limits" (audit 35, finding 8)."""
+    task's own violation as "outside the limits"."""
     h = Hierarchy.from_levels([Level.equality(np.ones((1, 3)), [3.0], "sum"),
                                Level.equality(np.eye(3), [0.5, 1.0, 1.5], "posture")])
     assert box_limits(h) is None

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from solvers.hcod._basis import (
+from hikbench.solvers.hcod._basis import (
     LAZY_MIN_N,
     basis_head,
     basis_n,
@@ -24,8 +24,8 @@ from solvers.hcod._basis import (
     multipliers,
     push_reflectors,
 )
-from solvers.hcod._explicit import W_PERMUTED
-from solvers.hcod._factored import Q_ID, Q_M, QH, basis_row, flush, queue_sizes
+from hikbench.solvers.hcod._explicit import W_PERMUTED
+from hikbench.solvers.hcod._factored import Q_ID, Q_M, QH, basis_row, flush, queue_sizes
 
 pytestmark = pytest.mark.usefixtures("hcod_kernels_loaded_first")
 

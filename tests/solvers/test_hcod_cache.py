@@ -13,14 +13,14 @@ from pathlib import Path
 import pytest
 from numba.core.registry import CPUDispatcher
 
-from solvers.hcod._cache import PACKAGE_DIR, PackageSourcesLocator, sources_digest
+from hikbench.solvers.hcod._cache import PACKAGE_DIR, PackageSourcesLocator, sources_digest
 
 HCOD_MODULES = ["_basis", "_equality", "_explicit", "_factored", "_kernel", "_linalg", "_setup"]
 ROOT = Path(__file__).resolve().parents[2]
 
 
 def _dispatchers(module_name: str):
-    module = importlib.import_module(f"solvers.hcod.{module_name}")
+    module = importlib.import_module(f"hikbench.solvers.hcod.{module_name}")
     return [(name, obj) for name, obj in vars(module).items()
             if isinstance(obj, CPUDispatcher) and obj.py_func.__module__ == module.__name__]
 
@@ -28,7 +28,7 @@ def _dispatchers(module_name: str):
 @pytest.mark.parametrize("module_name", HCOD_MODULES)
 def test_every_cached_kernel_is_stamped_by_all_hcod_sources(module_name):
     found = _dispatchers(module_name)
-    assert found, f"no compiled function found in solvers.hcod.{module_name}"
+    assert found, f"no compiled function found in hikbench.solvers.hcod.{module_name}"
     for name, d in found:
         cache = d._cache  # numba's FunctionCache (a NullCache without cache=True)
         locator = getattr(getattr(cache, "_impl", None), "locator", None)
@@ -39,7 +39,7 @@ def test_every_cached_kernel_is_stamped_by_all_hcod_sources(module_name):
 
 def test_the_package_init_defines_no_compiled_function():
     """sources_digest leaves __init__.py out: nothing compiled may live there."""
-    import solvers.hcod as package
+    import hikbench.solvers.hcod as package
 
     assert not [name for name, obj in vars(package).items()  # (_eq_run: _equality's, bound here)
                 if isinstance(obj, CPUDispatcher) and obj.py_func.__module__ == package.__name__]
@@ -81,7 +81,7 @@ from pathlib import Path
 sys.path.insert(0, {root!r})
 sys.path.insert(0, {tmp!r})
 if {install}:
-    from solvers.hcod._cache import install
+    from hikbench.solvers.hcod._cache import install
     install(Path({tmp!r}) / "pkg")
 import pkg.main
 print(pkg.main.f())
@@ -128,7 +128,7 @@ sys.path.insert(0, {tmp!r})
 warnings.simplefilter("error")  # (a RuntimeWarning of load_kernels fails the run unless expected)
 if {expect_warning}:
     warnings.simplefilter("always")
-from solvers.hcod._cache import install, load_kernels
+from hikbench.solvers.hcod._cache import install, load_kernels
 install(Path({tmp!r}) / "pkg")
 import pkg.main
 how = load_kernels(pkg.main.f, {child!r}, Path({tmp!r}) / "pkg")
@@ -154,7 +154,7 @@ def test_load_kernels_compiles_in_a_child_and_loads(tmp_path, helper_first):
         assert _run(tmp_path, install=True) == 11
         for f in (pkg / "__pycache__").glob("main.f-*"):
             f.unlink()
-    child = (f"from pathlib import Path; from solvers.hcod._cache import install; install(Path({str(pkg)!r})); "
+    child = (f"from pathlib import Path; from hikbench.solvers.hcod._cache import install; install(Path({str(pkg)!r})); "
              f"import pkg.main; pkg.main.f()")  # (its sys.path: the parent's)
     how, stderr = _load(tmp_path, child)
     assert how == ["compiled by a child process", "1", "11"], stderr
@@ -184,7 +184,7 @@ def test_load_kernels_reports_a_failing_child(tmp_path):
 def test_load_kernels_stops_a_child_past_its_timeout(tmp_path):
     pkg = _package(tmp_path)
     code = (f"import sys; sys.path[:0] = [{str(ROOT)!r}, {str(tmp_path)!r}]\n"
-            f"from pathlib import Path\nfrom solvers.hcod._cache import install, load_kernels\n"
+            f"from pathlib import Path\nfrom hikbench.solvers.hcod._cache import install, load_kernels\n"
             f"install(Path({str(pkg)!r}))\nimport pkg.main\n"
             f"load_kernels(pkg.main.f, 'import time; time.sleep(60)', Path({str(pkg)!r}), timeout=2)\n")
     out = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=300,

@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from solvers.hcod._linalg import (
+from hikbench.solvers.hcod._linalg import (
     ROW_RANK_RTOL,
     WEAK_PIVOT,
     apply_reflectors,
@@ -270,7 +270,7 @@ def _level_reflectors(L: int, seed: int):
 def test_four_reflectors_at_once_equal_four_in_turn(L, rows):
     """reflect_quad / reflect_quad4 give H4 H3 H2 H1 x of each row, with the
     coupling products of quad_gram (the products of the reflectors' tails)."""
-    from solvers.hcod._linalg import quad_gram, reflect_quad, reflect_quad4
+    from hikbench.solvers.hcod._linalg import quad_gram, reflect_quad, reflect_quad4
 
     V, b = _level_reflectors(L, seed=L * rows)
     X = np.random.default_rng(rows).standard_normal((rows, L))

@@ -8,19 +8,19 @@ from baseline_cases import case, conditioned_stack
 from hypothesis import given
 from hypothesis import strategies as st
 
-from problems import generators as g
-from problems.errors import SolverOptionError
-from problems.hierarchy import Hierarchy
-from problems.verify import level_norms, level_scales, verify
-from solvers import registry
-from solvers.base import OPTIMAL, UNSUPPORTED
-from solvers.nullspace import (
+from hikbench.problems import generators as g
+from hikbench.solvers.errors import SolverOptionError
+from hikbench.problems.hierarchy import Hierarchy
+from hikbench.problems.verify import level_norms, level_scales, verify
+from hikbench.solvers import registry
+from hikbench.solvers.base import OPTIMAL, UNSUPPORTED
+from hikbench.solvers.nullspace import (
     flops_cod_all_at_once,
     flops_cod_recursion,
     flops_svd_all_at_once,
     flops_svd_recursion,
 )
-from solvers.reference import reference_solution
+from hikbench.solvers.yardstick import yardstick_solution
 
 STRICT = ("nullspace-svd", "nullspace-cod")
 #: verify() rtol per solver on well-conditioned equality stacks (round-off only)
@@ -42,16 +42,16 @@ def test_recursion_matches_reference(name, problem):
     h = EQUALITY_PROBLEMS[problem]()
     res = registry.create(name).solve(h)
     assert res.status == OPTIMAL
-    v = verify(h, res.x, reference_solution(h), rtol=RTOL[name])
+    v = verify(h, res.x, yardstick_solution(h), rtol=RTOL[name])
     assert v.equal, v
     # minimum-norm solution (u_0 = 0), like the reference
-    np.testing.assert_allclose(res.x, reference_solution(h), rtol=0, atol=1e-8 * (1 + np.linalg.norm(res.x)))
+    np.testing.assert_allclose(res.x, yardstick_solution(h), rtol=0, atol=1e-8 * (1 + np.linalg.norm(res.x)))
 
 
 @given(n=st.integers(2, 10), depth=st.integers(1, 5), rows=st.integers(1, 4), seed=st.integers(0, 10_000))
 def test_recursions_match_reference_on_random_equality_stacks(n, depth, rows, seed):
     h = g.equality_stack(n, depth, rows, seed=seed)
-    x_ref = reference_solution(h)
+    x_ref = yardstick_solution(h)
     for name in STRICT:
         res = registry.create(name).solve(h)
         assert res.status == OPTIMAL
@@ -69,7 +69,7 @@ def test_inequalities_are_unsupported(name):
 
 @pytest.mark.parametrize("name", STRICT + ("pinv-all",))
 def test_free_rows_are_named_as_free(name):
-    """A free row (no bound) is declined too, but not called an inequality (audit 35, 11)."""
+    """A free row (no bound) is declined too, but not called an inequality."""
     inf = np.inf
     h = Hierarchy([[1.0, 0.0], [0.0, 1.0], [1.0, 1.0]], [-inf, 0.0, 0.0], [inf, 1.0, 0.0], [0, 0, 1])
     assert registry.create(name).solve(h).reason == (f"{name}: equality hierarchies only; "
@@ -84,7 +84,7 @@ def test_pinv_all_is_not_a_hierarchy():
     h = g.degenerate("saturated", n=12)  # conflicting levels: stacking averages them
     res = registry.create("pinv-all").solve(h)
     assert res.status == OPTIMAL
-    v = verify(h, res.x, reference_solution(h))
+    v = verify(h, res.x, yardstick_solution(h))
     assert v.level == 0 and v.lower == "b"  # worse than the hierarchy at the top level
     # on a consistent stack it is the minimum-norm solution of the stacked system
     h2 = g.equality_stack(10, 2, 3, seed=2)
@@ -106,7 +106,7 @@ def test_svd_projector_update_drifts_on_ill_conditioned_saturated_stack():
     the deep levels get rank 0, and the COD recursion stays within 1e-9 on
     the levels that decide x and ~1e-8 relative on the saturated ones."""
     h = conditioned_stack(36, 24, 6, conds=[1e8], seed=0)
-    x_ref = reference_solution(h)
+    x_ref = yardstick_solution(h)
     svd = registry.create("nullspace-svd").solve(h)
     cod = registry.create("nullspace-cod").solve(h)
     assert svd.info["ranks"][6:] != (0,) * 18  # noise counted as rank
@@ -124,7 +124,7 @@ def test_svd_projector_update_leaks_into_ill_conditioned_top_level():
     steps leak into level 0's row space: level 0's norm deviates by ~1e-8
     relative; with (15) it stays at round-off (~1e-16)."""
     h = conditioned_stack(36, 4, 6, conds=[1e8], target_scale=10.0, seed=0)
-    x_ref = reference_solution(h)
+    x_ref = yardstick_solution(h)
     rel = {}
     for name in STRICT:
         x = registry.create(name).solve(h).x
@@ -145,7 +145,7 @@ def test_flop_counts_match_paper_section_vi():
 
 
 def test_flop_formula_terms():
-    # one level of r rows on n variables, terms as documented in solvers.nullspace
+    # one level of r rows on n variables, terms as documented in hikbench.solvers.nullspace
     n, r = 10, 3
     assert flops_svd_recursion(n, [r]) == (n * n * r + (6 * n * r * r + 20 * r ** 3) + n * n * r
                                            + 2 * n * r + r * r + r)
@@ -175,7 +175,7 @@ def test_pseudo_inverse_and_projector_update_formulas(cls_name, rank):
     """apply_pinv = (J P)^+ (eqs. (11) / (13)); the update term is
     (J P)^+ (J P) (eq. (14)) for SVD and Y Y^T (eq. (15)) for COD, both the
     orthogonal projector on the row space of J P."""
-    import solvers.nullspace as ns
+    import hikbench.solvers.nullspace as ns
 
     rng = np.random.default_rng(rank)
     M = rng.standard_normal((3, rank)) @ rng.standard_normal((rank, 7)) if rank else np.zeros((3, 7))

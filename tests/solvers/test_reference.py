@@ -1,12 +1,12 @@
 """The reference agrees with independent methods.
 
-1. Equality hierarchies: ``nullspace_reference`` (SVD null-space recursion)
-   against ``cascade_reference`` (QP cascade + polishing) forced on the same
+1. Equality hierarchies: ``nullspace_yardstick`` (SVD null-space recursion)
+   against ``cascade_yardstick`` (QP cascade + polishing) forced on the same
    problem by one added free row (a free row changes no level's optimum, but
    makes the hierarchy "have inequalities"). The two share no code beyond the
    Hierarchy model.
 
-2. Inequality hierarchies: ``cascade_reference`` against a brute-force solution
+2. Inequality hierarchies: ``cascade_yardstick`` against a brute-force solution
    of the sequence of LSIs (ICRA 2010 eqs. (33)-(36)) by **enumeration of the
    KKT points of each level's QP** (:func:`enumerate_qp`). Why it is correct
    and independent:
@@ -22,7 +22,7 @@
      the optimum (strong duality of convex QPs). So the optimum is the
      **largest** candidate value; no primal feasibility test is needed.
    * All minimisers of one Lagrangian share P z, so the maximising candidate
-     gives the optimal slack w_k* exactly (it is unique, DESIGN.md), which
+     gives the optimal slack w_k* exactly (it is unique: ICRA 2010, sec. IV), which
      freezes level k for the next levels: lower_k + w_k* <= A_k x <= upper_k + w_k*.
    * A last stage with P = I (min ||x||) gives the unique minimum-norm x.
 
@@ -37,11 +37,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from problems import Hierarchy, Level, compare_lexicographic
-from problems.generators import degenerate, equality_stack, ik_like, random_hierarchy
-from problems.verify import verify
-from solvers.base import OPTIMAL
-from solvers.reference import ReferenceSolver, cascade_reference, nullspace_reference, reference_solution
+from hikbench.problems import Hierarchy, Level, compare_lexicographic
+from hikbench.problems.generators import degenerate, equality_stack, ik_like, random_hierarchy
+from hikbench.problems.verify import level_norms, verify, violation
+from hikbench.solvers.base import OPTIMAL
+from hikbench.solvers.yardstick import YardstickSolver, cascade_yardstick, nullspace_yardstick, yardstick_solution
 
 INF = np.inf
 
@@ -138,8 +138,8 @@ def test_brute_force_on_the_hand_case():
 @pytest.mark.parametrize("h", CASES.values(), ids=CASES.keys())
 def test_cascade_reference_agrees_with_kkt_enumeration(h):
     norms, x_bf = brute_force_lexicographic(h)
-    x, info = cascade_reference(h)
-    np.testing.assert_allclose(h.level_norms(x), norms, rtol=1e-7, atol=1e-8)
+    x, info = cascade_yardstick(h)
+    np.testing.assert_allclose(level_norms(h, x), norms, rtol=1e-7, atol=1e-8)
     np.testing.assert_allclose(x, x_bf, rtol=1e-6, atol=1e-7)
     for k, w in enumerate(info["slack"]):  # reported slacks: same norms
         np.testing.assert_allclose(np.linalg.norm(w), norms[k], rtol=1e-7, atol=1e-8)
@@ -152,9 +152,9 @@ def test_nullspace_reference_agrees_with_cascade_reference(n, depth, rows, seed,
     h = equality_stack(n, depth, rows, seed=seed, rank=min(rows, n) - 1 if deficient else None)
     forced = Hierarchy.from_levels([*h, Level(np.ones((1, n)), [-INF], [INF])], n=n)  # one free row
     assert forced.has_inequalities
-    x_ns = nullspace_reference(h)
-    x_qp, _ = cascade_reference(forced)
-    np.testing.assert_allclose(h.level_norms(x_qp), h.level_norms(x_ns), rtol=1e-7, atol=1e-8)
+    x_ns = nullspace_yardstick(h)
+    x_qp, _ = cascade_yardstick(forced)
+    np.testing.assert_allclose(level_norms(h, x_qp), level_norms(h, x_ns), rtol=1e-7, atol=1e-8)
     np.testing.assert_allclose(x_qp, x_ns, rtol=1e-6, atol=1e-7)
 
 
@@ -162,14 +162,14 @@ def test_nullspace_reference_by_hand():
     # level 0: x0 + x1 = 2; level 1: x0 - x1 = 0 -> x = (1, 1); level 2: x0 = 5 is decided above (norm 4)
     h = Hierarchy.from_levels([Level.equality([[1, 1, 0]], [2]), Level.equality([[1, -1, 0]], [0]),
                                Level.equality([[1, 0, 0]], [5])])
-    x = nullspace_reference(h)
+    x = nullspace_yardstick(h)
     np.testing.assert_allclose(x, [1, 1, 0], atol=1e-14)  # min norm: x2 = 0
-    np.testing.assert_allclose(h.level_norms(x), [0, 0, 4], atol=1e-14)
-    assert np.array_equal(reference_solution(h), x)
+    np.testing.assert_allclose(level_norms(h, x), [0, 0, 4], atol=1e-14)
+    assert np.array_equal(yardstick_solution(h), x)
 
 
 def test_reference_solver_interface():
-    res = ReferenceSolver().solve(conflicting_top())
+    res = YardstickSolver().solve(conflicting_top())
     assert res.status == OPTIMAL
     np.testing.assert_allclose(res.x, [0, 2], atol=1e-8)
 
@@ -181,13 +181,13 @@ def test_reference_solver_interface():
 def test_cascade_reference_agrees_with_kkt_enumeration_random(n, depth, rows, mix, box, seed):
     h = random_hierarchy(n, depth, rows, inequality=mix, box=box, box_bound=0.5, seed=seed)
     norms, x_bf = brute_force_lexicographic(h)
-    x, _ = cascade_reference(h)
-    np.testing.assert_allclose(h.level_norms(x), norms, rtol=1e-7, atol=1e-8)
+    x, _ = cascade_yardstick(h)
+    np.testing.assert_allclose(level_norms(h, x), norms, rtol=1e-7, atol=1e-8)
     np.testing.assert_allclose(x, x_bf, rtol=1e-6, atol=1e-7)
     # sanity of the brute force itself: no random x is lexicographically better
     rng = np.random.default_rng(seed)
     for x_try in rng.standard_normal((20, n)):
-        v = compare_lexicographic(h.level_norms(x_try), norms, rtol=0.0, atol=1e-9)
+        v = compare_lexicographic(level_norms(h, x_try), norms, rtol=0.0, atol=1e-9)
         assert v.lower != "a", f"x={x_try} beats the brute force at level {v.level}"
 
 
@@ -203,11 +203,11 @@ def _no_interior():
 
 def test_a_stage_no_backend_solves_is_solved_on_widened_bounds_polished_and_certified(monkeypatch):
     """Such a stage had no reference at all (4.5% of the ill-conditioned sweep)."""
-    from solvers import reference
-    from solvers.hcod import HcodSolver
+    from hikbench.solvers import reference
+    from hikbench.solvers.hcod import HcodSolver
 
     h = _no_interior()
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     widened = [k for k, b in enumerate(info["backend"]) if "bounds widened by" in b]
     # which stages the backends fail on depends on their rounding: level 3, then the minimum-norm
     # stage (AVX2) or level 4 (AVX-512), before the span rows were left out; since, the minimum-
@@ -217,12 +217,12 @@ def test_a_stage_no_backend_solves_is_solved_on_widened_bounds_polished_and_cert
     assert v.equal, v
     monkeypatch.setattr(reference, "WIDEN_RTOL", ())
     monkeypatch.setattr(reference, "_descend_stage", lambda *args: None)  # (the last try: below)
-    with pytest.raises(reference.ReferenceError, match=r"^(level [34]|the minimum-norm stage): no QP backend "
+    with pytest.raises(reference.YardstickError, match=r"^(level [34]|the minimum-norm stage): no QP backend "
                                                        r"solved the level \(clarabel: PrimalInfeasible; piqp: "
                                                        r"Status\.PIQP_\w+; .*\); the primal active set from "
                                                        r"the level above's point: not certified optimal \(KKT "
                                                        r"check\)$"):
-        cascade_reference(h)
+        cascade_yardstick(h)
 
 
 @pytest.mark.parametrize("case", ["no-interior-unwidened", "badly-scaled-12-seed-89"])
@@ -238,16 +238,16 @@ def test_a_stage_no_backend_solves_is_descended_to_from_the_level_above(case, mo
     level 2 there and PIQP's 1e-8 above at level 3: no judges)."""
     from pathlib import Path
 
-    from problems.files import load_npz
-    from solvers import reference
-    from solvers.hcod import WARM_STARTS, HcodSolver
+    from hikbench.problems.files import load_npz
+    from hikbench.solvers import reference
+    from hikbench.solvers.hcod import WARM_STARTS, HcodSolver
 
     if case == "no-interior-unwidened":
         h = _no_interior()
         monkeypatch.setattr(reference, "WIDEN_RTOL", ())
     else:
         h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_89.npz")
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     descended = [k for k, b in enumerate(info["backend"]) if b.startswith("none solved it: primal active set")]
     assert descended and all(info["polished"]), info["backend"]
     for warm_start in WARM_STARTS:
@@ -256,15 +256,15 @@ def test_a_stage_no_backend_solves_is_descended_to_from_the_level_above(case, mo
 
 
 def test_a_widened_point_that_fails_the_kkt_check_is_no_reference(monkeypatch):
-    from solvers import reference
+    from hikbench.solvers import reference
 
     monkeypatch.setattr(reference, "_kkt_certified", lambda *args, **kwargs: False)
-    with pytest.raises(reference.ReferenceError, match=r"^(level [34]|the minimum-norm stage): no QP backend .*; "
+    with pytest.raises(reference.YardstickError, match=r"^(level [34]|the minimum-norm stage): no QP backend .*; "
                                                        r"bounds widened by 1e-09: "
                                                        r"clarabel solved it, but its point could not be polished "
                                                        r"onto the exact bounds and certified optimal there \(KKT "
                                                        r"check\); bounds widened by 1e-07: "):
-        cascade_reference(_no_interior())
+        cascade_yardstick(_no_interior())
 
 
 @pytest.mark.parametrize(("x", "rows", "lo", "up", "optimal"), [
@@ -279,7 +279,7 @@ def test_a_widened_point_that_fails_the_kkt_check_is_no_reference(monkeypatch):
     ([2.0, 0.0], [[1.0, 1.0]], [2.0], [2.0], False),  # on it, not the nearest point
 ], ids=["lower-bound", "interior", "slack-direction", "near-bound", "narrow-band-lower", "upper-bound", "pinned-pair", "equality", "equality-off"])
 def test_kkt_certificate_of_the_minimum_norm_stage(x, rows, lo, up, optimal):
-    from solvers.reference import _kkt_certified
+    from hikbench.solvers.yardstick import _kkt_certified
 
     empty = np.zeros((0, 2))
     assert _kkt_certified(np.array(x), np.array(rows), np.array(lo), np.array(up), empty, np.zeros(0), np.zeros(0),
@@ -291,7 +291,7 @@ def test_kkt_certificate_of_the_minimum_norm_stage(x, rows, lo, up, optimal):
 def test_kkt_certificate_of_a_level(x, optimal):
     """Level: x0 + x1 = 3 (slack w = x0 + x1 - 3), above it x0 <= 1 and x1 <= 0: the slack's gradient
     (1, 1) w is cancelled by the multipliers of both bounds only where both are active."""
-    from solvers.reference import _kkt_certified
+    from hikbench.solvers.yardstick import _kkt_certified
 
     A_hi, lo_hi, up_hi = np.eye(2), np.full(2, -np.inf), np.array([1.0, 0.0])
     assert _kkt_certified(np.array(x), A_hi, lo_hi, up_hi, np.array([[1.0, 1.0]]), np.array([3.0]),
@@ -311,11 +311,11 @@ ROBOT_STAGES_ONCE_UNPOLISHED = [("humanoid_step", 1), ("humanoid_step", 53), ("h
 def test_every_stage_of_a_robot_problem_is_polished(stack, seed):
     """Polishing ends on every stage, and the reference then agrees with hcod (a primal active set
     on the HCOD: no code shared) to the ``high`` profile's 1e-9 on every level."""
-    from problems.robots.testsets import stack_problem
-    from solvers import registry
+    from hikbench.problems.robots.testsets import stack_problem
+    from hikbench.solvers import registry
 
     h = stack_problem(stack, seed)
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert info["polished"] == [True] * (h.depth + 1), info["backend"]
     res = registry.create("hcod").solve(h)
     assert res.status == OPTIMAL
@@ -330,7 +330,7 @@ def talos_step181() -> Hierarchy:
     it leaves the velocity level a feasible set ~1e-6 wide (21 equalities and those bounds)."""
     from pathlib import Path
 
-    from problems.files import load_npz
+    from hikbench.problems.files import load_npz
 
     return load_npz(Path(__file__).parent / "data" / "talos_reach_step181.npz")
 
@@ -338,15 +338,15 @@ def talos_step181() -> Hierarchy:
 def _check_sliver_reference(h: Hierarchy, x: np.ndarray, info: dict) -> None:
     """The levels above the hand level met to 1e-10 of their scales, the hand level's norm the
     exact optimum's (hcod's) to 1e-8, and a hand level frozen at its QP's point says why."""
-    from problems.verify import level_scales
-    from solvers import registry
+    from hikbench.problems.verify import level_scales
+    from hikbench.solvers import registry
 
     hand = h.names.index("right_hand")
     if not info["polished"][hand]:
         assert "its QP's point kept: level 4 had no solvable frozen set" in info["backend"][hand]
     exact = registry.create("hcod").solve(h)
     assert exact.status == OPTIMAL
-    norms, exact_norms = h.level_norms(x), h.level_norms(exact.x)
+    norms, exact_norms = level_norms(h, x), level_norms(h, exact.x)
     assert np.all(norms[:hand] <= 1e-10 * level_scales(h, x)[:hand]), norms[:hand]
     np.testing.assert_allclose(norms[hand], exact_norms[hand], rtol=1e-8)
 
@@ -358,7 +358,7 @@ def test_a_sliver_below_a_level_costs_the_levels_above_nothing(talos_step181):
     keeps the frozen equalities' point unpolished. Either way, the levels above the hand level are
     met and the hand level's norm is the exact optimum's to the QP's tolerance."""
     h = talos_step181
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     hand = h.names.index("right_hand")
     assert all(info["polished"][:hand]) and info["polished"][hand + 1], info["backend"]
     _check_sliver_reference(h, x, info)
@@ -370,19 +370,19 @@ def test_a_level_whose_exact_freeze_leaves_a_sliver_keeps_its_qp_point(talos_ste
     The velocity level is then solved again with the hand level frozen at its QP's own point,
     recorded unpolished with the reason, and the hand level's norm is still the exact optimum's
     to the QP's tolerance."""
-    from solvers import reference
+    from hikbench.solvers import reference
 
     real_stage, failed = reference._stage, []
 
     def stage(*args):
         if args[-1] == "level 4" and not failed:
             failed.append(args[-1])
-            raise reference.ReferenceError("level 4: no backend solved it (forced by the test)")
+            raise reference.YardstickError("level 4: no backend solved it (forced by the test)")
         return real_stage(*args)
 
     monkeypatch.setattr(reference, "_stage", stage)
     h = talos_step181
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert failed == ["level 4"]
     hand = h.names.index("right_hand")
     assert info["polished"][: hand + 2] == [True] * hand + [False, True], info["backend"]
@@ -410,13 +410,13 @@ def test_bounds_of_any_magnitude_give_the_scaled_reference(family, seed, scale):
     seed 6 broke level 0 by 2.9e-9 of its size to gain 1e-7 at level 3. Judged at the unscaled
     problem against its own reference, and, since verify's scales follow the units, at the
     scaled problem against hcod's answer."""
-    from solvers.hcod import HcodSolver
+    from hikbench.solvers.hcod import HcodSolver
 
     h0 = _scaled_case(family, seed)
     h = h0.with_bounds(h0.lower * scale, h0.upper * scale)
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert info["bounds_scaled_by"] > 1.0
-    v = verify(h0, x / scale, reference_solution(h0), rtol=1e-9)
+    v = verify(h0, x / scale, yardstick_solution(h0), rtol=1e-9)
     assert v.equal, v
     v = verify(h, x, HcodSolver(warm_start="none").solve(h).x, rtol=1e-9)  # (at 1e-300 too: scaled norms)
     assert v.equal, v
@@ -455,16 +455,16 @@ def test_the_reference_reaches_the_optimum_of_degenerate_levels(case, judge):
     and highs each miss a level of one of these problems, some with a status that says so.)
     A judge is judged by its point, its status flag aside: with OpenBLAS's SkylakeX kernels PIQP
     stops at its iteration limit at level 3 of seed 937, at a point whose norms are the same."""
-    from solvers import registry
+    from hikbench.solvers import registry
 
     n, depth, rows, kw = case
     h = random_hierarchy(n, depth, rows, **kw)
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     other = registry.create(judge).solve(h)
     assert other.x is not None, other.reason
     verdict = verify(h, x, other.x, rtol=1e-9)
-    assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(other.x))
+    assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
 
 def test_an_active_set_read_too_tight_is_read_again(monkeypatch):
@@ -474,23 +474,20 @@ def test_an_active_set_read_too_tight_is_read_again(monkeypatch):
     not certify. Read again (``_ACTIVE_RETRY``), it is certified; without the retry there is no
     reference. The level norms are those of hcod and of the quadprog cascade (dual active set;
     its status flag aside) at 1e-9. So with OpenBLAS's Haswell and SkylakeX kernels, on one and
-    two threads. (Trial 746, this test's case before the 54th session, needed the retry only
-    with the Haswell kernels on two threads: on one it has no reference, with SkylakeX kernels
-    the generator makes another problem. The case that brought the retry in, badly_scaled n =
-    12 seed 99, is solved from the first reading, by ``_descend``.)"""
-    from solvers import reference, registry
+    two threads."""
+    from hikbench.solvers import reference, registry
 
     h = random_hierarchy(59, 3, [5, 28, 10], rank=[5, 28, 10], shared_rank=[0, 1, 2], inequality="mixed",
                          box=True, box_bound=1.0, equality_fraction=0.3, cond=1e6, row_scale=1.0, seed=2798)
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     for judge in ("hcod", "cascade-quadprog"):
         other = registry.create(judge).solve(h)
         verdict = verify(h, x, other.x, rtol=1e-9)
-        assert verdict.equal, (judge, verdict, h.level_norms(x), h.level_norms(other.x))
+        assert verdict.equal, (judge, verdict, level_norms(h, x), level_norms(h, other.x))
     monkeypatch.setattr(reference, "_ACTIVE_RETRY", ())
-    with pytest.raises(reference.ReferenceError, match="minimum-norm stage"):
-        cascade_reference(h)
+    with pytest.raises(reference.YardstickError, match="minimum-norm stage"):
+        cascade_yardstick(h)
 
 
 @pytest.mark.parametrize("case", [(5, 90), (12, 46), (5, 5)], ids=["n5-seed90", "n12-seed46", "n5-seed5"])
@@ -505,14 +502,14 @@ def test_the_reference_drops_rows_of_a_wrong_active_set(case, judge):
     judge agreed on each of them: hcod, and the daqp, quadprog and PIQP cascades. Now every stage
     is polished, and the level norms are those of hcod (an active set on the HCOD) and of the
     daqp cascade (a dual active set) at 1e-9."""
-    from solvers import registry
+    from hikbench.solvers import registry
 
     h = degenerate("badly_scaled", *case)
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     other = registry.create(judge).solve(h)  # (daqp's status flag aside: judged by its norms)
     verdict = verify(h, x, other.x, rtol=1e-9)
-    assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(other.x))
+    assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
 
 @pytest.mark.parametrize("case", [(5, 583), (5, 834), (5, 686)], ids=["n5-seed583", "n5-seed834", "n5-seed686"])
@@ -528,14 +525,14 @@ def test_the_reference_holds_a_met_row_by_its_multiplier(case, judge):
     judges are the daqp and quadprog cascades (dual active sets, their status flags aside) at
     1e-9; ``hcod`` is no judge here (on seed 686 it stopped above the optimum of level 2 until
     its met rows' multipliers were fitted: ``solvers/hcod/NOTES.md``)."""
-    from solvers import registry
+    from hikbench.solvers import registry
 
     h = degenerate("badly_scaled", *case)
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     other = registry.create(judge).solve(h)
     verdict = verify(h, x, other.x, rtol=1e-9)
-    assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(other.x))
+    assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
 
 @pytest.mark.parametrize("judge", ["cascade-daqp", "cascade-quadprog"])
@@ -548,14 +545,14 @@ def test_the_reference_does_not_drop_again_a_row_the_step_pushes_back(judge):
     x. The judges are the daqp and quadprog cascades at 1e-9 (``hcod`` stopped above the
     optimum of level 2 here until its met rows' multipliers were fitted:
     ``solvers/hcod/NOTES.md``)."""
-    from solvers import registry
+    from hikbench.solvers import registry
 
     h = degenerate("badly_scaled", 5, 343)
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     other = registry.create(judge).solve(h)
     verdict = verify(h, x, other.x, rtol=1e-9)
-    assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(other.x))
+    assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
 
 KKT_CLOSER = [("rank_deficient", 5, 1899, "hcod"), ("rank_deficient", 5, 1899, "cascade-quadprog"),
@@ -577,14 +574,14 @@ def test_a_descended_point_no_cheaper_to_round_off_is_taken_where_kkt_holds_ther
     while the polished one does not (``_kkt_closer``). Judged at 1e-9 by hcod and, on seed 1899, by
     the quadprog and daqp cascades (on seed 1070 both break level 1 by 1.8e-9 of its scale: no
     judges there), their status flags aside."""
-    from solvers import registry
+    from hikbench.solvers import registry
 
     h = degenerate(case, n, seed)
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     other = registry.create(judge).solve(h)
     verdict = verify(h, x, other.x, rtol=1e-9)
-    assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(other.x))
+    assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
 
 def test_descend_holds_a_met_row_by_its_multiplier():
@@ -594,7 +591,7 @@ def test_descend_holds_a_met_row_by_its_multiplier():
     bound, its multiplier would have to cancel the second row's pull toward x = 2 with the wrong
     sign: it is dropped, the step to x = 2 is blocked at x = 1 by its upper bound, which it then
     holds. The optimum x = 1 (level norm 1e-4 against 2e-4 at x = 0), worked by hand."""
-    from solvers.reference import _descend
+    from hikbench.solvers.yardstick import _descend
 
     x = _descend(np.array([0.0]), np.zeros((0, 1)), np.zeros(0), np.zeros(0), np.array([[1e4], [1e-4]]),
                  np.array([0.0, 2e-4]), np.array([1e4, 2e-4]), final=False)
@@ -605,7 +602,7 @@ def test_descend_drops_a_bound_the_optimum_leaves():
     """The minimum-norm stage from x = (5, 0), held at x_1 <= 5, with x_1 + x_2 >= 1: the
     multiplier of x_1 <= 5 is -5, so the row is dropped; the step toward 0 is blocked by
     x_1 + x_2 >= 1 at tau = 0.8, which enters; the optimum is (0.5, 0.5), worked by hand."""
-    from solvers.reference import _descend
+    from hikbench.solvers.yardstick import _descend
 
     A_hi = np.array([[1.0, 0.0], [1.0, 1.0]])
     empty = np.zeros((0, 2))
@@ -619,7 +616,7 @@ def test_descend_frees_a_row_of_the_level_whose_slack_takes_the_wrong_sign():
     bound). Both rows in the working set, the least-squares point is x = 0.5, where the first
     row's slack is -0.5: a row at its upper bound with a negative multiplier. It is freed, and
     the optimum is x = 0 (both rows met), worked by hand."""
-    from solvers.reference import _descend
+    from hikbench.solvers.yardstick import _descend
 
     x = _descend(np.array([1.0]), np.zeros((0, 1)), np.zeros(0), np.zeros(0), np.array([[1.0], [1.0]]),
                  np.array([-1.0, 0.0]), np.array([1.0, 0.0]), final=False)
@@ -642,7 +639,7 @@ def test_the_working_sets_least_squares_decides_rank_by_the_level_or_row_by_row(
     it beyond RANK_RTOL * ||G||_2 (the level's threshold); ``rowwise``, where one row sees it
     beyond RANK_RTOL of that row's own norm, the step then the unweighted least squares. Worked
     by hand."""
-    from solvers.reference import _constrained_lstsq
+    from hikbench.solvers.yardstick import _constrained_lstsq
 
     x = _constrained_lstsq(np.zeros(2), np.zeros((0, 2)), np.zeros(0), np.array(G), np.array(t), rowwise)
     np.testing.assert_allclose(x, expected, rtol=1e-12, atol=1e-11)
@@ -661,18 +658,18 @@ def test_the_minimum_norm_stage_keeps_a_small_frozen_row_at_its_bound():
     reference solves the saved problem right.)"""
     from pathlib import Path
 
-    from problems.files import load_npz
-    from solvers.hcod import HcodSolver
+    from hikbench.problems.files import load_npz
+    from hikbench.solvers.hcod import HcodSolver
 
     h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_5034.npz")
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
-    norms, xh = h.level_norms(x), HcodSolver(warm_start="stage").solve(h).x
-    np.testing.assert_allclose(norms[4], h.level_norms(xh)[4], rtol=1e-9)
+    norms, xh = level_norms(h, x), HcodSolver(warm_start="stage").solve(h).x
+    np.testing.assert_allclose(norms[4], level_norms(h, xh)[4], rtol=1e-9)
     scale = np.abs(h.A) @ np.abs(x) + np.maximum(np.abs(np.nan_to_num(h.lower, posinf=0, neginf=0)),
                                                  np.abs(np.nan_to_num(h.upper, posinf=0, neginf=0)))
     upper = slice(0, h.starts[4])
-    assert np.all(h.violation(x)[upper] <= 1e-12 * scale[upper]), h.violation(x)[upper] / scale[upper]
+    assert np.all(violation(h, x)[upper] <= 1e-12 * scale[upper]), violation(h, x)[upper] / scale[upper]
 
 
 def test_a_level_whose_small_row_sees_a_direction_under_its_norm_is_descended_along_it():
@@ -689,15 +686,15 @@ def test_a_level_whose_small_row_sees_a_direction_under_its_norm_is_descended_al
     and quadprog cascades break level 1 by 1e-9 there, PIQP's is off at level 3: no judges.)"""
     from pathlib import Path
 
-    from problems.files import load_npz
-    from solvers.hcod import WARM_STARTS, HcodSolver
+    from hikbench.problems.files import load_npz
+    from hikbench.solvers.hcod import WARM_STARTS, HcodSolver
 
     h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_964.npz")
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     for warm_start in WARM_STARTS:
         verdict = verify(h, HcodSolver(warm_start=warm_start).solve(h).x, x, rtol=1e-9)
-        assert verdict.equal, (warm_start, verdict, h.level_norms(x))
+        assert verdict.equal, (warm_start, verdict, level_norms(h, x))
 
 
 def test_descend_blocks_a_free_row_of_the_level_beyond_the_freezes_zero():
@@ -706,7 +703,7 @@ def test_descend_blocks_a_free_row_of_the_level_beyond_the_freezes_zero():
     pass, free, and the level was frozen with that slack; beyond 1e-13 of it, what ``_freeze``
     counts as zero, so it now blocks, enters, and the least squares of both rows gives the
     optimum x = 1 - 5e-13 (slacks -5e-13 and 5e-13), worked by hand."""
-    from solvers.reference import _descend
+    from hikbench.solvers.yardstick import _descend
 
     x = _descend(np.array([0.0]), np.zeros((0, 1)), np.zeros(0), np.zeros(0), np.array([[1.0], [1.0]]),
                  np.array([1.0, -np.inf]), np.array([1.0, 1.0 - 1e-12]), final=False)
@@ -722,7 +719,7 @@ def test_freeze_shifts_the_bounds_of_a_slack_within_the_levels_round_off(x2, low
     is beyond 1e-13 of its own scale (2.5e-16) both times. Within 1e-13 of the level's largest
     row scale it may be the level's round-off reaching a small row through x, and the row is
     frozen with its bounds shifted by it (ICRA 2010 eq. (35)); beyond, at its achieved value."""
-    from solvers.reference import _freeze
+    from hikbench.solvers.yardstick import _freeze
 
     A = np.array([[1e4, 0.0], [0.0, 1e-3]])
     w, lo, up = _freeze(A, np.array([0.0, 0.0]), np.array([1e4, 1e-3]), np.array([0.5, x2]))
@@ -748,17 +745,17 @@ def test_a_small_rows_slack_of_round_off_does_not_pin_it_for_the_levels_below(sa
     quadprog cascades break a level above by ~1e-9 on two of them: no judges)."""
     from pathlib import Path
 
-    from problems.files import load_npz
-    from solvers import registry
-    from solvers.hcod import WARM_STARTS, HcodSolver
+    from hikbench.problems.files import load_npz
+    from hikbench.solvers import registry
+    from hikbench.solvers.hcod import WARM_STARTS, HcodSolver
 
     h = load_npz(Path(__file__).parent / "data" / f"{saved}.npz")
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     judges = [HcodSolver(warm_start=w).solve(h).x for w in WARM_STARTS] + [registry.create("cascade-piqp").solve(h).x]
     for judge in judges:
         verdict = verify(h, judge, x, rtol=1e-9)
-        assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(judge))
+        assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, judge))
 
 
 @pytest.mark.parametrize(("x", "optimal"), [([1.0, 0.0], True), ([1.0, -0.5], False)], ids=["at-bounds", "x1-inside"])
@@ -767,7 +764,7 @@ def test_kkt_certificate_floor_leaves_out_a_large_row_inside_its_bounds(x, optim
     a row of norm 1.4e6 well inside its bounds (``1e6 (x0 + x1)`` in [-1e7, 1e7]): its slack is an
     exact 0, so it adds nothing to the gradient's round-off. Counted in the floor (1e-12 times its
     norm times its scale, 18), it hid the residual 2.5 of the point off the bound x1 <= 0."""
-    from solvers.reference import _kkt_certified
+    from hikbench.solvers.yardstick import _kkt_certified
 
     A_hi, lo_hi, up_hi = np.eye(2), np.full(2, -np.inf), np.array([1.0, 0.0])
     A_k = np.array([[1.0, 1.0], [1e6, 1e6]])
@@ -789,15 +786,15 @@ def test_a_met_row_of_the_level_does_not_hold_back_its_objective(judge):
     slack or at a bound, and the reference is the judges' point at 1e-9."""
     from pathlib import Path
 
-    from problems.files import load_npz
-    from solvers import registry
+    from hikbench.problems.files import load_npz
+    from hikbench.solvers import registry
 
     h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_6444.npz")
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     other = registry.create(judge).solve(h)  # (judged by its norms, not its status flag)
     verdict = verify(h, x, other.x, rtol=1e-9)
-    assert verdict.equal, (verdict, h.level_norms(x), h.level_norms(other.x))
+    assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
 
 def test_an_unpolished_point_out_of_the_bounds_above_is_not_kept():
@@ -810,14 +807,14 @@ def test_an_unpolished_point_out_of_the_bounds_above_is_not_kept():
     then hcod's point and the PIQP cascade's at 1e-9."""
     from pathlib import Path
 
-    from problems.files import load_npz
-    from solvers import registry
+    from hikbench.problems.files import load_npz
+    from hikbench.solvers import registry
 
     h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_6112.npz")
-    x, info = cascade_reference(h)
+    x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     assert info["backend"][3].startswith("none solved it"), info["backend"]
     for judge in ("hcod", "cascade-piqp"):
         other = registry.create(judge).solve(h)
         verdict = verify(h, x, other.x, rtol=1e-9)
-        assert verdict.equal, (judge, verdict, h.level_norms(x), h.level_norms(other.x))
+        assert verdict.equal, (judge, verdict, level_norms(h, x), level_norms(h, other.x))

@@ -5,11 +5,11 @@ import dataclasses
 import numpy as np
 import pytest
 
-from problems import SolverNotFoundError, SolverOptionError
-from solvers import _qp_backends as tables
-from solvers import registry
-from solvers.base import Solver, SolveResult
-from solvers.registry import SolverInfo
+from hikbench.solvers.errors import SolverNotFoundError, SolverOptionError
+from hikbench.solvers import _qp_backends as tables
+from hikbench.solvers import registry
+from hikbench.solvers.base import Solver, SolveResult
+from hikbench.solvers.registry import SolverInfo
 
 
 class _Opt(Solver):
@@ -57,7 +57,7 @@ def test_create_passes_defaults_and_options(fake_registry):
 @pytest.mark.parametrize("name, options, error, message", [
     ("test-opt", {"tolerance": 1.0}, SolverOptionError,
      r"solver 'test-opt': unknown option\(s\) 'tolerance'; allowed options: tol, max_iter"),
-    ("reference", {"tol": 1.0}, SolverOptionError,
+    ("yardstick", {"tol": 1.0}, SolverOptionError,
      r"solver 'reference': unknown option\(s\) 'tol'; allowed options: none"),
     ("test-opt", {"tol": -1.0}, SolverOptionError, r"test-opt: tol must be > 0; got -1.0"),
     # a TypeError raised inside a constructor is a bug, not a bad option: it propagates unchanged
@@ -102,7 +102,7 @@ def test_x_finite_is_the_callers_word_and_not_a_field():
 
 # every solver of the project, listed without importing a backend (registry.available() at
 # collection would import them all for any -k run)
-_ALL = ("hcod", "reference", "cascade-cvxpy", *(f"cascade-{b}" for b in tables.BACKENDS), "nullspace-svd",
+_ALL = ("hcod", "yardstick", "cascade-cvxpy", *(f"cascade-{b}" for b in tables.BACKENDS), "nullspace-svd",
         "nullspace-cod", "pinv-all", "weighted", "dls", "dls-liegeois")
 
 
@@ -124,7 +124,7 @@ def test_solve_of_a_non_hierarchy_names_the_solver_and_the_expected_type(name, b
     one for each kind of hierarchy)."""
     import re
 
-    from problems.hierarchy import Hierarchy, Level
+    from hikbench.problems.hierarchy import Hierarchy, Level
 
     solver = registry.create(name)
     msg = rf"^{re.escape(name)}\.solve expects a problems\.hierarchy\.Hierarchy .*got {re.escape(got)}$"
@@ -139,7 +139,7 @@ def test_solve_of_a_non_hierarchy_names_the_solver_and_the_expected_type(name, b
 
 
 def _empty_levels(n: int):
-    from problems.hierarchy import Hierarchy
+    from hikbench.problems.hierarchy import Hierarchy
 
     return Hierarchy(np.zeros((2, n)), [1.0, -1.0], [1.0, -1.0], [0, 1], n=n, depth=2)  # two equalities
 
@@ -149,8 +149,8 @@ def test_a_problem_larger_than_the_memory_is_refused_before_any_allocation(name)
     """A valid hierarchy whose n x n matrix of doubles would not fit (SOTH's ``variable size
     100000000000`` with no rows): a HikbenchError naming the solver, n and both sizes, not
     numpy's MemoryError traceback (1e11) or hours of swapping (3e9)."""
-    from problems.errors import HikbenchError, ProblemTooLargeError
-    from problems.hierarchy import MEMORY_BYTES, Hierarchy
+    from hikbench.problems.errors import HikbenchError, ProblemTooLargeError
+    from hikbench.problems.hierarchy import MEMORY_BYTES, Hierarchy
 
     n = 10 ** 11
     h = Hierarchy(np.zeros((0, n)), [], [], [], n=n, depth=1)
@@ -183,7 +183,7 @@ def test_no_variables_is_solved_by_every_solver(name):
 def test_cascade_factories_are_named_by_their_module():
     """`hikbench list`/registry.available() showed <class 'abc.Cascade_clarabel'>."""
     factory = registry.get("cascade-daqp").factory
-    assert (factory.__module__, factory.__qualname__) == ("solvers.cascade", "Cascade_daqp")
+    assert (factory.__module__, factory.__qualname__) == ("hikbench.solvers.cascade", "Cascade_daqp")
 
 
 @pytest.mark.parametrize("problem", ["ik-like", "equality"])
@@ -196,7 +196,7 @@ def test_a_dropped_solver_is_freed_without_the_collector(name, problem):
     import gc
     import weakref
 
-    from problems.generators import equality_stack, ik_like
+    from hikbench.problems.generators import equality_stack, ik_like
 
     h = ik_like(12, 0) if problem == "ik-like" else equality_stack(12, 3, 3)
     s = registry.create(name)

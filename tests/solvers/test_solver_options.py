@@ -1,6 +1,6 @@
 """Option values of the built-in solvers: a wrong type or range raises
 SolverOptionError at construction, naming solver, option, value and what is
-expected (the shared checks of solvers.registry); valid values pass."""
+expected (the shared checks of hikbench.solvers.registry); valid values pass."""
 
 from __future__ import annotations
 
@@ -10,9 +10,9 @@ import re
 import numpy as np
 import pytest
 
-from problems.errors import SolverOptionError
-from solvers import registry
-from solvers.registry import check_choice, check_int, check_number, check_numbers
+from hikbench.solvers.errors import SolverOptionError
+from hikbench.solvers import registry
+from hikbench.solvers.registry import check_choice, check_int, check_number, check_numbers
 
 CASCADES = ("osqp", "proxqp", "clarabel", "daqp", "quadprog", "piqp", "highs", "cvxpy")
 NUMBER_GE0 = "a finite number >= 0"

@@ -1,6 +1,0 @@
-"""``python -m bench`` = the ``hikbench`` console script."""
-import sys
-
-from bench.cli import main
-
-sys.exit(main())

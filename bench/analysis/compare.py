@@ -1,0 +1,330 @@
+"""``hikbench compare BASE RUN``: timing regressions and newly failing cases.
+
+For every key (problem, solver, settings, mode) present in both runs, the
+timing samples are divided by a calibration kernel time (bench/harness/calibration.py):
+the row's own ``calib_ns`` when the suite timed the kernel around every job
+(``calibrate_each_job``, the ``ci`` suite: tracks load that comes and goes
+during the run), else the median ``calib_ns`` of the rows of the same host.
+So runs of different machines or of a loaded CI runner compare as ratios. A case is a **slowdown** when
+
+* ratio = median(new normalised samples) / median(base normalised samples)
+  exceeds ``threshold`` (default 1.15), and so does the ratio of the minima
+  (load from other processes only ever adds time, so a shift of the whole
+  distribution, minimum included, is what a real slowdown looks like), and
+* the one-sided Mann-Whitney U test (scipy.stats.mannwhitneyu, new > base) on
+  the normalised samples gives p < ``alpha`` (default 0.01); both ratios past
+  the threshold with p >= alpha is **inconclusive** (shown, not failed: the
+  samples are too few or too spread to tell a slowdown of that size),
+
+**newly failing** when it was verified in BASE and is not verified in RUN,
+and **missing** when it was verified in BASE and RUN has no row for it
+although RUN ran the same suite (run.json's suite name) and selected its
+solver (run.json's ``selected_solvers``: the suite's or ``--solvers``'), a
+solver it skipped included (a backend that no longer imports; the reason is
+shown). Any of the three makes ``compare`` exit 1. Other keys in only one run
+(a ``--solvers`` selection, another suite) are listed, not judged; runs of different suites, repetitions or calibration modes are
+compared with a note saying so. Given several runs (``compare BASE RUN1
+RUN2``), a case fails only when it fails in every run (``confirmed``): a
+neighbour's load on a shared CI runner slows one job once, a regression slows
+it every time. A run with no row for the case does not clear it.
+
+The calibration kernel (BLAS QR and matmul) does not follow every solver
+from one kind of CPU to another: on an AVX-512 AMD EPYC (OpenBLAS SkylakeX
+kernels) the kernel took 1.2x its time on the AVX2 one (Haswell) while the
+reference solver's SVDs took 1.9x, so a baseline holds for one machine class
+(``hikbench.bench.harness.environment.machine_class``: CPU model, OpenBLAS kernels and numba's
+target). BASE may be a directory of baselines, one subdirectory per class
+(``results/baseline``): ``baseline_for`` picks the one recorded on RUN's
+class, else one recorded before run.json named numba's target on RUN's CPU
+and kernels. Runs of two classes are compared with a note saying so.
+
+The calibration is one number per row (or per host): its own error moves all
+the row's samples together, which the test does not see. Per-row
+calibrations of one ``ci`` run on a loaded 2-core machine spread over 1.75 ..
+2.92 ms, so single runs flag noise now and then; the confirmation runs of
+``.ci/run`` absorb it.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from scipy.stats import mannwhitneyu
+
+from hikbench.bench.harness.columns import KEY
+from hikbench.bench.harness.environment import machine_class, read_run_json
+from hikbench.bench.harness.results import RESULTS, read_results
+from hikbench.problems.errors import HikbenchError
+
+__all__ = ["FAILING", "Comparison", "NoBaseline", "baseline_for", "compare_runs", "confirmed", "machine_class_of",
+           "normalised_samples"]
+
+FAILING = ("SLOWER", "NEWLY FAILING", "MISSING")  #: the verdicts that make compare exit 1
+_COLUMNS = [*KEY, "base_status", "new_status", "base_verified", "new_verified", "base_median_s", "new_median_s",
+            "ratio", "ratio_min", "p_value", "verdict", "why"]
+
+
+@dataclass
+class Comparison:
+    table: pd.DataFrame          # one row per common key, and per missing key (verdict MISSING)
+    only_base: list
+    only_new: list
+    notes: list = field(default_factory=list)  # why the two runs may not compare (suites, repeat, ...)
+
+    @property
+    def slowdowns(self) -> pd.DataFrame:
+        return self.table[self.table["verdict"] == "SLOWER"]
+
+    @property
+    def inconclusive(self) -> pd.DataFrame:
+        return self.table[self.table["verdict"] == "inconclusive"]
+
+    @property
+    def new_failures(self) -> pd.DataFrame:
+        return self.table[self.table["verdict"] == "NEWLY FAILING"]
+
+    @property
+    def missing(self) -> pd.DataFrame:
+        return self.table[self.table["verdict"] == "MISSING"]
+
+    @property
+    def failed(self) -> bool:
+        return bool(self.table["verdict"].isin(FAILING).any())
+
+
+def _host_calibration(df: pd.DataFrame, meta: dict) -> dict:
+    """host -> median calib_ns of its rows; "" -> run.json's ``calibration_ns``
+    (None when neither is known)."""
+    fallback = meta.get("calibration_ns")
+    cal = df.dropna(subset=["calib_ns"]).groupby("host")["calib_ns"].median().to_dict()
+    return {h: cal.get(h, fallback) for h in df["host"].fillna("").unique()} | {"": fallback}
+
+
+def normalised_samples(df: pd.DataFrame, meta: dict, source: str = "results") -> pd.Series:
+    """Samples (ns) divided by a calibration time (see the module docstring): dimensionless.
+
+    A row with samples and no calibration (an empty ``calib_ns`` on every row
+    of its host and no ``calibration_ns`` in run.json: a hand-made file) is a
+    HikbenchError naming ``source`` and the row: raw nanoseconds compared with
+    a calibrated run would give ratios of a million."""
+    cal = _host_calibration(df, meta)
+    per_job = bool(meta.get("suite", {}).get("calibrate_each_job"))
+    out = []
+    for i, (s, h, c) in enumerate(zip(df["samples_ns"], df["host"].fillna(""), df["calib_ns"])):
+        v = np.asarray(json.loads(s), dtype=float) if s else np.zeros(0)
+        scale = float(c) if per_job and pd.notna(c) else cal.get(h, cal[""])
+        if v.size and (scale is None or not float(scale) > 0):
+            raise HikbenchError(f"{source}: data row {i + 1} ({df['solver'].iloc[i]}, {df['problem'].iloc[i]}) "
+                                f"has timing samples but no calibration: calib_ns is empty on every row of "
+                                f"its host and run.json has no calibration_ns; expected a run written by "
+                                f"`hikbench run`")
+        out.append(v / float(scale) if v.size else v)
+    return pd.Series(out, index=df.index)
+
+
+def _true(v) -> bool:
+    return isinstance(v, (bool, np.bool_)) and bool(v)
+
+
+def _why(row) -> str:
+    """What a failing row of RUN says: its status and reason, or its verdict against the reference."""
+    status = row.get("status")
+    reason = row.get("reason")
+    reason = reason if isinstance(reason, str) else ""
+    if status != "optimal" or not isinstance(row.get("verdict_side"), str):
+        return f"{status}: {reason}" if reason else str(status)
+    lvl = row.get("verdict_level")
+    lvl = f" at level {int(lvl)}" if pd.notna(lvl) else ""
+    return f"{row['verdict_side']}{lvl} than the reference" if row["verdict_side"] in ("worse", "better") \
+        else str(row["verdict_side"])
+
+
+def _notes(base_meta: dict, new_meta: dict, new_rows: int, names) -> list[str]:
+    """Differences of run.json that make ratios or missing cases mean something else."""
+    notes = [f"{n} has no run.json: its suite is unknown and its times are divided by the median "
+             f"calibration of each host" for n, m in zip(names, (base_meta, new_meta)) if not m]
+    if base_meta and new_meta:
+        b, n = base_meta.get("suite", {}), new_meta.get("suite", {})
+        for what, label in (("name", "suite"), ("repeat", "repeat"), ("calibrate_each_job", "calibrate_each_job")):
+            if b.get(what) != n.get(what):
+                notes.append(f"{label} differs: {b.get(what)!r} in base, {n.get(what)!r} in the new run")
+        classes = [machine_class(m.get("environment") or {}) for m in (base_meta, new_meta)]
+        if None not in classes and classes[0] != classes[1]:
+            notes.append(f"machine class differs: {classes[0]!r} in base, {classes[1]!r} in the new run "
+                         f"(ratios between solvers move with the CPU; record a baseline on this class)")
+        want = new_meta.get("suite_rows")
+        if isinstance(want, int) and new_rows < want:
+            notes.append(f"the new run is incomplete: {new_rows} of its suite's {want} rows")
+    return notes
+
+
+def _expected(base_meta: dict, new_meta: dict, new_solvers: set) -> dict:
+    """solver -> why its case should be in RUN (see MISSING in the module docstring); {} when the
+    runs are not of one suite."""
+    name = base_meta.get("suite", {}).get("name")
+    if not name or new_meta.get("suite", {}).get("name") != name:
+        return {}
+    skipped = new_meta.get("skipped_solvers") or {}
+    ran = new_meta.get("selected_solvers") or new_solvers  # (run.json before selected_solvers: those with rows)
+    return {s: "no row" for s in ran} | {s: f"solver skipped: {why}" for s, why in skipped.items()}
+
+
+def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_meta: dict,
+                   threshold: float = 1.15, alpha: float = 0.01, names=("base", "new")) -> Comparison:
+    new_solvers, new_rows = set(new["solver"]), len(new)
+    base = base.assign(_norm=normalised_samples(base, base_meta, names[0])).set_index(list(KEY))
+    new = new.assign(_norm=normalised_samples(new, new_meta, names[1])).set_index(list(KEY))
+    base = base[~base.index.duplicated(keep="last")]
+    new = new[~new.index.duplicated(keep="last")]
+    common = base.index.intersection(new.index)
+    rows = []
+    for key in common:
+        b, n = base.loc[key], new.loc[key]
+        bs, ns = b["_norm"], n["_norm"]
+        ratio, ratio_min, p = float("nan"), float("nan"), float("nan")
+        if len(bs) and len(ns):
+            ratio = float(np.median(ns) / np.median(bs))
+            ratio_min = float(np.min(ns) / np.min(bs))
+            p = float(mannwhitneyu(ns, bs, alternative="greater").pvalue)
+        why = ""
+        if _true(b["verified"]) and not _true(n["verified"]):
+            verdict = "NEWLY FAILING"
+            why = _why(n)
+        elif np.isfinite(ratio) and ratio > threshold and ratio_min > threshold:
+            # past the threshold both ways but not significant: too few or too spread samples to
+            # tell (docs/ci-timing.md, "What the check can see"); shown, not failed
+            verdict = "SLOWER" if p < alpha else "inconclusive"
+        elif np.isfinite(ratio) and ratio < 1 / threshold and ratio_min < 1 / threshold and \
+                (p_less := float(mannwhitneyu(ns, bs, alternative="less").pvalue)) < alpha:
+            verdict = "faster"
+            p = p_less  # (the p-value shown is that of the verdict's direction)
+        else:
+            verdict = "ok"
+        rows.append(dict(zip(KEY, key), base_status=b["status"], new_status=n["status"],
+                         base_verified=b["verified"], new_verified=n["verified"],
+                         base_median_s=b["time_median_s"], new_median_s=n["time_median_s"],
+                         ratio=ratio, ratio_min=ratio_min, p_value=p, verdict=verdict, why=why))
+    expected = _expected(base_meta, new_meta, new_solvers)
+    only_base = []
+    for key in base.index.difference(common, sort=False):
+        b = base.loc[key]
+        solver = dict(zip(KEY, key))["solver"]
+        if _true(b["verified"]) and solver in expected:
+            rows.append(dict(zip(KEY, key), base_status=b["status"], new_status="", base_verified=b["verified"],
+                             new_verified=float("nan"), base_median_s=b["time_median_s"],
+                             new_median_s=float("nan"), ratio=float("nan"), ratio_min=float("nan"),
+                             p_value=float("nan"), verdict="MISSING", why=expected[solver]))
+        else:
+            only_base.append(key)
+    table = pd.DataFrame(rows, columns=_COLUMNS)
+    return Comparison(table, only_base, [k for k in new.index if k not in common],
+                      _notes(base_meta, new_meta, new_rows, names))
+
+
+class NoBaseline(HikbenchError):
+    """A directory of baselines holds none of the run's machine class."""
+
+
+def machine_class_of(run_dir) -> str | None:
+    """``hikbench.bench.harness.environment.machine_class`` of a run directory's run.json."""
+    return machine_class(_environment_of(run_dir))
+
+
+def _environment_of(run_dir) -> dict:
+    return read_run_json(run_dir).get("environment") or {}
+
+
+def baseline_for(base_dir, run_dir) -> Path:
+    """The baseline run to compare RUN with: BASE itself when it holds a
+    results.csv; else, BASE being a directory of baselines (one subdirectory
+    per machine class, each a run directory), the subdirectory whose run.json
+    was recorded on RUN's machine class; failing that, one recorded before
+    run.json named numba's target, on RUN's CPU and OpenBLAS kernels.
+    NoBaseline when none was; HikbenchError when BASE is neither, when RUN's
+    class is unknown, or when two subdirectories have its class."""
+    base = Path(base_dir)
+    if (base / RESULTS).exists() or not base.is_dir():
+        return base  # (read_results says what is wrong with a file or a missing directory)
+    envs = {d: _environment_of(d) for d in sorted(base.iterdir()) if (d / RESULTS).exists()}
+    if not envs:
+        raise HikbenchError(f"{base}: no {RESULTS} and no subdirectory holding one; expected a run directory "
+                            f"(the --out of `hikbench run`) or a directory of baselines, one per machine class")
+    classes = {d: machine_class(env) for d, env in envs.items()}
+    run_env = _environment_of(run_dir)
+    want = machine_class(run_env)
+    if want is None:
+        raise HikbenchError(f"{run_dir}: its run.json names no machine (cpu, BLAS); cannot pick one of the "
+                            f"baselines in {base}: give the baseline run directory itself")
+    same = [d for d, c in classes.items() if c == want]
+    if not same:  # (a baseline whose run.json does not name numba's target: CPU and kernels alone)
+        untargeted = machine_class({**run_env, "numba_target": None})
+        same = [d for d, c in classes.items() if not envs[d].get("numba_target") and c == untargeted]
+    if len(same) > 1:
+        raise HikbenchError(f"{base}: {len(same)} baselines of machine class {want!r} "
+                            f"({', '.join(d.name for d in same)}); keep one")
+    if not same:
+        have = "; ".join(f"{d.name}: {c}" for d, c in classes.items())
+        raise NoBaseline(f"no baseline in {base_dir} of the machine class of {run_dir} ({want!r}; it has "
+                         f"{have}); record one: hikbench run --suite SUITE --out {base_dir}/NAME")
+    return same[0]
+
+
+def compare_runs(base_dir, new_dir, threshold: float = 1.15, alpha: float = 0.01) -> Comparison:
+    """compare_frames on two run directories; HikbenchError when they have no case in common
+    (nothing compared is not a pass)."""
+    c = compare_frames(read_results(base_dir), read_results(new_dir), read_run_json(base_dir),
+                       read_run_json(new_dir), threshold, alpha,
+                       names=(f"{base_dir}/results.csv", f"{new_dir}/results.csv"))
+    if c.table.empty:
+        raise HikbenchError(f"{base_dir} ({len(c.only_base)} cases) and {new_dir} ({len(c.only_new)} cases) have "
+                            f"no case (problem, solver, settings, mode) in common: expected two runs of the "
+                            f"same suite")
+    return c
+
+
+def confirmed(comparisons: list[Comparison]) -> Comparison:
+    """Several runs against one baseline: a case failing in the first run
+    (SLOWER / NEWLY FAILING / MISSING) stays failed unless a later run has it
+    passing (a one-off disturbance does not reproduce); then it reads "...,
+    not reproduced". A later run that fails it another way (a slowdown that
+    became a timeout) or has no row for it does not clear it. Numbers are
+    those of the first run."""
+    first = comparisons[0]
+    if len(comparisons) == 1:
+        return first
+    key = list(KEY)
+    t = first.table.set_index(key)
+    for c in comparisons[1:]:
+        v = c.table.set_index(key)["verdict"].reindex(t.index)
+        cleared = t["verdict"].isin(FAILING) & v.notna() & ~v.isin(FAILING)
+        t.loc[cleared, "verdict"] = t.loc[cleared, "verdict"].str.lower() + ", not reproduced"
+    notes = list(dict.fromkeys(n for c in comparisons for n in c.notes))
+    return Comparison(t.reset_index(), first.only_base, first.only_new, notes)
+
+
+def format_table(c: Comparison, show_all: bool = False) -> str:
+    t = c.table.sort_values("ratio", ascending=False, na_position="last")
+    if not show_all:
+        t = pd.concat([t[t["verdict"] != "ok"], t[t["verdict"] == "ok"].head(10)])
+    # p: the one-sided Mann-Whitney p-value of the verdict's direction (new slower than base, or
+    # faster for "faster" rows); the verdict column is as wide as its longest entry
+    w = max([13, *map(len, t["verdict"])])
+    lines = [(f"{'verdict':<{w}} {'ratio':>6} {'min r':>6} {'p':>7} {'base us':>9} {'new us':>9}  "
+              "solver / settings / mode / problem")]
+    for r in t.itertuples():
+        why = f"  ({r.why[:120]})" if isinstance(r.why, str) and r.why else ""
+        lines.append(f"{r.verdict:<{w}} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.p_value:>7.4f} "
+                     f"{r.base_median_s * 1e6:>9.1f} "
+                     f"{r.new_median_s * 1e6:>9.1f}  {r.solver} / {r.settings} / {r.mode} / {r.problem}{why}")
+    for what, keys in (("only in base", c.only_base), ("only in new", c.only_new)):  # listed, not judged
+        keys = sorted(keys)
+        shown = keys if show_all else keys[:10]
+        lines += [f"{what:<{w}} {'':>41}  {solver} / {settings} / {mode} / {problem}"
+                  for problem, solver, settings, mode in shown]
+        if len(shown) < len(keys):
+            lines.append(f"{what:<{w}} {'':>41}  ... and {len(keys) - len(shown)} more (--all lists them)")
+    return "\n".join(lines)

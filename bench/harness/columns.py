@@ -1,0 +1,87 @@
+"""The columns of ``results.csv``, documented once (``hikbench columns``).
+
+One tidy row per (problem, solver, settings, mode). JSON columns hold a JSON
+string (lists of per-level values, dicts of parameters); empty cells mean "not
+applicable / not reported".
+"""
+
+from __future__ import annotations
+
+__all__ = ["COLUMNS", "JSON_COLUMNS", "KEY", "markdown", "names"]
+
+#: (name, description), in CSV order
+COLUMNS: tuple[tuple[str, str], ...] = (
+    ("problem", ("problem id: family/param=value,.../seed=S (the file OUT/problems/<id>.npz, each / of the "
+                 "id written __)")),
+    ("family", "problem family (a `hikbench list families` name, or module:function)"),
+    ("params", "JSON dict of the family parameters given by the suite (defaults not repeated)"),
+    ("seed", "generator seed"),
+    ("n", "number of variables (DOF)"),
+    ("depth", "number of levels"),
+    ("rows", "total number of rows"),
+    ("eq_rows", "rows with lower == upper"),
+    ("ineq_rows", "rows with lower < upper (one- or two-sided inequalities, free rows excluded)"),
+    ("rows_per_level", "JSON list: rows of each level"),
+    ("ranks", "JSON list: rank of each level's A_k alone (numpy.linalg.matrix_rank)"),
+    ("rank", "rank of the whole stacked A"),
+    ("solver", "solver name (registry name; the class's `name` for module:Class and file.py:Class; external:NAME)"),
+    ("settings", "settings name from the suite ('default' = the solver's own defaults)"),
+    ("options", "JSON dict of the solver options of these settings"),
+    ("strict", "True for strict-hierarchy solvers (judged against the lexicographic optimum)"),
+    ("mode", "cold (fresh solver object per repetition) or warm (re-solve on one object)"),
+    ("repeat", "timed repetitions (after the discarded warm-up; with rounds, over all of them)"),
+    ("status", ("solver status (optimal, max_iterations, infeasible_level, numerical_failure, "
+                "unsupported, error) or harness status (timeout: killed after --timeout; "
+                "crashed: the worker process died, e.g. segfault)")),
+    ("reason", ("detail for any status other than optimal; also, when the row reports a timed "
+                "repetition other than the last, which one and why (see verified)")),
+    ("verified", ("True when the level norms recomputed from x are lexicographically not worse than "
+                  "the reference's (tolerance from the suite's accuracy profile); False otherwise; "
+                  "empty when the reference itself failed. x, status and the counts are those of the "
+                  "last timed repetition unless an earlier one was worse: a status other than optimal "
+                  "beside the last's optimal, or an x above the last's at some level beyond 1e-9 of its "
+                  "scale (hikbench.bench.harness.timing.reported_result); the row then reports that one")),
+    ("verdict_level", "first level whose norm differs from the reference beyond tolerance (empty: none)"),
+    ("verdict_side", ("at verdict_level: 'worse' (solver higher than reference), 'better', "
+                      "'no x' (no solution), 'no reference'; empty when equal")),
+    ("verdict_diff", "solver norm - reference norm at verdict_level"),
+    ("level_norms", "JSON list: ||v_k(x)||_2 per level, recomputed from x (hikbench.problems.verify.level_norms)"),
+    ("ref_level_norms", "JSON list: the same for the reference solution"),
+    ("x_norm", "||x||_2 of the solution (minimum-norm solvers match the reference's)"),
+    ("iterations", "iterations reported by the solver (last timed repetition)"),
+    ("iterations_per_level", "JSON list: iterations of each level, if reported"),
+    ("activations", "active-set activations (last timed repetition)"),
+    ("deactivations", "active-set deactivations (last timed repetition)"),
+    ("flops", "multiply-adds counted by the solver, if it counts"),
+    ("time_median_s", "median over the repetitions of the wall time of the solve call, seconds"),
+    ("time_min_s", "minimum of the same samples, seconds"),
+    ("time_p95_s", "95th percentile of the same samples, seconds"),
+    ("build_time_s", "time the solver reports for assembling matrices (last repetition), seconds"),
+    ("solve_time_s", "time the solver (or an external program) reports for itself, seconds"),
+    ("samples_ns", "JSON list: every timed repetition, nanoseconds (used by compare)"),
+    ("calib_ns", ("calibration kernel time, ns (bench/harness/calibration.py): around this row's timed solves when "
+                  "the suite sets calibrate_each_job, else at the start of the worker process (with rounds, "
+                  "the median of the rounds'); compare divides times by it")),
+    ("host", "host name of the worker"),
+    ("worker", "worker id (pid@host serial, dask worker address with --workers/--scheduler)"),
+    ("wall_s", "wall time of the whole job (warm-up + repetitions + transport; with rounds, their sum), seconds"),
+    ("finished_at", "UTC time the row was written (ISO 8601)"),
+)
+
+KEY = ("problem", "solver", "settings", "mode")  #: a row's identity; resuming skips finished keys
+JSON_COLUMNS = ("params", "rows_per_level", "ranks", "options", "level_norms", "ref_level_norms",
+                "iterations_per_level", "samples_ns")
+NUMBER_COLUMNS = ("seed", "n", "depth", "rows", "eq_rows", "ineq_rows", "rank", "repeat", "verdict_level",
+                  "verdict_diff", "x_norm", "iterations", "activations", "deactivations", "flops", "time_median_s",
+                  "time_min_s", "time_p95_s", "build_time_s", "solve_time_s", "calib_ns", "wall_s")
+
+
+def names() -> list[str]:
+    return [c for c, _ in COLUMNS]
+
+
+def markdown() -> str:
+    """The table as markdown (docs/columns.md holds it)."""
+    lines = ["| column | meaning |", "|---|---|"]
+    lines += [f"| `{c}` | {d} |" for c, d in COLUMNS]
+    return "\n".join(lines)

@@ -1,0 +1,154 @@
+"""What run.json records about the machine and the software: package
+versions, CPU model, BLAS (threadpoolctl + numpy's build config), git commit."""
+
+from __future__ import annotations
+
+import datetime as _dt
+import json
+import os
+import platform
+import socket
+import subprocess
+import sys
+from importlib import metadata
+from pathlib import Path
+
+__all__ = ["PACKAGES", "environment", "machine_class", "numba_target", "openblas_kernels",
+           "read_run_json", "utc_now", "write_run_json"]
+
+PACKAGES = ("hikbench", "numpy", "scipy", "pandas", "numba", "llvmlite", "threadpoolctl", "qpsolvers", "osqp",
+            "proxsuite", "clarabel", "daqp", "quadprog", "piqp", "highspy", "cvxpy", "pin",
+            "example-robot-data-loaders", "matplotlib", "rich", "dask", "distributed")
+RUN_JSON = "run.json"
+
+
+def utc_now() -> str:
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+
+
+def _versions() -> dict:
+    out = {"python": platform.python_version()}
+    for p in PACKAGES:
+        try:
+            out[p] = metadata.version(p)
+        except metadata.PackageNotFoundError:
+            out[p] = None
+    return out
+
+
+def cpu_model() -> str:
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if line.startswith("model name"):
+                    return line.split(":", 1)[1].strip()
+    except OSError:
+        pass  # not Linux: fall back to platform
+    return platform.processor() or platform.machine()
+
+
+def _blas() -> dict:
+    import numpy as np
+    from threadpoolctl import threadpool_info
+
+    info = {"threadpools": [{k: v for k, v in d.items() if k in ("user_api", "internal_api", "version",
+                                                                  "num_threads", "threading_layer",
+                                                                  "architecture", "filepath")}
+                            for d in threadpool_info()]}
+    try:
+        cfg = np.show_config(mode="dicts")
+        info["numpy_build"] = cfg.get("Build Dependencies", cfg)
+    except TypeError:  # numpy < 1.25 has no mode argument
+        info["numpy_build"] = None
+    return info
+
+
+def _git() -> dict:
+    root = Path(__file__).resolve().parents[2]  # the checkout (bench/harness/../..)
+    def git(*args):  # its output, None when git failed (no repository, no git, timeout)
+        try:
+            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True,
+                                  timeout=10, check=False)  # (the return code is read below)
+        except (OSError, subprocess.TimeoutExpired):
+            return None
+        return done.stdout.strip() if done.returncode == 0 else None
+    commit = git("rev-parse", "HEAD")
+    status = git("status", "--porcelain", "--untracked-files=no") if commit else None
+    return {"commit": commit or None, "branch": git("rev-parse", "--abbrev-ref", "HEAD") or None,
+            "dirty": None if status is None else bool(status)}  # (unknown, never a claimed clean tree)
+
+
+def numba_target() -> str:
+    """The CPU numba compiles the solvers' kernels for: ``NUMBA_CPU_NAME``
+    when set, else LLVM's name of this CPU (e.g. "znver4", "znver5")."""
+    from llvmlite import binding
+
+    return os.environ.get("NUMBA_CPU_NAME") or binding.get_host_cpu_name()
+
+
+def environment() -> dict:
+    return {
+        "host": socket.gethostname(),
+        "platform": platform.platform(),
+        "cpu": cpu_model(),
+        "numba_target": numba_target(),
+        "cpu_count": os.cpu_count(),
+        "versions": _versions(),
+        "blas": _blas(),
+        "git": _git(),
+        "argv": sys.argv,
+    }
+
+
+def openblas_kernels(threadpools: list[dict]) -> str | None:
+    """The kernels (threadpoolctl's ``architecture``) of numpy's OpenBLAS
+    among ``threadpools`` (threadpoolctl's ``threadpool_info()``, or as
+    run.json records it), else of another OpenBLAS; None without one."""
+    pools = [t for t in threadpools if t.get("internal_api") == "openblas"]
+    numpy_pools = [t for t in pools if "numpy" in str(t.get("filepath", ""))]
+    return next((t.get("architecture") for t in numpy_pools + pools if t.get("architecture")), None)
+
+
+def machine_class(env: dict) -> str | None:
+    """The kind of machine a run.json's ``environment`` was recorded on: the
+    CPU model, the kernels numpy's OpenBLAS chose for it (threadpoolctl's
+    ``architecture``: "Haswell" on an AVX2 CPU, "SkylakeX" on an AVX-512 one,
+    or what the environment's ``OPENBLAS_CORETYPE`` asks for) and, when
+    recorded (run.json files from 2026-11-23 on), numba's target
+    (:func:`numba_target`), e.g. ``"AMD EPYC, OpenBLAS SkylakeX, numba
+    znver4"``; None when the run.json says neither CPU nor BLAS. Timing ratios
+    between solvers move with it (the calibration kernel does not absorb that:
+    normalised by it, 5 cases of hcod read 1.23-1.30x slower on an AMD EPYC
+    Zen 5 than on a Zen 4, both "AMD EPYC" with SkylakeX kernels), so a
+    timing baseline holds for one class."""
+    cpu = env.get("cpu")
+    arch = openblas_kernels((env.get("blas") or {}).get("threadpools", []))
+    if cpu is None and arch is None:
+        return None
+    target = env.get("numba_target")
+    return f"{cpu or 'unknown CPU'}, OpenBLAS {arch or 'unknown'}" + (f", numba {target}" if target else "")
+
+
+def read_run_json(run_dir) -> dict:
+    """OUT/run.json as a dict ({} when there is none); HikbenchError when it is not a JSON object."""
+    from hikbench.problems.errors import HikbenchError
+
+    p = Path(run_dir) / RUN_JSON
+    if not p.exists():
+        return {}
+    try:
+        data = json.loads(p.read_text())
+    except (json.JSONDecodeError, UnicodeDecodeError) as err:
+        raise HikbenchError(f"{p}: not valid JSON ({err}); expected the run.json written by hikbench run "
+                            f"(restore it, or write to a new --out directory)") from err
+    if not isinstance(data, dict):
+        raise HikbenchError(f"{p}: expected a JSON object (the run.json written by hikbench run); "
+                            f"got a {type(data).__name__}")
+    return data
+
+
+def write_run_json(run_dir, data: dict) -> None:
+    p = Path(run_dir) / RUN_JSON
+    tmp = p.with_suffix(".json.tmp")
+    tmp.write_text(json.dumps(data, indent=1, default=str) + "\n")
+    os.replace(tmp, p)

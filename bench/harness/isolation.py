@@ -1,0 +1,300 @@
+"""A persistent worker process with a hard timeout per job.
+
+:class:`IsolatedWorker` starts ``python -m hikbench.bench.harness.isolation`` and talks to it
+over its stdin / stdout with length-prefixed pickles (the child moves its own
+``print`` output to stderr so that solvers cannot corrupt the channel). A job
+that does not answer within its timeout gets the process killed (status
+``timeout``); a process that dies (segfault, abort, ``os._exit``) gives status
+``crashed`` with the signal or exit code. Either way the next job starts a
+fresh process, so one bad backend costs one row, not the run.
+
+The first solve of a solver in a worker process may compile (numba) or fill
+caches; until the worker reports that first untimed solve done, a job of a
+solver that this process has not run yet is allowed ``first_timeout``
+seconds (if larger than the job timeout); after it, and for every later job
+of that solver, the job timeout applies. The allowance is given in full once
+per solver and :class:`IsolatedWorker` (not per process: a solver that hangs
+on every problem would cost ``first_timeout`` per row, each timeout
+restarting the process). After a restart, a solver whose first solve
+completed before gets the job timeout plus twice the longest first solve it
+took (its caches are on disk now), capped by ``first_timeout``; a solver
+whose first solve ran past the allowance gets the job timeout only. The
+``timeout`` row's reason says which limit applied.
+
+Plain subprocesses (not ``multiprocessing``) so that this also works inside
+daemonic Dask worker processes.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import pickle
+import select
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+
+from hikbench.problems.errors import HikbenchError
+from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
+
+__all__ = ["IsolatedWorker", "kill_session"]
+
+_HEADER = struct.Struct("<Q")
+_THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
+               "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS", "NUMBA_NUM_THREADS")
+
+
+_FIRST_SOLVE_DONE = "first-solve-done"  # frame sent by the child after a job's first untimed solve
+
+
+class _Timeout(Exception):
+    pass
+
+
+class _Closed(Exception):
+    pass
+
+
+def _write_frame(f, obj) -> None:
+    data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
+    f.write(_HEADER.pack(len(data)) + data)
+    f.flush()
+
+
+def _read_exact(fd: int, n: int, deadline: float | None) -> bytes:
+    buf = bytearray()
+    while len(buf) < n:
+        if deadline is not None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise _Timeout
+            ready, _, _ = select.select([fd], [], [], left)
+            if not ready:
+                raise _Timeout
+        chunk = os.read(fd, min(n - len(buf), 1 << 20))
+        if not chunk:
+            raise _Closed
+        buf += chunk
+    return bytes(buf)
+
+
+def _read_frame(fd: int, deadline: float | None):
+    (size,) = _HEADER.unpack(_read_exact(fd, _HEADER.size, deadline))
+    return pickle.loads(_read_exact(fd, size, deadline))
+
+
+def _describe_exit(code: int | None) -> str:
+    if code is None:
+        return "worker process died"
+    if code < 0:
+        try:
+            return f"worker process killed by signal {signal.Signals(-code).name}"
+        except ValueError:
+            return f"worker process killed by signal {-code}"
+    return f"worker process exited with code {code}"
+
+
+def kill_session(pid: int) -> None:
+    """SIGKILL the process group led by ``pid`` (a process started in a session of its own:
+    the group holds it and the processes it started); nothing when none is left."""
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        return  # the whole group has ended: nothing left to kill
+
+
+class IsolatedWorker:
+    """One worker process, restarted after a timeout or a crash.
+
+    Parameters
+    ----------
+    log : path or None
+        File that receives the worker's stderr (appended); None inherits it.
+    startup_timeout : float
+        Seconds allowed for the process to start and calibrate.
+    """
+
+    def __init__(self, log=None, startup_timeout: float = 120.0):
+        self.log = log
+        self.startup_timeout = startup_timeout
+        self.proc: subprocess.Popen | None = None
+        self.info: dict = {}
+        self.restarts = 0
+        self._warmed: set = set()  # solver specs whose first solve this process has done
+        # across restarts: the longest completed first solve (s) of each spec, and the specs whose
+        # first solve ran past the full allowance (see the module docstring)
+        self._first_s: dict = {}
+        self._first_hung: set = set()
+
+    def _env(self) -> dict:
+        env = dict(os.environ)
+        paths = [p for p in sys.path if p and os.path.isdir(p)]
+        env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys([os.getcwd(), *paths]))
+        for var in _THREAD_ENV:
+            env[var] = "1"
+        return env
+
+    def start(self) -> None:
+        self.close()
+        self._warmed = set()
+        # the child gets its own copy of the log's descriptor: ours is closed once it is started
+        with (open(self.log, "ab") if self.log else contextlib.nullcontext()) as err:
+            # own session: a Ctrl-C in the terminal interrupts the run, not the solve (no bogus
+            # `crashed` row); the child dies with its parent through PR_SET_PDEATHSIG (Linux)
+            self.proc = subprocess.Popen([sys.executable, "-m", "hikbench.bench.harness.isolation"], stdin=subprocess.PIPE,
+                                         stdout=subprocess.PIPE, stderr=err, env=self._env(),
+                                         start_new_session=True)
+        try:
+            self.info = _read_frame(self.proc.stdout.fileno(), time.monotonic() + self.startup_timeout)
+        except (_Timeout, _Closed) as exc:
+            code = self.proc.poll()
+            self.close()
+            raise HikbenchError(f"the isolated worker did not start ({_describe_exit(code)}); "
+                                f"see {self.log or 'stderr'}") from exc
+
+    @property
+    def alive(self) -> bool:
+        return self.proc is not None and self.proc.poll() is None
+
+    def run(self, job: dict, timeout: float, first_timeout: float | None = None) -> dict:
+        """Run ``job`` (see hikbench.bench.harness.worker); returns its result dict, or a
+        ``timeout`` / ``crashed`` result. Adds ``calib_ns``, ``host``, ``pid``.
+        ``first_timeout``: allowance for the first solve of a solver new to
+        this process (see the module docstring)."""
+        if not self.alive:
+            if self.proc is not None:
+                self.restarts += 1
+            self.start()
+        proc = self.proc
+        meta = {"host": self.info.get("host", socket.gethostname()), "pid": proc.pid,
+                "calib_ns": self.info.get("calib_ns")}
+        spec = job.get("solver")
+        allowance, why = self._allowance(spec, timeout, first_timeout)
+        first = allowance > timeout
+        try:
+            t0 = time.monotonic()
+            _write_frame(proc.stdin, job)
+            deadline = t0 + allowance  # (= timeout when this is not a first solve)
+            while True:
+                out = _read_frame(proc.stdout.fileno(), deadline)
+                if not (isinstance(out, str) and out == _FIRST_SOLVE_DONE):
+                    break
+                if spec not in self._warmed:
+                    self._warmed.add(spec)
+                    self._first_s[spec] = max(self._first_s.get(spec, 0.0), time.monotonic() - t0)
+                if first:  # the allowance covered the first solve; the job timeout applies after it
+                    first = False
+                    deadline = time.monotonic() + timeout
+        except _Timeout:
+            self.kill()
+            if first:
+                limit = f"{allowance:g} s allowed for the first solve{why}"
+                if spec not in self._first_s:
+                    self._first_hung.add(spec)
+            else:
+                limit = f"{timeout:g} s timeout{why}"
+            return {**meta, "status": TIMEOUT, "x": None, "samples_ns": [],
+                    "reason": f"no answer within the {limit}; worker killed"}
+        except (_Closed, BrokenPipeError, OSError):
+            try:
+                code = proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                code = None
+            self.kill()  # (closes its pipes, and ends it if it still runs)
+            return {**meta, "status": CRASHED, "x": None, "samples_ns": [], "reason": _describe_exit(code)}
+        out.setdefault("calib_ns", meta["calib_ns"])
+        return out
+
+    def _allowance(self, spec, timeout: float, first_timeout: float | None) -> tuple[float, str]:
+        """Seconds allowed for the first solve of ``spec`` in the current process, and
+        the words a timeout reason adds when that is not the full ``first_timeout``
+        (see the module docstring)."""
+        if not first_timeout or first_timeout <= timeout or spec in self._warmed:
+            return timeout, ""
+        if spec in self._first_hung:
+            return timeout, (f" (no first-solve allowance: this solver's first solve ran past the "
+                             f"{first_timeout:g} s allowance earlier in this worker)")
+        done = self._first_s.get(spec)
+        if done is None:
+            return first_timeout, ""
+        allowance = min(first_timeout, timeout + 2.0 * done)
+        return allowance, (f" (after a restart: the job timeout plus twice this solver's first solve "
+                           f"before, {done:.3g} s)")
+
+    def kill(self) -> None:
+        """End the worker and every process a solver started in its session (a helper
+        left running would burn CPU through the timings of every later job)."""
+        if self.proc is not None:
+            kill_session(self.proc.pid)
+            self.proc.wait()
+            for f in (self.proc.stdin, self.proc.stdout):
+                try:
+                    f.close()
+                except OSError:
+                    pass  # the pipe is already broken; the process is gone either way
+            self.proc = None
+
+    def close(self) -> None:
+        """Ask the worker to exit; kill it if it does not."""
+        if self.proc is None:
+            return
+        if self.proc.poll() is None:
+            try:
+                _write_frame(self.proc.stdin, None)
+                self.proc.wait(timeout=5)
+            except (OSError, subprocess.TimeoutExpired):
+                pass  # kill() below ends it
+        self.kill()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def _die_with_parent() -> None:
+    """Linux: SIGKILL this process when its parent dies (a killed run must not
+    leave a hanging solve behind). Elsewhere the closed stdin ends an idle worker."""
+    if sys.platform.startswith("linux"):
+        import ctypes
+
+        try:
+            rc = ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+            why = f"prctl failed, errno {ctypes.get_errno()}" if rc != 0 else ""
+        except (OSError, AttributeError) as err:  # no glibc
+            why = f"{type(err).__name__}: {err}"
+        if why:  # (stderr: OUT/worker.log under `hikbench run`)
+            print(f"hikbench worker: not killed with its parent ({why}); an orphaned worker ends when "
+                  "it next reads its closed stdin, one in a hanging solve does not", file=sys.stderr)
+
+
+def _child_main() -> None:
+    _die_with_parent()
+    channel = os.fdopen(os.dup(1), "wb")
+    os.dup2(2, 1)  # anything a solver prints goes to stderr, not into the channel
+    fd = os.dup(0)  # the jobs; a solver reading stdin reads /dev/null (not the job channel: it waited there)
+    null = os.open(os.devnull, os.O_RDONLY)
+    os.dup2(null, 0)
+    os.close(null)
+    from hikbench.bench.harness.calibration import calibrate
+    from hikbench.bench.harness.worker import execute
+
+    calib = calibrate()
+    _write_frame(channel, {"host": socket.gethostname(), "pid": os.getpid(), "calib_ns": calib})
+    while True:
+        try:
+            job = _read_frame(fd, None)
+        except _Closed:
+            return
+        if job is None:
+            return
+        _write_frame(channel, execute(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE)))
+
+
+if __name__ == "__main__":
+    _child_main()

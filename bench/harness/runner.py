@@ -1,0 +1,415 @@
+"""``hikbench run``: expand a suite, generate and save its problems, compute
+(and cache) the yardstick of each problem, run every (problem, solver,
+settings, mode) not already in OUT/results.csv, verify each x against the
+yardstick, and append one row per job as it finishes (with rounds: after its
+last round).
+
+Layout of OUT::
+
+    results.csv           one row per job (bench/harness/columns.py)
+    run.json              environment, suite, calibration, sessions
+    problems/<id>.npz     every problem of the suite (and .soth.txt if exported)
+    yardstick/<id>.npz    cached yardstick solution (x, status, reason)
+    worker.log            stderr of the isolated worker processes
+    run.lock              held (flock) by the run writing to OUT: a second run on
+                          the same OUT is refused; the OS releases it when the
+                          run's process ends, however it ends
+"""
+
+from __future__ import annotations
+
+import fcntl
+import json
+import math
+import os
+import socket
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hikbench.bench.harness.calibration import KERNEL, calibrate
+from hikbench.bench.harness.columns import KEY
+from hikbench.bench.harness.environment import environment, read_run_json, utc_now, write_run_json
+from hikbench.bench.suites.problemset import file_stem, generate, problem_columns, save_problem
+from hikbench.bench.harness.results import ResultsWriter, backup, compact, finished_rows
+from hikbench.bench.suites import ACCURACY, Suite, SuiteError, Task, expand
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.verify import level_norms, verify
+from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
+from hikbench.solvers.base import ERROR
+
+__all__ = ["RunSummary", "out_lock", "run_suite"]
+
+
+@dataclass
+class RunSummary:
+    total: int = 0
+    skipped_finished: int = 0
+    written: int = 0
+    statuses: dict = field(default_factory=dict)
+    skipped_solvers: dict = field(default_factory=dict)
+
+
+def _finite(v):
+    return None if v is None or (isinstance(v, float) and not math.isfinite(v)) else v
+
+
+def _json_floats(a) -> str:
+    return json.dumps([None if not math.isfinite(float(v)) else float(v) for v in a])
+
+
+def _load_yardstick(path: Path):
+    with np.load(path, allow_pickle=False) as z:
+        return (z["x"] if z["x"].size else None), str(z["status"]), str(z["reason"])
+
+
+def _save_yardstick(path: Path, x, status: str, reason: str) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_suffix(".tmp")
+    with open(tmp, "wb") as f:
+        np.savez(f, x=np.zeros(0) if x is None else np.asarray(x, float), status=status, reason=reason)
+    tmp.replace(path)
+
+
+def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: float) -> dict:
+    """One results.csv row from a job result (hikbench.bench.harness.worker) and the yardstick."""
+    x_ref, ref_status, ref_reason = ref
+    x = res.get("x")
+    samples = np.asarray(res.get("samples_ns") or [], dtype=np.int64)
+    row = dict(pcols)
+    e = task.entry
+    row.update(solver=e.solver, settings=e.settings, options=e.options_json(), strict=e.strict,
+               mode=task.mode,
+               repeat=len(samples), status=res["status"], reason=res.get("reason", ""))
+    if x is not None and np.shape(x) == (h.n,):
+        norms = level_norms(h, x)
+        row["level_norms"] = _json_floats(norms)
+        row["x_norm"] = float(np.linalg.norm(x))
+    if x_ref is not None:
+        row["ref_level_norms"] = _json_floats(level_norms(h, x_ref))
+    if x_ref is None:
+        row["verified"] = None
+        row["verdict_side"] = "no reference"
+        row["reason"] = (row["reason"] + "; " if row["reason"] else "") + f"reference {ref_status}: {ref_reason}"
+    elif x is None or np.shape(x) != (h.n,):
+        row.update(verified=False, verdict_side="no x")
+    else:
+        v = verify(h, x, x_ref, rtol=rtol, atol=atol)
+        row["verified"] = bool(v.equal or v.lower == "a")
+        if not v.equal:
+            row.update(verdict_level=v.level, verdict_side="better" if v.lower == "a" else "worse",
+                       verdict_diff=_finite(float(v.difference)))
+    for k in ("iterations", "activations", "deactivations", "flops"):
+        row[k] = res.get(k)
+    if res.get("iterations_per_level"):
+        row["iterations_per_level"] = json.dumps(res["iterations_per_level"])
+    if samples.size:
+        row.update(time_median_s=float(np.median(samples)) * 1e-9, time_min_s=float(samples.min()) * 1e-9,
+                   time_p95_s=float(np.percentile(samples,
+                                                  95)) * 1e-9, samples_ns=json.dumps(samples.tolist()))
+    row["build_time_s"] = _finite(res.get("build_time_s"))
+    row["solve_time_s"] = _finite(res.get("solve_time_s"))
+    row.update(calib_ns=res.get("calib_ns"), host=res.get("host"), worker=res.get("worker"),
+               wall_s=res.get("wall_s"), finished_at=utc_now())
+    return row
+
+
+class _Progress:
+    """rich progress bar (done/total, rate, ETA), or nothing with --quiet."""
+
+    def __init__(self, quiet: bool):
+        self.p = None
+        if not quiet:
+            from rich.progress import (
+                BarColumn,
+                MofNCompleteColumn,
+                Progress,
+                TextColumn,
+                TimeElapsedColumn,
+                TimeRemainingColumn,
+            )
+            self.p = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
+                              TextColumn("{task.fields[rate]}"), TimeElapsedColumn(), TextColumn("ETA"),
+                              TimeRemainingColumn(), transient=False)
+
+    def __enter__(self):
+        if self.p:
+            self.p.start()
+        return self
+
+    def __exit__(self, *exc):
+        if self.p:
+            self.p.stop()
+
+    def add(self, description: str, total: int):
+        return self.p.add_task(description, total=total, rate="") if self.p else None
+
+    def advance(self, tid, label: str = "", steps: int = 1):
+        if self.p is not None:
+            self.p.advance(tid, steps)
+            speed = self.p.tasks[tid].speed if tid < len(self.p.tasks) else None
+            self.p.update(tid, rate=f"{speed:.1f}/s" if speed else "", description=label or
+                          self.p.tasks[tid].description)
+
+
+def out_lock(out: Path):
+    """Take the exclusive lock of a run directory, ``OUT/run.lock`` (an
+    ``flock``: a run killed by any signal leaves no stale lock). Returns the
+    open lock file; closing it releases the lock. Raises HikbenchError,
+    naming the holder, when another run holds it: two runs appending to one
+    results.csv (or compacting it) would mix or drop rows."""
+    path = Path(out) / "run.lock"
+    try:
+        f = open(path, "a+")  # noqa: SIM115 - held open for the run, closed by the caller
+    except OSError as err:
+        raise HikbenchError(f"--out {out}: cannot create {path.name}: {err.strerror or err}") from err
+    try:
+        fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        f.seek(0)
+        holder = f.read().strip() or "a process that has not written its name yet"
+        f.close()
+        raise HikbenchError(f"--out {out}: another hikbench run is writing to this directory ({holder}); "
+                            "wait for it to finish, or give this run another --out") from None
+    f.seek(0)
+    f.truncate()
+    f.write(f"pid {os.getpid()} on {socket.gethostname()}, started {utc_now()}\n")
+    f.flush()
+    return f
+
+
+def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rerun=False, executor=None,
+              quiet=False, limit=None, rounds=None, log=print) -> RunSummary:
+    """Run ``suite`` into directory ``out`` (see the module docstring).
+
+    ``solvers`` (patterns) replaces the suite's solver lists; ``repeat``,
+    ``rounds`` and ``timeout`` override the suite's; ``limit`` stops after
+    that many new rows (the run resumes later). With ``rounds`` R > 1 the
+    ``repeat`` timed solves of a row are split over R rounds, each round
+    running every job of the run once (:func:`_merge_rounds`): a slow window
+    of the machine then shifts a part of every row's samples, not all the
+    samples of the rows it happens to meet; a row is written after its last
+    round (a run stopped in between has not written it: a plain run of the
+    same OUT runs it again, unless ``rerun`` left its old row). ``rerun``
+    runs finished rows again: each new row replaces its old one, the other
+    rows are kept, and results.csv is first backed up without overwriting an older backup (hikbench.bench.harness.results.backup); a
+    finished row whose settings' options changed is run again the same way.
+    A suite that selects no job raises SuiteError. ``executor`` defaults to a
+    SerialExecutor."""
+    from hikbench.bench.harness.executors import SerialExecutor
+
+    out = Path(out)
+    repeat = int(repeat or suite.repeat)
+    if rounds is None and suite.rounds > repeat:  # (a smaller --repeat than the suite's)
+        print(f"hikbench run: the suite's rounds = {suite.rounds} lowered to repeat = {repeat}: each round "
+              "times at least one solve of every row", file=sys.stderr)
+        rounds = repeat
+    rounds = int(rounds or suite.rounds)
+    if rounds > repeat:
+        raise HikbenchError(f"rounds = {rounds} (--rounds or the suite's): expected at most repeat = {repeat} "
+                            "(--repeat or the suite's): each round times at least one solve of every row")
+    timeout = float(timeout or suite.timeout)
+    rtol, atol = ACCURACY[suite.accuracy]
+    tasks, skipped = expand(suite, solvers)  # checks solvers and settings before anything is written
+    summary = RunSummary(total=len(tasks), skipped_solvers=skipped)
+    problems, pcols = {}, {}
+    for spec in [t.problem for t in tasks] if tasks else [sp for sp, _ in suite.problems()]:
+        if spec.id not in problems:  # every problem is generated (and checked) before anything is written
+            problems[spec.id] = _generate(suite, spec)
+            pcols[spec.id] = problem_columns(spec, problems[spec.id])
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise HikbenchError(f"--out {out}: cannot create the output directory: {err.strerror or err}") from err
+    lock = out_lock(out)  # released on return or raise, and by the OS when the process dies
+    try:
+        export, export_skipped = _export_formats(suite.export)
+        for name, why in skipped.items():
+            print(f"hikbench run: skipping solver {name}: {why}", file=sys.stderr)
+        for pid, h in problems.items():
+            save_problem(h, out / "problems", pid, export)
+        if not tasks:  # e.g. every solver's backend missing: the problems are still exported, then fail
+            why = "; ".join(f"skipped solver {k}: {v}" for k, v in skipped.items()) or (
+                f"none of its solvers runs in its modes {list(suite.modes)}: warm needs supports_warm_start")
+            raise SuiteError(f"suite {suite.source or suite.name} selects no job to run ({why}); "
+                             f"its problems were written to {out / 'problems'}")
+
+        compact(out)  # a run killed while replacing rows left old rows behind
+        done = finished_rows(out)
+        if rerun:
+            todo = list(tasks)
+        else:  # a finished key whose settings' options changed runs again
+            todo = [t for t in tasks if done.get(t.key) != t.entry.options_json()]
+            changed = sum(t.key in done for t in todo)
+            if changed:
+                print(f"hikbench run: {changed} finished row(s) run again: their settings' options changed",
+                      file=sys.stderr)
+        summary.skipped_finished = len(tasks) - len(todo)
+        if limit is not None:
+            todo = todo[: max(int(limit), 0)]
+        replaced = sum(t.key in done for t in todo)
+        if replaced:
+            bak = backup(out)
+            print(f"hikbench run: {replaced} finished row(s) will be replaced as they are run again; "
+                  f"the previous results.csv is kept as {bak}", file=sys.stderr)
+
+        meta = read_run_json(out)
+        session = {"started": utc_now(), "calibration_start_ns": calibrate(), "todo": len(todo),
+                   "repeat": repeat, "rounds": rounds, "timeout": timeout}
+        # (the solvers this directory's runs selected, skipped ones included: compare expects their cases)
+        selected = sorted({t.entry.solver for t in tasks} | set(skipped) | set(meta.get("selected_solvers", [])))
+        meta.update({"suite": suite.to_dict(), "suite_rows": len(tasks), "selected_solvers": selected,
+                     "calibration_kernel": KERNEL, "key": list(KEY),
+                     "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
+                     "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
+        meta.setdefault("created", session["started"])
+        meta.setdefault("sessions", []).append(session)
+        write_run_json(out, meta)
+
+        own_executor = executor is None
+        executor = executor or SerialExecutor(log=out / "worker.log")
+        session["executor"] = getattr(executor, "name", type(executor).__name__)
+        try:
+            with _Progress(quiet) as progress:
+                refs = _yardsticks(todo, problems, out, executor, max(timeout, suite.first_solve_timeout), progress)
+                tid = progress.add("solves", len(todo) * rounds)
+                earlier = {i: [] for i in range(len(todo))}  # results of the rounds before, per job
+                alive = list(earlier)  # jobs still to run in the next round
+                with ResultsWriter(out) as writer:
+                    for rnd in range(rounds):
+                        share = repeat // rounds + (rnd < repeat % rounds)
+                        items = ((i, _job(suite, todo[i], problems, share), timeout) for i in alive)
+                        again = []
+                        for i, res in executor.map(items):
+                            t = todo[i]
+                            label = f"solves: {t.entry.solver} {t.mode}" + (
+                                f" (round {rnd + 1}/{rounds})" if rounds > 1 else "")
+                            if rnd < rounds - 1 and not _ends_rounds(res):
+                                earlier[i].append({k: res.get(k) for k in ("status", "samples_ns", "wall_s",
+                                                                           "calib_ns", "host")})
+                                again.append(i)
+                                progress.advance(tid, label)
+                                continue
+                            res = _merge_rounds(earlier.pop(i), res, rounds)
+                            pid = t.problem.id
+                            row = make_row(t, pcols[pid], problems[pid], refs[pid], res, rtol, atol)
+                            writer.write(row)
+                            summary.written += 1
+                            summary.statuses[row["status"]] = summary.statuses.get(row["status"], 0) + 1
+                            progress.advance(tid, label, rounds - rnd)
+                        alive = sorted(again)  # (the suite's order, whatever order the executor finished in)
+        finally:
+            if own_executor:
+                executor.close()
+            if replaced:
+                compact(out)  # drop the old rows of the keys that were run again
+            session["finished"] = utc_now()
+            session["calibration_end_ns"] = calibrate()
+            session["written"] = summary.written
+            cal = [s[k] for s in meta["sessions"] for k in ("calibration_start_ns",
+                                                            "calibration_end_ns") if k in s]
+            meta["calibration_ns"] = int(np.median(cal))
+            write_run_json(out, meta)
+        return summary
+    finally:
+        lock.close()
+
+
+def _job(suite: Suite, t: Task, problems: dict, repeat: int) -> dict:
+    """The worker's job (hikbench.bench.harness.worker) timing ``repeat`` solves of task t."""
+    return {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
+            "hierarchy": problems[t.problem.id], "solver": t.entry.spec, "options": t.entry.options,
+            "mode": t.mode, "repeat": repeat, "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
+            "calibrate": suite.calibrate_each_job}
+
+
+def _ends_rounds(res: dict) -> bool:
+    """A job that ends so in a round is not run in the later ones (its row is
+    written at once): the harness killed it (timeout), its worker died
+    (crashed), or an exception escaped (error without samples; a solver that
+    reports ``error`` itself, with its timed solves, goes on)."""
+    return res["status"] in (TIMEOUT, CRASHED) or (res["status"] == ERROR and not res.get("samples_ns"))
+
+
+def _merge_rounds(earlier: list[dict], res: dict, rounds: int) -> dict:
+    """The result of a job run in rounds: the last round's result (x, status,
+    counters) with the timed samples of every round (``wall_s`` their sum,
+    ``calib_ns`` the median of the rounds'); a round that ended the job's
+    rounds (:func:`_ends_rounds`) is the row, its reason naming the round (no
+    samples: like a run without rounds). Rounds whose statuses differ, or that
+    ran on different hosts, are named in the reason."""
+    if not earlier:
+        if rounds > 1 and _ends_rounds(res):
+            res = {**res, "reason": f"{res.get('reason', '')} (in round 1 of {rounds})".lstrip()}
+        return res
+    rnd = len(earlier) + 1
+    if _ends_rounds(res):
+        return {**res, "reason": f"{res.get('reason', '')} (in round {rnd} of {rounds}; the earlier rounds "
+                                 f"ended {', '.join(r['status'] for r in earlier)})".lstrip()}
+    every = (*earlier, res)
+    out = {**res, "samples_ns": [s for r in every for s in r.get("samples_ns") or []]}
+    if all(r.get("wall_s") is not None for r in every):
+        out["wall_s"] = sum(r["wall_s"] for r in every)
+    if all(r.get("calib_ns") is not None for r in every):
+        out["calib_ns"] = int(np.median([r["calib_ns"] for r in every]))
+    notes = [res.get("reason") or ""]
+    statuses = [r["status"] for r in every]
+    if len(set(statuses)) > 1:
+        notes.append(f"statuses differ across the rounds: {', '.join(statuses)}")
+    hosts = list(dict.fromkeys(r.get("host") for r in every if r.get("host")))
+    if len(hosts) > 1:  # (a Dask cluster: each round's jobs go to whichever worker is free)
+        notes.append(f"rounds ran on hosts {', '.join(hosts)} (calib_ns: their median)")
+    out["reason"] = "; ".join(filter(None, notes))
+    return out
+
+
+def _generate(suite: Suite, spec):
+    """generate(spec), a bad family or parameter reported with the suite file and the problem."""
+    try:
+        return generate(spec)
+    except HikbenchError as err:
+        raise SuiteError(f"suite {suite.source or suite.name}: problem {spec.id}: {err}") from err
+
+
+def _export_formats(formats) -> tuple[tuple, dict]:
+    """The suite's export formats that this tree can write, and the others
+    with the reason (reported on stderr and in run.json, not silently)."""
+    keep, skipped = [], {}
+    for fmt in formats:
+        if fmt == "soth":
+            try:
+                import hikbench.problems.soth  # noqa: F401
+            except ModuleNotFoundError:
+                skipped[fmt] = "hikbench.problems.soth is not available in this tree; only npz was written"
+                print(f"hikbench run: not exporting SOTH text: {skipped[fmt]}", file=sys.stderr)
+                continue
+        keep.append(fmt)
+    return tuple(keep), skipped
+
+
+def _yardsticks(todo, problems, out: Path, executor, timeout, progress) -> dict:
+    """x_ref, status, reason per problem id, from OUT/yardstick/ or computed
+    through the executor (isolated; ``timeout`` is the larger of the job
+    timeout and the first-solve allowance: the yardstick is trusted code and
+    its first call imports its QP backends)."""
+    refs, need = {}, []
+    for pid in dict.fromkeys(t.problem.id for t in todo):
+        path = out / "yardstick" / (file_stem(pid) + ".npz")
+        if path.exists():
+            refs[pid] = _load_yardstick(path)
+        else:
+            need.append(pid)
+    if need:
+        tid = progress.add("yardstick", len(need))
+        items = ((pid, {"kind": "yardstick", "hierarchy": problems[pid]}, timeout) for pid in need)
+        for pid, res in executor.map(items):
+            x = res.get("x") if res["status"] == "optimal" else None
+            refs[pid] = (x, res["status"], res.get("reason", ""))
+            # a killed or lost worker is no answer of the yardstick: not cached, the next run tries again
+            if res["status"] not in (TIMEOUT, CRASHED):
+                _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), x, res["status"],
+                                res.get("reason", ""))
+            progress.advance(tid)
+    return refs

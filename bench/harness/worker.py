@@ -1,0 +1,112 @@
+"""The worker side of a solve: build the solver, time it, return plain data.
+
+Runs inside the isolated worker process (``python -m hikbench.bench.harness.isolation``) or,
+for external programs, in the caller. A job is a dict::
+
+    {"kind": "solve" | "yardstick", "hierarchy": Hierarchy, "solver": spec,
+     "options": {...}, "mode": "cold" | "warm", "repeat": R, "warmup": W}
+
+``spec`` is a registry name or ``module:Class`` / ``file.py:Class`` (a
+:class:`~hikbench.solvers.base.Solver` subclass or any factory), which is how tests
+inject hanging or crashing solvers without touching the registry.
+"""
+
+from __future__ import annotations
+
+import gc
+import os
+import socket
+import traceback
+
+import numpy as np
+
+from hikbench.solvers import registry
+from hikbench.solvers.base import ERROR, SolveResult
+
+__all__ = ["execute", "solver_factory", "solver_info"]
+
+_frozen: set[str] = set()  # solvers whose first solve in this process is behind gc.freeze()
+
+
+def solver_info(spec: str, name: str = "") -> registry.SolverInfo:
+    """The :class:`~hikbench.solvers.registry.SolverInfo` of a registry name, or one made
+    for a ``module:Class`` spec (its factory the object, no default options)."""
+    if ":" in spec:
+        from hikbench.bench.suites.problemset import load_object
+        from hikbench.problems.errors import HikbenchError
+
+        obj = load_object(spec)
+        if not callable(obj) or (isinstance(obj, type) and not callable(getattr(obj, "solve", None))):
+            raise HikbenchError(f"{spec!r} is not a solver: expected a class with a solve(hierarchy) method "
+                                f"(a hikbench.solvers.base.Solver subclass) or a factory returning one")
+        return registry.SolverInfo(name or spec, "", obj)
+    return registry.get(spec)
+
+
+def solver_factory(spec: str, options: dict):
+    """A zero-argument callable building a fresh solver with ``options``
+    (:func:`hikbench.solvers.registry.build`: option names checked against the factory)."""
+    info = solver_info(spec)
+    return lambda: registry.build(info, **options)
+
+
+def _result_dict(res: SolveResult, samples_ns) -> dict:
+    return {
+        "status": res.status, "reason": res.reason,
+        "x": None if res.x is None else np.asarray(res.x, dtype=float),
+        "iterations": int(res.iterations), "iterations_per_level": [int(i) for i in res.iterations_per_level],
+        "activations": int(res.activations), "deactivations": int(res.deactivations),
+        "flops": None if res.flops is None else int(res.flops),
+        "build_time_s": float(res.build_time_s), "solve_time_s": float(res.solve_time_s),
+        "samples_ns": [int(s) for s in samples_ns],
+    }
+
+
+def execute(job: dict, notify=None) -> dict:
+    """Run one job; never raises for a solver failure (the reason is returned).
+
+    A solve job starts with the solver's ``warmup()`` (if it has one: all its
+    kernels compiled) and one untimed solve on a fresh solver (JIT
+    compilation, imports), then calls ``notify()`` so that the isolated
+    worker's caller can switch from the first-solve allowance to the job
+    timeout (bench/harness/isolation.py). The job's ``warmup`` discarded solves come
+    after that, right before the timed ones (:func:`hikbench.bench.harness.timing.time_solves`)."""
+    base = {"host": socket.gethostname(), "pid": os.getpid()}
+    h = job["hierarchy"]
+    try:
+        if job["kind"] == "yardstick":
+            from hikbench.solvers.yardstick import yardstick_solution
+            x = yardstick_solution(h)
+            return {**base, "status": "optimal", "reason": "", "x": np.asarray(x, dtype=float)}
+        from hikbench.bench.harness.timing import time_solves
+        make = solver_factory(job["solver"], job.get("options", {}))
+        first = make()
+        if callable(getattr(first, "warmup", None)):  # (module:Class solvers need not derive from Solver)
+            first.warmup()
+        first.solve(h)
+        if job["solver"] not in _frozen:
+            # The first solve of a solver in this process compiles (numba) or imports what it
+            # needs: some 480K long-lived objects after hcod's kernels, which the gc.collect()
+            # before each job's timing (hikbench.bench.harness.timing.quiet_timing) would walk again: 0.3 s per
+            # job of every solver after it. Frozen once, the collector skips them.
+            gc.collect()
+            gc.freeze()
+            _frozen.add(job["solver"])
+        if notify is not None:
+            notify()
+        calib = []
+        if job.get("calibrate"):
+            from hikbench.bench.harness.calibration import calibrate
+            calib.append(calibrate(reps=3))
+        # every warm-up solve in time_solves, after its gc.collect() and BLAS limit: the first
+        # solve after them took 2-7x the median when the untimed first solve counted as one
+        t = time_solves(make, h, repeat=int(job["repeat"]), mode=job["mode"], warmup=int(job["warmup"]))
+        out = {**base, **_result_dict(t.result, t.samples_ns)}
+        if calib:
+            out["calib_ns"] = min(calib[0], calibrate(reps=3))  # around the timed solves
+        return out
+    except Exception as err:  # noqa: BLE001 - a failing job costs its row (status error + reason)
+        tb = traceback.extract_tb(err.__traceback__)
+        where = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
+        return {**base, "status": ERROR, "reason": f"{type(err).__name__}: {err}{where}", "x": None,
+                "samples_ns": []}

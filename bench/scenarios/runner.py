@@ -1,0 +1,248 @@
+"""The closed loop of a robot scenario (ICRA 2010 sec. XII): at each control step
+k (time t_k = k dt) set the targets of t_k, build the stack's hierarchy at q_k,
+solve it with any registered solver (one solver object for the whole run, so a
+solver with warm start keeps its state from step to step), integrate
+``q_{k+1} = pin.integrate(q_k, u dt)``, repeat.
+
+Per-step record (one row per step; :data:`COLUMNS` then one column per task
+and per level):
+
+=========================  ==================================================
+solver                     registry name
+warm_start                 ``none`` / ``stage`` / ``time`` (the solver's ``warm_start``
+                           option), ``n/a`` for a solver without that option
+step                       k
+time_s                     t_k = k dt (s)
+solve_time_s               wall time of ``solver.solve`` (perf_counter_ns, GC off, BLAS
+                           threads = 1; one untimed warm-up solve on a separate solver
+                           object before the run), s
+iterations                 SolveResult.iterations
+activations, deactivations SolveResult counts (active-set solvers; 0 otherwise)
+status                     SolveResult.status, or ``diverged`` when q (+) u dt is not
+                           finite (the run stops there)
+reason                     SolveResult.reason (empty when optimal)
+min_joint_limit_margin     min over bounded joints of min(q - q_l, q_u - q) at q_k
+                           (rad or m; negative = violated)
+err_<task>                 the task's error norm at q_k (``Task.error_norm``;
+                           m for positions, rad for orientations, mixed for 6D
+                           log errors; for minimal velocity ||u|| rad/s)
+level_norm_<level>         ||v_k(u)||, the level's violation recomputed from u
+=========================  ==================================================
+"""
+
+from __future__ import annotations
+
+import gc
+import inspect
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+import pinocchio as pin
+from threadpoolctl import threadpool_limits
+
+from hikbench.bench.harness.worker import solver_info
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.robots.kinematics import KinematicState
+from hikbench.problems.robots.scenarios import Scenario
+from hikbench.solvers import registry
+from hikbench.solvers.base import ERROR, SolveResult, checked_result
+from hikbench.problems.verify import level_norms
+
+__all__ = ["COLUMNS", "NO_WARM_START", "ScenarioRun", "check_run", "run_scenario", "warm_start_default"]
+
+COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_s", "iterations", "activations",
+           "deactivations", "status", "reason", "min_joint_limit_margin")
+NO_WARM_START = "n/a"
+
+
+@dataclass
+class ScenarioRun:
+    """One run: the per-step ``records`` and the joint trajectory ``q`` (steps + 1, nq)."""
+
+    scenario: Scenario
+    solver: str
+    warm_start: str
+    records: pd.DataFrame
+    q: np.ndarray
+
+    @property
+    def label(self) -> str:
+        return self.solver if self.warm_start == NO_WARM_START else f"{self.solver} ({self.warm_start})"
+
+
+def warm_start_default(info: registry.SolverInfo) -> str | None:
+    """The default warm-start mode of a solver with the HCOD modes (none / stage /
+    time): its registered option, or, for a ``module:Class`` solver, the default
+    of the factory's ``warm_start`` parameter; None for a solver without one."""
+    if "warm_start" in info.options:
+        return str(info.options["warm_start"])
+    if "warm_start" not in (registry.option_names(info) or ()):
+        return None
+    param = inspect.signature(info.factory).parameters["warm_start"]
+    if param.default is param.empty:
+        raise HikbenchError(f"solver {info.name!r}: its warm_start parameter has no default value; "
+                            f"expected one (none, stage or time)")
+    return str(param.default)
+
+
+def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
+                 warm_start: str | None = None, steps: int | None = None) -> ScenarioRun:
+    """Run ``scenario`` in closed loop with solver ``solver``.
+
+    Parameters
+    ----------
+    solver : str
+        A registry name or ``module:Class`` / ``file.py:Class``
+        (:func:`hikbench.bench.harness.worker.solver_info`).
+    options : dict
+        Solver options (``registry.build(info, **options)``).
+    warm_start : str, optional
+        Passed as the ``warm_start`` option to solvers that have one (HCOD's
+        none / stage / time); ignored, and the column reads ``n/a``, for the others.
+    steps : int, optional
+        Number of control steps (default: the scenario's).
+    """
+    options = dict(options or {})
+    info = solver_info(solver)
+    default = warm_start_default(info)
+    if default is not None:  # solvers with the HCOD warm-start modes (none / stage / time)
+        if warm_start is not None:
+            options["warm_start"] = warm_start
+        mode = str(options.get("warm_start", default))
+    else:
+        mode = NO_WARM_START
+    slv = registry.build(info, **options)
+    steps = scenario.steps if steps is None else int(steps)
+    if steps < 1:
+        raise HikbenchError(f"steps must be >= 1; got {steps}")
+    robot, stack, dt = scenario.robot, scenario.stack, scenario.dt
+    # warm-up (untimed, on a separate solver object): numba compilation, backend caches
+    scenario.reset()
+    state = KinematicState(robot, scenario.q_init)
+    scenario.targets_at(0.0, state)
+    _solve(registry.build(info, **options), stack.hierarchy(scenario.q_init, state))  # (step 0 reports a failure)
+    scenario.reset()
+    q = scenario.q_init.copy()
+    traj, rows = [q.copy()], []
+    with threadpool_limits(limits=1):
+        for k in range(steps):
+            t = k * dt
+            state = KinematicState(robot, q)
+            scenario.targets_at(t, state)
+            h = stack.hierarchy(q, state)
+            gc.disable()  # GC off around the timed call only, as in the harness (bench/harness/timing.py)
+            try:
+                t0 = time.perf_counter_ns()
+                res = _solve(slv, h)
+                elapsed = (time.perf_counter_ns() - t0) * 1e-9
+            finally:
+                gc.enable()
+            u = res.x
+            row = {"solver": solver, "warm_start": mode, "step": k, "time_s": t, "solve_time_s": elapsed,
+                   "iterations": int(res.iterations), "activations": int(res.activations),
+                   "deactivations": int(res.deactivations), "status": res.status, "reason": res.reason,
+                   "min_joint_limit_margin": float(np.min(robot.limit_margin(q), initial=np.inf))}
+            row.update({f"err_{name}": v for name, v in stack.errors(q, u, state).items()})
+            norms = level_norms(h, u) if u is not None else np.full(h.depth, np.nan)
+            row.update({f"level_norm_{name}": float(v) for name, v in zip(h.names, norms)})
+            rows.append(row)
+            if u is None or not np.all(np.isfinite(u)):
+                break  # the status column says why
+            q = pin.integrate(robot.model, q, u * dt)
+            if not np.all(np.isfinite(q)):  # e.g. u ~ 1e154 returned as "optimal"
+                row["status"] = "diverged"
+                break
+            traj.append(q.copy())
+    return ScenarioRun(scenario, solver, mode, pd.DataFrame(rows), np.array(traj))
+
+
+def _solve(slv, h) -> SolveResult:
+    """``slv.solve(h)``; an exception escaping from the solver (a user's
+    ``file.py:Class``), or an answer that breaks the contract
+    (:func:`hikbench.solvers.base.checked_result`), is returned as status ``error`` with
+    its type and message."""
+    try:
+        return checked_result(slv.solve(h), h, slv)
+    except Exception as err:  # noqa: BLE001 - a crashing solver ends its run with a status row
+        return SolveResult(None, ERROR, reason=f"{type(err).__name__}: {err}")
+
+
+@dataclass(frozen=True)
+class Check:
+    """One verified property of a run."""
+
+    name: str
+    passed: bool
+    detail: str
+
+
+#: tolerances of the scenario checks (m, rad, or mixed 6D log units)
+LIMIT_TOL = 1e-9       #: joint-limit margin allowed below 0
+REGULATED_ATOL = 2e-3  #: a regulated task's error may exceed its initial value by this much
+REGULATED_FINAL = 1e-5  #: ... and ends below this
+REACHED_TOL = 1e-3     #: reaching error at the end of the in-reach phase
+LOWEST_RTOL = 0.02     #: out-of-reach error at the end of its phase vs its minimum (relative)
+OUT_OF_REACH = 1e-2    #: an out-of-reach target keeps an error above this
+
+
+def check_run(run: ScenarioRun) -> list[Check]:
+    """Verify the scenario's ``[checks]`` on a run (see problems/robots/scenarios.py)."""
+    spec, df, out = run.scenario.checks, run.records, []
+    robot = run.scenario.robot
+    steps_run = len(df)
+    stopped = steps_run and (df["status"].iloc[-1] == "diverged" or not np.all(np.isfinite(run.q[-1]))
+                             or len(run.q) < steps_run + 1)
+    # a run cut short by --steps (not stopped by a failure): final values are not judged
+    cut = not stopped and steps_run < run.scenario.steps
+    not_optimal = df[df["status"] != "optimal"] if steps_run else df
+    detail = f"{steps_run} steps; {len(not_optimal)} with a status other than optimal"
+    if len(not_optimal):
+        first = not_optimal.iloc[0]
+        detail += f" (first: step {int(first['step'])}, {first['status']}: {first['reason']})"
+    # judged on completion, not on the solver's own status (level norms are in the CSV)
+    out.append(Check("run completed", not stopped, detail))
+    if spec.get("limits", False):
+        margin = min(float(np.min(robot.limit_margin(q))) for q in run.q)
+        out.append(Check("joint limits", margin >= -LIMIT_TOL, f"min margin {margin:.3e}"))
+    for name in spec.get("regulated", []):
+        # stays regulated: never above its initial error + REGULATED_ATOL; decays to ~0 at the end.
+        # The measured decay rate over the first 50 steps is reported next to the commanded
+        # 1 - lambda dt (second-order drift from the other tasks' motion slows it down).
+        task = run.scenario.stack.task(name)
+        e = df[f"err_{name}"].to_numpy()
+        worst = int(np.argmax(e))
+        k = min(50, len(e) - 1)
+        rate = (e[k] / e[0]) ** (1.0 / k) if k > 0 and e[0] > 1e-9 and e[k] > 0 else float("nan")
+        bounded = bool(np.all(e <= e[0] + REGULATED_ATOL))
+        final = (f"final {e[-1]:.2e} not judged: the run was cut to {steps_run} of the scenario's "
+                 f"{run.scenario.steps} steps (--steps)" if cut else f"final {e[-1]:.2e} (tol {REGULATED_FINAL})")
+        out.append(Check(f"{name} regulated", bool(bounded and (cut or e[-1] <= REGULATED_FINAL)),
+                         f"e0 {e[0]:.2e}, max {e[worst]:.2e} at step {worst}, {final}; decay per step "
+                         f"{rate:.4f} vs commanded {1 - task.gain * run.scenario.dt:.4f}"))
+    for name, tol in spec.get("tracked", {}).items():
+        e = df[f"err_{name}"].to_numpy()
+        worst = int(np.argmax(e))
+        out.append(Check(f"{name} tracked", bool(e[worst] <= tol),
+                         f"max error {e[worst]:.2e} at step {worst} (tol {tol}); final {e[-1]:.2e}"))
+    reach = spec.get("reach")
+    if reach:
+        e = df[f"err_{reach['task']}"].to_numpy()
+        tsw = float(reach["out_of_reach_until"])
+        phase1 = df["time_s"].to_numpy() < tsw - 1e-9
+        # a phase that a run cut by --steps did not finish is not judged (its last value is not its end)
+        why_not = f"not judged: the run was cut to {steps_run} of the scenario's {run.scenario.steps} steps (--steps)"
+        if phase1.any():
+            e1 = e[phase1]
+            ended = (~phase1).any() or not cut
+            ok = e1[-1] <= e1.min() * (1 + LOWEST_RTOL) + 1e-6 and e1[-1] > OUT_OF_REACH and e1[-1] < e1[0]
+            out.append(Check("out of reach: lowest value", bool(ok or not ended),
+                             f"start {e1[0]:.3e}, end {e1[-1]:.3e}, min {e1.min():.3e}"
+                             + ("" if ended else f"; {why_not}")))
+        if (~phase1).any():
+            e2 = e[~phase1]
+            out.append(Check("back in reach: converges to 0", bool(e2[-1] <= REACHED_TOL or cut),
+                             f"start {e2[0]:.3e}, end {e2[-1]:.3e} (tol {REACHED_TOL})"
+                             + (f"; {why_not}" if cut else "")))
+    return out

@@ -1,0 +1,199 @@
+"""Problems of a suite: deterministic generation from (family, params, seed),
+ids, files under OUT/problems/, and the descriptive columns of a problem.
+
+A family is a name of ``hikbench.problems.generators.all_families()`` or a ``module:function``
+path (``function(seed=..., **params) -> Hierarchy``; also ``path/to/file.py:function``),
+so a user or a test can bring its own generator without touching the library.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import json
+import os
+import re
+import sys
+import traceback
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.hierarchy import Hierarchy
+
+__all__ = ["ProblemSpec", "file_stem", "generate", "load_object", "problem_columns"]
+
+
+def load_object(spec: str):
+    """Import ``module.path:attr`` or ``/path/to/file.py:attr``."""
+    modname, sep, attr = spec.rpartition(":")
+    if not sep or not modname or not attr:
+        raise HikbenchError(f"{spec!r}: expected 'module:attribute' or 'file.py:attribute'")
+    if modname.endswith(".py"):
+        path = Path(modname)
+        if not path.exists():
+            raise HikbenchError(f"{spec!r}: no such file {path}")
+        mod = _load_file(spec, path)
+    else:
+        try:
+            mod = importlib.import_module(modname)
+        except ModuleNotFoundError as err:
+            hint = (f"; the current directory is not searched: give the file ({modname.replace('.', '/')}.py:"
+                    f"{attr}) or set PYTHONPATH" if Path(modname.replace(".", "/") + ".py").exists() else "")
+            raise HikbenchError(f"{spec!r}: cannot import module {modname!r} ({err}){hint}") from err
+        except Exception as err:  # noqa: BLE001 - the user's module failed at import: name it, no traceback
+            raise HikbenchError(f"{spec!r}: importing module {modname!r} raised {_what(err)}") from err
+    try:
+        return getattr(mod, attr)
+    except AttributeError as err:
+        raise HikbenchError(f"{spec!r}: module {modname!r} has no attribute {attr!r}") from err
+
+
+def _load_file(spec: str, path: Path):
+    """The module of a user's ``file.py``, imported once per process as
+    ``_hikbench_user_<path>``, with its directory on ``sys.path`` meanwhile (as
+    ``python file.py`` has it: a sibling module imports). An exception at import
+    is a HikbenchError naming the file and line, and leaves no half-made module."""
+    name = "_hikbench_user_" + re.sub(r"\W", "_", str(path.resolve()))
+    mod = sys.modules.get(name)
+    if mod is not None:
+        return mod
+    s = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(s)
+    sys.modules[name] = mod
+    where = str(path.resolve().parent)
+    sys.path.insert(0, where)
+    try:
+        s.loader.exec_module(mod)
+    except BaseException as err:
+        del sys.modules[name]
+        if not isinstance(err, Exception):  # KeyboardInterrupt, SystemExit: not the file's answer
+            raise
+        raise HikbenchError(f"{spec!r}: importing {path} raised {_what(err)}") from err
+    finally:
+        sys.path.remove(where)
+    return mod
+
+
+def _what(err: Exception) -> str:
+    """``Type: message at file:line`` of an exception from a user's code."""
+    tb = traceback.extract_tb(err.__traceback__)
+    where = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
+    return f"{type(err).__name__}: {err}" + ("" if isinstance(err, SyntaxError) else where)  # (names its line)
+
+
+def _fmt(v) -> str:
+    if isinstance(v, float) and v.is_integer():
+        return str(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ";".join(_fmt(u) for u in v) + "]"
+    return str(v)
+
+
+@dataclass(frozen=True)
+class ProblemSpec:
+    """One problem of a suite: ``generate(family, seed, **params)``."""
+
+    family: str
+    params: dict = field(default_factory=dict)
+    seed: int = 0
+
+    @property
+    def family_name(self) -> str:
+        """The family as shown in ids: a ``dir/file.py:func`` path loses its directory."""
+        mod, sep, attr = self.family.rpartition(":")
+        return f"{os.path.basename(mod)}:{attr}" if sep and mod.endswith(".py") else self.family
+
+    @property
+    def id(self) -> str:
+        """``family/k=v,k=v/seed=S`` with the parameters sorted by name;
+        ``family/seed=S`` without parameters (the family's defaults)."""
+        p = ",".join(f"{k}={_fmt(self.params[k])}" for k in sorted(self.params))
+        return f"{self.family_name}/{p}/seed={self.seed}" if p else f"{self.family_name}/seed={self.seed}"
+
+    def params_json(self) -> str:
+        return json.dumps(self.params, sort_keys=True)
+
+
+def file_stem(problem_id: str) -> str:
+    """A file name for a problem id (no directory separators)."""
+    return re.sub(r"[^\w=,.;\[\]+-]", "_", problem_id.replace("/", "__"))
+
+
+def generate(spec: ProblemSpec) -> Hierarchy:
+    """The hierarchy of ``spec``; same (family, params, seed), same problem."""
+    if ":" in spec.family:
+        func = load_object(spec.family)
+        return func(seed=spec.seed, **spec.params)
+    try:
+        from hikbench.problems import generators
+    except ModuleNotFoundError as err:
+        raise HikbenchError(f"family {spec.family!r}: hikbench.problems.generators is not available ({err})") from err
+    families = generators.all_families()
+    if spec.family not in families:
+        from hikbench.problems.errors import UnknownFamilyError
+        raise UnknownFamilyError(f"unknown problem family {spec.family!r} "
+                                 f"(known: {', '.join(families)})")
+    try:
+        return generators.generate(spec.family, seed=spec.seed, **spec.params)
+    except TypeError as err:
+        raise HikbenchError(f"problem {spec.id}: bad parameters for family {spec.family!r} ({err})") from err
+
+
+def problem_columns(spec: ProblemSpec, h: Hierarchy) -> dict:
+    """The problem's descriptive columns of results.csv (see hikbench.bench.harness.columns)."""
+    rows_per_level = np.diff(h.starts).tolist()
+    eq = h.lower == h.upper
+    free = ~np.isfinite(h.lower) & ~np.isfinite(h.upper)
+    ranks = []
+    for k in range(h.depth):
+        Ak = h.A[h.level_rows(k)]
+        ranks.append(int(np.linalg.matrix_rank(Ak)) if Ak.size else 0)
+    return {
+        "problem": spec.id,
+        "family": spec.family_name,
+        "params": spec.params_json(),
+        "seed": spec.seed,
+        "n": h.n,
+        "depth": h.depth,
+        "rows": h.rows,
+        "eq_rows": int(eq.sum()),
+        "ineq_rows": int((~eq & ~free).sum()),
+        "rows_per_level": json.dumps(rows_per_level),
+        "ranks": json.dumps(ranks),
+        "rank": int(np.linalg.matrix_rank(h.A)) if h.A.size else 0,
+    }
+
+
+def save_problem(h: Hierarchy, directory: str | os.PathLike, problem_id: str, formats=("npz",)) -> dict:
+    """Write h as OUT/problems/<stem>.<ext> for each format (npz, soth);
+    returns {format: path}. Existing files are kept (same spec, same problem)."""
+    from hikbench.problems.files import save_npz
+
+    d = Path(directory)
+    d.mkdir(parents=True, exist_ok=True)
+    out = {}
+    for fmt in formats:
+        if fmt == "npz":
+            path = d / (file_stem(problem_id) + ".npz")
+            if not path.exists():
+                tmp = path.with_suffix(".npz.tmp")
+                save_npz(h, tmp)
+                os.replace(tmp, path)
+        elif fmt == "soth":
+            path = d / (file_stem(problem_id) + ".soth.txt")
+            if not path.exists():
+                try:
+                    from hikbench.problems.soth import save_soth
+                except ModuleNotFoundError as err:
+                    raise HikbenchError("SOTH export needs hikbench.problems.soth (not installed in this tree); "
+                                        "use export = ['npz']") from err
+                tmp = d / (file_stem(problem_id) + ".soth.tmp")
+                save_soth(h, tmp)
+                os.replace(tmp, path)
+        else:
+            raise HikbenchError(f"unknown export format {fmt!r}: expected 'npz' or 'soth'")
+        out[fmt] = path
+    return out
