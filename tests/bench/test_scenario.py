@@ -15,7 +15,7 @@ def test_shipped_scenarios():
     assert {"reach", "step"} <= set(scenario_names())
 
 
-def test_reach_runs_a_few_steps_with_reference():
+def test_reach_runs_a_few_steps_with_the_yardstick():
     sc = load_scenario("reach")
     run = run_scenario(sc, "yardstick", steps=4)
     df = run.records
@@ -81,11 +81,11 @@ def test_user_scenario_on_an_arm(tmp_path):
 def test_cli_writes_csv_and_figures(tmp_path, capsys):
     rc = main(["scenario", "step", "--steps", "3", "--out", str(tmp_path), "--plot"])
     out = capsys.readouterr().out
-    assert "reference: 3 steps" in out
-    csv = tmp_path / "step_talos_reference.csv"
+    assert "yardstick: 3 steps" in out
+    csv = tmp_path / "step_talos_yardstick.csv"
     df = pd.read_csv(csv)
     assert len(df) == 3 and "err_right_foot" in df
-    for fig in ("fig1_solve_time.png", "fig2_time_activations.png", "fig3_joints_reference.png",
+    for fig in ("fig1_solve_time.png", "fig2_time_activations.png", "fig3_joints_yardstick.png",
                 "fig4_task_errors.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
     assert rc == 0  # (3 steps: not judged on final errors; the checks of these steps hold)
@@ -117,7 +117,7 @@ def _solver_params(names):
 @pytest.mark.parametrize("solver", _solver_params(["hcod", "cascade-daqp", "cascade-quadprog", "yardstick"]))
 def test_reach_checks_pass(solver):
     """ICRA 2010 sec. XII: limits respected, CoM/feet regulated, reach error to its lowest value
-    while out of reach, then to 0 (700 steps; ~1 s with a cascade, ~10 s with the reference)."""
+    while out of reach, then to 0 (700 steps; ~1 s with a cascade, ~10 s with the yardstick)."""
     run = run_scenario(load_scenario("reach"), solver)
     checks = check_run(run)
     failed = [c for c in checks if not c.passed]
@@ -224,7 +224,7 @@ def test_warm_start_modes_are_the_solvers_own(tmp_path, capsys):
                "--steps", "2", "--out", str(out)])
     _, err = capsys.readouterr()
     assert rc == 2 and "'tme'" in err and "warm_start" in err, err
-    assert not list(out.glob("*.csv"))  # the reference ran no step first
+    assert not list(out.glob("*.csv"))  # the yardstick ran no step first
 
 
 def test_a_solver_that_raises_costs_its_run_not_the_command(tmp_path, capsys):
@@ -233,7 +233,7 @@ def test_a_solver_that_raises_costs_its_run_not_the_command(tmp_path, capsys):
                "--steps", "2", "--out", str(tmp_path)])
     out = capsys.readouterr().out
     assert rc == 1
-    assert "[FAIL] run completed" in out and "reference: 2 steps" in out
+    assert "[FAIL] run completed" in out and "yardstick: 2 steps" in out
     df = pd.read_csv(next(tmp_path.glob("*RaisingSolver.csv")))
     assert len(df) == 1
     assert df.loc[0, "status"] == "error" and df.loc[0, "reason"] == "RuntimeError: backend exploded"

@@ -44,9 +44,9 @@ def test_expand_modes_settings_and_skips(tmp_path):
     path.write_text(path.read_text() + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.1 }\n')
     tasks, skipped = expand(load_suite(str(path)))
     got = sorted((t.entry.solver, t.entry.settings, t.mode) for t in tasks)
-    assert got == [("yardstick", "default", "cold"),  # no warm start: no warm row
-                   ("sleep", "default", "cold"), ("sleep", "default", "warm"),
-                   ("sleep", "slow", "cold"), ("sleep", "slow", "warm")]
+    assert got == [("sleep", "default", "cold"), ("sleep", "default", "warm"),
+                   ("sleep", "slow", "cold"), ("sleep", "slow", "warm"),
+                   ("yardstick", "default", "cold")]  # no warm start: no warm row
     assert skipped == {"nomatch-*": "pattern matches no installed solver"}
     tasks, _ = expand(load_suite(str(path)), solver_patterns=["yardstick"])
     assert {t.entry.solver for t in tasks} == {"yardstick"}
@@ -81,7 +81,7 @@ def test_settings_of_a_solver_the_suite_does_not_run_are_an_error():
                              "settings": [{"solver": "cascade-osqp", "name": "low",
                                            "options": {"accuracy": "low"}}]}, "mine")
     with pytest.raises(SuiteError, match="\\[\\[settings\\]\\] 'low': solver 'cascade-osqp' is not one of "
-                                         "the suite's solvers \\(reference\\)"):
+                                         "the suite's solvers \\(yardstick\\)"):
         expand(suite)
     assert {t.entry.solver for t in expand(suite, solver_patterns=["yardstick"])[0]} == {"yardstick"}
 
@@ -91,7 +91,7 @@ def test_unknown_solver_is_an_error_listing_the_known_ones():
     from hikbench.solvers.errors import SolverNotFoundError
 
     with pytest.raises(SolverNotFoundError, match=r"unknown solver 'no-such-solver' \(in the suite\); "
-                                                  r"known solvers: .*hcod.*reference"):
+                                                  r"known solvers: .*hcod.*yardstick"):
         resolve_solvers(["yardstick", "no-such-solver"])
 
 

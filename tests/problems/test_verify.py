@@ -34,7 +34,6 @@ H = Hierarchy([[1, 0], [0, 1], [1, 1], [1, -1], [3, 7]], [1, 2, -INF, -1, -INF],
 def test_violation_and_norms_by_hand(x, expected_v, expected_norms):
     np.testing.assert_allclose(violation(H, x), expected_v, rtol=0, atol=1e-15)
     np.testing.assert_allclose(level_norms(H, x), expected_norms, rtol=1e-15, atol=0)
-    np.testing.assert_allclose(H.level_norms(x), expected_norms, rtol=1e-15, atol=0)
 
 
 def test_level_norms_with_empty_levels():

@@ -203,7 +203,7 @@ def _no_interior():
 
 def test_a_stage_no_backend_solves_is_solved_on_widened_bounds_polished_and_certified(monkeypatch):
     """Such a stage had no reference at all (4.5% of the ill-conditioned sweep)."""
-    from hikbench.solvers import reference
+    from hikbench.solvers import yardstick
     from hikbench.solvers.hcod import HcodSolver
 
     h = _no_interior()
@@ -215,9 +215,9 @@ def test_a_stage_no_backend_solves_is_solved_on_widened_bounds_polished_and_cert
     assert widened and set(widened) <= {3, 4, h.depth} and all(info["polished"]), info
     v = verify(h, HcodSolver().solve(h).x, x, rtol=1e-7)  # an independent method finds the same optimum
     assert v.equal, v
-    monkeypatch.setattr(reference, "WIDEN_RTOL", ())
-    monkeypatch.setattr(reference, "_descend_stage", lambda *args: None)  # (the last try: below)
-    with pytest.raises(reference.YardstickError, match=r"^(level [34]|the minimum-norm stage): no QP backend "
+    monkeypatch.setattr(yardstick, "WIDEN_RTOL", ())
+    monkeypatch.setattr(yardstick, "_descend_stage", lambda *args: None)  # (the last try: below)
+    with pytest.raises(yardstick.YardstickError, match=r"^(level [34]|the minimum-norm stage): no QP backend "
                                                        r"solved the level \(clarabel: PrimalInfeasible; piqp: "
                                                        r"Status\.PIQP_\w+; .*\); the primal active set from "
                                                        r"the level above's point: not certified optimal \(KKT "
@@ -239,12 +239,12 @@ def test_a_stage_no_backend_solves_is_descended_to_from_the_level_above(case, mo
     from pathlib import Path
 
     from hikbench.problems.files import load_npz
-    from hikbench.solvers import reference
+    from hikbench.solvers import yardstick
     from hikbench.solvers.hcod import WARM_STARTS, HcodSolver
 
     if case == "no-interior-unwidened":
         h = _no_interior()
-        monkeypatch.setattr(reference, "WIDEN_RTOL", ())
+        monkeypatch.setattr(yardstick, "WIDEN_RTOL", ())
     else:
         h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_89.npz")
     x, info = cascade_yardstick(h)
@@ -256,10 +256,10 @@ def test_a_stage_no_backend_solves_is_descended_to_from_the_level_above(case, mo
 
 
 def test_a_widened_point_that_fails_the_kkt_check_is_no_reference(monkeypatch):
-    from hikbench.solvers import reference
+    from hikbench.solvers import yardstick
 
-    monkeypatch.setattr(reference, "_kkt_certified", lambda *args, **kwargs: False)
-    with pytest.raises(reference.YardstickError, match=r"^(level [34]|the minimum-norm stage): no QP backend .*; "
+    monkeypatch.setattr(yardstick, "_kkt_certified", lambda *args, **kwargs: False)
+    with pytest.raises(yardstick.YardstickError, match=r"^(level [34]|the minimum-norm stage): no QP backend .*; "
                                                        r"bounds widened by 1e-09: "
                                                        r"clarabel solved it, but its point could not be polished "
                                                        r"onto the exact bounds and certified optimal there \(KKT "
@@ -370,17 +370,17 @@ def test_a_level_whose_exact_freeze_leaves_a_sliver_keeps_its_qp_point(talos_ste
     The velocity level is then solved again with the hand level frozen at its QP's own point,
     recorded unpolished with the reason, and the hand level's norm is still the exact optimum's
     to the QP's tolerance."""
-    from hikbench.solvers import reference
+    from hikbench.solvers import yardstick
 
-    real_stage, failed = reference._stage, []
+    real_stage, failed = yardstick._stage, []
 
     def stage(*args):
         if args[-1] == "level 4" and not failed:
             failed.append(args[-1])
-            raise reference.YardstickError("level 4: no backend solved it (forced by the test)")
+            raise yardstick.YardstickError("level 4: no backend solved it (forced by the test)")
         return real_stage(*args)
 
-    monkeypatch.setattr(reference, "_stage", stage)
+    monkeypatch.setattr(yardstick, "_stage", stage)
     h = talos_step181
     x, info = cascade_yardstick(h)
     assert failed == ["level 4"]
@@ -475,7 +475,7 @@ def test_an_active_set_read_too_tight_is_read_again(monkeypatch):
     reference. The level norms are those of hcod and of the quadprog cascade (dual active set;
     its status flag aside) at 1e-9. So with OpenBLAS's Haswell and SkylakeX kernels, on one and
     two threads."""
-    from hikbench.solvers import reference, registry
+    from hikbench.solvers import registry, yardstick
 
     h = random_hierarchy(59, 3, [5, 28, 10], rank=[5, 28, 10], shared_rank=[0, 1, 2], inequality="mixed",
                          box=True, box_bound=1.0, equality_fraction=0.3, cond=1e6, row_scale=1.0, seed=2798)
@@ -485,8 +485,8 @@ def test_an_active_set_read_too_tight_is_read_again(monkeypatch):
         other = registry.create(judge).solve(h)
         verdict = verify(h, x, other.x, rtol=1e-9)
         assert verdict.equal, (judge, verdict, level_norms(h, x), level_norms(h, other.x))
-    monkeypatch.setattr(reference, "_ACTIVE_RETRY", ())
-    with pytest.raises(reference.YardstickError, match="minimum-norm stage"):
+    monkeypatch.setattr(yardstick, "_ACTIVE_RETRY", ())
+    with pytest.raises(yardstick.YardstickError, match="minimum-norm stage"):
         cascade_yardstick(h)
 
 

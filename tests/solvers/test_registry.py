@@ -58,13 +58,13 @@ def test_create_passes_defaults_and_options(fake_registry):
     ("test-opt", {"tolerance": 1.0}, SolverOptionError,
      r"solver 'test-opt': unknown option\(s\) 'tolerance'; allowed options: tol, max_iter"),
     ("yardstick", {"tol": 1.0}, SolverOptionError,
-     r"solver 'reference': unknown option\(s\) 'tol'; allowed options: none"),
+     r"solver 'yardstick': unknown option\(s\) 'tol'; allowed options: none"),
     ("test-opt", {"tol": -1.0}, SolverOptionError, r"test-opt: tol must be > 0; got -1.0"),
     # a TypeError raised inside a constructor is a bug, not a bad option: it propagates unchanged
     ("test-broken", {}, TypeError, r"a bug inside the constructor"),
     # a factory taking **options validates names itself
     ("test-kwargs", {"bogus": 1}, TypeError, r"unexpected keyword argument 'bogus'"),
-    ("nope", {}, SolverNotFoundError, r"unknown solver 'nope' \(found solvers: .*reference"),
+    ("nope", {}, SolverNotFoundError, r"unknown solver 'nope' \(found solvers: .*yardstick"),
 ], ids=["unknown option", "no options", "bad value", "constructor bug", "kwargs factory", "unknown solver"])
 def test_create_errors(fake_registry, name, options, error, message):
     with pytest.raises(error, match=message):
@@ -127,7 +127,7 @@ def test_solve_of_a_non_hierarchy_names_the_solver_and_the_expected_type(name, b
     from hikbench.problems.hierarchy import Hierarchy, Level
 
     solver = registry.create(name)
-    msg = rf"^{re.escape(name)}\.solve expects a problems\.hierarchy\.Hierarchy .*got {re.escape(got)}$"
+    msg = rf"^{re.escape(name)}\.solve expects a hikbench\.problems\.hierarchy\.Hierarchy .*got {re.escape(got)}$"
     with pytest.raises(TypeError, match=msg):
         solver.solve(bad)
     top = (Level(np.eye(2), -np.ones(2), np.ones(2)) if kind == "inequalities"
