@@ -40,7 +40,7 @@ from hikbench.solvers.hcod import WARM_STARTS, HcodSolver
 from hikbench.solvers.yardstick import YardstickError as ReferenceFailure
 from hikbench.solvers.yardstick import nullspace_yardstick, yardstick_solution
 
-DATA = Path(__file__).parent / "data"
+DATA = Path(__file__).parents[1] / "data"
 RTOL = 1e-9
 RTOL_ILL = 1e-7
 
@@ -698,7 +698,7 @@ def test_every_process_computes_the_same_bits(tmp_path):
 
     here = np.concatenate([HcodSolver(warm_start="none").solve(h).x for h in eval(_BITS_PROBLEMS)])
     out = tmp_path / "x.npy"
-    code = _BITS_RUN.format(root=str(Path(__file__).resolve().parents[2]), data=str(DATA), out=str(out),
+    code = _BITS_RUN.format(root=str(Path(__file__).resolve().parents[3]), data=str(DATA), out=str(out),
                             problems=_BITS_PROBLEMS)
     run = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=900)
     assert run.returncode == 0, run.stderr

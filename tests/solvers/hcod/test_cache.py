@@ -16,7 +16,7 @@ from numba.core.registry import CPUDispatcher
 from hikbench.solvers.hcod._cache import PACKAGE_DIR, PackageSourcesLocator, sources_digest
 
 HCOD_MODULES = ["_basis", "_equality", "_explicit", "_factored", "_kernel", "_linalg", "_setup"]
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def _dispatchers(module_name: str):
