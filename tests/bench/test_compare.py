@@ -421,3 +421,31 @@ def test_a_directory_of_baselines_that_cannot_give_one_is_a_one_line_error(basel
         fragments = [f"{base}: no results.csv and no subdirectory holding one"]
     code, _, err = run(capsys, "compare", base, new)
     assert_user_error(code, err, *fragments)
+
+
+# -- cases in common ------------------------------------------------------------------------------
+
+def test_compare_with_no_case_in_common_is_an_error_not_a_pass(tmp_path, capsys):
+    """compare exited 0 ("0 slower") after comparing nothing: a CI gate that passes on an
+    empty or unrelated run."""
+    from clitools import assert_user_error, run
+    from doubles import verified_run
+
+    base = verified_run(tmp_path / "base", ["p0", "p1"])
+    for new in (verified_run(tmp_path / "other", ["q0"]), verified_run(tmp_path / "empty", [])):
+        code, _, err = run(capsys, "compare", base, new)
+        assert_user_error(code, err, f"{base} (2 cases) and {new}", "no case", "in common")
+
+
+def test_compare_lists_the_cases_only_in_one_run(tmp_path, capsys):
+    """The cases in only one run were only counted ("3 only in base"), not listed as documented."""
+    from clitools import run
+    from doubles import verified_run
+
+    base = verified_run(tmp_path / "base", ["p0", "p1", "p2", "p3"])
+    new = verified_run(tmp_path / "new", ["p0", "p4"])
+    code, out, _ = run(capsys, "compare", base, new)
+    assert code == 0
+    listed = [line.split() for line in out.splitlines() if line.startswith("only in")]
+    assert [(words[2], words[-1]) for words in listed] == [
+        ("base", "p1"), ("base", "p2"), ("base", "p3"), ("new", "p4")]
