@@ -1,6 +1,8 @@
 """numba's on-disk cache of hcod's kernels follows every hcod source file
 (solvers/hcod/_cache.py): a kernel whose helper changed in another file is
-compiled again, not loaded with the old helper inside."""
+compiled again, not loaded with the old helper inside; kernels are compiled by a
+child process and loaded from the cache, so that every process computes the same
+bits. docs/hcod.md, "Compiled kernels and numba's cache"."""
 
 from __future__ import annotations
 
@@ -217,12 +219,12 @@ np.save({out!r}, np.concatenate([HcodSolver(warm_start="none").solve(h).x for h 
 
 def test_every_process_computes_the_same_bits(tmp_path):
     """x to the last bit in this process and in a new one (both load the
-    kernels from numba's cache: hikbench.solvers.hcod._cache.load_kernels). Before,
-    a process that compiled them ran each non-inlined helper's own object,
-    one that loaded them the copies inside the kernel's: x differed in up to
-    260 of 300 entries by 4e-15 of |x| on these IK-like problems, by 1.6e-10
-    of |x| on step_out_and_back (a test passing in one kind of process and failing
-    in the other)."""
+    kernels from numba's cache: hikbench.solvers.hcod._cache.load_kernels). A
+    process that compiled them would run each non-inlined helper's own object,
+    one that loaded them the copies inside the kernel's: x would differ in up
+    to 260 of 300 entries by 4e-15 of |x| on these IK-like problems, by 1.6e-10
+    of |x| on step_out_and_back (a test passing in one kind of process and
+    failing in the other). docs/hcod.md, "Compiled kernels and numba's cache"."""
     import subprocess
     import sys
 

@@ -106,7 +106,7 @@ def test_grid_random_hierarchies_match_reference(h):
     res = HcodSolver().solve(h)
     assert res.status == OPTIMAL, res.reason
     v = verify(h, res.x, reference_or_reject(h), rtol=1e-8)
-    assert v.equal or (h.has_inequalities and v.lower == "a"), v  # (see check())
+    assert v.equal or (h.has_inequalities and v.lower == "a"), v  # (see hcod_checks.check)
 
 
 @settings(max_examples=150, deadline=None)

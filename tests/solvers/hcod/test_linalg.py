@@ -2,7 +2,8 @@
 from scratch (:func:`cod`) and updated row by row (:func:`cod_append`, the
 update the kernel makes when a level's own row enters its objective). Each
 test checks the factors against the rows they decompose, the rank against
-numpy's, and the least-squares step against ``numpy.linalg.lstsq``."""
+numpy's, and the least-squares step against ``numpy.linalg.lstsq``. Also the
+reflectors applied four at a time and the workspaces as unowned arrays."""
 
 from __future__ import annotations
 

@@ -25,7 +25,7 @@ def test_never_nan_on_huge_and_tiny_rows():
     assert res.x is None or np.all(np.isfinite(res.x))
 
 
-SCALED_CASES = {  # seeds whose `time` re-solve at bounds x 1e-9 was wrong before the factor (below)
+SCALED_CASES = {  # seeds whose `time` re-solve at bounds x 1e-9 goes wrong without the factor (below)
     "ik-like-5": lambda: G.ik_like(20, 5),
     "ik-like-11": lambda: G.ik_like(20, 11),
     "ik-like-21": lambda: G.ik_like(20, 21),
@@ -53,10 +53,10 @@ def scaled_case_reference():
 def test_bounds_of_any_magnitude_give_the_scaled_minimisers(case, scale, warm_start, scaled_case_reference):
     """Every bound times ``scale``: the lexicographic optima are the problem's times ``scale``
     (the problem is homogeneous in (x, bounds)). hcod's tolerances have absolute parts
-    (``1e-9 (||a|| (1 + ||u||) + 1)`` for a warm step) made for bounds not far below 1: with
-    bounds x 1e-9 a `time` re-solve of the same problem accepted shifted points violating level
+    (``1e-9 (||a|| (1 + ||u||) + 1)`` for a warm step) made for bounds not far below 1: unscaled,
+    bounds x 1e-9 make a `time` re-solve of the same problem accept shifted points violating level
     0 by up to 7.3 times the problem's own size (15 of 60 IK-like n=20 seeds, 7 of 60 random
-    mixed ones). ``._setup.load`` now multiplies bounds all below 2^-10 (levels scaled) by a power
+    mixed ones). ``._setup.load`` multiplies bounds all below 2^-10 (levels scaled) by a power
     of 2 that brings the largest into [1, 2) and divides x by it. Judged at the unscaled
     problem's scale, where verify's ``1 +`` parts are those of an O(1) problem."""
     h0, x_ref = scaled_case_reference(case)
@@ -75,8 +75,8 @@ def test_bounds_of_any_magnitude_give_the_scaled_minimisers(case, scale, warm_st
 def test_a_level_of_subnormal_rows_is_solved(n, warm_start):
     """``a x = b`` with every a_i = -2.225e-309 and b = -1.113e-308 (subnormal doubles): x_i =
     b / (n a_i) (minimum norm), the level met. Each level is scaled by ``1 / ||A_k||_F``, which
-    overflows below ~5.6e-309: the level was multiplied by inf and the solve ended in
-    ``numerical_failure`` ("x is not finite"). The scale is now at most 2^1023, which brings
+    overflows below ~5.6e-309 (the level multiplied by inf, the solve would end in
+    ``numerical_failure``, "x is not finite"). The scale is at most 2^1023, which brings
     this level to a norm of 0.2-0.28."""
     a, b = -2.225e-309, -1.113e-308
     h = Hierarchy(np.full((1, n), a), [b], [b], [0])
@@ -92,9 +92,9 @@ def test_a_pivot_of_norm_under_1e150_gets_a_finite_reflector(warm_start):
     = -1 (a hypothesis draw of floats in [-10, 10]). Level 1 wants x larger: its two tiny rows
     are violated, and level 0's row leaves W. Scaled by the level's norm, the row of norm
     3e-154 is a pivot at its own norm (the wide-level rule), and its Householder reflector's
-    ``1 / nrm^2`` overflowed: mode ``none`` ended in ``numerical_failure``. The reflector now
-    scales such a vector by a power of 2 first. The optimum: x anywhere in [1e-7, 0.6745]
-    meets row 0 of level 1 and leaves the tiny rows' violations the same to 1e-164."""
+    ``1 / nrm^2`` overflows (mode ``none`` would end in ``numerical_failure``) unless the
+    reflector scales such a vector by a power of 2 first, as it does. The optimum: x anywhere
+    in [1e-7, 0.6745] meets row 0 of level 1 and leaves the tiny rows' violations the same to 1e-164."""
     h = Hierarchy([[-1.0], [-10.0], [3e-154], [-3.6e-164]], [-np.inf, -6.745, 1e-10, -1.0],
                   [-1e-7, 1.0, np.inf, -1.0], [0, 1, 1, 1])
     res = HcodSolver(warm_start=warm_start).solve(h)

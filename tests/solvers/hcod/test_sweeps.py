@@ -1,7 +1,7 @@
 """The research sweeps (``-m slow``, not part of ``make test``): the long hypothesis run on the
 grid, the conditioning sweep (``HIKBENCH_SWEEP`` problems, 300 by default) and the
-well-conditioned sweep (``HIKBENCH_WELL`` problems, 3000 by default), each printing its tally
-with ``-s``. docs/verification.md, "What the yardstick gives", quotes their tallies at larger
+well-conditioned sweep (``HIKBENCH_WELL`` problems, 3000 by default), the last two printing
+their tallies with ``-s``. docs/verification.md, "What the yardstick gives", quotes their tallies at larger
 sizes. (The ``time`` warm-start stress test, ``HIKBENCH_STRESS``, runs in ``make test``: it is
 in test_warm_start.py.)"""
 
@@ -38,7 +38,7 @@ def test_many_grid_hierarchies_cold_and_warm(h):
         res = s.solve(h)
         assert res.status == OPTIMAL, res.reason
         v = verify(h, res.x, x_ref, rtol=1e-8)
-        assert v.equal or (h.has_inequalities and v.lower == "a"), v  # (see check())
+        assert v.equal or (h.has_inequalities and v.lower == "a"), v  # (see hcod_checks.check)
 
 
 def _sweep_problem(trial: int):
@@ -69,12 +69,12 @@ def test_conditioning_sweep(capsys):
     lexicographically lower, a reference that missed the optimum); ill-conditioned ones never
     worse than the reference at the top level beyond 1e-7 of its scale or, where a row dependent
     on the working rows to the rank threshold moved, ``rank_rtol ||A_0||`` times the distance x
-    travelled (lower levels may differ either way: README, "Limitations"). The tally is printed
-    (``-s``). Over the solves other than the well-conditioned ones (README's rows "the same,
-    perturbed" and "ill-conditioned"), reference-lower verdicts, those at the top level and
-    ``hcod`` failures are bounded at 4x their rates in README's 3000-problem tally (59 and 2 of
-    5507; failures: 24 in an earlier tally, 0 since), so that a change which makes them common
-    fails here instead of only moving the printed counts."""
+    travelled (lower levels may differ either way: docs/verification.md, "Limits of double
+    precision"). The tally is printed (``-s``). Over the solves other than the well-conditioned
+    ones (the rows "the same, perturbed" and "ill-conditioned" of the table in
+    docs/verification.md, "What the yardstick gives"), reference-lower verdicts, those at the top
+    level and ``hcod`` failures are bounded at 4x the rates 59, 2 and 24 per 5507 solves, so that
+    a change which makes them common fails here instead of only moving the printed counts."""
     tally = Counter()
     for trial in range(int(os.environ.get("HIKBENCH_SWEEP", "300"))):
         h, perturbed, kw = _sweep_problem(trial)
@@ -102,9 +102,8 @@ def test_conditioning_sweep(capsys):
                 # the rank threshold (DEPENDENT) moves by at most rank_rtol ||A_0|| per unit of
                 # step: below the reference's scale when x went far beyond the reference's. The
                 # min-norm stage may have brought x back: its steps are counted as the distance
-                # from the levels' own x, solved again without that stage (trial 2065, ||x||
-                # 2.0e9 before the stage, 3.6e3 after, the reference's 4.7e3:
-                # solvers/REFERENCE_NOTES.md, the conditioning sweep)
+                # from the levels' own x, solved again without that stage (trial 2065: ||x||
+                # 2.0e9 before the stage, 3.6e3 after, the yardstick's 4.7e3)
                 levels_only = HcodSolver(min_norm=False)
                 if prob is perturbed:
                     levels_only.solve(h)
@@ -146,10 +145,9 @@ def _well_problem(trial: int):
 def test_well_conditioned_sweep(capsys):
     """``HIKBENCH_WELL`` problems (default 3000) of :func:`_well_problem`, each solved in every
     warm mode with and without the min-norm stage (``time`` twice: cold, then warm on its own
-    record): every solve optimal and equal to the reference at 1e-9, neither side lower.
-    (``HIKBENCH_WELL=20000``, 160000 solves: passed at 5f8eb88, 2 min 8 s. Before 91c71cf the
-    reference was above the optimum on 19 of those problems, below on 1 and failed on 6:
-    tests/solvers/test_reference.py.)"""
+    record): every solve optimal and equal to the yardstick at 1e-9, neither side lower.
+    (``HIKBENCH_WELL=20000``: 160000 solves, about 2 min; docs/verification.md, "What the
+    yardstick gives".)"""
     tally = Counter()
     for trial in range(int(os.environ.get("HIKBENCH_WELL", "3000"))):
         h = _well_problem(trial)

@@ -41,10 +41,10 @@ def test_warm_start_modes_agree(mode):
 def test_time_warm_start_record_is_a_fixed_point_of_a_repeated_problem(n, seed):
     """The benchmark's warm mode: one object re-solving the same IK-like problem. The record
     of the last call (sec. XI) must lead every later call straight to the optimum: one LSE per
-    level, nothing activated or deactivated, no level falling back to cold. (A record rewritten
-    to one step to a later level's optimum broke this: 20 iterations and a fallback level at
-    n = 20, seed 2, while recorded objective rows that the step left strictly inside their
-    bounds still entered the objective; see solvers/hcod/NOTES.md, the `time` warm start.)"""
+    level, nothing activated or deactivated, no level falling back to cold. (The hard case: a
+    record rewritten to one step to a later level's optimum, whose recorded objective rows that
+    the step left strictly inside their bounds still enter the objective, takes 20 iterations
+    and a fallback level at n = 20, seed 2; docs/hcod.md, "Warm start (sec. XI)".)"""
     h = G.ik_like(n, seed)
     s = HcodSolver(warm_start="time")
     cold = s.solve(h)
@@ -64,8 +64,8 @@ def test_jump_inserts_early_only_bound_rows_met_at_the_jump_point():
     correction then moves u by rounding, and no level of the jump can fall back to cold. Here
     the upper bound on x0 (level 1) moves from 1 to 1.1 under a re-solve that jumps over
     levels 0-2: one level falls back (the jump's first), as without the early insertion,
-    and the next re-solve of the moved problem none. (Inserting x0 <= 1.1 early moved u off
-    the jump point at level 2: two levels fell back, then one more at the next call.)"""
+    and the next re-solve of the moved problem none. (Inserting x0 <= 1.1 early would move u
+    off the jump point at level 2: two levels fall back, then one more at the next call.)"""
     n = 4
 
     def problem(ub0):
@@ -118,12 +118,12 @@ def test_warm_start_along_a_trajectory(make, drift):
 @pytest.mark.parametrize("drift", [1e-4, 1e-2], ids=["drift1e-4", "drift1e-2"])
 def test_warm_start_along_badly_scaled_trajectories(drift, min_norm):
     """Rows 1e-4 the size of their level's others, the problem drifting: every `time` solve
-    matches a cold one. (Under OpenBLAS's SkylakeX kernels seed 1, steps 5 and 6 at drift 1e-4,
-    left level 3 at 1.2e-4 and 1.6e-5 where the cold solve and the reference meet it, until the
-    met rows' multipliers were fitted at a badly scaled level's end: solvers/hcod/NOTES.md. A
-    record rewrite that made rows leave through the multipliers lost such rows under the level's
-    noise floor: 24 of the 320 solves of the four cases disagreed; NOTES.md, the `time` warm
-    start.)"""
+    matches a cold one. The hard cases: under OpenBLAS's SkylakeX kernels, seed 1, steps 5 and 6
+    at drift 1e-4 end level 3 at 1.2e-4 and 1.6e-5, where the cold solve and the yardstick meet
+    it, unless the met rows' multipliers are fitted at a badly scaled level's end; and a record
+    rewrite that makes rows leave through the multipliers loses such rows under the level's noise
+    floor (24 of the 320 solves of the four cases disagree). docs/hcod.md: "Tolerances", "Warm
+    start (sec. XI)"."""
     wrong = set()
     for seed in range(10):
         s = HcodSolver(warm_start="time", min_norm=min_norm)
@@ -155,10 +155,10 @@ def test_large_row_met_at_one_end_of_its_interval_leaves(min_norm):
 
 def test_time_warm_start_on_badly_scaled_drift_agrees_with_a_cold_solve():
     """Drift 1e-3 on badly_scaled seed 3: every step of the `time` trajectory matches a cold solve
-    (step 4 used to end worse, the known wrong answer on AVX2 kernels: a row 1e-8 the size of its
-    level's others kept a residual whose force on the gradient was under the multiplier noise
-    floor, set by the level's met rows; solvers/hcod/NOTES.md). Judged by a cold solve and by the
-    reference, every status optimal."""
+    (step 4 is the hard one on AVX2 kernels: a row 1e-8 the size of its level's others keeps a
+    residual whose force on the gradient is under the multiplier noise floor set by the level's
+    met rows, unless those are fitted as constraints; docs/hcod.md, "Tolerances"). Judged by a
+    cold solve and by the yardstick, every status optimal."""
     s = HcodSolver(warm_start="time", min_norm=False)
     for t, ht in enumerate(drifting(G.degenerate("badly_scaled", 12, 3), 1e-3, 3, steps=5)):
         res = s.solve(ht)
@@ -254,7 +254,7 @@ def test_warm_start_when_row_kinds_change():
 def test_warm_start_on_unrelated_problems_of_one_shape():
     """The record of the last call is used for any hierarchy of the same shape,
     even an unrelated one (new A, kinds, free rows): never a wrong answer.
-    (Regression: a two-sided objective row that crossed its interval in one
+    (The hard case: a two-sided objective row that crosses its interval in one
     step must switch sides, not leave the objective violated.)"""
     rng = np.random.default_rng(1)
     for _ in range(12):
@@ -329,17 +329,17 @@ def test_one_solver_across_shapes():
 
 
 def test_time_warm_start_stress():
-    """``HIKBENCH_STRESS`` seeds (default 30; about 3 s here) of every degenerate family (n = 12) and of IK-like
-    n = 16, each along trajectories of drift 0 (a repeated problem), 1e-6 and 1e-3, 6 steps,
-    ``min_norm`` on and off: every ``time`` solve optimal and equal to a cold (``stage``) solve at
-    rtol 1e-8 (the known case of seed 3, drift 1e-3, step 4 went with the fitted multipliers of
-    :func:`test_met_rows_pass_on_the_force_of_a_levels_small_rows`). The tally (printed, ``-s``) sums the iterations of both kinds of solve: a fingerprint of the
-    kernels' path, which a change meant to keep it must keep (10800 solves of each kind: 93795
-    `time` iterations and 185934 cold ones at 61ac486 on this machine; 93887 and 186113 at
-    2362bae; 93979 and 186240 with the fitted multipliers). Not asserted: fastmath code compiled for another CPU may round differently
-    (README, numba's cache), and on this machine too a fresh compile and a load from numba's
-    cache of the same code gave different tallies (93825 / 185799 against 93887 / 186113 at
-    5d20d83): compare tallies of builds made the same way."""
+    """``HIKBENCH_STRESS`` seeds (default 30; about 3 s here) of every degenerate family (n = 12)
+    and of IK-like n = 16, each along trajectories of drift 0 (a repeated problem), 1e-6 and 1e-3,
+    6 steps, ``min_norm`` on and off: every ``time`` solve optimal and equal to a cold (``stage``)
+    solve at rtol 1e-8 (seed 3, drift 1e-3, step 4 needs the fitted multipliers of
+    test_regressions.py's ``test_met_rows_pass_on_the_force_of_a_levels_small_rows``). Part of
+    ``make test``. The tally (printed, ``-s``) sums the iterations of both kinds of solve over the
+    10800 solves of each kind: a fingerprint of the kernels' path, which a change meant to keep
+    it must keep. Not asserted: fastmath code compiled for another CPU may round differently,
+    and on one machine a fresh compile and a load from numba's cache of the same code can give
+    different tallies: compare tallies of builds made the same way, on one machine (docs/hcod.md,
+    "What holds, and what does not" and "Compiled kernels and numba's cache")."""
     tally = Counter()
     wrong = []
     for seed in range(int(os.environ.get("HIKBENCH_STRESS", "30"))):
