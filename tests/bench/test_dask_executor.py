@@ -37,8 +37,8 @@ def _run_on(cluster, items) -> list:
 
 
 def test_a_second_run_on_the_same_cluster_solves_with_the_edited_solver_file(cluster, tmp_path):
-    """Each Dask worker kept one isolated process for its whole life: a second run on a
-    long-lived cluster solved with the module of the first run, after the user edited it."""
+    """A second run on a long-lived cluster solves with the solver file as the user edited it
+    after the first run, not with the module the worker's isolated process loaded then."""
     path = tmp_path / "mysolver.py"
     text = ("from hikbench.solvers.base import Solver, SolveResult\n"
             "class Versioned(Solver):\n"
@@ -68,10 +68,11 @@ class KillParentSolver:
 
 @pytest.mark.slow
 def test_jobs_that_kill_their_dask_worker_cost_their_rows_only():
-    """A job that killed its Dask worker: KilledWorker escaped from DaskExecutor.map (the run
-    lost); then, with Dask's defaults, a finished result still on the dying worker or a job
-    queued on it was computed again and died with it (a healthy row `crashed`), and under
-    repeated deaths the local cluster dropped its nannies (no worker left: the run hung)."""
+    """Jobs that kill their Dask worker are `crashed` rows, and nothing else is lost: no
+    KilledWorker escapes DaskExecutor.map; a finished result still on the dying worker or a job
+    queued on it is not lost with it (Dask's defaults would compute it again there and give a
+    healthy row `crashed`); under repeated deaths the local cluster keeps its nannies (Dask's
+    defaults drop them: no worker left, the run would hang)."""
     killer, healthy = solve_job(f"{__file__}:KillParentSolver"), solve_job("hcod")
     items = [(f"kill{i}", killer, 20.0) for i in range(20)] + [(f"ok{i}", healthy, 20.0) for i in range(10)]
     ex = DaskExecutor(workers=2)
@@ -90,8 +91,8 @@ def test_jobs_that_kill_their_dask_worker_cost_their_rows_only():
 
 
 def test_a_local_cluster_left_without_workers_ends_the_run_with_an_error(monkeypatch):
-    """The local cluster lost every worker (its nannies dropped under repeated worker deaths;
-    here the cluster is scaled to 0): the run waited for them forever, silently."""
+    """A local cluster that has lost every worker (here: scaled to 0) ends the run after the
+    grace with an error that says how to resume, instead of waiting for workers forever."""
     import hikbench.bench.harness.executors
     from hikbench.problems.errors import HikbenchError
 
@@ -114,10 +115,10 @@ def test_a_local_cluster_left_without_workers_ends_the_run_with_an_error(monkeyp
                                              r"be asked: ConnectionResetError: reset by peer\)")),
 ], ids=["unexpected-error", "connection-error"])
 def test_a_watchdog_whose_polls_fail_ends_the_run_with_an_error(monkeypatch, error, message):
-    """An error in the watchdog's poll ended only its thread (an unexpected one), or the
-    watchdog without a word (a connection error while the client still ran): the run went on
-    unguarded (a local cluster losing its workers would then hang). A connection error counts as
-    no worker, for the grace."""
+    """An error in the watchdog's poll ends the run with an error, not only the watchdog's
+    thread (an unexpected error) or the watchdog without a word (a connection error while the
+    client still runs): an unguarded run would hang when a local cluster loses its workers. A
+    connection error counts as no worker, for the grace."""
     import hikbench.bench.harness.executors
     from hikbench.problems.errors import HikbenchError
 
@@ -135,7 +136,7 @@ def test_a_watchdog_whose_polls_fail_ends_the_run_with_an_error(monkeypatch, err
 
 
 def test_an_external_cluster_without_workers_is_waited_for_with_a_warning(monkeypatch, capsys):
-    """A cluster whose workers all left mid-run: the run waited without a word."""
+    """A cluster whose workers all left mid-run: the run waits for them and says so."""
     from distributed import LocalCluster
 
     import hikbench.bench.harness.executors
@@ -158,7 +159,7 @@ def test_an_external_cluster_without_workers_is_waited_for_with_a_warning(monkey
 
 
 def test_a_scheduler_without_workers_is_a_one_line_error(tmp_path, capsys, monkeypatch):
-    """The run waited forever, silently, for a worker that never came."""
+    """A scheduler that has no worker when the run starts: one line, not a silent wait."""
     from clitools import assert_user_error, run
     from distributed import LocalCluster
     from doubles import write_suite
@@ -175,8 +176,8 @@ def test_a_scheduler_without_workers_is_a_one_line_error(tmp_path, capsys, monke
 
 
 def test_a_scheduler_that_fails_while_waiting_for_workers_leaves_no_client_open(cluster, monkeypatch):
-    """Only a timeout while waiting for a worker closed the client: any other error left
-    its connection to the scheduler open for the rest of the process."""
+    """Any error while waiting for a worker closes the client, not only a timeout: no
+    connection to the scheduler stays open for the rest of the process."""
     from distributed import Client
 
     real_close = Client.close
@@ -200,8 +201,8 @@ def test_a_scheduler_that_fails_while_waiting_for_workers_leaves_no_client_open(
 
 
 def test_closing_a_local_cluster_whose_client_fails_to_close_still_stops_it(monkeypatch):
-    """DaskExecutor.close left the local cluster's worker processes running when the
-    client's close raised; the cluster and its dask settings must be undone all the same."""
+    """DaskExecutor.close stops the local cluster's worker processes and undoes its dask
+    settings even when the client's close raises."""
     import dask
     from distributed import Client
 
@@ -231,8 +232,8 @@ def test_closing_a_local_cluster_whose_client_fails_to_close_still_stops_it(monk
 
 
 def test_workers_run_next_to_another_cluster_gives_no_port_warning(tmp_path):
-    """--workers N bound the scheduler's HTTP server to port 8787: next to any other Dask
-    cluster every run warned "Port 8787 is already in use. Perhaps you already have a
+    """--workers N does not bind the scheduler's HTTP server to port 8787: next to any other
+    Dask cluster a run gives no warning "Port 8787 is already in use. Perhaps you already have a
     cluster running?"."""
     import socket
     import warnings
@@ -241,7 +242,7 @@ def test_workers_run_next_to_another_cluster_gives_no_port_warning(tmp_path):
     try:
         taken.bind(("127.0.0.1", 8787))
         taken.listen()
-    except OSError:  # already taken by another cluster: the case of the defect anyway
+    except OSError:  # already taken by another cluster: the case under test anyway
         taken.close()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -252,9 +253,9 @@ def test_workers_run_next_to_another_cluster_gives_no_port_warning(tmp_path):
 
 
 def test_a_relative_solver_file_is_found_by_workers_running_elsewhere(tmp_path, monkeypatch):
-    """--solvers mysolver.py:Class was passed as is to the workers: a Dask worker started in
-    another directory found no such file, and every row was an `error` (finished: never run
-    again on resume)."""
+    """--solvers mysolver.py:Class reaches the workers as an absolute path: a Dask worker
+    started in another directory finds the file (a relative path there would make every row an
+    `error`, finished: never run again on resume)."""
     from distributed import LocalCluster
     from doubles import write_suite
 
@@ -281,8 +282,8 @@ def test_a_relative_solver_file_is_found_by_workers_running_elsewhere(tmp_path, 
 
 
 def test_a_lost_scheduler_is_an_error_that_says_how_to_resume(cluster, tmp_path):
-    """A scheduler that went away mid-run (its futures cancelled) ended the run with a
-    FutureCancelledError traceback."""
+    """A scheduler that goes away mid-run (its futures cancelled) ends the run with an error
+    that says how to resume, not a FutureCancelledError traceback."""
     import threading
 
     from distributed import Future
@@ -307,9 +308,10 @@ def test_a_lost_scheduler_is_an_error_that_says_how_to_resume(cluster, tmp_path)
 
 
 def test_a_dask_worker_with_several_threads_keeps_each_result_with_its_job():
-    """Every thread of a Dask worker shared one isolated process: with `dask worker ADDR`
-    (one thread per core by default) two jobs wrote to the same channel at once and read
-    each other's answers (KeyError 'status' traceback, or a row given another job's x)."""
+    """Each thread of a Dask worker has its own isolated process: with `dask worker ADDR`
+    (one thread per core by default) two jobs sharing one process would write to the same
+    channel at once and read each other's answers (KeyError 'status' traceback, or a row given
+    another job's x)."""
     from distributed import LocalCluster
 
     sizes = [4, 5, 6, 7, 8, 9]
@@ -329,9 +331,10 @@ def test_a_dask_worker_with_several_threads_keeps_each_result_with_its_job():
 ], ids=["silent-http-port", "banner", "closes"])
 def test_a_scheduler_address_that_is_not_a_dask_scheduler_is_a_one_line_error(tmp_path, capsys, monkeypatch,
                                                                                greeting, fragment):
-    """--scheduler at the dashboard's HTTP port (which waits for a request) hung the run for good:
-    Client waits for the scheduler's handshake without a time limit. A port that sent a banner
-    made Client read its first 8 bytes as a message length and allocate exabytes (a traceback)."""
+    """--scheduler at the dashboard's HTTP port (which waits for a request), at a port that
+    sends a banner or at one that closes at once: a one-line error. (Client waits for the
+    scheduler's handshake without a time limit, and reads a banner's first 8 bytes as a message
+    length: exabytes to allocate, a traceback.)"""
     import socket
 
     from clitools import assert_user_error, run

@@ -11,8 +11,8 @@ from doubles import solve_job, spec, tiny
 
 @pytest.mark.parametrize("first_timeout", [None, 1.0], ids=["no-allowance", "allowance-not-larger"])
 def test_the_job_timeout_includes_the_first_solve_when_there_is_no_larger_allowance(first_timeout):
-    """The deadline was restarted after the job's first (untimed) solve even when no larger
-    first-solve allowance applied: a job of 2 x 0.6 s passed a 1 s hard limit as `optimal`."""
+    """Without a larger first-solve allowance the job's deadline covers its first (untimed)
+    solve, not restarted after it: a job of 2 x 0.6 s does not pass a 1 s hard limit."""
     from hikbench.bench.harness.isolation import IsolatedWorker
 
     job = {**solve_job(spec("SleepSolver")), "options": {"delay": 0.6}}  # first solve + 1 repetition
@@ -23,9 +23,9 @@ def test_the_job_timeout_includes_the_first_solve_when_there_is_no_larger_allowa
 
 
 def test_a_solver_that_hangs_on_every_problem_gets_the_first_solve_allowance_once():
-    """Each timeout restarted the process, and the next job of the solver got the full
-    first-solve allowance again (300 s by default): a backend hanging on every problem cost
-    the allowance per row, not the job timeout."""
+    """A solver whose first solve ran past the allowance gets only the job timeout in the
+    restarted process: a backend hanging on every problem costs the job timeout per row, not
+    the first-solve allowance (300 s by default) each time."""
     import time
 
     from hikbench.bench.harness.isolation import IsolatedWorker
@@ -44,9 +44,9 @@ def test_a_solver_that_hangs_on_every_problem_gets_the_first_solve_allowance_onc
 
 
 def test_after_a_restart_a_solver_gets_twice_its_first_solve_not_the_full_allowance():
-    """A solver that completed its first solve, then hung on a later problem: the restarted
-    process gave its next job the full allowance again. Now it gets the job timeout plus twice
-    the first solve it took (its caches are on disk), and a slow first solve still fits."""
+    """A solver that completed its first solve, then hung on a later problem: in the
+    restarted process its next job gets the job timeout plus twice the first solve it took (its
+    caches are on disk), not the full allowance, and a slow first solve still fits."""
     import time
 
     from hikbench.bench.harness.isolation import IsolatedWorker

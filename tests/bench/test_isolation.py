@@ -40,8 +40,8 @@ def _gone(pid: int, within: float = 5.0) -> bool:
 
 
 def test_a_timed_out_solve_leaves_no_helper_process_behind(tmp_path):
-    """Only the worker was killed on a timeout: a process the solver started kept running
-    (and burning CPU through the timings of the rest of the run, and after it)."""
+    """A timeout kills the processes the solver started with the worker: left running, they
+    would burn CPU through the timings of the rest of the run, and after it."""
     from hikbench.bench.harness.isolation import IsolatedWorker
 
     pidfile = tmp_path / "helper.pid"
@@ -66,8 +66,9 @@ class ReadsStdinSolver:
 
 
 def test_a_solver_reading_stdin_reads_nothing_instead_of_the_job_channel():
-    """The worker's stdin was the job channel: a solver reading it waited there until the
-    job timeout (a `timeout` row whose reason blamed the solver's speed)."""
+    """The worker's stdin is not the job channel: a solver reading stdin gets nothing at once
+    (reading the channel, it would wait until the job timeout: a `timeout` row whose reason
+    blames the solver's speed), and the channel still works after it."""
     from hikbench.bench.harness.isolation import IsolatedWorker
 
     with IsolatedWorker() as w:

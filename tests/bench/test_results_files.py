@@ -79,8 +79,8 @@ def test_a_word_in_a_number_column_is_a_one_line_error(tmp_path, capsys):
 
 
 def test_a_header_cut_off_by_a_kill_is_written_again(tmp_path):
-    """A run killed while writing the header left a partial line; it was cut off, and the rows
-    were then appended to the empty file without a header (the first row read as the header)."""
+    """A run killed while writing the header leaves a partial line: the next writer writes the
+    header again (cut off and followed by rows alone, the first row would read as the header)."""
     from hikbench.bench.harness.columns import names
     from hikbench.bench.harness.results import RESULTS, ResultsWriter, read_results
 
@@ -94,8 +94,8 @@ def test_a_header_cut_off_by_a_kill_is_written_again(tmp_path):
 
 
 def test_a_row_still_being_written_is_not_read(tmp_path):
-    """report / claims on a run in progress read the half-written last row as a row with
-    status, mode and verified all NaN (charged as a failure in the report)."""
+    """report / claims on a run in progress skip its half-written last row (read as a row, its
+    status, mode and verified would be NaN, charged as a failure in the report)."""
     from hikbench.bench.harness.results import RESULTS, read_results
 
     out = tmp_path / "out"
@@ -110,7 +110,8 @@ def test_a_row_still_being_written_is_not_read(tmp_path):
 @pytest.mark.parametrize("text, message", [('{"suite": ', "not valid JSON"), ("[1, 2]", "got a list")],
                          ids=["truncated", "not-an-object"])
 def test_a_damaged_run_json_is_a_one_line_error(tmp_path, capsys, text, message):
-    """A truncated or hand-damaged run.json gave a JSONDecodeError traceback (compare, run)."""
+    """A truncated or hand-damaged run.json is a one-line error of compare, not a JSONDecodeError
+    traceback."""
     from clitools import assert_user_error, run
 
     base = verified_run(tmp_path / "base", ["p0"])
@@ -126,8 +127,9 @@ def test_a_damaged_run_json_is_a_one_line_error(tmp_path, capsys, text, message)
     (b"", "no case (problem, solver, settings, mode) in common"),  # no header: no rows
 ], ids=["other-columns", "binary", "empty"])
 def test_compare_on_a_foreign_or_damaged_results_csv_is_a_one_line_error(tmp_path, capsys, content, message):
-    """read_results trusted any results.csv: KeyError 'reason', UnicodeDecodeError or
-    EmptyDataError tracebacks."""
+    """read_results checks a results.csv before trusting it: a file of other columns, a binary
+    one or an empty one is a one-line error, not a KeyError, UnicodeDecodeError or EmptyDataError
+    traceback."""
     from clitools import assert_user_error, run
 
     base = tmp_path / "base"

@@ -335,8 +335,8 @@ class _ReferenceCrashes:
 
 
 def test_a_crashed_reference_is_computed_again_by_the_next_run(tmp_path):
-    """A reference that timed out or crashed was cached in OUT/reference/: every later run
-    of that --out reused the failure, and none of its rows could be verified."""
+    """A yardstick solution that timed out or crashed is not cached in OUT/reference/: the next
+    run of that --out computes it again and verifies its rows (docs/running.md, "Resuming")."""
     from doubles import write_suite
 
     from hikbench.bench.harness.results import read_results
