@@ -29,6 +29,12 @@ def tiny(seed: int = 0, n: int = 6, depth: int = 2, rows: int = 2) -> Hierarchy:
                                   for _ in range(depth)])
 
 
+def solve_job(solver: str, repeat: int = 1) -> dict:
+    """A worker job (hikbench.bench.harness.worker): ``solver`` solves :func:`tiny` cold."""
+    return {"kind": "solve", "hierarchy": tiny(), "solver": solver, "options": {}, "mode": "cold",
+            "repeat": repeat, "warmup": 1}
+
+
 class SleepSolver(Solver):
     """Correct (null-space recursion), after sleeping ``delay`` seconds."""
 
@@ -269,3 +275,17 @@ class FlakySolver(SleepSolver):
         FlakySolver.calls += 1
         res = super().solve(hierarchy)
         return res if FlakySolver.calls % 2 == 0 else SolveResult(res.x + 1.0, OPTIMAL, iterations=1)
+
+
+def verified_run(out, problems, solver="s") -> str:
+    """A run directory whose results.csv holds one verified cold row per problem id."""
+    import json
+
+    from hikbench.bench.harness.results import ResultsWriter
+
+    with ResultsWriter(out) as w:
+        for p in problems:
+            w.write({"problem": p, "solver": solver, "settings": "default", "mode": "cold", "status": "optimal",
+                     "verified": True, "samples_ns": json.dumps([1000, 1010, 1020]), "time_median_s": 1.01e-6,
+                     "calib_ns": 1_000_000, "host": "h"})
+    return str(out)

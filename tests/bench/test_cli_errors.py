@@ -1,5 +1,6 @@
-"""User mistakes found by the CLI audit: one line on stderr naming the option,
-file or key, exit code 2, no traceback; and the small output fixes."""
+"""User mistakes on the command line: one line on stderr naming the option,
+file or key, exit code 2, no traceback; and what ``solve`` prints of a solver that
+reports no iteration count."""
 
 import json
 

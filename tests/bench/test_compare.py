@@ -161,7 +161,7 @@ def test_table_shows_each_verdicts_p_value_and_stays_aligned():
 
 @pytest.mark.parametrize("direction", ["slower", "faster"])
 def test_a_verdict_needs_the_minima_too(direction):
-    """README: SLOWER when the ratios of medians and of minima both pass the threshold (and the
+    """docs/ci-timing.md: SLOWER when the ratios of medians and of minima both pass the threshold (and the
     test agrees), `faster` by the same rule the other way round: a median that moved while the
     fastest repetition did not is noise of the host, not the code."""
     rest = np.full(8, 50_000) + np.arange(8) * 10
@@ -421,3 +421,31 @@ def test_a_directory_of_baselines_that_cannot_give_one_is_a_one_line_error(basel
         fragments = [f"{base}: no results.csv and no subdirectory holding one"]
     code, _, err = run(capsys, "compare", base, new)
     assert_user_error(code, err, *fragments)
+
+
+# -- cases in common ------------------------------------------------------------------------------
+
+def test_compare_with_no_case_in_common_is_an_error_not_a_pass(tmp_path, capsys):
+    """compare with no case in common is an error, not an exit 0 ("0 slower") after comparing
+    nothing: a CI gate must not pass on an empty or unrelated run."""
+    from clitools import assert_user_error, run
+    from doubles import verified_run
+
+    base = verified_run(tmp_path / "base", ["p0", "p1"])
+    for new in (verified_run(tmp_path / "other", ["q0"]), verified_run(tmp_path / "empty", [])):
+        code, _, err = run(capsys, "compare", base, new)
+        assert_user_error(code, err, f"{base} (2 cases) and {new}", "no case", "in common")
+
+
+def test_compare_lists_the_cases_only_in_one_run(tmp_path, capsys):
+    """The cases in only one run are listed one per line, not only counted ("3 only in base")."""
+    from clitools import run
+    from doubles import verified_run
+
+    base = verified_run(tmp_path / "base", ["p0", "p1", "p2", "p3"])
+    new = verified_run(tmp_path / "new", ["p0", "p4"])
+    code, out, _ = run(capsys, "compare", base, new)
+    assert code == 0
+    listed = [line.split() for line in out.splitlines() if line.startswith("only in")]
+    assert [(words[2], words[-1]) for words in listed] == [
+        ("base", "p1"), ("base", "p2"), ("base", "p3"), ("new", "p4")]

@@ -79,7 +79,8 @@ def test_good_output(prog, payload, status, iterations, reported):
 
 
 def test_run_goes_on_after_a_bad_output(prog, tmp_path, capsys):
-    """The audit's case: "iterations": "many" aborted the whole run with a traceback."""
+    """A bad output ("iterations": "many") costs its own row only: the run goes on to the end,
+    no traceback."""
     suite = write_suite(tmp_path / "s.toml", ["yardstick"], grid={"n": [4, 6], "depth": [2]}, repeat=1,
                         modes=("cold",))
     bad = f"external:bad={sys.executable} {prog} {{problem}} {{out}} '{{\"x\": \"X\", \"iterations\": \"many\"}}'"

@@ -141,9 +141,9 @@ def test_speed_table_keeps_a_solver_without_a_verified_row(declining_run, tmp_pa
 
 
 def test_performance_profiles_compare_solvers_on_the_problems_they_support(declining_run):
-    """One profile over every problem counted nullspace-svd's `unsupported` ik-like row as
-    a failure (its curve could not pass 2/3) while the tables leave such rows out. Problems
-    are now grouped by the solvers that support them, one profile per group."""
+    """Problems are grouped by the solvers that support them, one profile per group: one
+    profile over every problem would count nullspace-svd's `unsupported` ik-like row as a
+    failure (its curve could not pass 2/3) while the tables leave such rows out."""
     from hikbench.bench.analysis.report import _profile_groups, solver_label
     from hikbench.bench.harness.results import read_results
 
@@ -192,8 +192,8 @@ def test_problem_id_has_no_empty_segment(params, pid):
 
 
 def test_shifted_geometric_mean_value_and_bad_times():
-    """The log of a negative or NaN time gave NaN with a RuntimeWarning; now a ValueError
-    names the entry (the report charges failures before aggregating)."""
+    """A negative or NaN time is a ValueError naming the entry, not a NaN with a
+    RuntimeWarning (the report charges failures before aggregating)."""
     from hikbench.bench.analysis.shgeom import shifted_geometric_mean
 
     t = np.array([1e-5, 3e-5, 7e-5])
@@ -238,9 +238,9 @@ def test_timed_rows_and_charged_times(verified, t, usable, usable_zero_ok):
 
 
 def test_a_partial_run_says_so_and_tells_not_run_from_not_verified(tmp_path):
-    """A run stopped by --limit: the report said nothing of the missing rows, and a solver
-    that never ran a problem showed '-' ('no verified row'). A median over some seeds only
-    looked like one over all of them; it now says (k/m)."""
+    """A run stopped by --limit: the report says which rows are missing, tells a solver that
+    never ran a problem from one without a verified row ('-'), and marks a median over some
+    seeds only with (k/m), so that it does not look like one over all of them."""
     (tmp_path / "s.toml").write_text(SUITE.replace("grid = { n = [6] }", "grid = { n = [6] }\nseeds = [0, 1]"))
     out = tmp_path / "out"
     run = ["run", "--quiet", "--suite", str(tmp_path / "s.toml"), "--out", str(out)]

@@ -71,10 +71,10 @@ def test_minor_tick_labels_only_on_narrow_log_axes(hi, labelled):
 
 
 def test_settings_variants_are_series_of_their_own_with_one_colour_per_solver(tmp_path, monkeypatch):
-    """accuracy_per_level.png and cold_vs_warm.png grouped rows by solver name: a solver's
-    `[[settings]]` variants (cascade-osqp default at 1e-10, `low` at 1e-6) were one line. Each
-    variant is a series now, and a label has the same colour in every figure (its place in the
-    run's sorted labels)."""
+    """In accuracy_per_level.png and cold_vs_warm.png each of a solver's `[[settings]]`
+    variants (cascade-osqp default at 1e-10, `low` at 1e-6) is a series of its own, not one line
+    per solver name, and a label has the same colour in every figure (its place in the run's
+    sorted labels)."""
     import matplotlib.colors
 
     from hikbench.bench.analysis import plots
@@ -110,9 +110,9 @@ def test_settings_variants_are_series_of_their_own_with_one_colour_per_solver(tm
 
 
 def test_accuracy_per_level_leaves_out_levels_few_problems_reach(tmp_path, monkeypatch):
-    """In the paper suite every cascade line used to dip to the 1e-17 floor at level 9
-    and came back at level 10, from the one problem with more than 8 levels. A level reached by
-    fewer than a tenth of a solver's problems, or by one problem of several, is no longer drawn."""
+    """A level reached by fewer than a tenth of a solver's problems, or by one problem of
+    several, is not drawn: in the paper suite every cascade line would otherwise dip to the 1e-17
+    floor at level 9 and come back at level 10, from the one problem with more than 8 levels."""
     from hikbench.bench.analysis import plots
 
     drawn = {}

@@ -9,12 +9,13 @@ import sys
 import time
 from pathlib import Path
 
+import pandas as pd
 import pytest
 from doubles import spec, tiny, write_suite
 
 from hikbench.bench.cli import main
 from hikbench.bench.harness.columns import KEY, names
-from hikbench.bench.harness.results import finished_keys, read_results
+from hikbench.bench.harness.results import finished_keys, finished_rows, read_results
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -249,3 +250,108 @@ def test_git_state_unknown_when_git_status_fails(monkeypatch, status_rc, dirty):
 
     monkeypatch.setattr(environment.subprocess, "run", fake_run)
     assert environment._git() == {"commit": "abc123", "branch": "abc123", "dirty": dirty}
+
+
+# -- later runs of one --out: --rerun, changed [[settings]], a failed yardstick --------------------
+
+SLEEP = spec("SleepSolver")
+
+
+def _rows(out) -> dict:
+    """key -> (wall_s, samples_ns) of the row: different at every write."""
+    df = read_results(out)
+    return {tuple(r[k] for k in KEY): (r["wall_s"], r["samples_ns"]) for _, r in df.iterrows()}
+
+
+def test_rerun_with_limit_keeps_the_other_rows_and_every_backup(tmp_path):
+    suite = write_suite(tmp_path / "s.toml", [SLEEP], modes=("cold",))  # 4 problems
+    out = tmp_path / "out"
+    assert _run("--suite", suite, "--out", out) == 0
+    first = _rows(out)
+    first_text = (out / "results.csv").read_text()
+    assert len(first) == 4
+
+    assert _run("--suite", suite, "--out", out, "--rerun", "--limit", 1) == 0
+    second = _rows(out)
+    assert set(second) == set(first)  # nothing lost
+    changed = [k for k in first if first[k] != second[k]]
+    assert len(changed) == 1  # exactly the re-run row was replaced, in place of the old one
+    assert len(read_results(out)) == 4 and len(finished_rows(out)) == 4
+    assert (out / "results.csv.bak").read_text() == first_text
+    second_text = (out / "results.csv").read_text()
+
+    assert _run("--suite", suite, "--out", out, "--rerun", "--limit", 2) == 0
+    assert set(_rows(out)) == set(first)
+    assert (out / "results.csv.bak").read_text() == first_text  # the first backup is not overwritten
+    assert (out / "results.csv.bak.1").read_text() == second_text
+
+
+def test_changed_settings_options_run_again_and_replace_their_rows(tmp_path, capsys):
+    path = write_suite(tmp_path / "s.toml", [SLEEP], grid={"n": [4, 5]}, modes=("cold",))
+    base = path.read_text()
+    path.write_text(base + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.0 }\n')
+    out = tmp_path / "out"
+    assert _run("--suite", path, "--out", out) == 0
+    assert len(read_results(out)) == 4
+    capsys.readouterr()
+
+    path.write_text(base + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.001 }\n')
+    assert _run("--suite", path, "--out", out) == 0
+    cap = capsys.readouterr()
+    assert "4 rows in the suite, 2 already done, 2 written" in cap.out
+    assert "2 finished row(s) run again: their settings' options changed" in cap.err
+    df = read_results(out)
+    assert len(df) == 4 and len(df.drop_duplicates(list(KEY))) == 4
+    slow = df[df["settings"] == "slow"]
+    assert [json.loads(o) for o in slow["options"]] == [{"delay": 0.001}] * 2
+    assert len((out / "results.csv").read_text().splitlines()) == 5  # old rows gone from the file too
+    assert (out / "results.csv.bak").exists()
+
+    assert _run("--suite", path, "--out", out) == 0  # and now it resumes as usual
+    assert "4 already done, 0 written" in capsys.readouterr().out
+
+
+class _ReferenceCrashes:
+    """An executor whose reference jobs come back ``crashed`` (a killed worker, a lost Dask
+    worker); the solves run for real."""
+
+    name = "reference-crashes"
+
+    def __init__(self, log):
+        from hikbench.bench.harness.executors import SerialExecutor
+
+        self.inner = SerialExecutor(log=log)
+
+    def map(self, items):
+        for tag, job, timeout in items:
+            if job["kind"] == "yardstick":
+                yield tag, {"status": "crashed", "reason": "worker process killed by signal SIGKILL",
+                            "x": None, "samples_ns": []}
+            else:
+                yield from self.inner.map([(tag, job, timeout)])
+
+    def close(self):
+        self.inner.close()
+
+
+def test_a_crashed_reference_is_computed_again_by_the_next_run(tmp_path):
+    """A yardstick solution that timed out or crashed is not cached in OUT/reference/: the next
+    run of that --out computes it again and verifies its rows (docs/running.md, "Resuming")."""
+    from doubles import write_suite
+
+    from hikbench.bench.harness.results import read_results
+    from hikbench.bench.harness.runner import run_suite
+    from hikbench.bench.suites import load_suite
+
+    suite = load_suite(str(write_suite(tmp_path / "s.toml", [spec("SleepSolver")],
+                                       grid={"n": [4], "depth": [1]})))
+    out = tmp_path / "out"
+    first = _ReferenceCrashes(out / "worker.log")
+    try:
+        run_suite(suite, out, executor=first, quiet=True, limit=1)  # the cold row; its reference crashed
+    finally:
+        first.close()
+    run_suite(suite, out, quiet=True)  # the warm row
+    df = read_results(out).set_index("mode")
+    assert "reference crashed" in df.loc["cold", "reason"] and pd.isna(df.loc["cold", "verified"])
+    assert df.loc["warm", "verified"] is True, df.loc["warm", "reason"]

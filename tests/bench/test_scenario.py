@@ -135,9 +135,9 @@ def test_step_checks_pass(solver):
 @pytest.mark.slow
 def test_step_with_dls_liegeois_shows_its_posture_fighting_the_feet():
     """dls-liegeois stacks every level but its box at one weight: the step's posture task (32
-    rows) pulls against the feet and the CoM, and the tracking checks fail. (Its checks passed
-    while it took the posture task, unit equality rows, for its joint-limit box and dropped it
-    from the task; the real box, level 0, has two rows per joint, now intersected.)"""
+    rows) pulls against the feet and the CoM, and the tracking checks fail. (Taking the posture
+    task, unit equality rows, for its joint-limit box and dropping it from the task would make
+    them pass; the real box, level 0, has two rows per joint, intersected.)"""
     run = run_scenario(load_scenario("step"), "dls-liegeois")
     checks = {c.name: c for c in check_run(run)}
     assert checks["run completed"].passed

@@ -1,6 +1,8 @@
 """Suites: built-in TOML files parse and generate; solver patterns, settings,
 modes and skipped solvers expand as documented in bench/suites/__init__.py."""
 
+import textwrap
+
 import pytest
 from doubles import spec, write_suite
 
@@ -134,3 +136,24 @@ def test_robot_stacks_are_a_family_by_name(tmp_path):
     assert main(["run", "--quiet", "--suite", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 0
     df = read_results(tmp_path / "out")
     assert len(df) == 2 and df["verified"].all() and set(df["n"]) == {6}
+
+
+def test_the_schema_example_of_the_suites_docstring_is_valid():
+    from hikbench.bench import suites
+
+    doc = suites.__doc__
+    block = textwrap.dedent(doc[doc.index("Schema"):doc.index("Decisions")].split("::", 1)[1])
+    import tomllib
+    data = tomllib.loads(block)
+    suite = suites.suite_from_dict(data, "doc")
+    assert suite.settings == [{"solver": "cascade-osqp", "name": "low", "options": {"accuracy": "low"}}]
+    suites.expand(suite)
+    if "cascade-osqp" in _available():  # its [[settings]] options are checked against the solver
+        tasks, _ = suites.expand(suite, ["cascade-osqp"])
+        assert {(t.entry.settings, t.entry.options_json()) for t in tasks} == {
+            ("default", "{}"), ("low", '{"accuracy": "low"}')}
+
+
+def _available():
+    from hikbench.solvers import registry
+    return registry.available()

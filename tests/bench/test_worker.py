@@ -25,7 +25,7 @@ class RecordingSolver(YardstickSolver):
 
 def test_warmup_comes_before_the_first_solve_and_the_notice():
     """A solver's warmup() runs before the job's untimed first solve, all of it inside
-    the first-solve allowance (before notify): hcod's inequality kernel used to compile
+    the first-solve allowance (before notify): otherwise hcod's inequality kernel would load
     inside the job timeout of the first ik-like job after an equality one."""
     CALLS.clear()
     h = G.random_hierarchy(4, 2, 2, seed=0)

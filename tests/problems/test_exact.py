@@ -148,8 +148,8 @@ def test_a_tie_under_double_precision_is_hcods_exact_optimum(name):
 def test_rows_of_very_different_norms_are_certified():
     """Level 0: 1e200 x0 >= 1e190; level 1: x0 + x1 = 0. The optimum is x0 = 1e-10 (the exact
     quotient of the two doubles), x1 = -x0, both levels met. Stacked, the two rows' singular
-    values are 1e200 and ~1: a rank cut relative to the stacked rows dropped level 1's row (and
-    the squared row norms overflowed). Each row is now taken at its own norm."""
+    values are 1e200 and ~1: a rank cut relative to the stacked rows would drop level 1's row
+    (and the squared row norms overflow). Each row is taken at its own norm."""
     h = Hierarchy([[1e200, 0.0], [1.0, 1.0]], [1e190, 0.0], [INF, 0.0], [0, 1])
     cert = certify(h, np.array([1e-10, -1e-10]))
     assert cert.certified, cert.reason

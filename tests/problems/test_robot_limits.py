@@ -68,10 +68,10 @@ def test_configuration_is_checked(talos):
 
 @pytest.mark.parametrize("fname", ["reference_blowup_talos_reach.npz", "reference_error_talos_reach_step288.npz"])
 def test_reference_on_a_talos_reach_step(fname):
-    """Regression data for the lead: talos reach hierarchies (velocity limits at 25 %, out-of-reach
-    hand target, near the straight-arm singularity) found by the closed loop, on which the
-    reference cascade returned |x| ~ 1e154 as optimal (first file, earlier reference) or failed
-    with Clarabel MaxIterations (second file)."""
+    """Talos reach hierarchies from the closed loop (velocity limits at 25 %, out-of-reach hand
+    target, near the straight-arm singularity) that are hard for a cascade of QPs: a cascade
+    without the yardstick's safeguards returns |x| ~ 1e154 as optimal on the first file, and
+    Clarabel fails with MaxIterations on the second."""
     from pathlib import Path
 
     from hikbench.problems.files import load

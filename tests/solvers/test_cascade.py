@@ -548,8 +548,8 @@ ROBUST = ("cascade-clarabel",)
 @example(n=9, depth=3, rows=1, inequality="none", box=True, seed=1143)
 def test_robust_cascades_match_reference_on_random_hierarchies(n, depth, rows, inequality, box, seed):
     """Equal to the reference, or lower below a level the cascade left above the reference's
-    within the tolerance (which leaves the levels below room to look better: README,
-    "Limitations"). n = 9, 3 levels of 1 row under a box, seed 1143: Clarabel's level 2 at
+    within the tolerance (which leaves the levels below room to look better: docs/verification.md,
+    "Limits of double precision"). n = 9, 3 levels of 1 row under a box, seed 1143: Clarabel's level 2 at
     0.10578903903 against the exact optimum 0.10578903733, level 3 then 6.8e-6 lower."""
     assume(depth * rows < n)
     h = g.random_hierarchy(n, depth, rows, inequality=inequality, box=box, seed=seed)

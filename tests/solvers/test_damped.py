@@ -186,7 +186,7 @@ def test_weighted_without_regularisation_on_rank_deficient_task_fails_cleanly():
     (0, MAX_ITERATIONS, r"^dls-liegeois: no convergence in 1000 iterations \(last \|\|dx\|\| = .*\); "),
 ], ids=["converged-outside-box", "max-iterations-outside-box"])
 def test_dls_liegeois_outside_its_box_is_not_optimal(seed, status, head):
-    """The audit's problems (`hikbench generate random --param n=30 --param depth=5
+    """Two random problems (`hikbench generate random --param n=30 --param depth=5
     --param inequality=mixed`, seeds 0 and 1, saved in tests/solvers/data): the
     25 task rows push x far out of the level-0 box [-1, 1]^30, which the
     joint-limit gradient (null space only) cannot hold. The reason names the

@@ -422,11 +422,11 @@ def test_bounds_of_any_magnitude_give_the_scaled_reference(family, seed, scale):
     assert v.equal, v
 
 
-# Well-conditioned random hierarchies (cond 1, unscaled rows) on which the reference was not the
-# optimum: hcod and the PIQP cascade agreed and the reference did not. Found in a run of 20000 such problems against hcod in every warm mode
-# (19 problems where the reference was above the optimum at a level by 7e-4 .. 1.6, one where
-# it was below by breaking the levels above within tolerance, 6 without a reference); that run
-# now finds none (README, "Limitations"; the cases: solvers/REFERENCE_NOTES.md).
+# Well-conditioned random hierarchies (cond 1, unscaled rows) on which a cascade of QPs misses the
+# optimum where hcod and the PIQP cascade agree: above the optimum at a level (by 7e-4 .. 1.6),
+# below it by breaking the levels above within tolerance, or no point at all. The reference meets
+# each (docs/verification.md, "What the yardstick gives"; the well-conditioned sweep of
+# tests/solvers/hcod/test_sweeps.py draws such problems).
 # (n, depth, rows per level, random_hierarchy keywords)
 MISSED_OPTIMA = {
     # a level's QP with frozen inequality rows in the span of the frozen equalities (projected
@@ -438,8 +438,8 @@ MISSED_OPTIMA = {
                                 {"rank": [1, 6, 7, 10], "shared_rank": [0, 2, 2, 0],
                                  "inequality": "one-sided", "box": True, "box_bound": 5.0, "seed": 424}),
     # level 3's QP point is cheaper than the optimum for breaking the levels above by 1e-11 of
-    # their scale: its polished (exact, feasible) point failed the cost comparison and was
-    # dropped; it is now kept once the KKT conditions certify it
+    # their scale: its polished (exact, feasible) point fails the cost comparison; it is kept
+    # once the KKT conditions certify it
     "polished-point-dearer-than-qp-937": (38, 4, [10, 25, 10, 2],
                                           {"rank": [10, 25, 8, 2], "shared_rank": [0, 1, 1, 2],
                                            "inequality": "two-sided", "seed": 937}),
@@ -523,8 +523,8 @@ def test_the_reference_holds_a_met_row_by_its_multiplier(case, judge):
     levels below then differ by 1e2-1e3). Seed 834's level 1 and seed 686's level 2 ended
     above their optima too, by 1.2e-4 and 2.3e-5. Such a row is now held by its multiplier. The
     judges are the daqp and quadprog cascades (dual active sets, their status flags aside) at
-    1e-9; ``hcod`` is no judge here (on seed 686 it stopped above the optimum of level 2 until
-    its met rows' multipliers were fitted: ``solvers/hcod/NOTES.md``)."""
+    1e-9; ``hcod`` is no judge here (on seed 686 it reaches the optimum of level 2 only with its
+    met rows' multipliers fitted: docs/hcod.md, "Tolerances")."""
     from hikbench.solvers import registry
 
     h = degenerate("badly_scaled", *case)
@@ -542,9 +542,8 @@ def test_the_reference_does_not_drop_again_a_row_the_step_pushes_back(judge):
     the next step pushed it out of its bound at once (tau = 0): dropped and taken back 24 times,
     to the step cap. The stage was left unpolished at the QP's point, level 2 9 % above its
     optimum. A row that blocks at once after its drop is not dropped again until a step moves
-    x. The judges are the daqp and quadprog cascades at 1e-9 (``hcod`` stopped above the
-    optimum of level 2 here until its met rows' multipliers were fitted:
-    ``solvers/hcod/NOTES.md``)."""
+    x. The judges are the daqp and quadprog cascades at 1e-9 (``hcod`` reaches the optimum of
+    level 2 here only with its met rows' multipliers fitted: docs/hcod.md, "Tolerances")."""
     from hikbench.solvers import registry
 
     h = degenerate("badly_scaled", 5, 343)

@@ -1,19 +1,16 @@
-"""hikbench run: user-audit defects. --rerun keeps the rows it does not re-run
-and never overwrites a backup; bad suite values, bad settings options, unknown
-solvers, empty suites and bad command-line values are one-line errors (exit
-2) before anything runs; a changed [[settings]] runs its rows again."""
+"""hikbench run: user mistakes are one-line errors (exit 2) before anything runs: bad suite
+values, a suite path that is no TOML text, bad [[settings]] options, unknown solvers, a
+selection of no job, bad command-line values. A known solver whose backend is missing is
+skipped with the hint that installs it."""
 
-import csv
 import json
 import socket
-import textwrap
 
 import pytest
 from doubles import spec, write_suite
 
 from hikbench.bench.cli import main
-from hikbench.bench.harness.columns import KEY
-from hikbench.bench.harness.results import compact, finished_rows, read_results
+from hikbench.bench.harness.results import read_results
 
 SLEEP = spec("SleepSolver")
 GROUP = '[[problems]]\nfamily = "equality"\ngrid = { n = [6] }\n'
@@ -31,55 +28,7 @@ def _one_error_line(capsys) -> str:
     return errors[0]
 
 
-def _rows(out) -> dict:
-    """key -> (wall_s, samples_ns) of the row: different at every write."""
-    df = read_results(out)
-    return {tuple(r[k] for k in KEY): (r["wall_s"], r["samples_ns"]) for _, r in df.iterrows()}
-
-
-# --- 1. --rerun ------------------------------------------------------------------------------------
-
-
-def test_rerun_with_limit_keeps_the_other_rows_and_every_backup(tmp_path):
-    suite = write_suite(tmp_path / "s.toml", [SLEEP], modes=("cold",))  # 4 problems
-    out = tmp_path / "out"
-    assert _run("--suite", suite, "--out", out) == 0
-    first = _rows(out)
-    first_text = (out / "results.csv").read_text()
-    assert len(first) == 4
-
-    assert _run("--suite", suite, "--out", out, "--rerun", "--limit", 1) == 0
-    second = _rows(out)
-    assert set(second) == set(first)  # nothing lost
-    changed = [k for k in first if first[k] != second[k]]
-    assert len(changed) == 1  # exactly the re-run row was replaced, in place of the old one
-    assert len(read_results(out)) == 4 and len(finished_rows(out)) == 4
-    assert (out / "results.csv.bak").read_text() == first_text
-    second_text = (out / "results.csv").read_text()
-
-    assert _run("--suite", suite, "--out", out, "--rerun", "--limit", 2) == 0
-    assert set(_rows(out)) == set(first)
-    assert (out / "results.csv.bak").read_text() == first_text  # the first backup is not overwritten
-    assert (out / "results.csv.bak.1").read_text() == second_text
-
-
-def test_rows_left_twice_by_a_killed_rerun_resolve_to_the_new_row(tmp_path):
-    suite = write_suite(tmp_path / "s.toml", [SLEEP], modes=("cold",))
-    out = tmp_path / "out"
-    assert _run("--suite", suite, "--out", out) == 0
-    path = out / "results.csv"
-    lines = path.read_text().splitlines(keepends=True)
-    newer = lines[1].replace(lines[1].rsplit(",", 1)[1].strip(), "2099-01-01T00:00:00Z")
-    path.write_text("".join(lines) + newer)  # what a kill between append and compaction leaves
-    df = read_results(out)
-    assert len(df) == 4 and "2099-01-01T00:00:00Z" in set(df["finished_at"])
-    assert compact(out) == 1
-    assert compact(out) == 0
-    assert len(path.read_text().splitlines()) == 5
-    assert "2099-01-01T00:00:00Z" in path.read_text()
-
-
-# --- 2. bad suite values ---------------------------------------------------------------------------
+# --- bad suite values -------------------------------------------------------------------------------
 
 BAD_SUITES = [
     ('repeat = "abc"\n' + GROUP, "repeat = 'abc': expected an integer >= 1"),
@@ -133,7 +82,7 @@ def test_bad_suite_values_are_one_line_errors(tmp_path, capsys, text, message):
     assert not out.exists()  # nothing ran, nothing was written
 
 
-# --- 3. settings options ---------------------------------------------------------------------------
+# --- settings options -------------------------------------------------------------------------------
 
 
 @pytest.mark.parametrize("solvers, settings, message", [
@@ -162,53 +111,7 @@ def test_bad_settings_options_fail_before_running(tmp_path, capsys, solvers, set
     assert not (out / "results.csv").exists()
 
 
-def test_changed_settings_options_run_again_and_replace_their_rows(tmp_path, capsys):
-    path = write_suite(tmp_path / "s.toml", [SLEEP], grid={"n": [4, 5]}, modes=("cold",))
-    base = path.read_text()
-    path.write_text(base + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.0 }\n')
-    out = tmp_path / "out"
-    assert _run("--suite", path, "--out", out) == 0
-    assert len(read_results(out)) == 4
-    capsys.readouterr()
-
-    path.write_text(base + '\n[[settings]]\nsolver = "sleep"\nname = "slow"\noptions = { delay = 0.001 }\n')
-    assert _run("--suite", path, "--out", out) == 0
-    cap = capsys.readouterr()
-    assert "4 rows in the suite, 2 already done, 2 written" in cap.out
-    assert "2 finished row(s) run again: their settings' options changed" in cap.err
-    df = read_results(out)
-    assert len(df) == 4 and len(df.drop_duplicates(list(KEY))) == 4
-    slow = df[df["settings"] == "slow"]
-    assert [json.loads(o) for o in slow["options"]] == [{"delay": 0.001}] * 2
-    assert len((out / "results.csv").read_text().splitlines()) == 5  # old rows gone from the file too
-    assert (out / "results.csv.bak").exists()
-
-    assert _run("--suite", path, "--out", out) == 0  # and now it resumes as usual
-    assert "4 already done, 0 written" in capsys.readouterr().out
-
-
-def test_the_schema_example_of_the_suites_docstring_is_valid():
-    from hikbench.bench import suites
-
-    doc = suites.__doc__
-    block = textwrap.dedent(doc[doc.index("Schema"):doc.index("Decisions")].split("::", 1)[1])
-    import tomllib
-    data = tomllib.loads(block)
-    suite = suites.suite_from_dict(data, "doc")
-    assert suite.settings == [{"solver": "cascade-osqp", "name": "low", "options": {"accuracy": "low"}}]
-    suites.expand(suite)
-    if "cascade-osqp" in _available():  # its [[settings]] options are checked against the solver
-        tasks, _ = suites.expand(suite, ["cascade-osqp"])
-        assert {(t.entry.settings, t.entry.options_json()) for t in tasks} == {
-            ("default", "{}"), ("low", '{"accuracy": "low"}')}
-
-
-def _available():
-    from hikbench.solvers import registry
-    return registry.available()
-
-
-# --- 4. unknown solver, empty selection -------------------------------------------------------------
+# --- unknown solver, empty selection ----------------------------------------------------------------
 
 
 def test_unknown_solver_lists_the_known_ones(tmp_path, capsys):
@@ -251,7 +154,7 @@ def test_a_run_selecting_no_job_fails(tmp_path, capsys, solvers, modes, message)
     assert list((out / "problems").glob("*.npz"))  # the problems are still exported
 
 
-# --- 5. command-line values --------------------------------------------------------------------------
+# --- command-line values ------------------------------------------------------------------------------
 
 
 def _refused_port() -> int:
@@ -291,44 +194,18 @@ def test_bad_command_line_values(tmp_path, capsys, argv, message):
     assert file.read_text() == "x"
 
 
-@pytest.fixture(scope="module")
-def two_runs_concatenated(tmp_path_factory):
-    """A results.csv made by `cat a/results.csv b/results.csv`: header, rows, header, rows."""
-    d = tmp_path_factory.mktemp("cat")
-    suite = write_suite(d / "s.toml", [SLEEP], modes=("cold",), repeat=1)
-    assert _run("--suite", suite, "--out", d / "a") == 0
-    text = (d / "a" / "results.csv").read_text()
-    (d / "a" / "run.json").rename(d / "run.json")
-    (d / "a" / "results.csv").write_text(text + text)
-    (d / "run.json").rename(d / "a" / "run.json")
-    return d / "a", suite
+# --- a suite path that is no TOML text ------------------------------------------------------------
 
+@pytest.mark.parametrize("kind, message", [("directory", "not a file"), ("binary", "not a text file")],
+                         ids=["directory", "binary"])
+def test_a_suite_path_that_is_no_toml_text_is_a_one_line_error(tmp_path, capsys, kind, message):
+    """--suite DIR gave an IsADirectoryError traceback; a binary file a UnicodeDecodeError one."""
+    from clitools import assert_user_error, run
 
-@pytest.mark.parametrize("command", ["report", "compare", "run"])
-def test_a_second_header_line_is_a_one_line_error(capsys, two_runs_concatenated, command):
-    out, suite = two_runs_concatenated
-    rows = len((out / "results.csv").read_text().splitlines())
-    argv = {"report": ["report", out], "compare": ["compare", out, out],
-            "run": ["run", "--quiet", "--suite", suite, "--out", out]}[command]
-    assert main([str(a) for a in argv]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and err[0].startswith(f"hikbench {command}: error: "), err
-    assert "second header line (two files concatenated?)" in err[0], err
-    assert len((out / "results.csv").read_text().splitlines()) == rows  # nothing appended
-
-
-def test_a_word_in_a_number_column_is_a_one_line_error(tmp_path, capsys):
-    suite = write_suite(tmp_path / "s.toml", [SLEEP], modes=("cold",), repeat=1)
-    assert _run("--suite", suite, "--out", tmp_path / "a") == 0
-    df = read_results(tmp_path / "a")
-    path = tmp_path / "a" / "results.csv"
-    with open(path, newline="") as f:
-        rows = list(csv.reader(f))
-    col = rows[0].index("time_median_s")
-    assert float(rows[2][col]) == df["time_median_s"].iloc[1]
-    rows[2][col] = "fast"
-    with open(path, "w", newline="") as f:
-        csv.writer(f).writerows(rows)
-    assert main(["report", str(tmp_path / "a")]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert err == [f"hikbench report: error: {path}: data row 2: column 'time_median_s' holds 'fast', not a number"]
+    path = tmp_path / "suite"
+    if kind == "directory":
+        path.mkdir()
+    else:
+        path.write_bytes(b"\xff\xfe\x00binary")
+    code, _, err = run(capsys, "run", "--quiet", "--suite", path, "--out", tmp_path / "out")
+    assert_user_error(code, err, str(path), message)

@@ -2,7 +2,8 @@
 from scratch (:func:`cod`) and updated row by row (:func:`cod_append`, the
 update the kernel makes when a level's own row enters its objective). Each
 test checks the factors against the rows they decompose, the rank against
-numpy's, and the least-squares step against ``numpy.linalg.lstsq``."""
+numpy's, and the least-squares step against ``numpy.linalg.lstsq``. Also the
+reflectors applied four at a time and the workspaces as unowned arrays."""
 
 from __future__ import annotations
 
@@ -285,3 +286,28 @@ def test_four_reflectors_at_once_equal_four_in_turn(L, rows):
     fn = {1: reflect_quad, 4: reflect_quad4}[rows]
     fn(tuple(b), g, *views, *Y)
     np.testing.assert_allclose(Y, expected, rtol=0, atol=ATOL)
+
+
+# -- the workspaces as unowned arrays -------------------------------------------------------------
+
+@pytest.mark.parametrize("shape", [(7,), (3, 5)], ids=["1d", "2d"])
+def test_unowned_array_is_the_same_data(shape):
+    """The kernels' workspaces enter as unowned arrays (no reference
+    counting): same shape, same memory; writes through a view land in the
+    caller's array."""
+    from numba import njit
+
+    from hikbench.solvers.hcod._linalg import unowned
+
+    @njit
+    def fill(a):
+        u = unowned(a)
+        v = u.reshape(-1)
+        for c in range(v.shape[0]):
+            v[c] = c + 0.5
+        return u.shape, u.ctypes.data
+
+    a = np.zeros(shape)
+    got_shape, addr = fill(a)
+    assert got_shape == shape and addr == a.ctypes.data
+    np.testing.assert_array_equal(a.reshape(-1), np.arange(a.size) + 0.5)

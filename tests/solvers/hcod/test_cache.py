@@ -1,6 +1,8 @@
 """numba's on-disk cache of hcod's kernels follows every hcod source file
 (solvers/hcod/_cache.py): a kernel whose helper changed in another file is
-compiled again, not loaded with the old helper inside."""
+compiled again, not loaded with the old helper inside; kernels are compiled by a
+child process and loaded from the cache, so that every process computes the same
+bits. docs/hcod.md, "Compiled kernels and numba's cache"."""
 
 from __future__ import annotations
 
@@ -10,13 +12,18 @@ import sys
 import textwrap
 from pathlib import Path
 
+import numpy as np
 import pytest
+from hcod_checks import DATA
 from numba.core.registry import CPUDispatcher
 
+from hikbench.problems import generators as G  # noqa: F401 (in _BITS_PROBLEMS, evaluated)
+from hikbench.problems.files import load_npz  # noqa: F401 (in _BITS_PROBLEMS, evaluated)
+from hikbench.solvers.hcod import HcodSolver
 from hikbench.solvers.hcod._cache import PACKAGE_DIR, PackageSourcesLocator, sources_digest
 
 HCOD_MODULES = ["_basis", "_equality", "_explicit", "_factored", "_kernel", "_linalg", "_setup"]
-ROOT = Path(__file__).resolve().parents[2]
+ROOT = Path(__file__).resolve().parents[3]
 
 
 def _dispatchers(module_name: str):
@@ -191,3 +198,44 @@ def test_load_kernels_stops_a_child_past_its_timeout(tmp_path):
                          env={"PATH": "/usr/bin:/bin", "NUMBA_CACHE_DIR": ""}, cwd=tmp_path)
     assert out.returncode != 0
     assert "took more than 2 s; it was killed" in out.stderr, out.stderr
+
+
+# the problems of test_every_process_computes_the_same_bits, built in this process and in another
+_BITS_PROBLEMS = ("[G.ik_like(n, s) for n in (20, 80) for s in range(3)]"
+                  " + [G.equality_stack(120, 8, 12, seed=s) for s in range(2)]"
+                  " + [load_npz(DATA / 'step_out_and_back.npz')]")
+_BITS_RUN = """
+import sys
+from pathlib import Path
+import numpy as np
+sys.path.insert(0, {root!r})
+from hikbench.problems import generators as G  # noqa: F401 (in _BITS_PROBLEMS, evaluated)
+from hikbench.problems.files import load_npz  # noqa: F401 (in _BITS_PROBLEMS, evaluated)
+from hikbench.solvers.hcod import WARM_STARTS, HcodSolver
+DATA = Path({data!r})
+np.save({out!r}, np.concatenate([HcodSolver(warm_start="none").solve(h).x for h in {problems}]))
+"""
+
+
+def test_every_process_computes_the_same_bits(tmp_path):
+    """x to the last bit in this process and in a new one (both load the
+    kernels from numba's cache: hikbench.solvers.hcod._cache.load_kernels). A
+    process that compiled them would run each non-inlined helper's own object,
+    one that loaded them the copies inside the kernel's: x would differ in up
+    to 260 of 300 entries by 4e-15 of |x| on these IK-like problems, by 1.6e-10
+    of |x| on step_out_and_back (a test passing in one kind of process and
+    failing in the other). docs/hcod.md, "Compiled kernels and numba's cache"."""
+    import subprocess
+    import sys
+
+    here = np.concatenate([HcodSolver(warm_start="none").solve(h).x for h in eval(_BITS_PROBLEMS)])
+    out = tmp_path / "x.npy"
+    code = _BITS_RUN.format(root=str(Path(__file__).resolve().parents[3]), data=str(DATA), out=str(out),
+                            problems=_BITS_PROBLEMS)
+    run = subprocess.run([sys.executable, "-c", code], check=False, capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr
+    there = np.load(out)
+    assert here.shape == there.shape == (3 * 20 + 3 * 80 + 2 * 120 + 57,)
+    differ = np.flatnonzero(here != there)
+    assert differ.size == 0, (f"{differ.size} entries differ, up to {np.max(np.abs(here - there)):.3g}: "
+                              f"first at {differ[:5]}")
