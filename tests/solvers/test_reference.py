@@ -31,6 +31,7 @@
 """
 
 from itertools import combinations
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -192,26 +193,27 @@ def test_cascade_reference_agrees_with_kkt_enumeration_random(n, depth, rows, mi
 
 
 def _no_interior():
-    """An ill-conditioned hierarchy (cond 1e6, rows scaled over 1e4; problem 67 of the HCOD
-    conditioning sweep) whose frozen set at the minimum-norm stage is feasible but has no
-    interior: every QP backend calls it infeasible or stalls. (Level 3's was too, until the
-    reference left out the frozen inequality rows in the span of the frozen equalities: two
-    such rows, bounds +-1e-14 apart on round-off, made that sliver.)"""
-    return random_hierarchy(7, 4, [5, 10, 1, 3], rank=[5, 1, 1, 3], shared_rank=[0, 1, 0, 2], inequality="mixed",
-                            box=True, box_bound=1.0, equality_fraction=0.0, cond=1e6, row_scale=1e4, seed=67)
+    """An ill-conditioned hierarchy (cond 1e6, rows scaled over 1e4: ``random_hierarchy(7, 4,
+    [5, 10, 1, 3], rank=[5, 1, 1, 3], shared_rank=[0, 1, 0, 2], inequality="mixed", box=True,
+    cond=1e6, row_scale=1e4, seed=23)`` as OpenBLAS's Haswell kernels and AVX2 code generate it,
+    saved so that every machine sees the same bits) whose frozen sets at level 3 and at level 4
+    are feasible but have no interior: every QP backend calls them infeasible or stalls on the
+    exact bounds."""
+    from hikbench.problems.files import load_npz
+
+    return load_npz(Path(__file__).parent / "data" / "no_interior_cond1e6.npz")
 
 
 def test_a_stage_no_backend_solves_is_solved_on_widened_bounds_polished_and_certified(monkeypatch):
-    """Such a stage had no reference at all (4.5% of the ill-conditioned sweep)."""
+    """A stage that no QP backend solves on its exact bounds (4.5 % of the ill-conditioned sweep)
+    is solved on bounds widened by 1e-9, polished back onto the exact bounds and certified."""
     from hikbench.solvers import yardstick
     from hikbench.solvers.hcod import HcodSolver
 
     h = _no_interior()
     x, info = cascade_yardstick(h)
     widened = [k for k, b in enumerate(info["backend"]) if "bounds widened by" in b]
-    # which stages the backends fail on depends on their rounding: level 3, then the minimum-norm
-    # stage (AVX2) or level 4 (AVX-512), before the span rows were left out; since, the minimum-
-    # norm stage alone here (AVX2 code, OpenBLAS Haswell kernels)
+    # (which stages the backends fail on depends on their rounding: levels 3 and 4 here)
     assert widened and set(widened) <= {3, 4, h.depth} and all(info["polished"]), info
     v = verify(h, HcodSolver().solve(h).x, x, rtol=1e-7)  # an independent method finds the same optimum
     assert v.equal, v
