@@ -1,4 +1,4 @@
-"""Independent reference solutions, the yardstick of the tests.
+"""The yardstick: independent solutions that every solver's x is judged against.
 
 Two methods that share no code with the HCOD solver:
 
@@ -90,7 +90,7 @@ UNITS_MIN = 2.0**-5
 
 
 class YardstickError(HikbenchError):
-    """The reference could not solve a problem to its accuracy."""
+    """The yardstick could not solve a problem to its accuracy."""
 
 
 def _null_update(x: np.ndarray, Z: np.ndarray, A: np.ndarray, b: np.ndarray):
@@ -767,7 +767,7 @@ def cascade_yardstick(h: Hierarchy) -> tuple[np.ndarray, dict]:
 
 
 def yardstick_solution(h: Hierarchy) -> np.ndarray:
-    """The reference x: null-space recursion for equality-only hierarchies,
+    """The yardstick's x: null-space recursion for equality-only hierarchies,
     polished QP cascade otherwise."""
     if not h.has_inequalities:
         return nullspace_yardstick(h)
@@ -779,7 +779,7 @@ class YardstickSolver(Solver):
     problems and the runner's verification; registered as ``yardstick``)."""
 
     name = "yardstick"
-    description = "independent reference: SVD null-space recursion / polished Clarabel QP cascade"
+    description = "independent yardstick: SVD null-space recursion / polished Clarabel QP cascade"
     supports_inequalities = True
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:

@@ -36,18 +36,18 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("reason", ("detail for any status other than optimal; also, when the row reports a timed "
                 "repetition other than the last, which one and why (see verified)")),
     ("verified", ("True when the level norms recomputed from x are lexicographically not worse than "
-                  "the reference's (tolerance from the suite's accuracy profile); False otherwise; "
-                  "empty when the reference itself failed. x, status and the counts are those of the "
+                  "the yardstick's (tolerance from the suite's accuracy profile); False otherwise; "
+                  "empty when the yardstick itself failed. x, status and the counts are those of the "
                   "last timed repetition unless an earlier one was worse: a status other than optimal "
                   "beside the last's optimal, or an x above the last's at some level beyond 1e-9 of its "
                   "scale (hikbench.bench.harness.timing.reported_result); the row then reports that one")),
-    ("verdict_level", "first level whose norm differs from the reference beyond tolerance (empty: none)"),
-    ("verdict_side", ("at verdict_level: 'worse' (solver higher than reference), 'better', "
-                      "'no x' (no solution), 'no reference'; empty when equal")),
-    ("verdict_diff", "solver norm - reference norm at verdict_level"),
+    ("verdict_level", "first level whose norm differs from the yardstick beyond tolerance (empty: none)"),
+    ("verdict_side", ("at verdict_level: 'worse' (solver higher than the yardstick), 'better', "
+                      "'no x' (no solution), 'no yardstick'; empty when equal")),
+    ("verdict_diff", "solver norm - yardstick norm at verdict_level"),
     ("level_norms", "JSON list: ||v_k(x)||_2 per level, recomputed from x (hikbench.problems.verify.level_norms)"),
-    ("ref_level_norms", "JSON list: the same for the reference solution"),
-    ("x_norm", "||x||_2 of the solution (minimum-norm solvers match the reference's)"),
+    ("ref_level_norms", "JSON list: the same for the yardstick's solution (hikbench.solvers.yardstick)"),
+    ("x_norm", "||x||_2 of the solution (minimum-norm solvers match the yardstick's)"),
     ("iterations", "iterations reported by the solver (last timed repetition)"),
     ("iterations_per_level", "JSON list: iterations of each level, if reported"),
     ("activations", "active-set activations (last timed repetition)"),

@@ -91,8 +91,8 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: floa
         row["ref_level_norms"] = _json_floats(level_norms(h, x_ref))
     if x_ref is None:
         row["verified"] = None
-        row["verdict_side"] = "no reference"
-        row["reason"] = (row["reason"] + "; " if row["reason"] else "") + f"reference {ref_status}: {ref_reason}"
+        row["verdict_side"] = "no yardstick"
+        row["reason"] = (row["reason"] + "; " if row["reason"] else "") + f"yardstick {ref_status}: {ref_reason}"
     elif x is None or np.shape(x) != (h.n,):
         row.update(verified=False, verdict_side="no x")
     else:

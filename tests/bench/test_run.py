@@ -348,10 +348,10 @@ def test_a_crashed_reference_is_computed_again_by_the_next_run(tmp_path):
     out = tmp_path / "out"
     first = _ReferenceCrashes(out / "worker.log")
     try:
-        run_suite(suite, out, executor=first, quiet=True, limit=1)  # the cold row; its reference crashed
+        run_suite(suite, out, executor=first, quiet=True, limit=1)  # the cold row; its yardstick crashed
     finally:
         first.close()
     run_suite(suite, out, quiet=True)  # the warm row
     df = read_results(out).set_index("mode")
-    assert "reference crashed" in df.loc["cold", "reason"] and pd.isna(df.loc["cold", "verified"])
+    assert "yardstick crashed" in df.loc["cold", "reason"] and pd.isna(df.loc["cold", "verified"])
     assert df.loc["warm", "verified"] is True, df.loc["warm", "reason"]
