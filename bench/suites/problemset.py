@@ -125,8 +125,7 @@ def file_stem(problem_id: str) -> str:
 def generate(spec: ProblemSpec) -> Hierarchy:
     """The hierarchy of ``spec``; same (family, params, seed), same problem."""
     if ":" in spec.family:
-        func = load_object(spec.family)
-        return func(seed=spec.seed, **spec.params)
+        return _user_family(spec)
     try:
         from hikbench.problems import generators
     except ModuleNotFoundError as err:
@@ -140,6 +139,25 @@ def generate(spec: ProblemSpec) -> Hierarchy:
         return generators.generate(spec.family, seed=spec.seed, **spec.params)
     except TypeError as err:
         raise HikbenchError(f"problem {spec.id}: bad parameters for family {spec.family!r} ({err})") from err
+
+
+def _user_family(spec: ProblemSpec) -> Hierarchy:
+    """The hierarchy of a ``module:function`` family; a function that is not one,
+    raises, or returns anything but a Hierarchy is a HikbenchError naming the
+    family, the seed and what it did."""
+    func = load_object(spec.family)
+    where = f"family {spec.family!r}, seed {spec.seed}"
+    if not callable(func):
+        raise HikbenchError(f"{where}: {type(func).__name__} is not a function; expected "
+                            "function(seed=..., **params) -> Hierarchy")
+    try:
+        h = func(seed=spec.seed, **spec.params)
+    except Exception as err:  # noqa: BLE001 - the user's generator failed: name it, no traceback
+        raise HikbenchError(f"{where}: calling it raised {_what(err)}") from err
+    if not isinstance(h, Hierarchy):
+        raise HikbenchError(f"{where}: returned {type(h).__name__}; expected a "
+                            "hikbench.problems.hierarchy.Hierarchy")
+    return h
 
 
 def problem_columns(spec: ProblemSpec, h: Hierarchy) -> dict:
