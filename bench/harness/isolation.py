@@ -41,7 +41,7 @@ import time
 from hikbench.problems.errors import HikbenchError
 from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
 
-__all__ = ["IsolatedWorker", "kill_session"]
+__all__ = ["HeadTail", "IsolatedWorker", "kill_session"]
 
 _HEADER = struct.Struct("<Q")
 _THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
@@ -96,6 +96,49 @@ def _describe_exit(code: int | None) -> str:
         except ValueError:
             return f"worker process killed by signal {-code}"
     return f"worker process exited with code {code}"
+
+
+class HeadTail:
+    """The first ``head`` bytes and the last ``tail`` bytes of a stream read in
+    chunks, and how many bytes came between them: what a process writes is kept
+    in bounded memory however much it writes."""
+
+    def __init__(self, head: int, tail: int):
+        self.head_cap, self.tail_cap = int(head), int(tail)
+        self.head = bytearray()
+        self._tail = bytearray()  # up to twice tail_cap between trims (amortized)
+        self.total = 0
+
+    def add(self, chunk: bytes) -> bytes:
+        """Keep ``chunk``'s share; returns the part of it that went to the head."""
+        to_head = chunk[: max(self.head_cap - len(self.head), 0)]
+        self.head += to_head
+        rest = memoryview(chunk)[len(to_head):]
+        if len(rest) >= self.tail_cap:
+            self._tail = bytearray(rest[len(rest) - self.tail_cap:])
+        elif rest:
+            self._tail += rest
+            if len(self._tail) > 2 * self.tail_cap:
+                del self._tail[: len(self._tail) - self.tail_cap]
+        self.total += len(chunk)
+        return to_head
+
+    @property
+    def tail(self) -> bytes:
+        return bytes(self._tail[-self.tail_cap:]) if self.tail_cap else b""
+
+    @property
+    def omitted(self) -> int:
+        """Bytes neither in the head nor in the tail."""
+        return self.total - len(self.head) - len(self.tail)
+
+    def marker(self) -> bytes:
+        """The line standing for the omitted bytes (empty when none was)."""
+        return f"\n[... {self.omitted} bytes omitted ...]\n".encode() if self.omitted else b""
+
+    def text(self) -> str:
+        """Head, the omitted-bytes marker and tail, decoded (undecodable bytes replaced)."""
+        return (bytes(self.head) + self.marker() + self.tail).decode(errors="replace")
 
 
 def kill_session(pid: int) -> None:
