@@ -109,7 +109,7 @@ def test_a_grandchild_in_a_session_of_its_own_dies_at_the_timeout(tmp_path):
     (and whose parent had exited: an orphan) survived, though the docs say every
     process a solver started is killed."""
     pids = tmp_path / "gc.pid"
-    cmd = f"sh -c '(setsid sleep 30 & echo $! > {pids}); sleep 30'"
+    cmd = f"sh -c '(setsid sleep 30 < /dev/null > /dev/null 2>&1 & echo $! > {pids}); sleep 30'"
     res = run_external(_job(cmd), timeout=1.0)
     assert res["status"] == "timeout"
     [pid] = _pids(pids)
