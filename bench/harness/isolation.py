@@ -27,7 +27,6 @@ daemonic Dask worker processes.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import pickle
 import select
@@ -36,12 +35,13 @@ import socket
 import struct
 import subprocess
 import sys
+import threading
 import time
 
 from hikbench.problems.errors import HikbenchError
 from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
 
-__all__ = ["HeadTail", "IsolatedWorker", "kill_session"]
+__all__ = ["CappedLog", "HeadTail", "IsolatedWorker", "kill_session"]
 
 _HEADER = struct.Struct("<Q")
 _THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
@@ -141,6 +141,36 @@ class HeadTail:
         return (bytes(self.head) + self.marker() + self.tail).decode(errors="replace")
 
 
+LOG_KEEP_BYTES = 1 << 20  # of the head and of the tail of a worker process's stderr, in its log
+
+
+class CappedLog:
+    """Copies what a process writes into a pipe to the file ``path`` (appended),
+    from a thread: the first ``keep`` bytes as they come, then, when the pipe
+    closes, a line saying how many bytes were left out and the last ``keep``
+    bytes. A solver printing without end cannot fill the disk."""
+
+    def __init__(self, path, fd: int, keep: int = LOG_KEEP_BYTES):
+        self.path = path
+        self._buf = HeadTail(keep, keep)
+        self._thread = threading.Thread(target=self._pump, args=(fd,), name="worker-log", daemon=True)
+        self._thread.start()
+
+    def _pump(self, fd: int) -> None:
+        with open(self.path, "ab") as f, os.fdopen(fd, "rb", buffering=0) as pipe:
+            while chunk := pipe.read(1 << 16):
+                head = self._buf.add(chunk)
+                if head:
+                    f.write(head)
+                    f.flush()
+            f.write(self._buf.marker() + self._buf.tail)
+
+    def close(self, timeout: float = 2.0) -> None:
+        """Wait (at most ``timeout`` s: a process the solver left may hold the pipe)
+        for the pipe to close and the tail to be written."""
+        self._thread.join(timeout)
+
+
 def kill_session(pid: int) -> None:
     """SIGKILL the process group led by ``pid`` (a process started in a session of its own:
     the group holds it and the processes it started); nothing when none is left."""
@@ -156,7 +186,8 @@ class IsolatedWorker:
     Parameters
     ----------
     log : path or None
-        File that receives the worker's stderr (appended); None inherits it.
+        File that receives the worker's stderr (appended; per process, its first
+        and last ``LOG_KEEP_BYTES`` only: :class:`CappedLog`); None inherits it.
     startup_timeout : float
         Seconds allowed for the process to start and calibrate.
     """
@@ -165,6 +196,7 @@ class IsolatedWorker:
         self.log = log
         self.startup_timeout = startup_timeout
         self.proc: subprocess.Popen | None = None
+        self._log_pump: CappedLog | None = None
         self.info: dict = {}
         self.restarts = 0
         self._warmed: set = set()  # solver specs whose first solve this process has done
@@ -184,13 +216,22 @@ class IsolatedWorker:
     def start(self) -> None:
         self.close()
         self._warmed = set()
-        # the child gets its own copy of the log's descriptor: ours is closed once it is started
-        with (open(self.log, "ab") if self.log else contextlib.nullcontext()) as err:
+        # the log gets what the child writes to its stderr through a pipe, capped (CappedLog)
+        err = os.pipe() if self.log else None
+        try:
             # own session: a Ctrl-C in the terminal interrupts the run, not the solve (no bogus
             # `crashed` row); the child dies with its parent through PR_SET_PDEATHSIG (Linux)
             self.proc = subprocess.Popen([sys.executable, "-m", "hikbench.bench.harness.isolation"], stdin=subprocess.PIPE,
-                                         stdout=subprocess.PIPE, stderr=err, env=self._env(),
+                                         stdout=subprocess.PIPE, stderr=err[1] if err else None, env=self._env(),
                                          start_new_session=True)
+        except BaseException:
+            if err:
+                os.close(err[0])
+            raise
+        finally:
+            if err:
+                os.close(err[1])  # the child has its own copy
+        self._log_pump = CappedLog(self.log, err[0]) if err else None
         try:
             self.info = _read_frame(self.proc.stdout.fileno(), time.monotonic() + self.startup_timeout)
         except (_Timeout, _Closed) as exc:
@@ -274,6 +315,9 @@ class IsolatedWorker:
         if self.proc is not None:
             kill_session(self.proc.pid)
             self.proc.wait()
+            if self._log_pump is not None:
+                self._log_pump.close()
+                self._log_pump = None
             for f in (self.proc.stdin, self.proc.stdout):
                 try:
                     f.close()
