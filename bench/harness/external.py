@@ -256,6 +256,34 @@ def _shorten(text: str, head: int = 200, tail: int = 300) -> str:
     return text if len(text) <= head + tail + 5 else f"{text[:head]} ... {text[-tail:]}"
 
 
+def _real_x(value, n: int) -> tuple[np.ndarray | None, str]:
+    """``value`` (the answer's "x") as float64 of shape (n,), or what is wrong
+    with it: not a list, another length, an element that is not a JSON number
+    (a string such as "(1+2j)" is named as a complex number: x must be real; a
+    numeric string is not read as a number either)."""
+    if not isinstance(value, list):
+        return None, f'"x" must be a list of {n} numbers; got {type(value).__name__}'
+    if len(value) != n:
+        shape = np.shape(value) if all(isinstance(v, list) for v in value) else (len(value),)
+        return None, f'"x" has shape {shape}: expected ({n},)'
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            return None, f'"x" must be a list of {n} numbers: element {i} is {_describe_element(v)}'
+    return np.asarray(value, dtype=float), ""
+
+
+def _describe_element(v) -> str:
+    """How :func:`_real_x` names an element of x that is not a real number."""
+    if isinstance(v, str):
+        try:
+            complex(v.replace(" ", ""))
+        except ValueError:
+            return f"the string {v[:40]!r}"
+        return f"the string {v[:40]!r}, a complex number: x must be real" if "j" in v.lower() else \
+            f"the string {v[:40]!r}: expected a JSON number, not a string"
+    return f"{type(v).__name__} {str(v)[:40]}"
+
+
 # statuses a program may report; timeout and crashed are the harness's own
 _PROGRAM_STATUSES = STATUSES
 
@@ -275,12 +303,9 @@ def _check_output(out, n: int) -> tuple[dict, str]:
     elif out["x"] is None:
         return {}, f'"x" is null with status optimal: expected a list of {n} numbers'
     else:
-        try:
-            x = np.asarray(out["x"], dtype=float)
-        except (ValueError, TypeError):
-            return {}, f'"x" must be a list of {n} numbers'
-        if x.shape != (n,):
-            return {}, f'"x" has shape {x.shape}: expected ({n},)'
+        x, problem = _real_x(out["x"], n)
+        if problem:
+            return {}, problem
     t = out.get("solve_time_s")
     if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float))
                           or not math.isfinite(t) or t < 0):
