@@ -87,15 +87,16 @@ def _read_frame(fd: int, deadline: float | None):
     return pickle.loads(_read_exact(fd, size, deadline))
 
 
-def _describe_exit(code: int | None) -> str:
+def describe_exit(code: int | None, who: str = "worker process") -> str:
+    """How a process ended, from its Popen returncode (negative: the signal)."""
     if code is None:
-        return "worker process died"
+        return f"{who} died"
     if code < 0:
         try:
-            return f"worker process killed by signal {signal.Signals(-code).name}"
+            return f"{who} killed by signal {signal.Signals(-code).name}"
         except ValueError:
-            return f"worker process killed by signal {-code}"
-    return f"worker process exited with code {code}"
+            return f"{who} killed by signal {-code}"
+    return f"{who} exited with code {code}"
 
 
 class HeadTail:
@@ -237,7 +238,7 @@ class IsolatedWorker:
         except (_Timeout, _Closed) as exc:
             code = self.proc.poll()
             self.close()
-            raise HikbenchError(f"the isolated worker did not start ({_describe_exit(code)}); "
+            raise HikbenchError(f"the isolated worker did not start ({describe_exit(code)}); "
                                 f"see {self.log or 'stderr'}") from exc
 
     @property
@@ -289,7 +290,7 @@ class IsolatedWorker:
             except subprocess.TimeoutExpired:
                 code = None
             self.kill()  # (closes its pipes, and ends it if it still runs)
-            return {**meta, "status": CRASHED, "x": None, "samples_ns": [], "reason": _describe_exit(code)}
+            return {**meta, "status": CRASHED, "x": None, "samples_ns": [], "reason": describe_exit(code)}
         out.setdefault("calib_ns", meta["calib_ns"])
         return out
 
@@ -344,7 +345,7 @@ class IsolatedWorker:
         self.close()
 
 
-def _die_with_parent() -> None:
+def die_with_parent() -> None:
     """Linux: SIGKILL this process when its parent dies (a killed run must not
     leave a hanging solve behind). Elsewhere the closed stdin ends an idle worker."""
     if sys.platform.startswith("linux"):
@@ -361,7 +362,7 @@ def _die_with_parent() -> None:
 
 
 def _child_main() -> None:
-    _die_with_parent()
+    die_with_parent()
     channel = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # anything a solver prints goes to stderr, not into the channel
     fd = os.dup(0)  # the jobs; a solver reading stdin reads /dev/null (not the job channel: it waited there)
