@@ -42,12 +42,12 @@ def check_fits_in_memory(n: int, who: str, matrices: int = 1) -> None:
     and their product), as do the generators' random orthogonal factors;
     allocating them would end in a MemoryError, or in hours of swapping. Called
     before the first of them is made."""
-    need = int(matrices) * 8 * int(n) ** 2
+    one = 8 * int(n) ** 2
+    need = int(matrices) * one
     if need > MEMORY_BYTES:
-        what = "one n x n matrix of doubles needs" if matrices == 1 else \
-            f"{int(matrices)} n x n matrices of doubles need"
+        held = "" if matrices == 1 else f", and this work holds {int(matrices)} at once ({need / 2**30:.3g} GiB)"
         raise ProblemTooLargeError(
-            f"{who}: n = {int(n)} variables: {what} {need / 2**30:.3g} GiB, "
+            f"{who}: n = {int(n)} variables: one n x n matrix of doubles needs {one / 2**30:.3g} GiB{held}, "
             f"more than this machine's {MEMORY_BYTES / 2**30:.3g} GiB of memory")
 
 

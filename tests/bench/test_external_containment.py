@@ -136,7 +136,7 @@ def test_an_answer_file_larger_than_an_answer_is_refused_unread(tmp_path):
 
 
 def test_a_run_with_a_flooding_and_a_lingering_program_finishes_in_time_and_writes_its_rows(tmp_path):
-    """The issue's done-when: within timeout + 2 s per row, memory under 200 MB above
+    """Within timeout + 2 s per row, memory under 200 MB above
     the run's own, every row written."""
     suite = write_suite(tmp_path / "s.toml", ["yardstick"], grid={"n": [4], "depth": [1]}, repeat=1,
                         timeout=2.0, modes=("cold",))

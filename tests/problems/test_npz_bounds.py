@@ -51,7 +51,7 @@ def _small(n=4, rows=1) -> dict:
 
 
 def test_a_compressed_array_wider_than_n_is_refused_before_it_is_decompressed(tmp_path):
-    """The audit's case: a 2 MB file made inspect allocate 2.1 GB before refusing it."""
+    """A 2 MB file made inspect allocate 2.1 GB before refusing it."""
     cols = 50_000_000  # 400 MB of zeros, a few hundred KB compressed
     path = tmp_path / "wide.npz"
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zf:
@@ -115,7 +115,7 @@ N_BIG = int((MEMORY_BYTES / 8 / 2) ** 0.5) + 1
 
 @pytest.mark.parametrize("argv", [["inspect"], ["solve", "--solver", "yardstick"]], ids=["inspect", "yardstick"])
 def test_n_x_n_work_beyond_the_memory_is_a_one_line_error(tmp_path, argv):
-    """The audit's case: n = 50000 and no rows passed the size check (one matrix, 18.6 GiB of
+    """n = 50000 and no rows passed the size check (one matrix, 18.6 GiB of
     23); the yardstick and inspect then allocated several."""
     path = _no_rows(tmp_path, N_BIG)
     cmd = [sys.executable, "-c", "import runpy; runpy.run_module('hikbench', run_name='__main__')",
@@ -123,7 +123,8 @@ def test_n_x_n_work_beyond_the_memory_is_a_one_line_error(tmp_path, argv):
     out = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
     assert out.returncode == 2, (out.returncode, out.stdout[-500:], out.stderr[-2000:])
     assert len(out.stderr.strip().splitlines()) == 1, out.stderr
-    assert f"n = {N_BIG} variables: 3 n x n matrices of doubles need" in out.stderr, out.stderr
+    assert f"n = {N_BIG} variables: one n x n matrix of doubles needs" in out.stderr, out.stderr
+    assert "this work holds 3 at once" in out.stderr, out.stderr
 
 
 def test_a_run_with_such_a_problem_writes_an_error_row_for_its_yardstick():
@@ -132,4 +133,4 @@ def test_a_run_with_such_a_problem_writes_an_error_row_for_its_yardstick():
 
     h = Hierarchy(np.zeros((0, N_BIG)), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int), n=N_BIG)
     res = execute({"kind": "yardstick", "hierarchy": h})
-    assert res["status"] == "error" and "3 n x n matrices" in res["reason"], res
+    assert res["status"] == "error" and "holds 3 at once" in res["reason"], res
