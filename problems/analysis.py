@@ -76,7 +76,7 @@ def level_structure(h: Hierarchy, rtol: float = RANK_RTOL) -> list[LevelStructur
     """One :class:`LevelStructure` per level of h, level 0 first."""
     lo_inf, up_inf = np.isneginf(h.lower), np.isposinf(h.upper)
     out = []
-    check_fits_in_memory(h.n, "rank analysis")
+    check_fits_in_memory(h.n, "rank analysis", matrices=3)  # Z, the full SVD's V^T, Z @ V^T
     Z = np.eye(h.n)  # orthonormal basis of the null space of the levels above, (n, n - rank)
     for k in range(h.depth):
         s = h.level_rows(k)

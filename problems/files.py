@@ -1,18 +1,21 @@
 """Problem files in ``.npz`` (docs/problem-files.md): ``A`` (rows x n, float64), ``lower``,
 ``upper`` (rows,), ``level`` (rows, int, nondecreasing), ``n`` (scalar int);
 optional ``names`` (one per level) and ``x0``. Load/save round-trips exactly
-(``names`` is always written so that empty trailing levels survive).
+(``names`` is always written so that empty trailing levels survive). The
+loader checks every array's shape and dtype from the ``.npy`` headers, and
+their total size against the machine's memory, before it reads any data.
 """
 
 from __future__ import annotations
 
+import math
 import os
 import zipfile
 
 import numpy as np
 
-from hikbench.problems.errors import InvalidHierarchyError, ProblemFileError
-from hikbench.problems.hierarchy import Hierarchy
+from hikbench.problems.errors import InvalidHierarchyError, ProblemFileError, ProblemTooLargeError
+from hikbench.problems.hierarchy import MEMORY_BYTES, Hierarchy
 
 __all__ = ["load", "load_npz", "save", "save_npz"]
 
@@ -30,6 +33,60 @@ def _array(z, key: str, path) -> np.ndarray:
             raise ProblemFileError(f"{path}: {key} must be a numeric array; it holds Python objects "
                                    f"(not read, for safety)") from err
         raise ProblemFileError(f"{path}: array {key} cannot be read ({err})") from err
+
+
+def _headers(path) -> dict:
+    """{array name: (shape, dtype)} of every ``.npy`` member of the npz, read from
+    the members' headers only (numpy.lib.format; nothing is decompressed past them)."""
+    out = {}
+    with zipfile.ZipFile(path) as zf:
+        for member in zf.namelist():
+            if not member.endswith(".npy"):
+                continue
+            with zf.open(member) as f:
+                version = np.lib.format.read_magic(f)
+                if version not in ((1, 0), (2, 0)):
+                    raise ProblemFileError(f"{path}: array {member[:-4]} has .npy format version "
+                                           f"{version[0]}.{version[1]}: expected 1.0 or 2.0")
+                read = np.lib.format.read_array_header_1_0 if version == (1, 0) else \
+                    np.lib.format.read_array_header_2_0
+                shape, _, dtype = read(f, max_header_size=10000)
+            out[member[:-4]] = (shape, dtype)
+    return out
+
+
+def _check_headers(path, headers: dict) -> None:
+    """Refuse, from the headers alone, arrays of Python objects or of the wrong kind or
+    number of dimensions, and arrays together larger than half this machine's memory."""
+    for key, (shape, dtype) in headers.items():
+        if dtype.hasobject:
+            raise ProblemFileError(f"{path}: {key} must be a numeric array; it holds Python objects "
+                                   f"(not read, for safety)")
+        if key in _NUMERIC and dtype.kind not in "iuf":
+            raise ProblemFileError(f"{path}: {key} must be a numeric array (float64); got dtype {dtype}")
+    if headers["n"][0] != () or headers["n"][1].kind not in "iu":
+        raise ProblemFileError(f"{path}: n must be a scalar integer; got shape {headers['n'][0]} "
+                               f"and dtype {headers['n'][1]}")
+    expected = {"A": ("(rows, n)", 2), "lower": ("(rows,)", 1), "upper": ("(rows,)", 1), "level": ("(rows,)", 1),
+                "x0": ("(n,)", 1), "names": ("(levels,)", 1)}
+    for key, (dims, ndim) in expected.items():
+        if key in headers and len(headers[key][0]) != ndim:
+            raise ProblemFileError(f"{path}: {key} has shape {headers[key][0]}: expected {dims}")
+    need = sum(math.prod(shape) * dtype.itemsize for shape, dtype in headers.values())
+    if need > MEMORY_BYTES // 2:
+        raise ProblemTooLargeError(f"{path}: its arrays need {need / 2**30:.3g} GiB, more than half of this "
+                                   f"machine's {MEMORY_BYTES / 2**30:.3g} GiB of memory")
+
+
+def _check_shapes(path, headers: dict, n: int) -> None:
+    """Refuse, from the headers and ``n``, arrays whose shapes disagree: A of
+    (rows, n), lower, upper and level of (rows,), x0 of (n,)."""
+    rows = headers["A"][0][0]
+    want = {"A": (rows, n), "lower": (rows,), "upper": (rows,), "level": (rows,), "x0": (n,)}
+    for key, shape in want.items():
+        if key in headers and tuple(headers[key][0]) != shape:
+            raise ProblemFileError(f"{path}: {key} has shape {tuple(headers[key][0])}: expected {shape} "
+                                   f"(n = {n}, rows = {rows}, the rows of A)")
 
 
 def save_npz(h: Hierarchy, path: str | os.PathLike) -> None:
@@ -58,10 +115,15 @@ def load_npz(path: str | os.PathLike) -> Hierarchy:
         raise ProblemFileError(f"{path}: not a valid .npz file (expected a zip archive of arrays, "
                                "as numpy.savez writes)")
     try:
+        headers = _headers(path)
+        missing = [k for k in _REQUIRED if k not in headers]
+        if missing:
+            raise ProblemFileError(f"{path}: missing array(s) {missing}; expected {list(_REQUIRED)}")
+        _check_headers(path, headers)
         with np.load(path, allow_pickle=False) as z:
-            missing = [k for k in _REQUIRED if k not in z.files]
-            if missing:
-                raise ProblemFileError(f"{path}: missing array(s) {missing}; expected {list(_REQUIRED)}")
+            n = _array(z, "n", path)
+            if np.ndim(n) == 0 and n.dtype.kind in "iu":
+                _check_shapes(path, headers, int(n))
             data = {k: _array(z, k, path) for k in z.files}
     except (OSError, EOFError, ValueError, zipfile.BadZipFile) as err:  # EOFError: an empty file
         raise ProblemFileError(f"{path}: not a valid .npz file ({err})") from err

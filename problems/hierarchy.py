@@ -34,16 +34,20 @@ __all__ = ["MEMORY_BYTES", "Hierarchy", "Level", "check_fits_in_memory"]
 MEMORY_BYTES = psutil.virtual_memory().total
 
 
-def check_fits_in_memory(n: int, who: str) -> None:
-    """ProblemTooLargeError (``who`` first in the message) when one ``n x n``
-    matrix of doubles is larger than this machine's memory: every solver here
-    keeps one (a null-space basis, a Hessian), as do the rank analysis of
-    ``inspect`` and the generators' random orthogonal factors; allocating it
-    would end in a MemoryError, or in hours of swapping."""
-    need = 8 * int(n) ** 2
+def check_fits_in_memory(n: int, who: str, matrices: int = 1) -> None:
+    """ProblemTooLargeError (``who`` first in the message) when ``matrices``
+    ``n x n`` matrices of doubles are larger than this machine's memory: every
+    solver here keeps one (a null-space basis, a Hessian), the yardstick and the
+    rank analysis of ``inspect`` three at once (the basis Z, the full SVD's V^T
+    and their product), as do the generators' random orthogonal factors;
+    allocating them would end in a MemoryError, or in hours of swapping. Called
+    before the first of them is made."""
+    one = 8 * int(n) ** 2
+    need = int(matrices) * one
     if need > MEMORY_BYTES:
+        held = "" if matrices == 1 else f", and this work holds {int(matrices)} at once ({need / 2**30:.3g} GiB)"
         raise ProblemTooLargeError(
-            f"{who}: n = {int(n)} variables: one n x n matrix of doubles needs {need / 2**30:.3g} GiB, "
+            f"{who}: n = {int(n)} variables: one n x n matrix of doubles needs {one / 2**30:.3g} GiB{held}, "
             f"more than this machine's {MEMORY_BYTES / 2**30:.3g} GiB of memory")
 
 

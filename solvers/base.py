@@ -149,7 +149,7 @@ class Solver(abc.ABC):
 
 def checked_result(res, h: Hierarchy, solver) -> SolveResult:
     """``res``, what ``solver.solve(h)`` returned, when it keeps the solve
-    contract (a SolveResult whose x is None or has shape (n,)); otherwise a
+    contract (a SolveResult whose x is None or real numbers of shape (n,)); otherwise a
     SolveResult with status ``error`` whose reason names the solver (its
     ``name``, or its class), what came back and what was expected. The harness applies it
     to every solver's answer: a user's ``file.py:Class`` returning an ndarray,
@@ -161,4 +161,9 @@ def checked_result(res, h: Hierarchy, solver) -> SolveResult:
     if res.x is not None and np.shape(res.x) != (h.n,):
         return SolveResult(None, ERROR, reason=f"{who}: solve() returned x of shape {np.shape(res.x)}: expected "
                                                 f"({h.n},), one value per variable")
+    if res.x is not None and np.asarray(res.x).dtype.kind not in "biuf":
+        dtype = np.asarray(res.x).dtype
+        what = "complex numbers" if dtype.kind == "c" else f"dtype {dtype}"
+        return SolveResult(None, ERROR, reason=f"{who}: solve() returned x of {what} ({dtype}): expected real "
+                                                f"numbers (float64); x is not cast")
     return res

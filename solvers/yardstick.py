@@ -52,7 +52,7 @@ import warnings
 import numpy as np
 
 from hikbench.problems.errors import HikbenchError
-from hikbench.problems.hierarchy import Hierarchy
+from hikbench.problems.hierarchy import Hierarchy, check_fits_in_memory
 from hikbench.solvers.base import ERROR, OPTIMAL, Solver, SolveResult
 from hikbench.solvers.registry import SolverInfo
 
@@ -93,6 +93,11 @@ class YardstickError(HikbenchError):
     """The yardstick could not solve a problem to its accuracy."""
 
 
+#: n x n matrices of doubles the yardstick holds at once (Z, the full SVD's V^T, Z @ V^T),
+#: checked against the machine's memory before the first is made
+YARDSTICK_MATRICES = 3
+
+
 def _null_update(x: np.ndarray, Z: np.ndarray, A: np.ndarray, b: np.ndarray):
     """One step of the SVD null-space recursion (eq. 2); returns x, Z."""
     if A.shape[0] == 0 or Z.shape[1] == 0:
@@ -112,6 +117,7 @@ def nullspace_yardstick(h: Hierarchy) -> np.ndarray:
     Returns x, shape (n,). Raises YardstickError if h has inequality rows."""
     if h.has_inequalities:
         raise YardstickError("nullspace_yardstick solves equality-only hierarchies; use cascade_yardstick")
+    check_fits_in_memory(h.n, "yardstick", matrices=YARDSTICK_MATRICES)
     x = np.zeros(h.n)
     Z = np.eye(h.n)
     for k in range(h.depth):
@@ -699,6 +705,7 @@ def cascade_yardstick(h: Hierarchy) -> tuple[np.ndarray, dict]:
     tried once more with that level frozen at its QP's own point instead,
     within the QP's tolerances of the optimum; the level is then recorded
     unpolished, its backend label saying why."""
+    check_fits_in_memory(h.n, "yardstick", matrices=YARDSTICK_MATRICES)
     f = _units(h)
     if f != 1.0:
         x, info = cascade_yardstick(h.with_bounds(h.lower * f, h.upper * f))

@@ -4,9 +4,16 @@ from __future__ import annotations
 
 import json
 import math
+import os
+import pickle
 import sys
+import tempfile
 import threading
+import traceback
+from types import SimpleNamespace
 
+from hikbench.bench.harness.isolation import describe_exit, die_with_parent
+from hikbench.bench.harness.statuses import CRASHED
 from hikbench.bench.harness.worker import solver_info
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import load
@@ -69,15 +76,13 @@ def _warm_up(solver, name: str) -> None:
         note.cancel()
 
 
-def run(args) -> int:
+def _solve(args, h, info, options) -> tuple:
+    """Build, warm up and time the solver (in the child of :func:`_contained`):
+    ``("done", fields)``, or ``("error", reason)`` when the solver's constructor or
+    solve raised (a user's file.py:Class); a HikbenchError (a wrong option) is raised."""
     from hikbench.bench.cli import solver_calls_killable
     from hikbench.bench.harness.timing import time_solves
 
-    if args.repeat < 1:
-        raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
-    h = load(args.file)
-    options = parse_options(args.option)
-    info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
     try:
         # names and options are checked here, before timing (a HikbenchError: exit 2); an exception
         # of the solver's own constructor or solve (a user's file.py:Class) is its answer: status error
@@ -92,15 +97,113 @@ def run(args) -> int:
     except HikbenchError:
         raise
     except Exception as err:  # noqa: BLE001 - the solver's exception (a user's file.py:Class), not hikbench's
-        reason = f"{type(err).__name__}: {err}"
+        return "error", f"{type(err).__name__}: {err}"
+    res = timing.result
+    return "done", {"status": res.status, "reason": res.reason, "x": res.x, "iterations": res.iterations,
+                    "median_s": timing.median_s, "min_s": timing.min_s}
+
+
+def _contained(work) -> tuple:
+    """``work()`` in a forked child process (POSIX): a solver that segfaults, aborts
+    or calls sys.exit still lets this process report it, as ``("crashed", how it
+    ended)``. The child keeps everything imported and loaded here (no start-up
+    cost) and sends its answer back pickled in a temporary file; a HikbenchError it
+    raises is raised here. On Linux the child dies with this process
+    (PR_SET_PDEATHSIG). Without os.fork, or when sys.stdout or sys.stderr is
+    not a file descriptor the child would write to (main() called from Python
+    with its output captured: the child's notes would be lost), work() runs in
+    this process."""
+    from hikbench.bench.cli import solver_calls_killable
+
+    if not hasattr(os, "fork") or not _streams_are_fds():
+        return work()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as f:
+        parent = os.getpid()
+        pid = os.fork()
+        if pid == 0:
+            _child(work, f, parent)
+        with solver_calls_killable():  # ended by SIGTERM / Ctrl-C as the child is (which dies with it)
+            _, status = os.waitpid(pid, 0)
+        code = os.waitstatus_to_exitcode(status)
+        f.seek(0)
+        data = f.read()
+    if code != 0 or not data:
+        return "crashed", describe_exit(code, "solver process") + ("" if code else " before it answered")
+    kind, payload = pickle.loads(data)
+    if kind == "user_error":
+        raise payload
+    return kind, payload
+
+
+def _streams_are_fds() -> bool:
+    """Whether sys.stdout and sys.stderr write to file descriptors (a forked child's
+    writes then reach the same place)."""
+    try:
+        sys.stdout.fileno()
+        sys.stderr.fileno()
+    except (AttributeError, OSError, ValueError):  # (io.UnsupportedOperation: an in-memory stream)
+        return False
+    return True
+
+
+def _answer_of(work) -> tuple:
+    """work()'s answer, a HikbenchError it raises as ``("user_error", err)``."""
+    try:
+        return work()
+    except HikbenchError as err:
+        return "user_error", err
+
+
+def _child(work, f, parent: int) -> None:
+    """The forked child of :func:`_contained`: runs work(), writes its answer
+    pickled to ``f`` and exits with os._exit (never returns into the CLI); a
+    SystemExit of the solver exits with its code, unanswered."""
+    code = 1
+    try:
+        die_with_parent()
+        if os.getppid() != parent:  # the parent ended before the child was set to die with it
+            return
+        answer = _answer_of(work)
+        try:
+            data = pickle.dumps(answer)
+        except (pickle.PicklingError, TypeError, AttributeError):  # an exception that does not pickle
+            data = pickle.dumps(("user_error", HikbenchError(str(answer[1]))))
+        f.write(data)
+        f.flush()
+        code = 0
+    except SystemExit as stop:  # the solver's sys.exit(k): the child ends with k, as a worker would
+        code = stop.code if isinstance(stop.code, int) else 1
+    except BaseException:  # noqa: BLE001 - a bug: its traceback on stderr; the parent reports the exit code
+        traceback.print_exc()
+    finally:
+        for stream in (sys.stdout, sys.stderr):
+            try:
+                stream.flush()
+            except (OSError, ValueError):  # a closed or broken stream: its output is lost, the exit code stays
+                continue
+        os._exit(code)
+
+
+def run(args) -> int:
+    if args.repeat < 1:
+        raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
+    h = load(args.file)
+    options = parse_options(args.option)
+    info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
+    kind, answer = _contained(lambda: _solve(args, h, info, options))
+    if kind != "done":  # the solver raised (error) or its process died (crashed)
+        status = ERROR if kind == "error" else CRASHED
         if args.json:
-            print(json.dumps({"solver": args.solver, "status": ERROR, "reason": reason, "x": None,
+            print(json.dumps({"solver": args.solver, "status": status, "reason": answer, "x": None,
                               "level_norms": None, "iterations": None, "time_s": None}
                              | ({"certificate": None} if args.certify else {})))
         else:
-            print(f"solver      {args.solver}\nstatus      {ERROR} ({reason})")
+            print(f"solver      {args.solver}\nstatus      {status} ({answer})")
         return 1
-    res = timing.result
+    res = SimpleNamespace(**answer)
+    timing = SimpleNamespace(median_s=answer["median_s"], min_s=answer["min_s"])
     norms = level_norms(h, res.x).tolist() if res.x is not None else None
     out = {
         "solver": args.solver,

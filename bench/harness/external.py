@@ -13,8 +13,15 @@ and reads ``{out}``: a JSON object ``{"x": [...], "solve_time_s": t,
 be ``null`` with a status other than ``optimal``). The row's
 time samples are the ``solve_time_s`` the program reports when every
 repetition reports one (its own timer, without process start-up), else the wall
-time of the whole process. A non-zero exit code gives status ``error`` with the
-end of stderr; exceeding the job timeout gives ``timeout``; an output that
+time of the program's process (bench/harness/launcher.py measures it). The
+program runs in a session of its own under a small launcher that kills every
+process it leaves behind when it exits, and the whole tree at the job
+timeout (on Linux as a subreaper: a grandchild that called ``setsid`` too);
+the timeout is wall time, whatever holds the program's output open. Its
+stdout and stderr are read as they come, keeping only their first and last
+4 KiB. A non-zero exit code gives status ``error`` with the head and tail of
+stderr; exceeding the job timeout gives ``timeout``; an answer file larger
+than an answer can be (64 bytes a number, plus 1 MiB) is refused unread; an output that
 breaks the protocol (no ``x`` or a wrong shape, ``solve_time_s`` not a finite
 number >= 0, ``iterations`` not an integer >= 0, an unknown ``status``) gives
 ``error`` with a reason naming the field; an ``x`` holding NaN or inf that
@@ -27,17 +34,20 @@ from __future__ import annotations
 import json
 import math
 import os
+import select
 import shlex
+import signal
 import socket
 import subprocess
+import sys
 import tempfile
 import time
+from dataclasses import dataclass
 
 import numpy as np
 
-from hikbench.bench.harness.isolation import kill_session
-from hikbench.problems.errors import HikbenchError
-from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
+from hikbench.bench.harness.isolation import HeadTail, kill_session
+from hikbench.bench.harness.statuses import TIMEOUT
 from hikbench.solvers.base import ERROR, OPTIMAL, STATUSES, SolveResult
 
 __all__ = ["run_external"]
@@ -47,19 +57,145 @@ def _command(spec: str) -> str:
     return spec[len("external:"):].partition("=")[2]
 
 
-def _run(argv: list[str], timeout: float) -> subprocess.CompletedProcess:
-    """subprocess.run(argv) in a session of its own; past ``timeout`` the whole
-    session is killed (a shell's background children too, not only the direct
-    child: orphans would burn CPU through later timings) and TimeoutExpired raised."""
-    with subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+_LAUNCHER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "launcher.py")
+KEEP_BYTES = 4096  # of the head and of the tail of the program's stdout and of its stderr
+_GRACE_S = 1.0  # past the timeout, for the launcher to kill the tree and report
+_DRAIN_BYTES = 1 << 20  # read from a pipe after the launcher exited (its writers are dead)
+
+
+@dataclass
+class Ran:
+    """One run of the program: ``returncode`` (negative: the signal), its wall
+    time, whether it timed out, ``error`` (it could not be started) and the
+    head and tail of its stdout and stderr (:class:`HeadTail`)."""
+
+    returncode: int | None
+    elapsed_ns: int
+    timed_out: bool
+    error: str
+    stdout: HeadTail
+    stderr: HeadTail
+
+    def output(self) -> str:
+        """The head and tail of stderr (of stdout when stderr is empty), stripped."""
+        text = self.stderr.text().strip()
+        return text or self.stdout.text().strip()
+
+
+def _run(argv: list[str], timeout: float, tmp: str) -> Ran:
+    """Run ``argv`` through the launcher (bench/harness/launcher.py: its own session,
+    every process it leaves killed when it ends or at ``timeout``), reading its
+    stdout and stderr as they come into bounded :class:`HeadTail` buffers; the
+    launcher itself is killed ``_GRACE_S`` past the timeout if it has not exited."""
+    status = os.path.join(tmp, "launch.json")
+    if os.path.exists(status):
+        os.remove(status)
+    cmd = [sys.executable, "-I", "-S", _LAUNCHER, status, repr(float(timeout)), str(os.getpid()), *argv]
+    out, err = HeadTail(KEEP_BYTES, KEEP_BYTES), HeadTail(KEEP_BYTES, KEEP_BYTES)
+    with subprocess.Popen(cmd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                           start_new_session=True) as proc:
+        streams = {proc.stdout.fileno(): out, proc.stderr.fileno(): err}
         try:
-            out, err = proc.communicate(timeout=timeout)
-        except subprocess.TimeoutExpired:
-            kill_session(proc.pid)
-            proc.communicate()
-            raise
-    return subprocess.CompletedProcess(argv, proc.returncode, out, err)
+            exited = _pump(proc, streams, time.monotonic() + timeout + _GRACE_S)
+        finally:
+            _stop_launcher(proc)
+        _drain(streams)
+    return _ran(status, exited, out, err)
+
+
+def _pump(proc: subprocess.Popen, streams: dict, deadline: float) -> bool:
+    """Read the launcher's pipes into their buffers until it exits (True) or
+    ``deadline`` passes (False). Never waits on a pipe: a process holding it
+    open does not hold this up."""
+    pidfd = os.pidfd_open(proc.pid) if hasattr(os, "pidfd_open") else None
+    try:
+        open_fds = list(streams)
+        while proc.poll() is None:
+            left = deadline - time.monotonic()
+            if left <= 0:
+                return False
+            waits = open_fds + ([pidfd] if pidfd is not None else [])
+            ready = select.select(waits, [], [], left if pidfd is not None else min(left, 0.02))[0]
+            for fd in ready:
+                if fd == pidfd:
+                    continue
+                chunk = os.read(fd, 1 << 16)
+                if chunk:
+                    streams[fd].add(chunk)
+                else:
+                    open_fds.remove(fd)
+        return True
+    finally:
+        if pidfd is not None:
+            os.close(pidfd)
+
+
+def _drain(streams: dict) -> None:
+    """What is left in the pipes once the launcher has exited, without blocking
+    (at most ``_DRAIN_BYTES`` each)."""
+    for fd, buf in streams.items():
+        os.set_blocking(fd, False)
+        for _ in range(_DRAIN_BYTES >> 16):
+            try:
+                chunk = os.read(fd, 1 << 16)
+            except BlockingIOError:  # nothing more now; whoever holds the pipe is not waited for
+                break
+            if not chunk:
+                break
+            buf.add(chunk)
+
+
+def _stop_launcher(proc: subprocess.Popen) -> None:
+    """End a launcher still running past its deadline: SIGTERM (it kills its tree), then
+    SIGKILL of its group if it has not exited within ``_GRACE_S``."""
+    if proc.poll() is not None:
+        return
+    proc.terminate()
+    try:
+        proc.wait(_GRACE_S)
+    except subprocess.TimeoutExpired:
+        kill_session(proc.pid)
+        proc.wait()
+
+
+def _ran(status: str, exited: bool, out: HeadTail, err: HeadTail) -> Ran:
+    """The :class:`Ran` of the launcher's STATUS file (a launcher that wrote none
+    failed: its error is on its stderr)."""
+    try:
+        with open(status) as f:
+            st = json.load(f)
+    except (OSError, ValueError) as exc:
+        if not exited:
+            return Ran(None, 0, True, "", out, err)
+        return Ran(None, 0, False, f"the launcher wrote no status ({exc}): {err.text().strip()[-300:]}", out, err)
+    if "error" in st:
+        return Ran(None, 0, False, st["error"], out, err)
+    return Ran(int(st["returncode"]), int(st["elapsed_ns"]), bool(st["timed_out"]) or not exited, "", out, err)
+
+
+def _describe_code(code: int) -> str:
+    """``exit code 3`` or ``killed by signal SIGSEGV``."""
+    if code >= 0:
+        return f"exit code {code}"
+    try:
+        return f"killed by signal {signal.Signals(-code).name}"
+    except ValueError:
+        return f"killed by signal {-code}"
+
+
+def _read_answer(path: str, n: int):
+    """The JSON object the program wrote to ``{out}``, refused unread when the file
+    is larger than an answer of ``n`` numbers can be; ValueError / OSError otherwise."""
+    size = os.path.getsize(path)
+    limit = _ANSWER_BYTES_PER_NUMBER * n + _ANSWER_BYTES_EXTRA
+    if size > limit:
+        raise ValueError(f"it is {size} bytes: expected at most {limit} for an answer of {n} numbers")
+    with open(path) as f:
+        return json.load(f)
+
+
+_ANSWER_BYTES_PER_NUMBER = 64  # bytes per number of x in the answer file, at most
+_ANSWER_BYTES_EXTRA = 1 << 20  # and for the other fields (a reason)
 
 
 def run_external(job: dict, timeout: float) -> dict:
@@ -85,22 +221,17 @@ def run_external(job: dict, timeout: float) -> dict:
         for i in range(total):
             if os.path.exists(paths["{out}"]):
                 os.remove(paths["{out}"])
-            t0 = time.perf_counter_ns()
-            try:
-                proc = _run(argv, max(deadline - time.monotonic(), 0.001))
-            except subprocess.TimeoutExpired:
+            ran = _run(argv, max(deadline - time.monotonic(), 0.001), tmp)
+            if ran.timed_out:
                 return {**base, "status": TIMEOUT, "x": None, "samples_ns": [],
                         "reason": f"external program exceeded the {timeout:g} s timeout"}
-            except OSError as err:
+            if ran.error:
+                return {**base, "status": ERROR, "x": None, "samples_ns": [], "reason": ran.error}
+            if ran.returncode != 0:
                 return {**base, "status": ERROR, "x": None, "samples_ns": [],
-                        "reason": f"cannot run {argv[0]!r}: {err}"}
-            dt = time.perf_counter_ns() - t0
-            if proc.returncode != 0:
-                return {**base, "status": ERROR, "x": None, "samples_ns": [],
-                        "reason": f"exit code {proc.returncode}: {proc.stderr.strip()[-300:]}"}
+                        "reason": f"{_describe_code(ran.returncode)}: {_shorten(ran.output())}"}
             try:
-                with open(paths["{out}"]) as f:
-                    last = json.load(f)
+                last = _read_answer(paths["{out}"], h.n)
             except (OSError, ValueError) as err:
                 return {**base, "status": ERROR, "x": None, "samples_ns": [],
                         "reason": f"cannot read the program's output file: {err}"}
@@ -109,7 +240,7 @@ def run_external(job: dict, timeout: float) -> dict:
                 return {**base, "status": ERROR, "x": None, "samples_ns": [],
                         "reason": f"bad output of the external program: {problem}"}
             if i >= total - int(job["repeat"]):
-                wall.append(dt)
+                wall.append(ran.elapsed_ns)
                 reported.append(parsed["solve_time_s"])
     use_reported = all(r is not None for r in reported)
     samples = [int(r * 1e9) for r in reported] if use_reported else wall
@@ -117,6 +248,40 @@ def run_external(job: dict, timeout: float) -> dict:
             "samples_ns": samples, "iterations": parsed["iterations"], "iterations_per_level": [],
             "activations": 0, "deactivations": 0, "flops": None, "build_time_s": float("nan"),
             "solve_time_s": float(np.median(reported)) if use_reported else float("nan")}
+
+
+def _shorten(text: str, head: int = 200, tail: int = 300) -> str:
+    """``text`` cut to its first ``head`` and last ``tail`` characters, on one line."""
+    text = " ".join(text.split())
+    return text if len(text) <= head + tail + 5 else f"{text[:head]} ... {text[-tail:]}"
+
+
+def _real_x(value, n: int) -> tuple[np.ndarray | None, str]:
+    """``value`` (the answer's "x") as float64 of shape (n,), or what is wrong
+    with it: not a list, another length, an element that is not a JSON number
+    (a string such as "(1+2j)" is named as a complex number: x must be real; a
+    numeric string is not read as a number either)."""
+    if not isinstance(value, list):
+        return None, f'"x" must be a list of {n} numbers; got {type(value).__name__}'
+    if len(value) != n:
+        shape = np.shape(value) if all(isinstance(v, list) for v in value) else (len(value),)
+        return None, f'"x" has shape {shape}: expected ({n},)'
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, (int, float)):
+            return None, f'"x" must be a list of {n} numbers: element {i} is {_describe_element(v)}'
+    return np.asarray(value, dtype=float), ""
+
+
+def _describe_element(v) -> str:
+    """How :func:`_real_x` names an element of x that is not a real number."""
+    if isinstance(v, str):
+        try:
+            complex(v.replace(" ", ""))
+        except ValueError:
+            return f"the string {v[:40]!r}"
+        return f"the string {v[:40]!r}, a complex number: x must be real" if "j" in v.lower() else \
+            f"the string {v[:40]!r}: expected a JSON number, not a string"
+    return f"{type(v).__name__} {str(v)[:40]}"
 
 
 # statuses a program may report; timeout and crashed are the harness's own
@@ -138,12 +303,9 @@ def _check_output(out, n: int) -> tuple[dict, str]:
     elif out["x"] is None:
         return {}, f'"x" is null with status optimal: expected a list of {n} numbers'
     else:
-        try:
-            x = np.asarray(out["x"], dtype=float)
-        except (ValueError, TypeError):
-            return {}, f'"x" must be a list of {n} numbers'
-        if x.shape != (n,):
-            return {}, f'"x" has shape {x.shape}: expected ({n},)'
+        x, problem = _real_x(out["x"], n)
+        if problem:
+            return {}, problem
     t = out.get("solve_time_s")
     if t is not None and (isinstance(t, bool) or not isinstance(t, (int, float))
                           or not math.isfinite(t) or t < 0):

@@ -27,7 +27,6 @@ daemonic Dask worker processes.
 
 from __future__ import annotations
 
-import contextlib
 import os
 import pickle
 import select
@@ -36,12 +35,13 @@ import socket
 import struct
 import subprocess
 import sys
+import threading
 import time
 
 from hikbench.problems.errors import HikbenchError
 from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
 
-__all__ = ["IsolatedWorker", "kill_session"]
+__all__ = ["CappedLog", "HeadTail", "IsolatedWorker", "kill_session"]
 
 _HEADER = struct.Struct("<Q")
 _THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
@@ -87,15 +87,89 @@ def _read_frame(fd: int, deadline: float | None):
     return pickle.loads(_read_exact(fd, size, deadline))
 
 
-def _describe_exit(code: int | None) -> str:
+def describe_exit(code: int | None, who: str = "worker process") -> str:
+    """How a process ended, from its Popen returncode (negative: the signal)."""
     if code is None:
-        return "worker process died"
+        return f"{who} died"
     if code < 0:
         try:
-            return f"worker process killed by signal {signal.Signals(-code).name}"
+            return f"{who} killed by signal {signal.Signals(-code).name}"
         except ValueError:
-            return f"worker process killed by signal {-code}"
-    return f"worker process exited with code {code}"
+            return f"{who} killed by signal {-code}"
+    return f"{who} exited with code {code}"
+
+
+class HeadTail:
+    """The first ``head`` bytes and the last ``tail`` bytes of a stream read in
+    chunks, and how many bytes came between them: what a process writes is kept
+    in bounded memory however much it writes."""
+
+    def __init__(self, head: int, tail: int):
+        self.head_cap, self.tail_cap = int(head), int(tail)
+        self.head = bytearray()
+        self._tail = bytearray()  # up to twice tail_cap between trims (amortized)
+        self.total = 0
+
+    def add(self, chunk: bytes) -> bytes:
+        """Keep ``chunk``'s share; returns the part of it that went to the head."""
+        to_head = chunk[: max(self.head_cap - len(self.head), 0)]
+        self.head += to_head
+        rest = memoryview(chunk)[len(to_head):]
+        if len(rest) >= self.tail_cap:
+            self._tail = bytearray(rest[len(rest) - self.tail_cap:])
+        elif rest:
+            self._tail += rest
+            if len(self._tail) > 2 * self.tail_cap:
+                del self._tail[: len(self._tail) - self.tail_cap]
+        self.total += len(chunk)
+        return to_head
+
+    @property
+    def tail(self) -> bytes:
+        return bytes(self._tail[-self.tail_cap:]) if self.tail_cap else b""
+
+    @property
+    def omitted(self) -> int:
+        """Bytes neither in the head nor in the tail."""
+        return self.total - len(self.head) - len(self.tail)
+
+    def marker(self) -> bytes:
+        """The line standing for the omitted bytes (empty when none was)."""
+        return f"\n[... {self.omitted} bytes omitted ...]\n".encode() if self.omitted else b""
+
+    def text(self) -> str:
+        """Head, the omitted-bytes marker and tail, decoded (undecodable bytes replaced)."""
+        return (bytes(self.head) + self.marker() + self.tail).decode(errors="replace")
+
+
+LOG_KEEP_BYTES = 1 << 20  # of the head and of the tail of a worker process's stderr, in its log
+
+
+class CappedLog:
+    """Copies what a process writes into a pipe to the file ``path`` (appended),
+    from a thread: the first ``keep`` bytes as they come, then, when the pipe
+    closes, a line saying how many bytes were left out and the last ``keep``
+    bytes. A solver printing without end cannot fill the disk."""
+
+    def __init__(self, path, fd: int, keep: int = LOG_KEEP_BYTES):
+        self.path = path
+        self._buf = HeadTail(keep, keep)
+        self._thread = threading.Thread(target=self._pump, args=(fd,), name="worker-log", daemon=True)
+        self._thread.start()
+
+    def _pump(self, fd: int) -> None:
+        with open(self.path, "ab") as f, os.fdopen(fd, "rb", buffering=0) as pipe:
+            while chunk := pipe.read(1 << 16):
+                head = self._buf.add(chunk)
+                if head:
+                    f.write(head)
+                    f.flush()
+            f.write(self._buf.marker() + self._buf.tail)
+
+    def close(self, timeout: float = 2.0) -> None:
+        """Wait (at most ``timeout`` s: a process the solver left may hold the pipe)
+        for the pipe to close and the tail to be written."""
+        self._thread.join(timeout)
 
 
 def kill_session(pid: int) -> None:
@@ -113,7 +187,8 @@ class IsolatedWorker:
     Parameters
     ----------
     log : path or None
-        File that receives the worker's stderr (appended); None inherits it.
+        File that receives the worker's stderr (appended; per process, its first
+        and last ``LOG_KEEP_BYTES`` only: :class:`CappedLog`); None inherits it.
     startup_timeout : float
         Seconds allowed for the process to start and calibrate.
     """
@@ -122,6 +197,7 @@ class IsolatedWorker:
         self.log = log
         self.startup_timeout = startup_timeout
         self.proc: subprocess.Popen | None = None
+        self._log_pump: CappedLog | None = None
         self.info: dict = {}
         self.restarts = 0
         self._warmed: set = set()  # solver specs whose first solve this process has done
@@ -141,19 +217,28 @@ class IsolatedWorker:
     def start(self) -> None:
         self.close()
         self._warmed = set()
-        # the child gets its own copy of the log's descriptor: ours is closed once it is started
-        with (open(self.log, "ab") if self.log else contextlib.nullcontext()) as err:
+        # the log gets what the child writes to its stderr through a pipe, capped (CappedLog)
+        err = os.pipe() if self.log else None
+        try:
             # own session: a Ctrl-C in the terminal interrupts the run, not the solve (no bogus
             # `crashed` row); the child dies with its parent through PR_SET_PDEATHSIG (Linux)
             self.proc = subprocess.Popen([sys.executable, "-m", "hikbench.bench.harness.isolation"], stdin=subprocess.PIPE,
-                                         stdout=subprocess.PIPE, stderr=err, env=self._env(),
+                                         stdout=subprocess.PIPE, stderr=err[1] if err else None, env=self._env(),
                                          start_new_session=True)
+        except BaseException:
+            if err:
+                os.close(err[0])
+            raise
+        finally:
+            if err:
+                os.close(err[1])  # the child has its own copy
+        self._log_pump = CappedLog(self.log, err[0]) if err else None
         try:
             self.info = _read_frame(self.proc.stdout.fileno(), time.monotonic() + self.startup_timeout)
         except (_Timeout, _Closed) as exc:
             code = self.proc.poll()
             self.close()
-            raise HikbenchError(f"the isolated worker did not start ({_describe_exit(code)}); "
+            raise HikbenchError(f"the isolated worker did not start ({describe_exit(code)}); "
                                 f"see {self.log or 'stderr'}") from exc
 
     @property
@@ -205,7 +290,7 @@ class IsolatedWorker:
             except subprocess.TimeoutExpired:
                 code = None
             self.kill()  # (closes its pipes, and ends it if it still runs)
-            return {**meta, "status": CRASHED, "x": None, "samples_ns": [], "reason": _describe_exit(code)}
+            return {**meta, "status": CRASHED, "x": None, "samples_ns": [], "reason": describe_exit(code)}
         out.setdefault("calib_ns", meta["calib_ns"])
         return out
 
@@ -231,6 +316,9 @@ class IsolatedWorker:
         if self.proc is not None:
             kill_session(self.proc.pid)
             self.proc.wait()
+            if self._log_pump is not None:
+                self._log_pump.close()
+                self._log_pump = None
             for f in (self.proc.stdin, self.proc.stdout):
                 try:
                     f.close()
@@ -257,7 +345,7 @@ class IsolatedWorker:
         self.close()
 
 
-def _die_with_parent() -> None:
+def die_with_parent() -> None:
     """Linux: SIGKILL this process when its parent dies (a killed run must not
     leave a hanging solve behind). Elsewhere the closed stdin ends an idle worker."""
     if sys.platform.startswith("linux"):
@@ -274,7 +362,7 @@ def _die_with_parent() -> None:
 
 
 def _child_main() -> None:
-    _die_with_parent()
+    die_with_parent()
     channel = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # anything a solver prints goes to stderr, not into the channel
     fd = os.dup(0)  # the jobs; a solver reading stdin reads /dev/null (not the job channel: it waited there)

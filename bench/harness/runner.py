@@ -24,6 +24,7 @@ import math
 import os
 import socket
 import sys
+import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -60,9 +61,20 @@ def _json_floats(a) -> str:
     return json.dumps([None if not math.isfinite(float(v)) else float(v) for v in a])
 
 
-def _load_yardstick(path: Path):
-    with np.load(path, allow_pickle=False) as z:
-        return (z["x"] if z["x"].size else None), str(z["status"]), str(z["reason"])
+def _load_yardstick(path: Path, n: int):
+    """(x or None, status, reason) cached in ``path``; None, said on stderr, when the
+    file cannot be read or does not hold a yardstick of ``n`` variables (a damaged
+    file: the caller computes it again)."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            x, status, reason = z["x"], str(z["status"]), str(z["reason"])
+        if x.dtype.kind != "f" or x.shape not in ((0,), (n,)):
+            raise ValueError(f"x of dtype {x.dtype} and shape {x.shape}: expected float64 of shape ({n},)")
+    except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile) as err:
+        print(f"hikbench run: {path} cannot be read ({type(err).__name__}: {' '.join(str(err).split())}); "
+              f"computing the yardstick again", file=sys.stderr)
+        return None
+    return (x if x.size else None), status, reason
 
 
 def _save_yardstick(path: Path, x, status: str, reason: str) -> None:
@@ -397,8 +409,9 @@ def _yardsticks(todo, problems, out: Path, executor, timeout, progress) -> dict:
     refs, need = {}, []
     for pid in dict.fromkeys(t.problem.id for t in todo):
         path = out / "yardstick" / (file_stem(pid) + ".npz")
-        if path.exists():
-            refs[pid] = _load_yardstick(path)
+        cached = _load_yardstick(path, problems[pid].n) if path.exists() else None
+        if cached is not None:
+            refs[pid] = cached
         else:
             need.append(pid)
     if need:

@@ -185,9 +185,25 @@ def problem_columns(spec: ProblemSpec, h: Hierarchy) -> dict:
     }
 
 
+def _readable_npz(path: Path) -> bool:
+    """Whether the problem file ``path`` loads; when not, says on stderr that it
+    will be written again."""
+    from hikbench.problems.files import load_npz
+
+    try:
+        load_npz(path)
+    except HikbenchError as err:
+        print(f"hikbench run: {path} cannot be read ({' '.join(str(err).split())}); writing it again",
+              file=sys.stderr)
+        return False
+    return True
+
+
 def save_problem(h: Hierarchy, directory: str | os.PathLike, problem_id: str, formats=("npz",)) -> dict:
     """Write h as OUT/problems/<stem>.<ext> for each format (npz, soth);
-    returns {format: path}. Existing files are kept (same spec, same problem)."""
+    returns {format: path}. Existing files are kept (same spec, same problem),
+    except an .npz that cannot be read (a damaged file of an earlier run): it is
+    written again, which a line on stderr says."""
     from hikbench.problems.files import save_npz
 
     d = Path(directory)
@@ -196,7 +212,7 @@ def save_problem(h: Hierarchy, directory: str | os.PathLike, problem_id: str, fo
     for fmt in formats:
         if fmt == "npz":
             path = d / (file_stem(problem_id) + ".npz")
-            if not path.exists():
+            if not path.exists() or not _readable_npz(path):
                 tmp = path.with_suffix(".npz.tmp")
                 save_npz(h, tmp)
                 os.replace(tmp, path)
