@@ -686,11 +686,11 @@ def _reactivate(jump, rk, s0, n, D, p, lazy, rank_rtol, dual_rtol, prob, basis, 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def _warm_correction(p, lazy, prob, basis, aset, R, u, z, hv, nu):
-    """The warm point moved onto the working rows' bounds: the least-squares
-    correction ``u += W[:, :p] nu`` with ``R^T nu = hv``, hv (p,) the
-    residuals ``e_i - a_i u`` of the working inequality rows (0 for the frozen
-    ones), R (p, p) upper triangular (``C^T = W[:, :p] R``). Returns (whether u
-    moved, flops)."""
+    """The warm point (eq. 46) moved onto the working rows' bounds: the
+    least-squares correction ``u += W[:, :p] nu`` with ``R^T nu = hv``, hv (p,)
+    the residuals ``e_i - a_i u`` of the working inequality rows (0 for the
+    frozen ones), R (p, p) upper triangular (``C^T = W[:, :p] R``, sec. IX).
+    Returns (whether u moved, flops)."""
     A, lo, up, bcol, bval, kind, rnorm = prob
     Wt, qv, qi, sv, sv2 = basis
     state, side, target, Olist, widx, wside = aset
@@ -715,7 +715,8 @@ def _warm_correction(p, lazy, prob, basis, aset, R, u, z, hv, nu):
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def _warm_feasible(s0, prob, state, u, unorm, feas_rtol):
     """Every inactive inequality row above (``< s0``) within its bounds at the
-    warm point u, to ``feas_rtol (||a_i|| (1 + ||u||) + 1)``, and finite."""
+    warm point u (eq. 46, corrected), to ``feas_rtol (||a_i|| (1 + ||u||) +
+    1)``, and finite: the level may start there (sec. XI)."""
     A, lo, up, bcol, bval, kind, rnorm = prob
     feasible = True
     for i in range(s0):
@@ -897,7 +898,7 @@ def _identity_lse(n, p, nO, lazy, bcol, bval, basis, Olist, target, u, g, ps):
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def _step_cap(cap_on, p, r, thr_k, u, y, diag):
-    """A cut of the LSE solution y (r,) below working rows. After a
+    """A cut of the LSE solution y (r,) of eq. (30) below working rows. After a
     cancellation (``cap_on``, see CANCELLED) the pivots from the first that
     takes ``||y||`` past ``CANCELLED (1 + ||u||)`` are left out (``||ps|| =
     ||y||``: orthogonal reflectors, orthonormal Z; y[:c] solves the first c
@@ -1527,8 +1528,8 @@ def _freeze(n, p, r, nO, cod_done, cod_weak, lazy, thr_k, rrt_k, freeze_rtol, pr
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
 def _pass_start(use_hist, n, mt, D, hist_valid, u, Wt, qi, state, side):
-    """The cold initial state of a pass: ``u_0 = 0``, ``W = I``, nothing
-    active. Returns lazy, the representation of W (._basis): factored for a
+    """The cold initial state of a pass (sec. X): ``u_0 = 0``, ``W = I`` (eq.
+    23 with no working row), nothing active. Returns lazy, the representation of W (._basis): factored for a
     warm re-solve of a large problem (few iterations per level: the queue is
     short), explicit otherwise (a cold solve iterates: products through a
     long queue or a dense W0 cost more than Z's columns)."""
