@@ -27,6 +27,25 @@ from hikbench.problems.hierarchy import Hierarchy
 from hikbench.solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
 from hikbench.solvers.registry import SolverInfo, check_bool, check_choice, check_int, check_number
 
+from ._layout import (
+    N_OUT,
+    N_PRM,
+    O_ACT,
+    O_CAPPED,
+    O_COLD,
+    O_DEACT,
+    O_FLOPS,
+    O_ITERS,
+    O_LEVEL,
+    O_NEARCUT,
+    O_STATUS,
+    O_WARMFAIL,
+    PRM_DUAL_RTOL,
+    PRM_FEAS_RTOL,
+    PRM_FREEZE_RTOL,
+    PRM_RANK_RTOL,
+)
+
 __all__ = ["SOLVERS", "WARM_STARTS", "HcodSolver", "warmup"]
 
 WARM_STARTS = ("none", "stage", "time")
@@ -66,8 +85,13 @@ class HcodSolver(Solver):
         self.rank_rtol = check_number("hcod", "rank_rtol", rank_rtol, low=0, high=1, low_open=True,
                                       high_open=True)
         self.min_norm = check_bool("hcod", "min_norm", min_norm)
-        # rank, feasibility (warm start), multiplier noise floor, zero slack at freeze
-        self._prm = np.array([self.rank_rtol, 1e-9, 1e-13, 1e-11])
+        # the kernel's "prm" block: rank, feasibility (warm start), multiplier noise floor, zero slack
+        # at the freeze
+        self._prm = prm = np.empty(N_PRM)
+        prm[PRM_RANK_RTOL] = self.rank_rtol
+        prm[PRM_FEAS_RTOL] = 1e-9
+        prm[PRM_DUAL_RTOL] = 1e-13
+        prm[PRM_FREEZE_RTOL] = 1e-11
         # the hierarchy bound to the workspaces (see _bind) and the last equality-only one (skips
         # the checks on a re-solve); _NONE until then, so that solve(None) meets the type check
         self._h = _NONE
@@ -135,7 +159,7 @@ class HcodSolver(Solver):
         mt = st[-1] + n * mn
         mmax = max(max(b - a for a, b in pairwise(st)), n * mn)
         cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (mt + n)
-        ip = (n, mt, D, mmax, cap, WARM_STARTS.index(self.warm_start), 1)
+        ip = (n, mt, D, mmax, cap, WARM_STARTS.index(self.warm_start), 1)  # (slots ._layout.IP_*)
         fw, iw, xv, outv = setup.workspaces(ip, self._prm)
         self._ws = (fw, iw)
         # the factor of the bounds in the workspaces (._setup.load: u = f x), in a list that run
@@ -145,7 +169,7 @@ class HcodSolver(Solver):
         fbox = self._fbox = [1.0]
         self._n, self._st = n, st
         extra = D > depth
-        it0, it1 = setup.N_OUT, setup.N_OUT + depth
+        it0, it1 = N_OUT, N_OUT + depth
 
         def run() -> SolveResult:
             try:
@@ -153,25 +177,25 @@ class HcodSolver(Solver):
             except (ZeroDivisionError, FloatingPointError, ValueError, IndexError) as err:  # breakdown
                 return SolveResult(x=None, status=NUMERICAL_FAILURE, reason=f"hcod: {type(err).__name__}: {err}",
                                    iterations_per_level=(0,) * depth)
-            o = outv.tolist()  # the counters (slots ._kernel.O_*), then the iterations per level
+            o = outv.tolist()  # the counters (slots ._layout.O_*), then the iterations per level
             info = {"min_norm_iterations": o[it1]} if extra else {}
-            if o[6]:
-                info["warm_fallback_levels"] = o[6]
-            if o[7]:
+            if o[O_WARMFAIL]:
+                info["warm_fallback_levels"] = o[O_WARMFAIL]
+            if o[O_COLD]:
                 info["cold_after_warm"] = True
-            if o[8]:
+            if o[O_CAPPED]:
                 info["steps_capped"] = True
-            if o[9]:
-                info["near_rank_steps_cut"] = o[9]
+            if o[O_NEARCUT]:
+                info["near_rank_steps_cut"] = o[O_NEARCUT]
             x = xv.copy()
             f = fbox[0]
             if f != 1.0:
                 x /= f  # (a power of 2: exact)
                 info["bounds_scaled_by"] = f
-            status = _STATUS[o[0]]
+            status = _STATUS[o[O_STATUS]]
             reason = ""
             if status == MAX_ITERATIONS:
-                where = "the min-norm stage" if o[5] >= depth else f"level {o[5]}"
+                where = "the min-norm stage" if o[O_LEVEL] >= depth else f"level {o[O_LEVEL]}"
                 reason = f"hcod: iteration cap {cap} reached at {where}"
             elif status == NUMERICAL_FAILURE:
                 reason = "hcod: numerical breakdown (x not finite)"
@@ -179,8 +203,8 @@ class HcodSolver(Solver):
             # (x_finite: the kernel tested every entry of u with isfinite, status 2 otherwise).
             # Positional, in the order of SolveResult's fields: eleven keywords cost ~0.35 us
             # more per call, 3% of a warm re-solve at n = 20 (test_solve_result_fields_in_order)
-            return SolveResult(x, status, reason, o[1], tuple(o[it0:it1]), o[2], o[3], o[4], _NAN, _NAN, info,
-                               True)
+            return SolveResult(x, status, reason, o[O_ITERS], tuple(o[it0:it1]), o[O_ACT], o[O_DEACT],
+                               o[O_FLOPS], _NAN, _NAN, info, True)
 
         self._run = run
 

@@ -14,11 +14,67 @@ from hikbench.solvers.hcod import _cache  # noqa: F401  (before any @njit: cache
 from hikbench.solvers.hcod._factored import queue_sizes
 from hikbench.solvers.hcod._linalg import FASTMATH, level_scale
 
+from ._layout import (
+    F_A,
+    F_BETA,
+    F_BLOCKS,
+    F_BQ,
+    F_BVAL,
+    F_BVEC,
+    F_DIAG,
+    F_G,
+    F_HIST_DU,
+    F_HV,
+    F_LB,
+    F_LNORM,
+    F_LO,
+    F_MF,
+    F_MR,
+    F_NU,
+    F_PRM,
+    F_PS,
+    F_Q,
+    F_QB,
+    F_QV,
+    F_R,
+    F_RNORM,
+    F_SV,
+    F_TARGET,
+    F_U,
+    F_UP,
+    F_UPREV,
+    F_W,
+    F_Y,
+    F_Z,
+    FEND0,
+    I_BCOL,
+    I_BLOCKS,
+    I_CAND,
+    I_COK,
+    I_HIST_SIDE,
+    I_HIST_STATE,
+    I_HIST_VALID,
+    I_IP,
+    I_KIND,
+    I_LEVID,
+    I_OLIST,
+    I_OUT,
+    I_PIV,
+    I_QI,
+    I_SIDE,
+    I_STARTS,
+    I_STATE,
+    I_WIDX,
+    I_WSIDE,
+    IOFF0,
+    N_HEAD,
+    N_IP,
+    N_OUT,
+    N_PRM,
+)
+
 _FM = set(FASTMATH)
 
-N_OUT = 10  #: counters at the head of the "out" block; the iterations per level follow them
-N_IP = 7  #: integer parameters (n, mt, D, mmax, max_iter, warm_mode, has_ineq)
-N_PRM = 4  #: float parameters (rank_rtol, feas_rtol, dual_rtol, freeze_rtol)
 #: a problem whose finite bounds, each level scaled by 1 / ||A_k||_F, are all below this in
 #: magnitude is solved with its bounds multiplied by a power of 2 that brings the largest into [1, 2)
 #: (:func:`load`). The kernel's absolute tolerance parts showed no error down to bounds x 1e-6 of
@@ -26,37 +82,26 @@ N_PRM = 4  #: float parameters (rank_rtol, feas_rtol, dual_rtol, freeze_rtol)
 #: they are (bit for bit) with a margin of 1e3
 BOUND_SCALE_MIN = 2.0**-10
 ALIGN = 8  #: float blocks start on multiples of 8 doubles (64 bytes)
-# float workspace blocks (names, size in units of: n*n, n, mmax*n, mmax, mmax*min(n,mmax), mt, D, D*n);
-# then the (scaled) problem and the parameters, so the kernel takes two arrays, and the queue of
-# the basis when factored (._factored)
-F_BLOCKS = ("W", "R", "u", "ps", "z", "g", "hv", "nu", "q", "uprev", "y", "Mr", "bvec", "diag", "beta",
-            "Lb", "target", "rnorm", "bval", "lnorm", "hist_du", "Mf", "Qb", "bq", "sv", "A", "lo", "up",
-            "prm", "Qv")
-# int blocks; "out" holds the N_OUT counters, then the iterations per level
-I_BLOCKS = ("state", "side", "kind", "bcol", "widx", "wside", "Olist", "hist_state",
-            "hist_side", "hist_valid", "out", "levid", "piv", "cand", "cok", "starts", "ip", "qi")
-#: the int workspace starts with the offsets themselves: foff (starts of the float blocks and
-#: the total, iw[:FEND0]), fend (ends of the float blocks, iw[FEND0:IOFF0]), ioff (iw[IOFF0:N_HEAD])
-FEND0 = len(F_BLOCKS) + 1
-IOFF0 = FEND0 + len(F_BLOCKS)
-N_HEAD = IOFF0 + len(I_BLOCKS) + 1
-# the blocks :func:`workspaces` and :func:`load` write or return
-F_A, F_LO, F_UP, F_BVAL, F_RNORM, F_LNORM, F_PRM, F_U = (
-    F_BLOCKS.index(b) for b in ("A", "lo", "up", "bval", "rnorm", "lnorm", "prm", "u"))
-I_STARTS, I_KIND, I_BCOL, I_LEVID, I_WIDX, I_IP, I_OUT = (
-    I_BLOCKS.index(b) for b in ("starts", "kind", "bcol", "levid", "widx", "ip", "out"))
+# the blocks of the workspaces, their offsets in the header of the int one, the parameter slots:
+# named in ._layout (F_BLOCKS, I_BLOCKS, FEND0, IOFF0, N_HEAD, N_IP, N_PRM, N_OUT are read from here too)
 
 
 def layout(n: int, mt: int, D: int, mmax: int):
     """Offsets of the float and int workspaces (blocks in the order of
-    F_BLOCKS / I_BLOCKS). Returns (foff, fend, ioff), int64 arrays: float
-    block b is ``fw[foff[b]:fend[b]]``, its start a multiple of ALIGN;
+    F_BLOCKS / I_BLOCKS, ._layout). Returns (foff, fend, ioff), int64 arrays:
+    float block b is ``fw[foff[b]:fend[b]]``, its start a multiple of ALIGN;
     int block b is ``iw[ioff[b]:ioff[b + 1]]``, after the header of N_HEAD
     entries that stores all three."""
     mm = max(mmax, 1)
-    fsz = (n * n, n * n, n, n, n, n, n, n, n, n, n, mm * n, mm, mm, mm, mm * max(min(n, mm), 1), mt, mt, mt, D,
-           D * n, mm * n, n * n, n, 2 * n, mt * n, mt, mt, N_PRM, queue_sizes(n)[0])
-    isz = (mt, mt, mt, mt, n, n, mm, D * mt, D * mt, D, N_OUT + D, D, mm, n, n, D + 1, N_IP, queue_sizes(n)[1])
+    fsz = {F_W: n * n, F_R: n * n, F_U: n, F_PS: n, F_Z: n, F_G: n, F_HV: n, F_NU: n, F_Q: n, F_UPREV: n,
+           F_Y: n, F_MR: mm * n, F_BVEC: mm, F_DIAG: mm, F_BETA: mm, F_LB: mm * max(min(n, mm), 1),
+           F_TARGET: mt, F_RNORM: mt, F_BVAL: mt, F_LNORM: D, F_HIST_DU: D * n, F_MF: mm * n, F_QB: n * n,
+           F_BQ: n, F_SV: 2 * n, F_A: mt * n, F_LO: mt, F_UP: mt, F_PRM: N_PRM, F_QV: queue_sizes(n)[0]}
+    isz = {I_STATE: mt, I_SIDE: mt, I_KIND: mt, I_BCOL: mt, I_WIDX: n, I_WSIDE: n, I_OLIST: mm,
+           I_HIST_STATE: D * mt, I_HIST_SIDE: D * mt, I_HIST_VALID: D, I_OUT: N_OUT + D, I_LEVID: D,
+           I_PIV: mm, I_CAND: n, I_COK: n, I_STARTS: D + 1, I_IP: N_IP, I_QI: queue_sizes(n)[1]}
+    fsz = [fsz[b] for b in range(len(F_BLOCKS))]
+    isz = [isz[b] for b in range(len(I_BLOCKS))]
     foff = np.array((0, *accumulate(-(-size // ALIGN) * ALIGN for size in fsz)), dtype=np.int64)
     fend = foff[:-1] + np.array(fsz, dtype=np.int64)
     return foff, fend, np.array((N_HEAD, *(N_HEAD + c for c in accumulate(isz))), dtype=np.int64)
