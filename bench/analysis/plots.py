@@ -126,9 +126,11 @@ def fit_title(fig, ax, tries: int = 4) -> None:
         if title_fits(fig, ax):
             return
         text = ax.get_title()
-        box = ax.title.get_window_extent()
+        box, page = ax.title.get_window_extent(), fig.bbox
+        centre = (box.x0 + box.x1) / 2  # (over the axes, not the figure: the room is the nearer edge's twice)
+        room = 2 * min(centre - page.x0, page.x1 - centre)
         longest = max(len(line) for line in text.splitlines())
-        width = max(20, int(longest * fig.bbox.width / box.width * 0.9))
+        width = max(20, int(longest * room / box.width * 0.95))
         ax.set_title("\n".join(textwrap.fill(line, width) for line in text.splitlines()), fontsize=11)
         fig.tight_layout()
     if not title_fits(fig, ax):
