@@ -191,7 +191,7 @@ def _ranking_section(doc: _Doc, rankings: dict[str, Ranking | None], has_non_str
             continue
         P, solved = len(r.problems), len(r.problems) - len(r.unsolved)
         doc.table(f"ranking_{mode}", f"Ranking, {mode}: {len(r.rows)} solvers over the same {P} problems "
-                  f"(time over the {solved} some of them solved)",
+                  f"(time over the {solved} solved by at least one)",
                   ["rank", "solver", "success", "time vs fastest (1.00 = fastest)", "fastest on",
                    "failures charged", "median time of its successes [us]"],
                   [[i + 1, row["solver"], f"{row['success_rate']:.0%} ({row['success']}/{P})",

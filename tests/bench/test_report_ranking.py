@@ -37,7 +37,7 @@ def report(tmp_path_factory):
 
 def test_the_fastest_shows_one_and_every_ranked_figure_is_over_the_stated_problems(report):
     md, _ = report
-    head, rows = _table(md, "Ranking, cold: 2 solvers over the same 7 problems (time over the 6 some of them solved)")
+    head, rows = _table(md, "Ranking, cold: 2 solvers over the same 7 problems (time over the 6 solved by at least one)")
     by = {r[1]: dict(zip(head, r)) for r in rows}
     assert [r[1] for r in rows] == ["fast", "slow"]  # success first: 6/7, then 5/7
     assert by["fast"]["time vs fastest (1.00 = fastest)"] == "1.00"
