@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -18,7 +19,7 @@ import pandas as pd
 
 from hikbench.bench.analysis.shgeom import loglog_fit, performance_profile, timed
 
-__all__ = ["loglog_slope", "plot_accuracy", "plot_cold_warm", "plot_profiles", "plot_success", "plot_sweep",
+__all__ = ["PALETTE", "fit_title", "loglog_slope", "solver_styles", "title_fits", "plot_accuracy", "plot_cold_warm", "plot_profiles", "plot_success", "plot_sweep",
            "sweeps"]
 
 _STYLE = {"figsize": (9.5, 5.0), "dpi": 110}
@@ -50,16 +51,13 @@ def sweeps(df: pd.DataFrame, var: str, min_points: int = 3) -> list[tuple[str, s
     return out
 
 
-_LINESTYLES = ("-", "--", "-.", ":")
-_MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*")
-
-
-def _style(i: int) -> dict:
-    """Distinct colour / line style / marker for the i-th solver (20 colours,
-    then line styles change), so that 16+ solvers stay distinguishable."""
-    cmap = plt.get_cmap("tab20")
-    return {"color": cmap(i % 20), "linestyle": _LINESTYLES[(i // 10) % len(_LINESTYLES)],
-            "marker": _MARKERS[i % len(_MARKERS)]}
+#: 20 colours told apart at a glance (no light/dark pairs as in tab20), then markers
+PALETTE = ("#e6194b", "#3cb44b", "#4363d8", "#f58231", "#911eb4", "#42d4f4", "#f032e6", "#9acd32",
+           "#469990", "#9a6324", "#800000", "#808000", "#000075", "#000000", "#a9a9a9", "#e6b800",
+           "#ff8fab", "#b48cff", "#66cdaa", "#d2a679")
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", ">", "h")
+#: line style by claim: solid for strict solvers (lexicographic optimum), dashed for the others
+LINESTYLE = {True: "-", False: "--"}
 
 
 def solver_label(df: pd.DataFrame) -> pd.Series:
@@ -68,10 +66,16 @@ def solver_label(df: pd.DataFrame) -> pd.Series:
     return df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
 
 
-def _style_of(label: str, i: int, order: list[str] | None) -> dict:
-    """The style of ``label``: its place in ``order`` (every solver of the run, so
-    that a solver keeps its colour in every figure), else ``i``."""
-    return _style(order.index(label) if order and label in order else i)
+def solver_styles(df: pd.DataFrame) -> dict[str, dict]:
+    """{solver label: colour, marker, linestyle} for every solver of the run:
+    colour and marker by the label's place in the sorted labels of the whole
+    run (so a solver looks the same in every figure), line style by its claim
+    (solid strict, dashed non-strict)."""
+    labels = solver_label(df)
+    strict = df["strict"].astype(str).eq("True").groupby(labels).all()
+    return {label: {"color": PALETTE[i % len(PALETTE)], "marker": MARKERS[i % len(MARKERS)],
+                    "linestyle": LINESTYLE[bool(strict[label])]}
+            for i, label in enumerate(sorted(strict.index))}
 
 
 def _legend(ax) -> None:
@@ -101,13 +105,40 @@ def _finish(fig, ax, path: Path, title: str) -> Path:
     ax.set_title(title, fontsize=11)
     ax.grid(True, which="both", alpha=0.3)
     fig.tight_layout()
+    fit_title(fig, ax)
     fig.savefig(path)
     plt.close(fig)
     return path
 
 
+def title_fits(fig, ax) -> bool:
+    """Whether the axes' title lies inside the figure (drawn: nothing cut off)."""
+    fig.canvas.draw()
+    box, page = ax.title.get_window_extent(), fig.bbox
+    return box.x0 >= page.x0 and box.x1 <= page.x1 and box.y1 <= page.y1
+
+
+def fit_title(fig, ax, tries: int = 4) -> None:
+    """Wrap the title of ``ax`` onto more lines until it fits in ``fig``
+    (a long title centred over axes narrowed by an outside legend ran off the
+    figure's left edge); ValueError when it still does not after ``tries``."""
+    for _ in range(tries):
+        if title_fits(fig, ax):
+            return
+        text = ax.get_title()
+        box, page = ax.title.get_window_extent(), fig.bbox
+        centre = (box.x0 + box.x1) / 2  # (over the axes, not the figure: the room is the nearer edge's twice)
+        room = 2 * min(centre - page.x0, page.x1 - centre)
+        longest = max(len(line) for line in text.splitlines())
+        width = max(20, int(longest * room / box.width * 0.95))
+        ax.set_title("\n".join(textwrap.fill(line, width) for line in text.splitlines()), fontsize=11)
+        fig.tight_layout()
+    if not title_fits(fig, ax):
+        raise ValueError(f"figure title does not fit its figure: {ax.get_title()!r}")
+
+
 def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "cold",
-               vline: tuple[float, str] | None = None, order: list[str] | None = None) -> tuple[Path | None, dict]:
+               vline: tuple[float, str] | None = None, *, styles: dict[str, dict]) -> tuple[Path | None, dict]:
     """Median time vs ``var`` per solver, log-log, from the verified rows only,
     fitted slopes in the legend; a size where a solver was not verified has no
     point, and the legend says how many sizes were verified of those it
@@ -120,7 +151,7 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
         return None, {}
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
     slopes = {}
-    for i, (label, s) in enumerate(g.groupby(solver_label(g))):
+    for label, s in g.groupby(solver_label(g)):
         v = s[ok.loc[s.index]]
         med = v.groupby(var)["time_median_s"].median().sort_index()
         slope, se = loglog_slope(v[var], v["time_median_s"])
@@ -129,7 +160,7 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
         note = f"slope {slope:.2f}" if np.isfinite(slope) else "no slope: < 3 sizes"
         if sizes < tried:
             note += f", {sizes}/{tried} sizes verified"
-        ax.plot(med.index, med.to_numpy() * 1e6, **_style_of(label, i, order), label=f"{label} ({note})")
+        ax.plot(med.index, med.to_numpy() * 1e6, **styles[label], label=f"{label} ({note})")
     ax.set_xscale("log")
     ax.set_yscale("log")
     _readable_log_ticks(ax)
@@ -163,12 +194,13 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
     # (two lines: on one, the title of a figure of one or two families was cut at both ends)
     ax.set_title("Verified success rate per solver and family\n(unsupported rows left out)", fontsize=11)
     fig.tight_layout()
+    fit_title(fig, ax)
     fig.savefig(path)
     plt.close(fig)
     return path
 
 
-def plot_profiles(times: pd.DataFrame, path: Path, title: str, order: list[str] | None = None) -> Path | None:
+def plot_profiles(times: pd.DataFrame, path: Path, title: str, *, styles: dict[str, dict]) -> Path | None:
     """Dolan-More performance profiles of a problems x solvers table
     (:func:`hikbench.bench.analysis.shgeom.performance_profile`: NaN, inf or <= 0 = failure)."""
     if times.empty or times.shape[1] == 0:
@@ -177,10 +209,12 @@ def plot_profiles(times: pd.DataFrame, path: Path, title: str, order: list[str] 
     if prof is None:
         return None
     taus, fractions = prof
+    solvers = list(fractions)  # (markers staggered along tau, so overlapping curves still show theirs)
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
-    for i, (s, y) in enumerate(fractions.items()):
-        st = _style_of(s, i, order)
-        ax.step(taus, y, where="post", label=s, color=st["color"], linestyle=st["linestyle"])
+    for s, y in fractions.items():
+        st = styles[s]
+        ax.step(taus, y, where="post", label=s, color=st["color"], linestyle=st["linestyle"],
+                marker=st["marker"], markevery=(solvers.index(s) % 7 * 4, 30), markersize=4)
     ax.set_xscale("log")
     ax.set_ylim(-0.02, 1.02)
     ax.set_xlabel("performance ratio tau (time / best time on the problem)")
@@ -189,7 +223,7 @@ def plot_profiles(times: pd.DataFrame, path: Path, title: str, order: list[str] 
     return _finish(fig, ax, path, title)
 
 
-def plot_accuracy(df: pd.DataFrame, path: Path, order: list[str] | None = None) -> Path | None:
+def plot_accuracy(df: pd.DataFrame, path: Path, *, styles: dict[str, dict]) -> Path | None:
     """Median |level norm - reference level norm| per level and solver (each
     ``[[settings]]`` variant a line of its own, its problem count in the legend).
     A level reached by fewer than a tenth of a solver's problems, or by one of
@@ -200,7 +234,7 @@ def plot_accuracy(df: pd.DataFrame, path: Path, order: list[str] | None = None) 
     if d.empty:
         return None
     fig, ax = plt.subplots(figsize=_STYLE["figsize"], dpi=_STYLE["dpi"])
-    for i, (solver, s) in enumerate(d.groupby(solver_label(d))):
+    for solver, s in d.groupby(solver_label(d)):
         per_level: dict[int, list] = {}
         for a, b in zip(s["level_norms"], s["ref_level_norms"]):
             for k, (u, v) in enumerate(zip(json.loads(a), json.loads(b))):
@@ -211,7 +245,7 @@ def plot_accuracy(df: pd.DataFrame, path: Path, order: list[str] | None = None) 
             enough = min(n0, max(2, math.ceil(0.1 * n0)))  # (one problem is never enough but when alone)
             ks = [k for k in sorted(per_level) if len(per_level[k]) >= enough]
             ax.plot(ks, [max(np.median(per_level[k]), 1e-17) for k in ks],
-                    label=f"{solver} ({n0} problem{'' if n0 == 1 else 's'})", **_style_of(solver, i, order))
+                    label=f"{solver} ({n0} problem{'' if n0 == 1 else 's'})", **styles[solver])
     ax.set_yscale("log")
     ax.set_xlabel("level k (0 = highest priority)")
     ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
@@ -221,7 +255,7 @@ def plot_accuracy(df: pd.DataFrame, path: Path, order: list[str] | None = None) 
                    "reached by one or under 10 % of a solver's problems not drawn)")
 
 
-def plot_cold_warm(df: pd.DataFrame, path: Path, order: list[str] | None = None) -> Path | None:
+def plot_cold_warm(df: pd.DataFrame, path: Path, *, styles: dict[str, dict]) -> Path | None:
     """Warm against cold median time per problem and solver (each ``[[settings]]``
     variant a series of its own)."""
     keys = ["problem", "_label"]
@@ -233,8 +267,8 @@ def plot_cold_warm(df: pd.DataFrame, path: Path, order: list[str] | None = None)
     if both.empty:
         return None
     fig, ax = plt.subplots(figsize=(8, 6), dpi=_STYLE["dpi"])
-    for i, (solver, s) in enumerate(both.groupby(level="_label")):
-        st = _style_of(solver, i, order)
+    for solver, s in both.groupby(level="_label"):
+        st = styles[solver]
         ax.scatter(s["cold"] * 1e6, s["warm"] * 1e6, label=solver, s=22, color=st["color"],
                    marker=st["marker"])
     lo = float(min(both.min())) * 1e6 / 2

@@ -1,9 +1,15 @@
-"""``hikbench report RUN``: RUN/report.md and RUN/plots/*.png.
+"""``hikbench report RUN``: RUN/report.md, RUN/report.json and RUN/plots/*.png.
+
+report.md opens with a table of contents, the run's one-line summary
+(bench/harness/summary.py) and the ranking (bench/analysis/ranking.py: one
+problem set per mode, success first, then time relative to the fastest, with
+failures charged 10 x the slowest success on their problem, never the job
+timeout); then each solver on its own problems, the non-strict solvers with
+their per-level gap to the yardstick, the details, the figures, and the
+environment last. report.json holds the same numbers (docs/reports.md).
 
 report.md is diff-friendly: every table has a one-line title before it, rows
-are sorted, numbers have fixed formats, and the environment (versions, CPU,
-BLAS, git commit) is recorded. Runtime aggregates are shifted geometric means
-(bench/analysis/shgeom.py) with failures charged at the job timeout.
+are sorted, numbers have fixed formats.
 """
 
 from __future__ import annotations
@@ -15,13 +21,21 @@ import numpy as np
 import pandas as pd
 
 from hikbench.bench.analysis import plots
-from hikbench.bench.harness.environment import read_run_json
 from hikbench.bench.analysis.plots import solver_label
+from hikbench.bench.analysis.ranking import Ranking, non_strict, own_problems, rank, strict_labels
+from hikbench.bench.analysis.shgeom import FAILURE_FACTOR, SHIFT_S, shifted_geometric_mean, timed
+from hikbench.bench.harness.environment import read_run_json
 from hikbench.bench.harness.results import read_results
-from hikbench.bench.analysis.shgeom import SHIFT_S, charged_times, shifted_geometric_mean, timed
+from hikbench.bench.harness.summary import run_summary, summary_line
 from hikbench.problems.errors import HikbenchError
 
-__all__ = ["solver_label", "write_report"]
+__all__ = ["MIN_PROFILE_PROBLEMS", "REPORT_JSON", "solver_label", "write_report"]
+
+REPORT_JSON = "report.json"
+#: a performance profile over fewer problems is not drawn (its steps are a handful of ties)
+MIN_PROFILE_PROBLEMS = 5
+#: the suite whose runs carry the paper's claims section
+CLAIMS_SUITE = "paper"
 
 
 def _profile_groups(d: pd.DataFrame) -> list[tuple[str, str, pd.DataFrame]]:
@@ -65,8 +79,9 @@ def _table(title: str, header: list[str], rows: list[list]) -> list[str]:
     return out + [""]
 
 
-def _us(t: float) -> str:
-    return "-" if not np.isfinite(t) else f"{t * 1e6:.1f}"
+def _us(t: float | None) -> str:
+    """A time in s as us with one decimal; '-' for none."""
+    return "-" if t is None or not np.isfinite(t) else f"{t * 1e6:.1f}"
 
 
 def _cut(text: str, size: int) -> str:
@@ -76,27 +91,6 @@ def _cut(text: str, size: int) -> str:
 
 def _num(v: float) -> str:
     return f"{v:.2f}" if np.isfinite(v) else "-"
-
-
-def _positive(v) -> float | None:
-    """v as a finite float > 0, else None (a missing or bogus timeout in run.json)."""
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v) or v <= 0:
-        return None
-    return float(v)
-
-
-def _recorded_timeout(meta: dict) -> float | None:
-    """The largest job timeout of the run's sessions (the suite's when a session did not record
-    one); None when run.json records none (missing, or bogus values): the charge is then 60 s."""
-    suite_timeout = (meta.get("suite") or {}).get("timeout")
-    vals = [_positive(s.get("timeout", suite_timeout)) for s in meta.get("sessions") or [{}]]
-    vals = [v for v in vals if v is not None]
-    return max(vals) if vals else None
-
-
-def _aggregate(g: pd.DataFrame, penalty: float) -> float:
-    """Shifted geometric mean of the charged times (a bogus time is charged like a failure)."""
-    return shifted_geometric_mean(charged_times(g, penalty))
 
 
 def _rows_note(rows: int, suite_rows) -> str:
@@ -148,98 +142,134 @@ def normalise_hosts(df: pd.DataFrame) -> tuple[pd.DataFrame, str]:
     return df, f"normalised to host {ref} by the calibration kernel ({len(cal)} hosts)"
 
 
-def write_report(run_dir) -> Path:
-    run_dir = Path(run_dir)
-    df = read_results(run_dir)
-    if df.empty:
-        raise HikbenchError(f"{run_dir / 'results.csv'} has no rows; expected the rows of a `hikbench run` "
-                            f"(nothing to report)")
-    meta = read_run_json(run_dir)
-    env = meta.get("environment", {})
-    plot_dir = run_dir / "plots"
-    plot_dir.mkdir(exist_ok=True)
-    for old in plot_dir.glob("*.png"):  # the figures of an earlier report (a partial run's, say) go
-        if old.name.startswith(REPORT_FIGURES):
-            old.unlink()
-    df = df.assign(label=solver_label(df))
-    df, norm_note = normalise_hosts(df)
-    timeout = _recorded_timeout(meta)
-    penalty = 60.0 if timeout is None else timeout  # (the charge of an unverified row)
-    suite = meta.get("suite", {})
-    L = [f"# hikbench report: suite {suite.get('name', '?')}", ""]
-    if isinstance(meta.get("suite_rows"), int) and len(df) < meta["suite_rows"]:
-        note = _rows_note(len(df), meta["suite_rows"])
-        L += [f"**Incomplete run: {note}.** Every table and figure below covers the rows run so far only.", ""]
-    L += _table("Run", ["field", "value"], [
-        ["suite", f"{suite.get('name')} ({suite.get('source', '')})"],
-        ["created", meta.get("created", "")],
-        ["git commit", f"{env.get('git', {}).get('commit')} (dirty: {env.get('git', {}).get('dirty')})"],
-        ["host(s)", ", ".join(sorted(df["host"].dropna().astype(str).unique()))],
-        ["CPU", f"{env.get('cpu')} ({env.get('cpu_count')} logical cores)"],
-        ["BLAS", "; ".join(f"{t.get('internal_api')} {t.get('version')} ({t.get('num_threads')} threads)"
-                           for t in env.get("blas", {}).get("threadpools",
-                                                            [])) + "; solves timed at 1 thread"],
-        ["calibration kernel", (f"{meta.get('calibration_ns', float('nan')) / 1e6:.3f} ms "
-                                f"({meta.get('calibration_kernel', '')}; timed in the main process at "
-                                f"the start and end of each session, their median; the workers' own "
-                                f"are under Hosts)")],
-        ["accuracy", json.dumps(meta.get("accuracy", {}))],
-        ["rows", _rows_note(len(df), meta.get("suite_rows"))],
-        ["times", norm_note],
-        ["runtime aggregate", (f"shifted geometric mean, shift {SHIFT_S * 1e6:g} us; "
-                               f"unverified rows charged {penalty:g} s "
-                               + ("(the job timeout)" if timeout is not None else
-                                  "(no job timeout recorded: run.json missing or without one)"))],
-    ])
-    L += _table("Package versions", ["package", "version"],
-                [[k, v if v else "not installed"] for k, v in sorted(env.get("versions", {}).items())])
-    hosts = df.groupby(df["host"].fillna("?").astype(str)).agg(rows=("problem", "count"),
-                                                                 calib=("calib_ns", "median"))
-    L += _table("Hosts (calibration kernel time of their workers, the median over their rows; compare "
-                "divides times by it)",
-                ["host", "rows", "median calibration [ms]"],
-                [[h, int(r.rows), f"{r.calib / 1e6:.3f}" if np.isfinite(r.calib) else "-"]
-                 for h, r in hosts.iterrows()])
-    skipped = meta.get("skipped_solvers", {})
-    if skipped:
-        L += _table("Solvers skipped (not installed)", ["solver", "why"], [[k, v] for k,
-                                                                           v in sorted(skipped.items())])
 
-    # per solver summary
-    rows = []
-    for label, g in sorted(df.groupby("label")):
-        strict = "yes" if g["strict"].astype(str).eq("True").all() else "no"
-        sup = g[g["status"] != "unsupported"]
-        r = [label, strict, str(len(g)), str(len(g) - len(sup)), _percent(sup["verified"].eq(True))]
-        for mode in ("cold", "warm"):
-            gm = sup[sup["mode"] == mode]
-            if len(gm) and not gm["verified"].eq(True).any():  # (the charge alone: not a time)
-                r.append(f"none verified ({len(gm)} charged {penalty:g} s)")
-            else:
-                r.append(_us(_aggregate(gm, penalty)) if len(gm) else "-")
-        rows.append(r)
-    L += _table("Solvers: verified success and shifted geometric mean time (us; unverified rows charged, "
-                "unsupported rows left out)",
-                ["solver", "strict", "rows", "unsupported", "verified", "sgm cold [us]",
-                 "sgm warm [us]"], rows)
+class _Doc:
+    """report.md's lines as they are written, and every table again for report.json."""
 
-    # success among the rows a solver supports: a family it declines entirely shows '-'
+    def __init__(self):
+        self.lines: list[str] = []
+        self.tables: list[dict] = []
+
+    def section(self, title: str) -> None:
+        self.lines += [f"## {title}", ""]
+
+    def text(self, *lines: str) -> None:
+        self.lines += [*lines, ""]
+
+    def table(self, key: str, title: str, header: list[str], rows: list[list]) -> None:
+        rows = [[str(c) for c in r] for r in rows]
+        self.lines += _table(title, header, rows)
+        self.tables.append({"key": key, "title": title, "columns": header, "rows": rows})
+
+
+#: report.md's sections, in order: (title, what decides whether it is written)
+SECTIONS = ("Ranking", "Each solver on its own problems", "Non-strict solvers", "Success per family",
+            "Speed per problem", "Statuses and unverified rows", "Claims of the paper", "Figures", "Environment")
+
+
+def _anchor(title: str) -> str:
+    """GitHub's anchor of a ``##`` heading."""
+    return "".join(c for c in title.lower().replace(" ", "-") if c.isalnum() or c == "-")
+
+
+def _contents(titles: list[str]) -> str:
+    return "Contents: " + " · ".join(f"[{t}](#{_anchor(t)})" for t in titles)
+
+
+def _ranking_section(doc: _Doc, rankings: dict[str, Ranking | None], has_non_strict: bool) -> None:
+    """The headline tables, one per mode, with the solvers listed apart."""
+    doc.section("Ranking")
+    doc.text(f"Strict solvers over the problems every one of them attempted, one table per mode. Success "
+             f"(`verified`) first, then the shifted geometric mean (shift {SHIFT_S * 1e6:g} us) of each "
+             f"solver's time over the fastest's on each problem, divided by the lowest: 1.00 = the fastest. "
+             f"A failure is charged {FAILURE_FACTOR:g} x the slowest success on its problem; a problem no "
+             f"solver succeeded on is left out of the time and counted. Solvers that declined some of the "
+             f"problems are listed apart (their figures: next section)"
+             + ("; non-strict solvers are judged by their own claim (below)." if has_non_strict else "."))
+    for mode, r in rankings.items():
+        if r is None:
+            continue
+        P, solved = len(r.problems), len(r.problems) - len(r.unsolved)
+        doc.table(f"ranking_{mode}", f"Ranking, {mode}: {len(r.rows)} solvers over the same {P} problems "
+                  f"(time over the {solved} solved by at least one)",
+                  ["rank", "solver", "success", "time vs fastest (1.00 = fastest)", "fastest on",
+                   "failures charged", "median time of its successes [us]"],
+                  [[i + 1, row["solver"], f"{row['success_rate']:.0%} ({row['success']}/{P})",
+                    _num(row["relative_time"]), f"{row['fastest_on']}/{solved}", row["charged"],
+                    _us(row["median_time_s"])] for i, row in enumerate(r.rows)])
+        notes = []
+        if r.unsolved:
+            notes.append(f"No solver of the ranking solved {len(r.unsolved)} of the {P} problems (left out of "
+                         f"the time): {', '.join(r.unsolved[:5])}{' ...' if len(r.unsolved) > 5 else ''}.")
+        if r.apart:
+            notes.append(f"Not ranked in {mode} (declined some problems): " + "; ".join(
+                f"{lab} declined {a['declined']} of its {a['of']}" for lab, a in r.apart.items()) + ".")
+        if notes:
+            doc.text(*notes)
+
+
+def _own_section(doc: _Doc, own: dict[str, list[dict]]) -> None:
+    doc.section("Each solver on its own problems")
+    doc.table("own_problems", "Each strict solver on the problems it attempted alone (each row over its own "
+              "problems: NOT a ranking, rows do not compare; times of verified rows only)",
+              ["solver", "mode", "attempted", "declined", "success", "sgm of its verified times [us]",
+               "median [us]"],
+              [[o["solver"], mode, o["attempted"], o["declined"],
+                f"{_percent_of(o['success'], o['attempted'])} ({o['success']}/{o['attempted']})",
+                _us(o["sgm_time_s"]), _us(o["median_time_s"])]
+               for mode, rows in own.items() for o in rows])
+
+
+def _percent_of(k: int, n: int) -> str:
+    return f"{100 * k / n:.0f}%" if n else "-"
+
+
+def _gaps(g: dict, shown: int = 8) -> str:
+    """'L0 +0, L1 +1.2e-03, ...': the median gap per level, the first ``shown`` levels."""
+    cells = [f"L{k} {v:+.2g}" for k, v in enumerate(g["median_gap_per_level"][:shown])]
+    return ", ".join(cells) + (" ..." if len(g["median_gap_per_level"]) > shown else "") if cells else "-"
+
+
+def _non_strict_section(doc: _Doc, ns: dict[str, list[dict]]) -> None:
+    doc.section("Non-strict solvers")
+    doc.text("Solvers that do not claim the lexicographic optimum (`strict` False: weighted, damped, "
+             "pseudo-inverse...) are not ranked against it. Their time is their real median time over every "
+             "row that has one, verified or not; the gap of level k is ||v_k(x)|| - ||v_k(x_ref)|| (how much "
+             "the level loses against the yardstick; < 0: it gains, as a lower level paid for it), its median "
+             "over the rows that reach level k; the first level lost is the level most of its rows first lose "
+             "at (the verdict's level).")
+    doc.table("non_strict", "Non-strict solvers: real times and per-level gap to the yardstick",
+              ["solver", "mode", "attempted", "median time [us]", "rows timed", "meets the yardstick",
+               "first level lost (rows)", "median gap per level"],
+              [[g["solver"], mode, g["attempted"], _us(g["median_time_s"]), g["timed"],
+                f"{g['meets_yardstick']}/{g['attempted']}",
+                f"L{g['first_level_lost']['level']} ({g['first_level_lost']['rows']})" if g["first_level_lost"]
+                else "none", _gaps(g)] for mode, rows in ns.items() for g in rows])
+
+
+def _family_section(doc: _Doc, df: pd.DataFrame) -> None:
+    """Success per solver and family (and per bound_scale when the run has several)."""
+    doc.section("Success per family")
     supported = df[df["status"] != "unsupported"]
     labels, families = sorted(df["label"].unique()), sorted(df["family"].unique())
     by = {k: g["verified"].eq(True) for k, g in supported.groupby(["label", "family"])}
-    L += _table("Verified success rate per solver and family (unsupported rows left out; "
-                "- = the solver declined every problem of the family)", ["solver", *families],
-                [[i, *[_percent(by.get((i, f), pd.Series(dtype=bool))) for f in families]] for i in labels])
-
+    doc.table("success_per_family", "Verified success rate per solver and family (unsupported rows left out; "
+              "- = the solver declined every problem of the family)", ["solver", *families],
+              [[i, *[_percent(by.get((i, f), pd.Series(dtype=bool))) for f in families]] for i in labels])
     # the units suite: the same problems with every bound times bound_scale (a family parameter)
     scales = supported["params"].map(lambda p: float(json.loads(p or "{}").get("bound_scale", 1.0)))
     if scales.ne(1.0).any():
         cols = sorted(scales.unique(), reverse=True)
         by = {k: g["verified"].eq(True) for k, g in supported.assign(bs=scales).groupby(["label", "bs"])}
-        L += _table("Verified success rate per solver and bound_scale (every bound times it: the same problems "
-                    "in other units of x; unsupported rows left out)", ["solver", *[f"x {c:g}" for c in cols]],
-                    [[i, *[_percent(by.get((i, c), pd.Series(dtype=bool))) for c in cols]] for i in labels])
+        doc.table("success_per_bound_scale", "Verified success rate per solver and bound_scale (every bound "
+                  "times it: the same problems in other units of x; unsupported rows left out)",
+                  ["solver", *[f"x {c:g}" for c in cols]],
+                  [[i, *[_percent(by.get((i, c), pd.Series(dtype=bool))) for c in cols]] for i in labels])
 
+
+def _speed_section(doc: _Doc, df: pd.DataFrame) -> None:
+    """The median time of every problem over its seeds, per mode."""
+    doc.section("Speed per problem")
     for mode in ("cold", "warm"):
         in_mode = df[df["mode"] == mode]
         unsup = in_mode[in_mode["status"] == "unsupported"]
@@ -257,35 +287,46 @@ def write_report(run_dir) -> Path:
         labels = sorted(in_mode["label"].unique())  # (a problem or solver that only declined keeps its cell)
         med, verified, seeds = (x.unstack("label").reindex(index=groups, columns=labels)
                                 for x in (by.median(), by.count(), by.size()))
-        L += _table(f"Median {mode} time per problem over its seeds [us] (verified rows; the speed table; "
-                    "(k/m) = over the k of its m seeds verified; - = no verified row; "
-                    "unsupported = declined; not run = no row in this run)", ["problem", *med.columns],
-                    [[g, *[_speed_cell(med.at[g, c], verified.at[g, c], seeds.at[g, c], (g, c) in declined)
-                           for c in med.columns]] for g in med.index])
+        doc.table(f"speed_{mode}", f"Median {mode} time per problem over its seeds [us] (verified rows; the speed "
+                  "table; (k/m) = over the k of its m seeds verified; - = no verified row; "
+                  "unsupported = declined; not run = no row in this run)", ["problem", *med.columns],
+                  [[g, *[_speed_cell(med.at[g, c], verified.at[g, c], seeds.at[g, c], (g, c) in declined)
+                         for c in med.columns]] for g in med.index])
 
+
+def _status_section(doc: _Doc, df: pd.DataFrame) -> None:
+    doc.section("Statuses and unverified rows")
     st = df.pivot_table(index="label", columns="status", values="problem", aggfunc="count", fill_value=0)
-    L += _table("Statuses per solver", ["solver", *st.columns], [[i, *st.loc[i].tolist()] for i in st.index])
-
+    doc.table("statuses", "Statuses per solver", ["solver", *st.columns],
+              [[i, *st.loc[i].tolist()] for i in st.index])
     unverified = df[~df["verified"].eq(True)]
     strict = unverified["strict"].astype(str).eq("True") & (unverified["status"] != "unsupported")
     bad = unverified[strict].sort_values(["label", "problem", "mode"])
-    L += _table(f"Unverified rows of strict solvers ({len(bad)}, first 40; not listed: {int((~strict).sum())} "
-                "unsupported or non-strict rows)", ["solver", "problem", "mode", "status", "verdict",
-                                                            "reason"],
-                [[r.label, r.problem, r.mode, r.status,
-                  f"{r.verdict_side} at level {int(r.verdict_level)}" if pd.notna(r.verdict_level) else
-                  (r.verdict_side if isinstance(r.verdict_side, str) else ""),
-                  _cut(str(r.reason), 240).replace("|", "/")] for r in bad.head(40).itertuples()])
+    doc.table("unverified", f"Unverified rows of strict solvers ({len(bad)}, first 40; not listed: "
+              f"{int((~strict).sum())} unsupported or non-strict rows)",
+              ["solver", "problem", "mode", "status", "verdict", "reason"],
+              [[r.label, r.problem, r.mode, r.status,
+                f"{r.verdict_side} at level {int(r.verdict_level)}" if pd.notna(r.verdict_level) else
+                (r.verdict_side if isinstance(r.verdict_side, str) else ""),
+                _cut(str(r.reason), 240).replace("|", "/")] for r in bad.head(40).itertuples()])
 
+
+def _claims_section(doc: _Doc, run_dir: Path) -> list[dict]:
     from hikbench.bench.analysis.claims import check_claims
 
-    L += _table("Claims of the ICRA 2010 paper (hikbench claims; MISSING = no data; (d)-(e) name the reach "
-                "scenario CSVs they read)",
-                ["claim", "result", "measured", "paper"],
-                [[c.name, c.status, c.measured, c.paper] for c in check_claims(run_dir)])
+    doc.section("Claims of the paper")
+    claims = check_claims(run_dir)
+    doc.table("claims", "Claims of the ICRA 2010 paper (hikbench claims; MISSING = no data; (d)-(e) name the "
+              "reach scenario CSVs they read)", ["claim", "result", "measured", "paper"],
+              [[c.name, c.status, c.measured, c.paper] for c in claims])
+    return [{"claim": c.name, "result": c.status, "measured": c.measured, "paper": c.paper} for c in claims]
 
+
+def _draw_figures(df: pd.DataFrame, plot_dir: Path, doc: _Doc) -> list[dict]:
+    """Every figure of the report, drawn in ``plot_dir``; the slope tables go to
+    ``doc``. Returns [{title, path (None: not drawn), why}]."""
     figures = []
-    order = sorted(df["label"].unique())  # (a solver's colour is the same in every figure)
+    styles = plots.solver_styles(df)  # (a solver's colour, marker and line style: the same in every figure)
     for var, what in (("n", "DOF"), ("depth", "depth")):
         for i, (family, fixed, g) in enumerate(plots.sweeps(df, var)):
             name = f"time_vs_{'dof' if var == 'n' else 'depth'}_{family}_{i}.png".replace(":", "_")
@@ -294,43 +335,175 @@ def write_report(run_dir) -> Path:
             if var == "depth" and {"n", "rows"} <= set(fx):
                 sat = (fx["n"] / fx["rows"], f"DOF saturated (depth = n / rows = {fx['n'] / fx['rows']:g})")
             p, slopes = plots.plot_sweep(g, var, plot_dir / name,
-                                         f"{family}: time vs {what} "
-                                         f"({fixed.strip('{}') or 'defaults'}), cold", vline=sat, order=order)
+                                         f"{family}: time vs {what} ({fixed.strip('{}') or 'defaults'}), cold",
+                                         vline=sat, styles=styles)
             if p:
-                figures.append((f"Time vs {what}: {family} {fixed}", p))
+                figures.append({"title": f"Time vs {what}: {family} {fixed}", "path": p})
                 span = "" if sat is None else f"; every depth, those below saturation ({sat[0]:g}) included"
-                L += _table(f"Log-log slope of cold time vs {what}: {family} {fixed} (verified rows{span}; "
-                            "- = fewer than 3 verified sizes)",
-                            ["solver", "slope", "std. err.", "sizes verified / attempted"],
-                            [[s, _num(a), _num(b), f"{k}/{m}"] for s, (a, b, k, m) in sorted(slopes.items())])
+                doc.table(f"slope_{var}_{family}_{i}", f"Log-log slope of cold time vs {what}: {family} {fixed} "
+                          f"(verified rows{span}; - = fewer than 3 verified sizes)",
+                          ["solver", "slope", "std. err.", "sizes verified / attempted"],
+                          [[s, _num(a), _num(b), f"{k}/{m}"] for s, (a, b, k, m) in sorted(slopes.items())])
     p = plots.plot_success(df, plot_dir / "success_rate.png")
     if p:
-        figures.append(("Verified success rate", p))
+        figures.append({"title": "Verified success rate", "path": p})
     for mode in ("cold", "warm"):
-        d = df[df["mode"] == mode]
-        for what, slug, g in _profile_groups(d):
+        for what, slug, g in _profile_groups(df[df["mode"] == mode]):
+            title = f"Performance profile, {mode}{what}"
+            n = g["problem"].nunique()
+            if n < MIN_PROFILE_PROBLEMS:
+                figures.append({"title": title, "path": None,
+                                "why": f"not drawn: {n} problem{'s' * (n != 1)}, fewer than {MIN_PROFILE_PROBLEMS}"})
+                continue
             t = g.assign(t=g["time_median_s"].where(timed(g))).pivot_table(
                 index="problem", columns="label", values="t", aggfunc="first", dropna=False)
             if t.shape[1] < 2:  # (a profile of one solver is a flat line at 1: it compares nothing)
-                figures.append((f"Performance profile, {mode}{what}", None))
+                figures.append({"title": title, "path": None,
+                                "why": "one solver, no profile drawn (it would be a flat line at 1)"})
                 continue
             p = plots.plot_profiles(t, plot_dir / f"performance_profile_{mode}{slug}.png",
                                     f"Performance profiles (Dolan-More), {mode} solves; failures never reach 1"
-                                    + (f"\n{what[2:]}" if what else ""), order=order)
+                                    + (f"\n{what[2:]}" if what else ""), styles=styles)
             if p:
-                figures.append((f"Performance profile, {mode}{what}", p))
-    p = plots.plot_accuracy(df, plot_dir / "accuracy_per_level.png", order=order)
-    if p:
-        figures.append(("Per-level accuracy", p))
-    p = plots.plot_cold_warm(df, plot_dir / "cold_vs_warm.png", order=order)
-    if p:
-        figures.append(("Cold vs warm", p))
-    L += ["### Figures", ""]
-    for title, p in figures:
-        if p is None:
-            L += [f"{title}: one solver, no profile drawn (it would be a flat line at 1).", ""]
+                figures.append({"title": title, "path": p})
+    for name, draw, title in (("accuracy_per_level.png", plots.plot_accuracy, "Per-level accuracy"),
+                              ("cold_vs_warm.png", plots.plot_cold_warm, "Cold vs warm")):
+        p = draw(df, plot_dir / name, styles=styles)
+        if p:
+            figures.append({"title": title, "path": p})
+    return figures
+
+
+def _figures_section(doc: _Doc, figures: list[dict], run_dir: Path) -> None:
+    doc.section("Figures")
+    doc.text("One colour and marker per solver in every figure; solid lines: strict solvers, dashed: non-strict.")
+    for f in figures:
+        if f["path"] is None:
+            doc.text(f"{f['title']}: {f['why']}.")
         else:
-            L += [f"{title}:", "", f"![{title}]({p.relative_to(run_dir)})", ""]
+            doc.text(f"{f['title']}:", "", f"![{f['title']}]({f['path'].relative_to(run_dir)})")
+
+
+def _calibration_ms(df: pd.DataFrame) -> dict[str, float | None]:
+    """host -> the median over its rows of the calibration kernel time its workers measured, ms."""
+    cal = df.groupby(df["host"].fillna("?").astype(str))["calib_ns"].median()
+    return {h: (float(v) / 1e6 if np.isfinite(v) else None) for h, v in cal.items()}
+
+
+def _environment_section(doc: _Doc, df: pd.DataFrame, meta: dict, norm_note: str) -> None:
+    """Run facts, the calibration (one figure per host), hosts, package versions, skipped solvers."""
+    env, suite = meta.get("environment", {}), meta.get("suite", {})
+    doc.section("Environment")
+    doc.table("run", "Run", ["field", "value"], [
+        ["suite", f"{suite.get('name')} ({suite.get('source', '')})"],
+        ["created", meta.get("created", "")],
+        ["git commit", f"{env.get('git', {}).get('commit')} (dirty: {env.get('git', {}).get('dirty')})"],
+        ["CPU", f"{env.get('cpu')} ({env.get('cpu_count')} logical cores)"],
+        ["BLAS", "; ".join(f"{t.get('internal_api')} {t.get('version')} ({t.get('num_threads')} threads)"
+                           for t in env.get("blas", {}).get("threadpools", [])) + "; solves timed at 1 thread"],
+        ["accuracy", json.dumps(meta.get("accuracy", {}))],
+        ["rows", _rows_note(len(df), meta.get("suite_rows"))],
+        ["times", norm_note],
+    ])
+    cal = _calibration_ms(df)
+    rows = df.groupby(df["host"].fillna("?").astype(str)).size()
+    doc.table("calibration", "Calibration kernel per host (the median over the host's rows of the kernel time "
+              f"its worker processes measured, {meta.get('calibration_kernel', 'see bench/harness/calibration.py')}; "
+              "the figure `hikbench compare` divides times by)",
+              ["host", "rows", "calibration [ms]"],
+              [[h, int(rows[h]), f"{v:.3f}" if v is not None else "-"] for h, v in cal.items()])
+    skipped = meta.get("skipped_solvers", {})
+    if skipped:
+        doc.table("skipped", "Solvers skipped (not installed)", ["solver", "why"],
+                  [[k, v] for k, v in sorted(skipped.items())])
+    doc.table("versions", "Package versions", ["package", "version"],
+              [[k, v if v else "not installed"] for k, v in sorted(env.get("versions", {}).items())])
+
+
+def _clear_old_figures(plot_dir: Path) -> None:
+    """Remove the figures of an earlier report (a partial run's, say); other PNGs stay."""
+    for old in plot_dir.glob("*.png"):
+        if old.name.startswith(REPORT_FIGURES):
+            old.unlink()
+
+
+def write_report(run_dir) -> Path:
+    """Write RUN/report.md, RUN/report.json and RUN/plots/; the path of report.md."""
+    run_dir = Path(run_dir)
+    df = read_results(run_dir)
+    if df.empty:
+        raise HikbenchError(f"{run_dir / 'results.csv'} has no rows; expected the rows of a `hikbench run` "
+                            f"(nothing to report)")
+    meta = read_run_json(run_dir)
+    plot_dir = run_dir / "plots"
+    plot_dir.mkdir(exist_ok=True)
+    _clear_old_figures(plot_dir)
+    summary = run_summary(df, meta)
+    df = df.assign(label=solver_label(df))
+    df, norm_note = normalise_hosts(df)
+    strict = strict_labels(df)
+    modes = [m for m in ("cold", "warm") if (df["mode"] == m).any()]
+    rankings = {m: rank(df[df["mode"] == m], strict, m) for m in modes}
+    own = {m: own_problems(df[df["mode"] == m], strict) for m in modes}
+    ns = {m: non_strict(df[df["mode"] == m], strict) for m in modes}
+    has_ns = any(ns.values())
+    with_claims = (meta.get("suite") or {}).get("name") == CLAIMS_SUITE
+
+    doc = _Doc()
+    slopes = _Doc()  # (the slope tables come with the figures, and are printed after the speed tables)
+    figures = _draw_figures(df, plot_dir, slopes)
+    titles = [t for t in SECTIONS if (t != "Non-strict solvers" or has_ns) and (t != "Claims of the paper"
+                                                                                  or with_claims)]
+    doc.lines += [f"# hikbench report: suite {summary['suite'] or '?'}", ""]
+    if isinstance(meta.get("suite_rows"), int) and len(df) < meta["suite_rows"]:
+        doc.text(f"**Incomplete run: {_rows_note(len(df), meta['suite_rows'])}.** Every table and figure below "
+                 f"covers the rows run so far only.")
+    doc.text(_contents(titles))
+    doc.text(f"**Summary:** {summary_line(summary)}")
+    _ranking_section(doc, rankings, has_ns)
+    _own_section(doc, own)
+    if has_ns:
+        _non_strict_section(doc, ns)
+    _family_section(doc, df)
+    _speed_section(doc, df)
+    doc.lines += slopes.lines
+    doc.tables += slopes.tables
+    _status_section(doc, df)
+    claims = _claims_section(doc, run_dir) if with_claims else None
+    _figures_section(doc, figures, run_dir)
+    _environment_section(doc, df, meta, norm_note)
     out = run_dir / "report.md"
-    out.write_text("\n".join(L).rstrip() + "\n")
+    out.write_text("\n".join(doc.lines).rstrip() + "\n")
+    _write_json(run_dir, summary, rankings, own, ns, claims, figures, _calibration_ms(df), doc, meta)
     return out
+
+
+def _write_json(run_dir: Path, summary, rankings, own, ns, claims, figures, calibration, doc: _Doc,
+                meta: dict) -> Path:
+    """RUN/report.json: the numbers of report.md (docs/reports.md, "report.json")."""
+    data = {
+        "summary": summary,
+        "rule": {"shift_s": SHIFT_S, "failure_factor": FAILURE_FACTOR,
+                 "min_profile_problems": MIN_PROFILE_PROBLEMS},
+        "ranking": {m: None if r is None else {
+            "problems": len(r.problems), "problem_ids": r.problems, "unsolved": r.unsolved,
+            "solvers": r.rows, "not_ranked": r.apart} for m, r in rankings.items()},
+        "own_problems": own,
+        "non_strict": ns,
+        "claims": claims,
+        "figures": [{"title": f["title"], "path": None if f["path"] is None else str(f["path"].relative_to(run_dir)),
+                     "why": f.get("why")} for f in figures],
+        "calibration_ms": calibration,
+        "tables": doc.tables,
+        "environment": meta.get("environment", {}),
+    }
+    path = run_dir / REPORT_JSON
+    path.write_text(json.dumps(data, indent=1, default=_json_default) + "\n")
+    return path
+
+
+def _json_default(v):
+    """numpy scalars as Python numbers (json cannot write them)."""
+    if isinstance(v, np.generic):
+        return v.item()
+    raise TypeError(f"report.json: cannot write {type(v).__name__} {v!r}")

@@ -1,18 +1,22 @@
-"""Aggregates of runtimes: shifted geometric mean, Dolan-More profiles, and
-the slope of a runtime against a size on log-log axes.
+"""Aggregates of runtimes: shifted geometric mean, the ranking's relative
+time, Dolan-More profiles, and the slope of a runtime against a size on
+log-log axes.
 
 Shifted geometric mean (as in qpbenchmark, but with the shift in the metric's
 own units, 10 us by default for solve times, not 10 s):
 
     sgm(t_1..t_P) = exp( mean_p log(t_p + shift) ) - shift           [s]
 
-Verified failures are *charged*: a row whose x is not verified (wrong level
-norms, no x, timeout, crash, error) counts with the run's job timeout in place
-of its time (the penalty of Mittelmann's and qpbenchmark's benchmarks); a
-problem the solver did not attempt, or declared ``unsupported`` (e.g. a
-null-space recursion on inequalities), is left out (the report shows how many).
-Non-strict solvers (weighted, damped) are judged against the strict optimum
-too, so their aggregate mostly measures that they solve a different problem.
+The ranking's relative time (docs/reports.md, "Ranking"): over one set of
+problems P and solvers S, a success's time is its median time; a failure (a
+row not verified) is *charged* FAILURE_FACTOR times the slowest success on
+that problem, whatever the job timeout; a problem no solver succeeded on is
+left out (and counted). With b_p the fastest success on p,
+
+    score_s = exp( mean_p log( (t_ps + shift) / (b_p + shift) ) )
+
+the shifted geometric mean of the per-problem ratios to the fastest, and the
+relative time is score_s / min_s' score_s' (1.0 = the fastest solver).
 """
 
 from __future__ import annotations
@@ -21,9 +25,11 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
-__all__ = ["SHIFT_S", "charged_times", "loglog_fit", "performance_profile", "shifted_geometric_mean", "timed"]
+__all__ = ["FAILURE_FACTOR", "SHIFT_S", "charge_failures", "loglog_fit", "performance_profile", "relative_time",
+           "shifted_geometric_mean", "timed"]
 
 SHIFT_S = 1e-5  #: 10 us
+FAILURE_FACTOR = 10.0  #: a failure is charged this many times the slowest success on its problem
 
 
 def shifted_geometric_mean(t, shift: float = SHIFT_S) -> float:
@@ -47,10 +53,26 @@ def timed(df: pd.DataFrame, zero_ok: bool = False) -> pd.Series:
     return df["verified"].eq(True) & np.isfinite(t) & ((t >= 0) if zero_ok else (t > 0))
 
 
-def charged_times(df: pd.DataFrame, penalty_s: float) -> pd.Series:
-    """time_median_s where the row is :func:`timed` (zero allowed), ``penalty_s``
-    elsewhere (a failure, or a bogus time)."""
-    return df["time_median_s"].where(timed(df, zero_ok=True), penalty_s).astype(float)
+def charge_failures(t: pd.DataFrame, factor: float = FAILURE_FACTOR) -> tuple[pd.DataFrame, list]:
+    """``t``: problems x solvers, the time of each success and NaN for each
+    failure. Returns (the problems some solver succeeded on, with every
+    failure charged ``factor`` x the slowest success on its problem; the
+    problems no solver succeeded on, left out)."""
+    solved = t.notna().any(axis=1)
+    charge = t.max(axis=1) * factor
+    charged = t[solved].apply(lambda col: col.fillna(charge[solved]))
+    return charged.astype(float), sorted(t.index[~solved])
+
+
+def relative_time(charged: pd.DataFrame, shift: float = SHIFT_S) -> pd.Series:
+    """Per solver (column of ``charged``, problems x solvers with no NaN), the
+    shifted geometric mean of its ratios to the fastest on each problem,
+    divided by the lowest of them: 1.0 is the fastest solver (module docstring)."""
+    if charged.empty:
+        return pd.Series(np.nan, index=charged.columns)
+    ratio = (charged + shift).div(charged.min(axis=1) + shift, axis=0)
+    score = np.exp(np.log(ratio).mean(axis=0))
+    return score / score.min()
 
 
 def performance_profile(times: pd.DataFrame, points: int = 300) -> tuple[np.ndarray, dict] | None:

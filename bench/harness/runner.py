@@ -8,6 +8,7 @@ Layout of OUT::
 
     results.csv           one row per job (bench/harness/columns.py)
     run.json              environment, suite, calibration, sessions
+    summary.json          rows, solvers, problems, verified counts, statuses, wall time (bench/harness/summary.py)
     problems/<id>.npz     every problem of the suite (and .soth.txt if exported)
     yardstick/<id>.npz    cached yardstick solution (x, status, reason)
     worker.log            stderr of the isolated worker processes
@@ -35,6 +36,7 @@ from hikbench.bench.harness.columns import KEY
 from hikbench.bench.harness.environment import environment, read_run_json, utc_now, write_run_json
 from hikbench.bench.suites.problemset import file_stem, generate, problem_columns, save_problem
 from hikbench.bench.harness.results import ResultsWriter, backup, compact, finished_rows
+from hikbench.bench.harness.summary import write_summary
 from hikbench.bench.suites import ACCURACY, Suite, SuiteError, Task, expand
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.verify import level_norms, verify
@@ -324,6 +326,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                                                             "calibration_end_ns") if k in s]
             meta["calibration_ns"] = int(np.median(cal))
             write_run_json(out, meta)
+        write_summary(out)
         return summary
     finally:
         lock.close()

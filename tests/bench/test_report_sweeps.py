@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from hikbench.bench.harness.columns import names
-from hikbench.bench.analysis.plots import loglog_slope, plot_sweep
+from hikbench.bench.analysis.plots import loglog_slope, plot_sweep, solver_styles
 from hikbench.bench.analysis.report import write_report
 
 SIZES = (6, 12, 24, 48)
@@ -33,7 +33,7 @@ def _rows():
 
 def test_sweep_slopes_need_three_verified_sizes(tmp_path):
     df = pd.DataFrame(_rows())
-    path, slopes = plot_sweep(df, "n", tmp_path / "s.png", "t")
+    path, slopes = plot_sweep(df, "n", tmp_path / "s.png", "t", styles=solver_styles(df))
     assert path == tmp_path / "s.png" and path.exists()
     assert slopes["all"][0] == pytest.approx(1.0, rel=1e-9) and slopes["all"][2:] == (4, 4)
     assert np.isnan(slopes["half"][0]) and slopes["half"][2:] == (2, 4)  # 2 points: no fitted slope
@@ -98,15 +98,15 @@ def test_settings_variants_are_series_of_their_own_with_one_colour_per_solver(tm
                          ref_level_norms=json.dumps([0.0, 1.0]))
                 rows.append(r)
     df = pd.DataFrame(rows)
-    order = ["aaa", "osqp", "osqp [low]"]
-    plots.plot_accuracy(df, tmp_path / "acc.png", order=order)
-    plots.plot_cold_warm(df, tmp_path / "cw.png", order=order)
+    styles = plots.solver_styles(pd.concat([df, pd.DataFrame([_row("aaa", 6, 1e-5)])]))  # (the run's labels)
+    plots.plot_accuracy(df, tmp_path / "acc.png", styles=styles)
+    plots.plot_cold_warm(df, tmp_path / "cw.png", styles=styles)
     acc, cw = drawn["acc.png"], drawn["cw.png"]
     assert set(acc) == {"osqp (4 problems)", "osqp [low] (4 problems)"}  # (the count: the cold rows)
     acc = {k.removesuffix(" (4 problems)"): v for k, v in acc.items()}
     assert set(cw) == {"osqp", "osqp [low]", "warm = cold"}
     for label, i in (("osqp", 1), ("osqp [low]", 2)):
-        assert acc[label] == cw[label] == matplotlib.colors.to_hex(plots._style(i)["color"]), (label, acc, cw)
+        assert acc[label] == cw[label] == matplotlib.colors.to_hex(plots.PALETTE[i]), (label, acc, cw)
 
 
 def test_accuracy_per_level_leaves_out_levels_few_problems_reach(tmp_path, monkeypatch):
@@ -131,7 +131,8 @@ def test_accuracy_per_level_leaves_out_levels_few_problems_reach(tmp_path, monke
             r.update(problem=f"p{i}", level_norms=json.dumps([1e-9] * depth),
                      ref_level_norms=json.dumps([0.0] * depth))
             rows.append(r)
-    plots.plot_accuracy(pd.DataFrame(rows), tmp_path / "acc.png")
+    df = pd.DataFrame(rows)
+    plots.plot_accuracy(df, tmp_path / "acc.png", styles=plots.solver_styles(df))
     assert drawn == {"qp (20 problems)": [0, 1, 2], "ns (8 problems)": [0, 1, 2],  # (1 of 8: 12 %)
                      "one (1 problem)": list(range(12))}
 

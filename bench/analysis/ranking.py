@@ -1,0 +1,145 @@
+"""The rankings of report.md (docs/reports.md, "Ranking"), one mode at a time.
+
+* :func:`rank`: strict solvers over ONE set of problems, the problems every
+  ranked solver attempted; a strict solver that declared some of them
+  ``unsupported`` is listed apart with its count. Success rate first (success
+  = ``verified`` True), then the relative time of
+  :func:`hikbench.bench.analysis.shgeom.relative_time` (1.0 = fastest), with
+  failures charged by :func:`hikbench.bench.analysis.shgeom.charge_failures`.
+* :func:`own_problems`: each strict solver over the problems it attempted
+  alone: not comparable across solvers, and labelled so.
+* :func:`non_strict`: solvers that do not claim the lexicographic optimum,
+  with their real times and their per-level gap to the yardstick.
+
+Every function takes the rows of one mode with a ``label`` column
+(:func:`hikbench.bench.analysis.plots.solver_label`).
+"""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from dataclasses import dataclass, field
+
+import numpy as np
+import pandas as pd
+
+from hikbench.bench.analysis.shgeom import charge_failures, relative_time, shifted_geometric_mean, timed
+
+__all__ = ["Ranking", "non_strict", "own_problems", "rank", "strict_labels"]
+
+
+@dataclass
+class Ranking:
+    """The headline ranking of one mode."""
+    mode: str
+    problems: list[str]  #: the one problem set every ranked figure is over
+    rows: list[dict] = field(default_factory=list)  #: ranked solvers, best first
+    apart: dict[str, dict] = field(default_factory=dict)  #: label -> {declined, of}: not ranked
+    unsolved: list[str] = field(default_factory=list)  #: problems no ranked solver solved: out of the time
+
+
+def strict_labels(df: pd.DataFrame) -> set[str]:
+    """Labels whose rows all say ``strict`` True (a solver claiming the lexicographic optimum)."""
+    strict = df["strict"].astype(str).eq("True").groupby(df["label"]).all()
+    return set(strict.index[strict])
+
+
+def _grid(r: pd.DataFrame, values: pd.Series, problems: list[str], labels: list[str]) -> pd.DataFrame:
+    """problems x labels table of ``values`` (one row per problem and label)."""
+    return values.set_axis(pd.MultiIndex.from_arrays([r["problem"], r["label"]])).unstack("label").reindex(
+        index=problems, columns=labels)
+
+
+def rank(d: pd.DataFrame, strict: set[str], mode: str) -> Ranking | None:
+    """The ranking of the strict solvers of ``d`` (rows of one mode); None without strict rows."""
+    d = d[d["label"].isin(strict)]
+    if d.empty:
+        return None
+    declined = d[d["status"] == "unsupported"].groupby("label")["problem"].nunique()
+    labels = sorted(set(d["label"]) - set(declined.index))
+    apart = {lab: {"declined": int(declined[lab]), "of": int(d.loc[d["label"] == lab, "problem"].nunique())}
+             for lab in sorted(declined.index)}
+    r = d[d["label"].isin(labels)]
+    have = r.groupby("problem")["label"].nunique()
+    problems = sorted(have.index[have == len(labels)])  # (a partial run: only the problems all of them ran)
+    r = r[r["problem"].isin(problems)]
+    out = Ranking(mode, problems, apart=apart)
+    if not problems:
+        return out
+    t = _grid(r, r["time_median_s"].where(timed(r, zero_ok=True)).astype(float), problems, labels)
+    ok = _grid(r, r["verified"].eq(True), problems, labels)
+    charged, out.unsolved = charge_failures(t)
+    rel = relative_time(charged)
+    fastest = charged.eq(charged.min(axis=1), axis=0).sum()
+    for lab in labels:
+        k = int(ok[lab].sum())
+        succ = t[lab].dropna()
+        out.rows.append({"solver": lab, "problems": len(problems), "success": k,
+                         "success_rate": k / len(problems), "relative_time": float(rel[lab]),
+                         "fastest_on": int(fastest[lab]), "charged": int(t[lab].loc[charged.index].isna().sum()),
+                         "median_time_s": float(succ.median()) if len(succ) else None})
+    out.rows.sort(key=lambda row: (-row["success_rate"], _or_inf(row["relative_time"]), row["solver"]))
+    return out
+
+
+def _or_inf(v: float) -> float:
+    return v if np.isfinite(v) else np.inf
+
+
+def own_problems(d: pd.DataFrame, strict: set[str]) -> list[dict]:
+    """Each strict solver of ``d`` over the problems it attempted (its own set)."""
+    out = []
+    for lab, g in sorted(d[d["label"].isin(strict)].groupby("label")):
+        tried = g[g["status"] != "unsupported"]
+        ok = tried[timed(tried, zero_ok=True)]["time_median_s"].astype(float)
+        out.append({"solver": lab, "attempted": len(tried), "declined": len(g) - len(tried),
+                    "success": int(tried["verified"].eq(True).sum()),
+                    "success_rate": float(tried["verified"].eq(True).mean()) if len(tried) else None,
+                    "sgm_time_s": shifted_geometric_mean(ok) if len(ok) else None,
+                    "median_time_s": float(ok.median()) if len(ok) else None})
+    return out
+
+
+def _level_gaps(g: pd.DataFrame) -> list[list[float]]:
+    """Per level k, the gaps ||v_k(x)|| - ||v_k(x_ref)|| of the rows of ``g`` that reach level k,
+    up to the last level that at least half the rows reach (deeper ones: a few deep problems)."""
+    gaps: list[list[float]] = []
+    for a, b in zip(g["level_norms"], g["ref_level_norms"]):
+        if not a or not b:
+            continue
+        for k, (u, v) in enumerate(zip(json.loads(a), json.loads(b))):
+            if u is not None and v is not None:
+                gaps.extend([] for _ in range(k + 1 - len(gaps)))
+                gaps[k].append(u - v)
+    half = len(gaps[0]) / 2 if gaps else 0
+    return [x for x in gaps if len(x) >= half]
+
+
+def _most_lost(lost: Counter) -> dict | None:
+    """The level most rows first lose at (ties: the higher priority, lower k), with its count."""
+    if not lost:
+        return None
+    level, count = max(lost.items(), key=lambda kv: (kv[1], -kv[0]))
+    return {"level": level, "rows": count}
+
+
+def non_strict(d: pd.DataFrame, strict: set[str]) -> list[dict]:
+    """Each non-strict solver of ``d``: its real median time over the rows
+    that have one (verified or not), how often it met the yardstick anyway,
+    the level where it first loses (most often), and the median gap per level."""
+    out = []
+    for lab, g in sorted(d[~d["label"].isin(strict)].groupby("label")):
+        tried = g[g["status"] != "unsupported"]
+        t = tried["time_median_s"].astype(float)
+        t = t[np.isfinite(t) & (t >= 0)]
+        lost = Counter(int(v) for v, side in zip(tried["verdict_level"], tried["verdict_side"])
+                       if side == "worse" and pd.notna(v))
+        gaps = _level_gaps(tried)
+        out.append({"solver": lab, "attempted": len(tried), "declined": len(g) - len(tried), "timed": len(t),
+                    "median_time_s": float(t.median()) if len(t) else None,
+                    "meets_yardstick": int(tried["verified"].eq(True).sum()),
+                    "first_level_lost": _most_lost(lost),
+                    "median_gap_per_level": [float(np.median(x)) for x in gaps],
+                    "problems_per_level": [len(x) for x in gaps]})
+    return out

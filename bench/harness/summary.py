@@ -1,0 +1,74 @@
+"""OUT/summary.json: the run in a few numbers (docs/reports.md, "summary.json"),
+written by ``hikbench run`` at the end of each run and read back by the
+report for its one-line summary.
+
+Keys: ``rows``, ``solvers`` (their names, ``[settings]`` variants apart),
+``problems``, ``modes``, ``verified`` (rows with ``verified`` True),
+``not_verified`` (rows attempted and not verified: False, or no yardstick),
+``unsupported`` (rows a solver declined), ``statuses`` ({status: rows}),
+``strict`` and ``non_strict`` (the same three counts for the rows of each
+kind of solver), ``sessions`` and ``wall_time_s`` (the sum over the run's
+sessions of finished - started, from run.json; None while one is unfinished).
+"""
+
+from __future__ import annotations
+
+import json
+from datetime import datetime
+from pathlib import Path
+
+import pandas as pd
+
+from hikbench.bench.harness.environment import read_run_json
+from hikbench.bench.harness.results import read_results
+
+__all__ = ["SUMMARY_FILE", "run_summary", "summary_line", "write_summary"]
+
+SUMMARY_FILE = "summary.json"
+
+
+def _counts(df: pd.DataFrame) -> dict:
+    """verified / not_verified / unsupported rows of ``df``."""
+    declined = df["status"].eq("unsupported")
+    ok = df["verified"].eq(True)
+    return {"verified": int(ok.sum()), "not_verified": int((~ok & ~declined).sum()),
+            "unsupported": int(declined.sum())}
+
+
+def wall_time_s(meta: dict) -> float | None:
+    """Sum over run.json's sessions of finished - started, s; None when a session has no end."""
+    total = 0.0
+    for s in meta.get("sessions") or []:
+        if not (s.get("started") and s.get("finished")):
+            return None
+        total += (datetime.fromisoformat(s["finished"]) - datetime.fromisoformat(s["started"])).total_seconds()
+    return total
+
+
+def run_summary(df: pd.DataFrame, meta: dict) -> dict:
+    """The summary of the rows ``df`` (results.csv) and run.json ``meta``."""
+    labels = df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
+    strict = df["strict"].astype(str).eq("True")
+    return {"suite": (meta.get("suite") or {}).get("name"), "rows": len(df),
+            "solvers": sorted(labels.unique()), "problems": int(df["problem"].nunique()),
+            "modes": sorted(df["mode"].unique()), **_counts(df),
+            "statuses": {k: int(v) for k, v in sorted(df["status"].value_counts().items())},
+            "strict": _counts(df[strict]), "non_strict": _counts(df[~strict]),
+            "sessions": len(meta.get("sessions") or []), "wall_time_s": wall_time_s(meta)}
+
+
+def summary_line(s: dict) -> str:
+    """The summary in one line of prose (report.md's opening line)."""
+    wall = "wall time unknown (a session did not finish)" if s["wall_time_s"] is None else \
+        f"wall time {s['wall_time_s']:.0f} s over {s['sessions']} session{'s' * (s['sessions'] != 1)}"
+    return (f"{s['rows']} rows: {len(s['solvers'])} solvers x {s['problems']} problems "
+            f"({', '.join(s['modes'])}); {s['verified']} verified, {s['not_verified']} not verified "
+            f"(strict solvers: {s['strict']['not_verified']}), {s['unsupported']} unsupported; {wall}.")
+
+
+def write_summary(out) -> Path:
+    """Write OUT/summary.json from OUT/results.csv and OUT/run.json; its path."""
+    out = Path(out)
+    path = out / SUMMARY_FILE
+    path.write_text(json.dumps(run_summary(read_results(out), read_run_json(out)), indent=1) + "\n")
+    return path
