@@ -74,6 +74,9 @@ ACCURACY: dict[str, tuple[float, float]] = {
 _TOP_KEYS = {"description", "repeat", "rounds", "warmup", "timeout", "first_solve_timeout", "calibrate_each_job",
              "modes", "accuracy", "export", "solvers", "settings", "problems"}
 _GROUP_KEYS = {"family", "params", "grid", "seeds", "solvers"}
+#: problems one group may make (its grid's combinations x its seeds): a few lines of TOML
+#: must not ask for more problems than a run could generate and hold
+MAX_GROUP_PROBLEMS = 100_000
 _SETTINGS_KEYS = {"solver", "name", "options"}
 _EXPORTS = ("npz", "soth")
 
@@ -305,6 +308,10 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
         seeds = g.get("seeds", [0])
         if not isinstance(seeds, list) or not seeds or not all(_is_int(x) for x in seeds):
             c.fail(f"{ctx}seeds = {seeds!r}: expected a non-empty list of integers, e.g. seeds = [0, 1]")
+        count = math.prod(len(v) if isinstance(v, list) else 1 for v in c.table(g, "grid", ctx).values()) * len(seeds)
+        if count > MAX_GROUP_PROBLEMS:
+            c.fail(f"{ctx}its grid and seeds make {count:.3g} problems: expected at most {MAX_GROUP_PROBLEMS} "
+                   f"per group (each is generated, kept in memory and saved before any job runs)")
         if "solvers" in g:
             c.strings(g, "solvers", None, ctx, example='["hcod"]')
     settings = c.tables(data, "settings", "[[settings]]")

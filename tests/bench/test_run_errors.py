@@ -209,3 +209,15 @@ def test_a_suite_path_that_is_no_toml_text_is_a_one_line_error(tmp_path, capsys,
         path.write_bytes(b"\xff\xfe\x00binary")
     code, _, err = run(capsys, "run", "--quiet", "--suite", path, "--out", tmp_path / "out")
     assert_user_error(code, err, str(path), message)
+
+
+def test_a_grid_too_large_for_a_run_is_refused_before_any_problem_is_made(tmp_path, capsys):
+    """Ten grid keys of 100 values are 1e20 problems in a few lines of TOML: refused in one line."""
+    import tomli_w
+    from clitools import assert_user_error, run
+
+    grid = {f"k{i}": list(range(100)) for i in range(10)}
+    suite = tmp_path / "s.toml"
+    suite.write_text(tomli_w.dumps({"solvers": ["hcod"], "problems": [{"family": "equality", "grid": grid}]}))
+    code, _, err = run(capsys, "run", "--suite", suite, "--out", tmp_path / "out")
+    assert_user_error(code, err, "its grid and seeds make 1e+20 problems: expected at most 100000 per group")
