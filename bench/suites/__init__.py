@@ -298,6 +298,20 @@ def _check_options(entry: SolverEntry, settings_name: str, options: dict, suite_
                          f"{type(err).__name__}: {err}") from err
 
 
+def _check_constructible(entry: SolverEntry, where: str) -> None:
+    """SuiteError naming the solver and the argument when the worker could not build it
+    with its options (a ``module:Class`` whose constructor needs an argument): refused
+    before any job, as ``solve`` refuses it, rather than one error row per job."""
+    from hikbench.solvers import registry
+
+    if entry.spec.startswith("external:"):
+        return
+    try:
+        registry.check_buildable(solver_info(entry.spec, entry.solver), **entry.options)
+    except HikbenchError as err:
+        raise SuiteError(f"{where}: {err}") from err
+
+
 def resolve_solvers(patterns, settings=(), where: str = "the suite",
                     suite_file: str = "") -> tuple[list[SolverEntry], dict[str, str]]:
     """Solver entries for ``patterns`` (+ extra settings, whose options are
@@ -317,6 +331,8 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
     def add(e: SolverEntry):
         key = (e.solver, e.settings)
         if key not in seen:
+            if e.settings == "default":  # (a [[settings]]'s options are checked by _check_options)
+                _check_constructible(e, where)
             seen[key] = e.spec
             entries.append(e)
         elif seen[key] != e.spec:  # two solvers whose rows would share one key of results.csv
