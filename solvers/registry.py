@@ -27,7 +27,7 @@ from hikbench.solvers.errors import SolverNotFoundError, SolverOptionError
 from hikbench.extras import install_hint
 from hikbench.solvers.base import Solver
 
-__all__ = ["SolverInfo", "available", "build", "check_bool", "check_choice", "check_int", "check_number",
+__all__ = ["SolverInfo", "available", "build", "check_bool", "check_buildable", "check_choice", "check_int", "check_number",
            "check_numbers", "create", "get", "missing", "option_names"]
 
 _BUILTIN_MODULES: tuple[str, ...] = (
@@ -174,22 +174,32 @@ def build(info: SolverInfo, **options) -> Solver:
     Errors raised by the factory itself propagate unchanged (a wrong option
     *value* should raise SolverOptionError there)."""
     name = info.name
+    opts = check_buildable(info, **options)
+    solver = info.factory(**opts)
+    if not callable(getattr(solver, "solve", None)):
+        raise SolverOptionError(f"solver {name!r}: its factory returned {type(solver).__name__}: expected a "
+                                f"solver, an object with a solve(hierarchy) method (a hikbench.solvers.base.Solver)")
+    return solver
+
+
+def check_buildable(info: SolverInfo, **options) -> dict:
+    """The options :func:`build` would call ``info.factory`` with (its defaults
+    overridden by ``options``), after checking them against the factory's
+    signature without calling it: SolverOptionError for an unknown option or a
+    required argument left unbound (e.g. a ``module:Class`` whose constructor
+    needs an argument no option gives)."""
     opts = {**info.options, **options}
-    sig = _signature(info)  # (once: build runs before every cold repetition)
+    sig = _signature(info)
     allowed = _names(sig)
     if allowed is not None:
         unknown = [k for k in opts if k not in allowed]
         if unknown:
             listed = ", ".join(allowed) if allowed else "none"
             raise SolverOptionError(
-                f"solver {name!r}: unknown option(s) {', '.join(map(repr, unknown))}; "
+                f"solver {info.name!r}: unknown option(s) {', '.join(map(repr, unknown))}; "
                 f"allowed options: {listed}")
     _check_binds(info, sig, opts)
-    solver = info.factory(**opts)
-    if not callable(getattr(solver, "solve", None)):
-        raise SolverOptionError(f"solver {name!r}: its factory returned {type(solver).__name__}: expected a "
-                                f"solver, an object with a solve(hierarchy) method (a hikbench.solvers.base.Solver)")
-    return solver
+    return opts
 
 
 def _check_binds(info: SolverInfo, sig: inspect.Signature | None, opts: dict) -> None:

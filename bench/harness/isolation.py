@@ -1,8 +1,12 @@
 """A persistent worker process with a hard timeout per job.
 
 :class:`IsolatedWorker` starts ``python -m hikbench.bench.harness.isolation`` and talks to it
-over its stdin / stdout with length-prefixed pickles (the child moves its own
-``print`` output to stderr so that solvers cannot corrupt the channel). A job
+over its stdin / stdout with length-prefixed pickles. The child moves the
+channel off fd 1 (fd 1 then goes to stderr, the worker log) before any solver
+code runs; every frame starts with a random token of the worker, given to the
+child on its stdin, and carries a CRC32 of its pickle, so that bytes a solver
+writes into the channel anyway are skipped (the row is still the solver's
+answer); a result that cannot be pickled is status ``error`` with the cause. A job
 that does not answer within its timeout gets the process killed (status
 ``timeout``); a process that dies (segfault, abort, ``os._exit``) gives status
 ``crashed`` with the signal or exit code. Either way the next job starts a
@@ -37,13 +41,18 @@ import subprocess
 import sys
 import threading
 import time
+import zlib
 
 from hikbench.problems.errors import HikbenchError
 from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
+from hikbench.solvers.base import ERROR
 
 __all__ = ["CappedLog", "HeadTail", "IsolatedWorker", "kill_session"]
 
-_HEADER = struct.Struct("<Q")
+_HEADER = struct.Struct("<QI")  # pickle size, its CRC32; after the channel's token
+_TOKEN_BYTES = 16
+_CHANNEL_FD_MIN = 100  # the child's channel descriptors: away from the low numbers a solver may use
+_READ_CHUNK = 1 << 20
 _THREAD_ENV = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "BLIS_NUM_THREADS",
                "VECLIB_MAXIMUM_THREADS", "NUMEXPR_NUM_THREADS", "NUMBA_NUM_THREADS")
 
@@ -59,32 +68,60 @@ class _Closed(Exception):
     pass
 
 
-def _write_frame(f, obj) -> None:
+class _Corrupt(Exception):
+    """A frame whose pickle does not match its CRC32 (bytes written into it meanwhile)."""
+
+
+def _write_frame(f, obj, token: bytes) -> None:
     data = pickle.dumps(obj, protocol=pickle.HIGHEST_PROTOCOL)
-    f.write(_HEADER.pack(len(data)) + data)
+    f.write(token + _HEADER.pack(len(data), zlib.crc32(data)) + data)
     f.flush()
 
 
-def _read_exact(fd: int, n: int, deadline: float | None) -> bytes:
-    buf = bytearray()
-    while len(buf) < n:
+class _Reader:
+    """The frames read from the pipe ``fd``: each one starts with ``token``; the bytes
+    before it (a solver that wrote into the channel) are skipped, in bounded memory,
+    and counted in :attr:`skipped`."""
+
+    def __init__(self, fd: int, token: bytes):
+        self.fd, self.token = fd, token
+        self.buf = bytearray()
+        self.skipped = 0
+
+    def _fill(self, deadline: float | None) -> None:
         if deadline is not None:
             left = deadline - time.monotonic()
-            if left <= 0:
+            if left <= 0 or not select.select([self.fd], [], [], left)[0]:
                 raise _Timeout
-            ready, _, _ = select.select([fd], [], [], left)
-            if not ready:
-                raise _Timeout
-        chunk = os.read(fd, min(n - len(buf), 1 << 20))
+        chunk = os.read(self.fd, _READ_CHUNK)
         if not chunk:
             raise _Closed
-        buf += chunk
-    return bytes(buf)
+        self.buf += chunk
 
+    def _exact(self, n: int, deadline: float | None) -> bytes:
+        while len(self.buf) < n:
+            self._fill(deadline)
+        out = bytes(self.buf[:n])
+        del self.buf[:n]
+        return out
 
-def _read_frame(fd: int, deadline: float | None):
-    (size,) = _HEADER.unpack(_read_exact(fd, _HEADER.size, deadline))
-    return pickle.loads(_read_exact(fd, size, deadline))
+    def _sync(self, deadline: float | None) -> None:
+        """Drop every byte up to and including the next token."""
+        while (i := self.buf.find(self.token)) < 0:
+            drop = max(len(self.buf) - len(self.token) + 1, 0)
+            self.skipped += drop
+            del self.buf[:drop]
+            self._fill(deadline)
+        self.skipped += i
+        del self.buf[: i + len(self.token)]
+
+    def frame(self, deadline: float | None):
+        self._sync(deadline)
+        size, crc = _HEADER.unpack(self._exact(_HEADER.size, deadline))
+        data = self._exact(size, deadline)
+        if zlib.crc32(data) != crc:
+            raise _Corrupt(f"a frame of {size} bytes failed its CRC32 check")
+        return pickle.loads(data)
 
 
 def describe_exit(code: int | None, who: str = "worker process") -> str:
@@ -233,9 +270,13 @@ class IsolatedWorker:
             if err:
                 os.close(err[1])  # the child has its own copy
         self._log_pump = CappedLog(self.log, err[0]) if err else None
+        self._token = os.urandom(_TOKEN_BYTES)
+        self._reader = _Reader(self.proc.stdout.fileno(), self._token)
         try:
-            self.info = _read_frame(self.proc.stdout.fileno(), time.monotonic() + self.startup_timeout)
-        except (_Timeout, _Closed) as exc:
+            self.proc.stdin.write(self._token)  # (raw, first: the child reads it before any frame)
+            self.proc.stdin.flush()
+            self.info = self._reader.frame(time.monotonic() + self.startup_timeout)
+        except (_Timeout, _Closed, _Corrupt, BrokenPipeError) as exc:
             code = self.proc.poll()
             self.close()
             raise HikbenchError(f"the isolated worker did not start ({describe_exit(code)}); "
@@ -262,10 +303,10 @@ class IsolatedWorker:
         first = allowance > timeout
         try:
             t0 = time.monotonic()
-            _write_frame(proc.stdin, job)
+            _write_frame(proc.stdin, job, self._token)
             deadline = t0 + allowance  # (= timeout when this is not a first solve)
             while True:
-                out = _read_frame(proc.stdout.fileno(), deadline)
+                out = self._reader.frame(deadline)
                 if not (isinstance(out, str) and out == _FIRST_SOLVE_DONE):
                     break
                 if spec not in self._warmed:
@@ -284,6 +325,10 @@ class IsolatedWorker:
                 limit = f"{timeout:g} s timeout{why}"
             return {**meta, "status": TIMEOUT, "x": None, "samples_ns": [],
                     "reason": f"no answer within the {limit}; worker killed"}
+        except _Corrupt as err:  # a solver writing into the channel while its frame was written
+            self.kill()
+            return {**meta, "status": CRASHED, "x": None, "samples_ns": [],
+                    "reason": f"the job channel was corrupted ({err}); worker killed"}
         except (_Closed, BrokenPipeError, OSError):
             try:
                 code = proc.wait(timeout=5)
@@ -332,7 +377,7 @@ class IsolatedWorker:
             return
         if self.proc.poll() is None:
             try:
-                _write_frame(self.proc.stdin, None)
+                _write_frame(self.proc.stdin, None, self._token)
                 self.proc.wait(timeout=5)
             except (OSError, subprocess.TimeoutExpired):
                 pass  # kill() below ends it
@@ -361,27 +406,62 @@ def die_with_parent() -> None:
                   "it next reads its closed stdin, one in a hanging solve does not", file=sys.stderr)
 
 
+def _high_fd(fd: int) -> int:
+    """A close-on-exec copy of ``fd`` numbered at least _CHANNEL_FD_MIN; ``fd`` is left open."""
+    import fcntl
+
+    return fcntl.fcntl(fd, fcntl.F_DUPFD_CLOEXEC, _CHANNEL_FD_MIN)
+
+
+def _read_token(fd: int) -> bytes:
+    token = b""
+    while len(token) < _TOKEN_BYTES:
+        chunk = os.read(fd, _TOKEN_BYTES - len(token))
+        if not chunk:
+            raise _Closed
+        token += chunk
+    return token
+
+
+def _send(channel, result: dict, token: bytes) -> None:
+    """Write ``result``; one that pickle cannot send (a solver's object in its fields)
+    is sent as status ``error`` with the cause instead."""
+    try:
+        _write_frame(channel, result, token)
+    except Exception as err:  # noqa: BLE001 - pickle raises what the unpicklable object's type decides
+        _write_frame(channel, {"host": result.get("host"), "pid": result.get("pid"), "status": ERROR, "x": None,
+                               "samples_ns": [], "reason": f"the solver's result cannot be sent back to the "
+                                                           f"harness: {type(err).__name__}: {err}"}, token)
+
+
 def _child_main() -> None:
     die_with_parent()
-    channel = os.fdopen(os.dup(1), "wb")
-    os.dup2(2, 1)  # anything a solver prints goes to stderr, not into the channel
-    fd = os.dup(0)  # the jobs; a solver reading stdin reads /dev/null (not the job channel: it waited there)
+    # the channel and the jobs on close-on-exec descriptors >= _CHANNEL_FD_MIN; fd 1 goes to stderr (what a
+    # solver prints), fd 0 to /dev/null (a solver reading stdin reads nothing: not the job channel)
+    channel = os.fdopen(_high_fd(1), "wb")
+    os.dup2(2, 1)
+    fd = _high_fd(0)
     null = os.open(os.devnull, os.O_RDONLY)
     os.dup2(null, 0)
     os.close(null)
+    try:
+        token = _read_token(fd)
+    except _Closed:
+        return
+    jobs = _Reader(fd, token)
     from hikbench.bench.harness.calibration import calibrate
     from hikbench.bench.harness.worker import execute
 
     calib = calibrate()
-    _write_frame(channel, {"host": socket.gethostname(), "pid": os.getpid(), "calib_ns": calib})
+    _write_frame(channel, {"host": socket.gethostname(), "pid": os.getpid(), "calib_ns": calib}, token)
     while True:
         try:
-            job = _read_frame(fd, None)
+            job = jobs.frame(None)
         except _Closed:
             return
         if job is None:
             return
-        _write_frame(channel, execute(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE)))
+        _send(channel, execute(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE, token)), token)
 
 
 if __name__ == "__main__":

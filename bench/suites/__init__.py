@@ -51,13 +51,13 @@ import fnmatch
 import itertools
 import json
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from hikbench.bench.suites.problemset import ProblemSpec
 from hikbench.bench.harness.worker import solver_info
 from hikbench.problems.errors import HikbenchError
+from hikbench.problems.schema import Any, Bool, Int, List, Number, Str, Table, Where, read_toml, short
 from hikbench.solvers.errors import SolverNotFoundError
 
 __all__ = ["ACCURACY", "SolverEntry", "Suite", "Task", "builtin_suites", "load_suite", "resolve_solvers"]
@@ -71,13 +71,9 @@ ACCURACY: dict[str, tuple[float, float]] = {
     "low": (1e-3, 1e-6),
     "relative": (1e-9, 0.0),  # high without its absolute part: problems far from O(1) (the units suite)
 }
-_TOP_KEYS = {"description", "repeat", "rounds", "warmup", "timeout", "first_solve_timeout", "calibrate_each_job",
-             "modes", "accuracy", "export", "solvers", "settings", "problems"}
-_GROUP_KEYS = {"family", "params", "grid", "seeds", "solvers"}
 #: problems one group may make (its grid's combinations x its seeds): a few lines of TOML
 #: must not ask for more problems than a run could generate and hold
 MAX_GROUP_PROBLEMS = 100_000
-_SETTINGS_KEYS = {"solver", "name", "options"}
 _EXPORTS = ("npz", "soth")
 
 
@@ -172,15 +168,7 @@ def load_suite(name_or_path: str) -> Suite:
         p = builtins[name_or_path]
     elif not p.is_file():
         raise SuiteError(f"unknown suite {name_or_path!r}: not a file and not one of {', '.join(builtins)}")
-    try:
-        data = tomllib.loads(p.read_text())
-    except tomllib.TOMLDecodeError as err:
-        raise SuiteError(f"{p}: invalid TOML ({err})") from err
-    except UnicodeDecodeError as err:
-        raise SuiteError(f"{p}: not a text file ({err.reason} at byte {err.start}); expected a suite TOML file") \
-            from err
-    except OSError as err:
-        raise SuiteError(f"{p}: cannot read the suite file: {err.strerror or err}") from err
+    data = read_toml(p, SuiteError, "a suite TOML file")
     _resolve_paths(data, p.parent)
     return suite_from_dict(data, name=p.stem, source=str(p))
 
@@ -209,145 +197,75 @@ def _resolve_paths(data: dict, base: Path) -> None:
             g["solvers"] = [fix(s) for s in g["solvers"]]
 
 
-def _is_int(v) -> bool:
-    return isinstance(v, int) and not isinstance(v, bool)
-
-
-def _is_number(v) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
-class _Checker:
-    """Type checks of suite values; errors name the suite file and the key."""
-
-    def __init__(self, where: str):
-        self.where = where
-
-    def fail(self, msg: str):
-        raise SuiteError(f"suite {self.where}: {msg}")
-
-    def integer(self, d: dict, key: str, default: int, minimum: int, ctx: str = "") -> int:
-        v = d.get(key, default)
-        if not _is_int(v) or v < minimum:
-            self.fail(f"{ctx}{key} = {v!r}: expected an integer >= {minimum}")
-        return v
-
-    def positive(self, d: dict, key: str, default: float, ctx: str = "") -> float:
-        v = d.get(key, default)
-        if not _is_number(v) or v <= 0:
-            self.fail(f"{ctx}{key} = {v!r}: expected a number of seconds > 0")
-        return float(v)
-
-    def boolean(self, d: dict, key: str, default: bool) -> bool:
-        v = d.get(key, default)
-        if not isinstance(v, bool):
-            self.fail(f"{key} = {v!r}: expected true or false")
-        return v
-
-    def string(self, d: dict, key: str, default, ctx: str = "", choices=None) -> str:
-        """A string; ``default`` None means required and non-empty."""
-        v = d.get(key, default)
-        if choices is not None:
-            if not isinstance(v, str) or v not in choices:
-                self.fail(f"{ctx}{key} {v!r}: expected one of {', '.join(map(repr, choices))}")
-        elif not isinstance(v, str) or (default is None and not v):
-            self.fail(f"{ctx}{key} = {v!r}: expected a {'non-empty ' if default is None else ''}string")
-        return v
-
-    def strings(self, d: dict, key: str, default, ctx: str = "", choices=None, example="") -> list[str]:
-        v = d.get(key, default)
-        if not isinstance(v, list) or not v or not all(isinstance(x, str) and x for x in v):
-            hint = f", e.g. {key} = {example}" if example else ""
-            self.fail(f"{ctx}{key} = {v!r}: expected a non-empty list of strings{hint}")
-        for x in v:
-            if choices is not None and x not in choices:
-                self.fail(f"{ctx}{key.removesuffix('s')} {x!r}: "
-                          f"expected {' or '.join(map(repr, choices))}")
-        return v
-
-    def table(self, d: dict, key: str, ctx: str = "") -> dict:
-        v = d.get(key, {})
-        if not isinstance(v, dict):
-            self.fail(f"{ctx}{key} = {v!r}: expected a table, e.g. {key} = {{ n = 6 }}")
-        return v
-
-    def tables(self, d: dict, key: str, header: str) -> list[dict]:
-        v = d.get(key, [])
-        if not isinstance(v, list) or not all(isinstance(x, dict) for x in v):
-            self.fail(f"{key} = {v!r}: expected {header} tables")
-        return v
+_SECONDS = Number(0, low_open=True, what="a number of seconds > 0")
+_NAMES = 'a non-empty list of strings, e.g. solvers = ["hcod", "cascade-*"]'
+_GROUP = Table({
+    "family": Str(what="a non-empty string: a `hikbench list families` name or module:function"),
+    "params": Table(values=Any(), what="a table, e.g. params = { n = 6 }"),
+    "grid": Table(values=Any(), what="a table of lists, e.g. grid = { n = [6, 12] }"),
+    "seeds": List(Int(0, 2**63 - 1), what="a non-empty list of integers >= 0, e.g. seeds = [0, 1]"),
+    "solvers": List(Str(), what=_NAMES),
+}, required=("family",), what="a [[problems]] table")
+_SETTINGS = Table({"solver": Str(what="a solver name"), "name": Str(what="a settings name"),
+                   "options": Table(values=Any(), what="a table, e.g. options = { accuracy = \"low\" }")},
+                  required=("solver", "name"), what="a [[settings]] table")
+#: the suite file (see the module docstring); solver options are checked against their solvers later
+SCHEMA = Table({
+    "description": Str(empty=True), "repeat": Int(1), "rounds": Int(1), "warmup": Int(0),
+    "timeout": _SECONDS, "first_solve_timeout": _SECONDS, "calibrate_each_job": Bool(),
+    "modes": List(Str(("cold", "warm")), what='a non-empty list of strings, e.g. modes = ["cold", "warm"]'),
+    "accuracy": Str(tuple(ACCURACY)),
+    "export": List(Str(_EXPORTS), what='a non-empty list of strings, e.g. export = ["npz"]'),
+    "solvers": List(Str(), what=_NAMES),
+    "settings": List(_SETTINGS, min_len=0, what="[[settings]] tables"),
+    "problems": List(_GROUP, what="[[problems]] tables (at least one)"),
+}, required=("problems",), defaults={
+    "description": "", "repeat": 5, "rounds": 1, "warmup": 1, "timeout": 60.0, "first_solve_timeout": 300.0,
+    "calibrate_each_job": False, "modes": ["cold"], "accuracy": "default", "export": ["npz"],
+    "solvers": ["*"], "settings": []})
 
 
 def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
-    """A :class:`Suite` from parsed TOML; every value is checked (SuiteError
-    naming the suite file, the key and what was expected)."""
-    c = _Checker(source or name)
-    bad = set(data) - _TOP_KEYS
-    if bad:
-        c.fail(f"unknown key(s) {sorted(bad)}; expected some of {sorted(_TOP_KEYS)}")
-    groups = c.tables(data, "problems", "[[problems]]")
-    if not groups:
-        c.fail("no [[problems]] group")
-    for i, g in enumerate(groups):
-        ctx = f"problems group {i}: "
-        if "family" not in g:
-            c.fail(f"problems group {i} has no 'family'")
-        badg = set(g) - _GROUP_KEYS
-        if badg:
-            c.fail(f"{ctx}unknown key(s) {sorted(badg)}; expected some of {sorted(_GROUP_KEYS)}")
-        c.string(g, "family", None, ctx)
-        params = c.table(g, "params", ctx)
-        for k, v in c.table(g, "grid", ctx).items():
-            if k in params:
-                c.fail(f"{ctx}{k!r} is in both params ({params[k]!r}) and grid ({v!r}): expected it in one of "
-                       f"them (the grid's values would replace the param)")
-            if isinstance(v, list) and not v:
-                c.fail(f"{ctx}grid key {k!r} is an empty list: expected at least one value")
-            if isinstance(v, dict):
-                c.fail(f"{ctx}grid key {k!r} = {v!r}: expected a list of values")
-        seeds = g.get("seeds", [0])
-        if not isinstance(seeds, list) or not seeds or not all(_is_int(x) for x in seeds):
-            c.fail(f"{ctx}seeds = {seeds!r}: expected a non-empty list of integers, e.g. seeds = [0, 1]")
-        count = math.prod(len(v) if isinstance(v, list) else 1 for v in c.table(g, "grid", ctx).values()) * len(seeds)
-        if count > MAX_GROUP_PROBLEMS:
-            c.fail(f"{ctx}its grid and seeds make {count:.3g} problems: expected at most {MAX_GROUP_PROBLEMS} "
-                   f"per group (each is generated, kept in memory and saved before any job runs)")
-        if "solvers" in g:
-            c.strings(g, "solvers", None, ctx, example='["hcod"]')
-    settings = c.tables(data, "settings", "[[settings]]")
+    """A :class:`Suite` from parsed TOML; every value is checked against :data:`SCHEMA`
+    (SuiteError naming the suite file, the key path and what was expected)."""
+    at = Where(f"suite {source or name}", SuiteError)
+    d = SCHEMA.check(data, "", at)
+    for i, g in enumerate(d["problems"]):
+        _check_grid(g, f"problems[{i}]", at)
     seen = set()
-    for i, st in enumerate(settings):
-        ctx = f"settings {i}: "
-        bads = set(st) - _SETTINGS_KEYS
-        if bads:
-            c.fail(f"{ctx}unknown key(s) {sorted(bads)}; expected some of {sorted(_SETTINGS_KEYS)}")
-        for k in ("solver", "name"):
-            if k not in st:
-                c.fail(f"{ctx}missing key {k!r} (a [[settings]] needs solver, name and options)")
-        c.string(st, "solver", None, ctx)
-        sname = c.string(st, "name", None, ctx)
-        if sname == "default":
-            c.fail(f"{ctx}name 'default' is reserved for the solver's own defaults: choose another name")
-        c.table(st, "options", ctx)
-        if (st["solver"], sname) in seen:
-            c.fail(f"{ctx}settings {sname!r} of solver {st['solver']!r} is defined twice")
-        seen.add((st["solver"], sname))
-    modes = tuple(c.strings(data, "modes", ["cold"], choices=("cold", "warm"), example='["cold", "warm"]'))
-    acc = c.string(data, "accuracy", "default", choices=tuple(ACCURACY))
-    suite = Suite(name=name, description=c.string(data, "description", ""),
-                  repeat=c.integer(data, "repeat", 5, 1), rounds=c.integer(data, "rounds", 1, 1),
-                  warmup=c.integer(data, "warmup", 1, 0),
-                  timeout=c.positive(data, "timeout", 60.0),
-                  first_solve_timeout=c.positive(data, "first_solve_timeout", 300.0),
-                  calibrate_each_job=c.boolean(data, "calibrate_each_job", False), modes=modes,
-                  accuracy=acc, export=tuple(c.strings(data, "export", ["npz"], choices=_EXPORTS,
-                                                       example='["npz"]')),
-                  solvers=tuple(c.strings(data, "solvers", ["*"], example='["hcod", "cascade-*"]')),
-                  settings=list(settings), groups=groups, source=source)
-    if suite.rounds > suite.repeat:
-        c.fail(f"rounds = {suite.rounds}: expected at most repeat = {suite.repeat} (each round times at "
+    for i, st in enumerate(d["settings"]):
+        if st["name"] == "default":
+            at.say(f"settings[{i}].name 'default' is reserved for the solver's own defaults: expected "
+                   "another name")
+        if (st["solver"], st["name"]) in seen:
+            at.say(f"settings[{i}]: settings {st['name']!r} of solver {st['solver']!r} is defined twice")
+        seen.add((st["solver"], st["name"]))
+    if d["rounds"] > d["repeat"]:
+        at.say(f"rounds = {d['rounds']}: expected at most repeat = {d['repeat']} (each round times at "
                "least one solve of every row)")
-    return suite
+    return Suite(name=name, description=d["description"], repeat=d["repeat"], rounds=d["rounds"],
+                 warmup=d["warmup"], timeout=float(d["timeout"]), first_solve_timeout=float(d["first_solve_timeout"]),
+                 calibrate_each_job=d["calibrate_each_job"], modes=tuple(d["modes"]), accuracy=d["accuracy"],
+                 export=tuple(d["export"]), solvers=tuple(d["solvers"]), settings=d["settings"],
+                 groups=d["problems"], source=source)
+
+
+def _check_grid(g: dict, path: str, at: Where) -> None:
+    """A group's grid: lists of values (or one value), none empty, no key also in params."""
+    params = g.get("params", {})
+    for k, v in g.get("grid", {}).items():
+        if k in params:
+            at.say(f"{path}: {k!r} is in both params ({short(params[k])}) and grid ({short(v)}): expected it "
+                   f"in one of them (the grid's values would replace the param)")
+        if isinstance(v, list) and not v:
+            at.fail(f"{path}.grid.{k}", v, "at least one value")
+        if isinstance(v, dict):
+            at.fail(f"{path}.grid.{k}", v, "a list of values")
+    count = math.prod(len(v) if isinstance(v, list) else 1 for v in g.get("grid", {}).values())
+    count *= len(g.get("seeds", [0]))
+    if count > MAX_GROUP_PROBLEMS:
+        at.say(f"{path}: its grid and seeds make {count:.3g} problems: expected at most {MAX_GROUP_PROBLEMS} "
+               f"per group (each is generated, kept in memory and saved before any job runs)")
 
 
 def _entry_for_object(spec: str, where: str) -> SolverEntry:
@@ -389,6 +307,20 @@ def _check_options(entry: SolverEntry, settings_name: str, options: dict, suite_
                          f"{type(err).__name__}: {err}") from err
 
 
+def _check_constructible(entry: SolverEntry, where: str) -> None:
+    """SuiteError naming the solver and the argument when the worker could not build it
+    with its options (a ``module:Class`` whose constructor needs an argument): refused
+    before any job, as ``solve`` refuses it, rather than one error row per job."""
+    from hikbench.solvers import registry
+
+    if entry.spec.startswith("external:"):
+        return
+    try:
+        registry.check_buildable(solver_info(entry.spec, entry.solver), **entry.options)
+    except HikbenchError as err:
+        raise SuiteError(f"{where}: {err}") from err
+
+
 def resolve_solvers(patterns, settings=(), where: str = "the suite",
                     suite_file: str = "") -> tuple[list[SolverEntry], dict[str, str]]:
     """Solver entries for ``patterns`` (+ extra settings, whose options are
@@ -408,6 +340,8 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
     def add(e: SolverEntry):
         key = (e.solver, e.settings)
         if key not in seen:
+            if e.settings == "default":  # (a [[settings]]'s options are checked by _check_options)
+                _check_constructible(e, where)
             seen[key] = e.spec
             entries.append(e)
         elif seen[key] != e.spec:  # two solvers whose rows would share one key of results.csv

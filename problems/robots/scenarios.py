@@ -36,8 +36,8 @@ TOML format (``problems/robots/scenarios/*.toml``)::
 
 from __future__ import annotations
 
+import math
 import os
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -49,12 +49,11 @@ from hikbench.problems.robots.kinematics import KinematicState
 from hikbench.problems.robots.stacks import Stack, build_stack
 from hikbench.problems.robots.tasks import ComTask, PoseTask, PositionTask, Task
 from hikbench.problems.robots.trajectories import PointSegment, PoseSegment
+from hikbench.problems.schema import Bool, Int, List, Number, Str, Table, Vec, Where, read_toml
 
 __all__ = ["SCENARIO_DIR", "Scenario", "ScenarioError", "load_scenario", "scenario_names"]
 
 SCENARIO_DIR = Path(__file__).parent / "scenarios"
-_TOP_KEYS = {"name", "description", "stack", "robot", "steps", "dt", "initial", "events", "trajectories",
-             "checks", "plot"}
 
 
 class ScenarioError(HikbenchError, ValueError):
@@ -66,6 +65,105 @@ def _vec3(v, what: str) -> np.ndarray:
     if a.shape != (3,) or not np.all(np.isfinite(a)):
         raise ScenarioError(f"{what} must be 3 finite numbers; got {v!r}")
     return a
+
+
+MAX_STEPS = 1_000_000       #: control steps of a scenario (a record row each)
+MAX_PERTURBATION = math.pi  #: rad, standard deviation of the initial joint perturbation
+MAX_OFFSET = 100.0          #: m (and rad for rotate_rpy), per coordinate of a scheduled target change
+
+_NAMES = List(Str(), what="a non-empty list of names")
+_TARGET_CHANGE = {
+    "task": Str(what="a task name of the stack"),
+    "offset": Vec(3, "m, world", bound=MAX_OFFSET),
+    "rotate_rpy": Vec(3, "rad, pose tasks", bound=MAX_OFFSET),
+    "to_frames": List(Str(), what="a non-empty list of frame names"),
+}
+_EVENT = Table({"time": Number(0, unit="s"), **_TARGET_CHANGE}, required=("task",), what="an [[events]] table")
+_TRAJECTORY = Table({"start": Number(0, unit="s"), "duration": Number(0, low_open=True, unit="s"),
+                     **_TARGET_CHANGE, "apex": Vec(3, "m, world, pose tasks", bound=MAX_OFFSET),
+                     "tau_apex": Number(0, 1, low_open=True, high_open=True, unit="pose tasks")},
+                    required=("task", "duration"), what="a [[trajectories]] table")
+#: the scenario file (see the module docstring); names are checked against the stack after it
+SCHEMA = Table({
+    "name": Str(), "description": Str(empty=True),
+    "stack": Str(what="a shipped stack name or the path of a stack .toml"),
+    "robot": Str(what="a robot name"),
+    "steps": Int(1, MAX_STEPS),
+    "dt": Number(0, 1, low_open=True, unit="s, the control period"),
+    "initial": Table({"perturbation": Number(0, MAX_PERTURBATION, unit="rad, a standard deviation"),
+                      "seed": Int(0, 2**63 - 1)}),
+    "events": List(_EVENT, min_len=0, what="a list of [[events]] tables"),
+    "trajectories": List(_TRAJECTORY, min_len=0, what="a list of [[trajectories]] tables"),
+    "checks": Table({
+        "limits": Bool(),
+        "regulated": List(Str(), min_len=0, what='a list of task names, e.g. regulated = ["com"]'),
+        "reach": Table({"task": Str(what="a task name"), "out_of_reach_until": Number(0, unit="s")},
+                       required=("task", "out_of_reach_until")),
+        "tracked": Table(values=Number(0, low_open=True, unit="the task's error units"),
+                         what="a table of task name = maximum error, e.g. tracked = { ee = 0.005 }"),
+    }),
+    "plot": Table({"joints": List(Str(), what="a non-empty list of joint names")}),
+}, required=("name", "stack"))
+_SCHEDULABLE = (PoseTask, PositionTask, ComTask)
+_POSE_ONLY = ("rotate_rpy", "apex", "tau_apex")
+
+
+def _check_names(d: dict, stack: Stack, at: Where, other_robot: bool) -> None:
+    """Task names of the schedule and the checks, frames of ``to_frames`` and the
+    plotted joints (on the scenario's own robot) are the stack's."""
+    tasks = {t.name: t for t in stack.tasks}
+    listed = ", ".join(tasks)
+
+    def task(path: str, name: str, schedulable: bool = False):
+        if name not in tasks:
+            at.fail(path, name, f"a task of stack {stack.spec.name!r} ({listed})", tasks)
+        if schedulable and not isinstance(tasks[name], _SCHEDULABLE):
+            at.fail(path, name, f"a pose, position or com task (scheduled targets); {name!r} is a "
+                                f"{type(tasks[name]).__name__}")
+        return tasks[name]
+
+    for kind in ("events", "trajectories"):
+        for k, item in enumerate(d.get(kind, [])):
+            t = task(f"{kind}[{k}].task", item["task"], schedulable=True)
+            for key in _POSE_ONLY:
+                if key in item and not isinstance(t, PoseTask):
+                    at.say(f"{kind}[{k}].{key}: task {t.name!r} is a {type(t).__name__}; expected "
+                           f"{key} only for pose tasks")
+            for i, frame in enumerate(item.get("to_frames", [])):
+                try:
+                    stack.robot.frame_id(frame)
+                except HikbenchError as err:
+                    at.fail(f"{kind}[{k}].to_frames[{i}]", frame, f"a frame of the robot: {err}")
+    checks = d.get("checks", {})
+    for i, name in enumerate(checks.get("regulated", [])):
+        task(f"checks.regulated[{i}]", name)
+    for name in checks.get("tracked", {}):
+        task(f"checks.tracked.{name}", name)
+    if "reach" in checks:
+        task("checks.reach.task", checks["reach"]["task"])
+    plotted = stack.robot.bounded_joint_names
+    for i, joint in enumerate(d.get("plot", {}).get("joints", [])):
+        # (on another robot, --robot, names it lacks fall back to the joints that move most)
+        if not other_robot and joint not in plotted:
+            at.fail(f"plot.joints[{i}]", joint, f"a bounded 1-DOF joint of {stack.robot.name} "
+                                                f"({', '.join(plotted)})", plotted)
+
+
+def _initial_configuration(stack: Stack, scale: float, seed: int) -> np.ndarray:
+    """q0 (+) a seeded normal perturbation of the actuated joints (standard deviation
+    ``scale`` rad), kept strictly inside the joint limits; q0 when ``scale`` is 0."""
+    robot = stack.robot
+    q = robot.q0.copy()
+    if scale <= 0:
+        return q
+    rng = np.random.default_rng(seed)
+    v = np.zeros(robot.nv)
+    v[robot.actuated] = rng.normal(scale=scale, size=int(robot.actuated.sum()))
+    q = pin.integrate(robot.model, q, v)
+    qb = robot.bounded_q
+    inset = 0.02 * (robot.upper - robot.lower)  # start strictly inside the limits
+    q[qb] = np.clip(q[qb], robot.lower + inset, robot.upper - inset)
+    return q
 
 
 @dataclass
@@ -154,52 +252,28 @@ class Scenario:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>", robot: str | None = None) -> Scenario:
-        unknown = set(d) - _TOP_KEYS
-        if unknown:
-            raise ScenarioError(f"{source}: unknown key(s) {sorted(unknown)}; expected {sorted(_TOP_KEYS)}")
-        for key in ("name", "stack"):
-            if key not in d:
-                raise ScenarioError(f"{source}: missing key {key!r}")
+        """A scenario from parsed TOML; every value is checked against :data:`SCHEMA`, then
+        the task, frame and joint names against the stack (ScenarioError naming
+        ``source``, the key path and what was expected)."""
+        at = Where(source, ScenarioError)
+        d = SCHEMA.check(d, "", at)
         stack_ref = d["stack"]
-        if isinstance(stack_ref, str) and stack_ref.endswith(".toml") and not os.path.isabs(stack_ref):
+        if stack_ref.endswith(".toml") and not os.path.isabs(stack_ref):
             stack_ref = str(Path(source).parent / stack_ref)
         stack = build_stack(stack_ref, robot=robot or d.get("robot"))
         if "dt" in d:
             stack.dt = float(d["dt"])
-        steps = int(d.get("steps", 100))
-        if steps < 1:
-            raise ScenarioError(f"{source}: steps must be >= 1; got {steps}")
+        _check_names(d, stack, at, other_robot=robot is not None)
         init = d.get("initial", {})
-        q = stack.robot.q0.copy()
-        scale = float(init.get("perturbation", 0.0))
-        if scale > 0:
-            rng = np.random.default_rng(int(init.get("seed", 0)))
-            v = np.zeros(stack.robot.nv)
-            act = stack.robot.actuated
-            v[act] = rng.normal(scale=scale, size=int(act.sum()))
-            q = pin.integrate(stack.robot.model, q, v)
-            qb = stack.robot.bounded_q
-            inset = 0.02 * (stack.robot.upper - stack.robot.lower)  # start strictly inside the limits
-            q[qb] = np.clip(q[qb], stack.robot.lower + inset, stack.robot.upper - inset)
-        joints = d.get("plot", {}).get("joints")
-        if joints is not None and robot is None:
-            # (on another robot, --robot, names it lacks fall back to the joints that move most)
-            plotted = stack.robot.bounded_joint_names
-            bad = [j for j in joints if j not in plotted] if isinstance(joints, list) else [joints]
-            if bad:
-                raise ScenarioError(f"{source}: [plot] joints: {bad} are not bounded 1-DOF joints of "
-                                    f"{stack.robot.name}; expected a list of some of {plotted}")
-        sc = cls(name=str(d["name"]), stack=stack, steps=steps, q_init=q, checks=dict(d.get("checks", {})),
-                 description=str(d.get("description", "")), plot_joints=joints)
+        q = _initial_configuration(stack, float(init.get("perturbation", 0.0)), int(init.get("seed", 0)))
+        sc = cls(name=d["name"], stack=stack, steps=int(d.get("steps", 100)), q_init=q,
+                 checks=dict(d.get("checks", {})), description=d.get("description", ""),
+                 plot_joints=d.get("plot", {}).get("joints"))
         sc._nominal = {t.name: _copy_target(t.target) for t in stack.tasks if hasattr(t, "target")}
         for kind in ("events", "trajectories"):
-            for k, item in enumerate(d.get(kind, [])):
-                if "task" not in item:
-                    raise ScenarioError(f"{source}: {kind}[{k}] needs a 'task'")
+            for item in d.get(kind, []):
                 task = stack.task(item["task"])
                 start = float(item.get("time" if kind == "events" else "start", 0.0))
-                if kind == "trajectories" and "duration" not in item:
-                    raise ScenarioError(f"{source}: trajectories[{k}] needs a 'duration' (s)")
                 spec = {k2: v for k2, v in item.items() if k2 not in ("task", "time", "start")}
                 sc._schedule.setdefault(task.name, []).append(_Item(task, start, spec))
         for items in sc._schedule.values():
@@ -253,9 +327,5 @@ def load_scenario(name_or_path: str | os.PathLike, robot: str | None = None) -> 
         if not p.exists():
             raise ScenarioError(f"unknown scenario {str(name_or_path)!r} (shipped: "
                                 f"{', '.join(scenario_names())}; or give the path of a .toml file)")
-    try:
-        with open(p, "rb") as f:
-            data = tomllib.load(f)
-    except (OSError, tomllib.TOMLDecodeError) as err:
-        raise ScenarioError(f"{p}: cannot read scenario file ({err})") from err
-    return Scenario.from_dict(data, source=str(p), robot=robot)
+    return Scenario.from_dict(read_toml(p, ScenarioError, "a scenario TOML file"), source=str(p), robot=robot)
+

@@ -27,11 +27,10 @@ order, level 0 first.
 
 from __future__ import annotations
 
+import difflib
 import inspect
 import os
-import tomllib
 from dataclasses import dataclass, field
-from numbers import Real
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +51,7 @@ from hikbench.problems.robots.tasks import (
     PostureTask,
     Task,
 )
+from hikbench.problems.schema import Any, List, Number, Str, Table, Where, read_toml
 
 __all__ = [
     "STACK_DIR",
@@ -80,6 +80,17 @@ class StackError(HikbenchError, ValueError):
     """A stack spec or file that cannot be used (unknown task type, bad key, missing file)."""
 
 
+_TASK = Table({"type": Str(what="a task type"), "name": Str(what="a task name")}, required=("type",),
+              values=Any(), what="a task table { type = ..., ... }")
+_LEVEL = Table({"tasks": List(_TASK, what="a non-empty list of task tables { type = ..., ... }"),
+                "name": Str(what="a level name")}, required=("tasks",), what="a [[levels]] table")
+#: the stack file (see the module docstring); a task's other keys are its constructor's arguments
+SCHEMA = Table({"name": Str(), "robot": Str(what="a robot name"),
+                "dt": Number(0, 1, low_open=True, unit="s, the control period"),
+                "levels": List(_LEVEL, what="a non-empty list of [[levels]] tables (level 0 first)"),
+                "description": Str(empty=True)}, required=("name", "robot", "levels"), defaults={"dt": 0.01})
+
+
 @dataclass(frozen=True)
 class StackSpec:
     """A stack as written in TOML: ``levels`` is a list of lists of task dicts."""
@@ -94,43 +105,18 @@ class StackSpec:
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>") -> StackSpec:
-        unknown = set(d) - {"name", "robot", "dt", "levels", "description"}
-        if unknown:
-            raise StackError(f"{source}: unknown key(s) {sorted(unknown)}; expected name, robot, dt, "
-                             "levels, description")
-        for key in ("name", "robot", "levels"):
-            if key not in d:
-                raise StackError(f"{source}: missing key {key!r}")
-        dt = d.get("dt", 0.01)
-        if not (isinstance(dt, Real) and not isinstance(dt, bool) and np.isfinite(dt) and dt > 0):
-            raise StackError(f"{source}: dt must be a number > 0 (the control period, s); got {dt!r}")
-        if not isinstance(d["levels"], list) or not d["levels"]:
-            raise StackError(f"{source}: 'levels' must be a non-empty list of [[levels]] tables; "
-                             f"got {d['levels']!r}")
-        levels, names = [], []
-        for k, lv in enumerate(d["levels"]):
-            if isinstance(lv, dict) and set(lv) - {"tasks", "name"}:
-                raise StackError(f"{source}: level {k}: unknown key(s) {sorted(set(lv) - {'tasks', 'name'})}; "
-                                 f"expected tasks and name (levels come in file order, level 0 first)")
-            tasks = lv.get("tasks") if isinstance(lv, dict) else None
-            if not tasks or not isinstance(tasks, list) or not all(isinstance(t, dict) and "type" in t
-                                                                   for t in tasks):
-                raise StackError(f"{source}: level {k} needs a non-empty list 'tasks' of tables with a 'type'")
-            if lv.get("name") is not None and not isinstance(lv["name"], str):
-                raise StackError(f"{source}: level {k}: name must be a string; got {lv['name']!r}")
-            levels.append([dict(t) for t in tasks])
-            names.append(lv.get("name"))
-        return cls(name=str(d["name"]), robot=str(d["robot"]), dt=float(dt), levels=levels, level_names=names,
-                   description=str(d.get("description", "")), source=source)
+        """A spec from parsed TOML, checked against :data:`SCHEMA` (StackError naming
+        ``source``, the key path and what was expected); the task tables' own keys
+        are checked when the tasks are made (:func:`make_task`)."""
+        d = SCHEMA.check(d, "", Where(source, StackError))
+        return cls(name=d["name"], robot=d["robot"], dt=float(d["dt"]),
+                   levels=[[dict(t) for t in lv["tasks"]] for lv in d["levels"]],
+                   level_names=[lv.get("name") for lv in d["levels"]],
+                   description=d.get("description", ""), source=source)
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike) -> StackSpec:
-        try:
-            with open(path, "rb") as f:
-                data = tomllib.load(f)
-        except (OSError, tomllib.TOMLDecodeError) as err:
-            raise StackError(f"{path}: cannot read stack file ({err})") from err
-        return cls.from_dict(data, source=str(path))
+        return cls.from_dict(read_toml(path, StackError, "a stack TOML file"), source=str(path))
 
 
 def stack_names() -> list[str]:
@@ -151,17 +137,28 @@ def load_stack_spec(name_or_path: str | os.PathLike) -> StackSpec:
 
 
 def make_task(robot: Robot, spec: dict) -> Task:
-    """Build one task from its table ``{type, name?, ...constructor arguments}``."""
+    """Build one task from its table ``{type, name?, ...constructor arguments}``: the
+    keys are checked against the constructor's arguments (unknown ones with their
+    close matches, missing required ones) before it is called."""
     spec = dict(spec)
-    kind = spec.pop("type")
+    kind = spec.pop("type", None)
     if not isinstance(kind, str) or kind not in TASK_TYPES:
-        raise StackError(f"unknown task type {kind!r}; expected one of {', '.join(TASK_TYPES)}")
+        near = difflib.get_close_matches(kind, list(TASK_TYPES), n=2) if isinstance(kind, str) else []
+        hint = f" (did you mean {' or '.join(map(repr, near))}?)" if near else ""
+        raise StackError(f"unknown task type {kind!r}{hint}; expected one of {', '.join(TASK_TYPES)}")
     cls = TASK_TYPES[kind]
     params = inspect.signature(cls.__init__).parameters
     allowed = [p for p in params if p not in ("self", "robot")]
-    bad = set(spec) - set(allowed)
+    bad = sorted(set(spec) - set(allowed))
     if bad:
-        raise StackError(f"task type {kind!r}: unknown key(s) {sorted(bad)}; expected {allowed}")
+        near = sorted({m for k in bad for m in difflib.get_close_matches(str(k), allowed, n=2)})
+        hint = f" (did you mean {' or '.join(map(repr, near))}?)" if near else ""
+        raise StackError(f"task type {kind!r}: unknown key(s) {bad}{hint}; expected {allowed}")
+    needed = [p for p in allowed if p != "name" and params[p].default is inspect.Parameter.empty]
+    missing = [p for p in needed if p not in spec]
+    if missing:
+        raise StackError(f"task type {kind!r}: missing key(s) {', '.join(map(repr, missing))}; expected "
+                         f"{', '.join(needed)} (optional: {', '.join(p for p in allowed if p not in needed)})")
     if "name" not in spec:  # default: the frame alias, else the class default, else the type
         default = params["name"].default
         if isinstance(spec.get("frame"), str):

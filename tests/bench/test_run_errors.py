@@ -42,26 +42,26 @@ BAD_SUITES = [
     ('modes = "cold"\n' + GROUP, "modes = 'cold': expected a non-empty list of strings"),
     ('modes = []\n' + GROUP, "modes = []: expected a non-empty list of strings"),
     ('solvers = "hcod"\n' + GROUP, "solvers = 'hcod': expected a non-empty list of strings"),
-    ('export = ["pdf"]\n' + GROUP, "export 'pdf': expected 'npz' or 'soth'"),
+    ('export = ["pdf"]\n' + GROUP, "export[0] = 'pdf': expected one of 'npz', 'soth'"),
     ('calibrate_each_job = "yes"\n' + GROUP, "calibrate_each_job = 'yes': expected true or false"),
     ('settings = 3\n' + GROUP, "settings = 3: expected [[settings]] tables"),
     ('problems = "abc"\n', "problems = 'abc': expected [[problems]] tables"),
-    (GROUP + "seeds = 3\n", "problems group 0: seeds = 3: expected a non-empty list of integers"),
-    (GROUP + 'seeds = "abc"\n', "problems group 0: seeds = 'abc': expected a non-empty list of integers"),
-    (GROUP + "seeds = []\n", "problems group 0: seeds = []: expected a non-empty list of integers"),
-    (GROUP + 'params = "abc"\n', "problems group 0: params = 'abc': expected a table"),
-    (GROUP + 'solvers = "hcod"\n', "problems group 0: solvers = 'hcod': expected a non-empty list"),
+    (GROUP + "seeds = 3\n", "problems[0].seeds = 3: expected a non-empty list of integers"),
+    (GROUP + 'seeds = "abc"\n', "problems[0].seeds = 'abc': expected a non-empty list of integers"),
+    (GROUP + "seeds = []\n", "problems[0].seeds = []: expected a non-empty list of integers"),
+    (GROUP + 'params = "abc"\n', "problems[0].params = 'abc': expected a table"),
+    (GROUP + 'solvers = "hcod"\n', "problems[0].solvers = 'hcod': expected a non-empty list"),
     ('[[problems]]\nfamily = "equality"\ngrid = { n = [] }\n',
-     "problems group 0: grid key 'n' is an empty list: expected at least one value"),
-    ('[[problems]]\nfamily = 3\n', "problems group 0: family = 3: expected a non-empty string"),
+     "problems[0].grid.n = []: expected at least one value"),
+    ('[[problems]]\nfamily = 3\n', "problems[0].family = 3: expected a non-empty string"),
     ('[[problems]]\nfamily = "equality"\ngrid = { n = ["abc"] }\n',
      "problem equality/n=abc/seed=0: n must be an integer; got 'abc'"),
-    ('[[settings]]\nsolver = "hcod"\noptions = {}\n' + GROUP, "settings 0: missing key 'name'"),
-    ('[[settings]]\nname = "x"\n' + GROUP, "settings 0: missing key 'solver'"),
+    ('[[settings]]\nsolver = "hcod"\noptions = {}\n' + GROUP, "settings[0]: missing key 'name'"),
+    ('[[settings]]\nname = "x"\n' + GROUP, "settings[0]: missing key 'solver'"),
     ('[[settings]]\nsolver = "hcod"\nname = "x"\noptions = 3\n' + GROUP,
-     "settings 0: options = 3: expected a table"),
+     "settings[0].options = 3: expected a table"),
     ('[[settings]]\nsolver = "hcod"\nname = "default"\n' + GROUP, "name 'default' is reserved"),
-    ('[[settings]]\nsolver = "hcod"\nname = "x"\nopts = {}\n' + GROUP, "settings 0: unknown key(s) ['opts']"),
+    ('[[settings]]\nsolver = "hcod"\nname = "x"\nopts = {}\n' + GROUP, "unknown key settings[0].opts (did you mean 'options'?)"),
 ]
 BAD_SUITE_IDS = ["repeat-str", "repeat-0", "repeat-bool", "timeout-str", "timeout-0", "timeout-neg",
                  "first-timeout-0", "warmup-neg", "modes-str", "modes-empty", "solvers-str", "export",
@@ -196,7 +196,7 @@ def test_bad_command_line_values(tmp_path, capsys, argv, message):
 
 # --- a suite path that is no TOML text ------------------------------------------------------------
 
-@pytest.mark.parametrize("kind, message", [("directory", "not a file"), ("binary", "not a text file")],
+@pytest.mark.parametrize("kind, message", [("directory", "not a file"), ("binary", "not UTF-8 text")],
                          ids=["directory", "binary"])
 def test_a_suite_path_that_is_no_toml_text_is_a_one_line_error(tmp_path, capsys, kind, message):
     """--suite DIR gave an IsADirectoryError traceback; a binary file a UnicodeDecodeError one."""
@@ -220,4 +220,4 @@ def test_a_grid_too_large_for_a_run_is_refused_before_any_problem_is_made(tmp_pa
     suite = tmp_path / "s.toml"
     suite.write_text(tomli_w.dumps({"solvers": ["hcod"], "problems": [{"family": "equality", "grid": grid}]}))
     code, _, err = run(capsys, "run", "--suite", suite, "--out", tmp_path / "out")
-    assert_user_error(code, err, "its grid and seeds make 1e+20 problems: expected at most 100000 per group")
+    assert_user_error(code, err, "problems[0]: its grid and seeds make 1e+20 problems: expected at most 100000 per group")

@@ -55,11 +55,11 @@ def test_expand_modes_settings_and_skips(tmp_path):
 
 
 @pytest.mark.parametrize("data, match", [
-    ({"problems": []}, "no \\[\\[problems\\]\\]"),
-    ({"problems": [{"grid": {}}]}, "has no 'family'"),
+    ({"problems": []}, "problems = \\[\\]: expected \\[\\[problems\\]\\] tables \\(at least one\\)"),
+    ({"problems": [{"grid": {}}]}, "problems\\[0\\]: missing key 'family'"),
     ({"problems": [{"family": "equality", "bogus": 1}]}, "unknown key"),
-    ({"modes": ["hot"], "problems": [{"family": "equality"}]}, "mode 'hot'"),
-    ({"accuracy": "ultra", "problems": [{"family": "equality"}]}, "accuracy 'ultra'"),
+    ({"modes": ["hot"], "problems": [{"family": "equality"}]}, "modes\\[0\\] = 'hot': expected one of 'cold', 'warm'"),
+    ({"accuracy": "ultra", "problems": [{"family": "equality"}]}, "accuracy = 'ultra': expected one of 'high'"),
     ({"repeats": 3, "problems": [{"family": "equality"}]}, "unknown key"),
     ({"repeat": "abc", "problems": [{"family": "equality"}]}, "repeat = 'abc': expected an integer >= 1"),
     ({"problems": [{"family": "equality", "seeds": 3}]}, "seeds = 3: expected a non-empty list of integers"),

@@ -87,7 +87,7 @@ def _stack_file(tmp_path, tasks: str, extra: str = "") -> object:
      "target rpy must be 3 finite numbers"),
     ('{ type = "velocity_limits", scale = "1" }', "", "scale must be a finite number > 0; got '1'"),
     ('{ type = "positon", frame = "ee" }', "", r"level 1, task 0 \(type 'positon'\): unknown task type"),
-    ('{ type = "com" }', 'dt = "fast"\n', "dt must be a number > 0 .*; got 'fast'"),
+    ('{ type = "com" }', 'dt = "fast"\n', "dt = 'fast': expected a finite number > 0 and <= 1"),
 ], ids=["gain-string", "orientation-3-numbers", "orientation-not-a-rotation", "pose-list", "pose-position-2",
         "pose-rpy-2", "scale-string", "type-typo", "dt-string"])
 def test_bad_values_in_a_stack_file_are_one_line_errors_naming_file_level_and_task(tmp_path, tasks, extra, match):
@@ -101,11 +101,10 @@ def test_bad_values_in_a_stack_file_are_one_line_errors_naming_file_level_and_ta
 def test_level_keys_and_an_empty_stack_are_checked(tmp_path):
     f = tmp_path / "s.toml"
     f.write_text('name = "s"\nrobot = "panda"\n[[levels]]\npriority = 2\ntasks = [{ type = "com" }]\n')
-    with pytest.raises(StackError, match=r"level 0: unknown key\(s\) \['priority'\]; expected tasks and name "
-                                         r"\(levels come in file order"):
+    with pytest.raises(StackError, match=r"unknown key levels\[0\].priority; expected some of: tasks, name"):
         build_stack(f)
     f.write_text('name = "s"\nrobot = "panda"\nlevels = []\n')
-    with pytest.raises(StackError, match="'levels' must be a non-empty list"):
+    with pytest.raises(StackError, match=r"levels = \[\]: expected a non-empty list of \[\[levels\]\] tables"):
         build_stack(f)
 
 

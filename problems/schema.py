@@ -1,0 +1,249 @@
+"""A small typed schema for the files a user writes (suite, stack and scenario
+TOML): one place that reads them and checks every value, with one-line errors.
+
+Why a module of our own rather than pydantic or msgspec: the errors must be
+one line naming the file, the key path (``events[2].time``) and what was
+expected, with the close matches of a misspelt key (difflib) and the value
+that was given; both libraries would need their error objects rewritten into
+that form, their unknown-key errors carry no close matches, and NaN passes
+their float type unless every field is constrained. What the files need (a
+few scalar types with ranges, lists, tables with known keys) fits in the
+classes below, without a new core dependency.
+
+Usage::
+
+    SCHEMA = Table({"dt": Number(low=0, low_open=True, unit="s"), "tags": List(Str())},
+                   required=("dt",))
+    data = read_toml(path, MyError, "a scenario")        # one-line errors for bytes and syntax
+    SCHEMA.check(data, Where(str(path), MyError))        # raises MyError naming path and key
+
+A value's error reads ``FILE: KEY.PATH = VALUE: expected WHAT``; an unknown key
+``FILE: unknown key KEY.PATH (did you mean 'x'?); expected one of a, b``; a
+missing one ``FILE: KEY.PATH: missing key 'k' (WHAT)``.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from hikbench.problems.errors import HikbenchError
+
+__all__ = ["Any", "Bool", "Int", "List", "Number", "SchemaError", "Str", "Table", "Vec", "Where",
+           "read_toml", "short"]
+
+SHORT_REPR = 60  # characters of a value quoted in an error
+
+
+class SchemaError(HikbenchError, ValueError):
+    """A file's value that does not fit its schema (used when the caller names no error class)."""
+
+
+def short(value) -> str:
+    """``repr(value)`` on one line, cut to SHORT_REPR characters."""
+    text = " ".join(repr(value).split())
+    return text if len(text) <= SHORT_REPR else text[: SHORT_REPR - 4] + " ..."
+
+
+@dataclass(frozen=True)
+class Where:
+    """The file being checked (``where``: its name as errors print it) and the
+    HikbenchError subclass its errors are raised as."""
+
+    where: str
+    error: type[HikbenchError] = SchemaError
+
+    def fail(self, path: str, value, expected: str, choices=None):
+        """Raise ``FILE: PATH = VALUE: expected EXPECTED``, with the close matches of
+        ``value`` among ``choices`` when given."""
+        at = f"{path} = {short(value)}: " if path else f"{short(value)}: "
+        raise self.error(f"{self.where}: {at}expected {expected}{_close(value, choices)}")
+
+    def say(self, message: str):
+        """Raise ``FILE: MESSAGE``."""
+        raise self.error(f"{self.where}: {message}")
+
+
+def _join(path: str, key) -> str:
+    if isinstance(key, int):
+        return f"{path}[{key}]"
+    return f"{path}.{key}" if path else str(key)
+
+
+class Field:
+    """A value's type; ``what`` says it in an error ("an integer >= 1")."""
+
+    what = "a value"
+
+    def check(self, value, path: str, at: Where):
+        """``value`` (tables: with their defaults filled), or raise through ``at``."""
+        raise NotImplementedError
+
+
+class Any(Field):
+    """Anything (checked by the code that uses it)."""
+
+    def __init__(self, what: str = "a value"):
+        self.what = what
+
+    def check(self, value, path, at):
+        return value
+
+
+class Bool(Field):
+    what = "true or false"
+
+    def check(self, value, path, at):
+        if not isinstance(value, bool):
+            at.fail(path, value, self.what)
+        return value
+
+
+def _num(v) -> str:
+    return str(v) if isinstance(v, int) else f"{v:g}"
+
+
+def _range_text(low, high, low_open, high_open) -> str:
+    parts = []
+    if low is not None:
+        parts.append(f"{'>' if low_open else '>='} {_num(low)}")
+    if high is not None:
+        parts.append(f"{'<' if high_open else '<='} {_num(high)}")
+    return " and ".join(parts)
+
+
+class Number(Field):
+    """A finite real number (an integer or a float, not a bool) in a range."""
+
+    def __init__(self, low=None, high=None, *, low_open=False, high_open=False, unit="", integer=False,
+                 what=""):
+        self.low, self.high, self.low_open, self.high_open = low, high, low_open, high_open
+        self.integer = integer
+        rng = _range_text(low, high, low_open, high_open)
+        kind = "an integer" if integer else "a finite number"
+        self.what = what or f"{kind}{' ' + rng if rng else ''}{f' ({unit})' if unit else ''}"
+
+    def check(self, value, path, at):
+        ok_type = isinstance(value, int) if self.integer else isinstance(value, (int, float))
+        if isinstance(value, bool) or not ok_type or not math.isfinite(value) or not self._in_range(value):
+            at.fail(path, value, self.what)
+        return value
+
+    def _in_range(self, v) -> bool:
+        low_ok = self.low is None or (v > self.low if self.low_open else v >= self.low)
+        return low_ok and (self.high is None or (v < self.high if self.high_open else v <= self.high))
+
+
+def Int(low=None, high=None, unit="") -> Number:  # noqa: N802 - a type of the schema, like the classes
+    """An integer (not a bool, not a float) in [low, high]."""
+    return Number(low, high, unit=unit, integer=True)
+
+
+class Str(Field):
+    """A string (non-empty unless ``empty``), one of ``choices`` when given."""
+
+    def __init__(self, choices=None, *, empty=False, what=""):
+        self.choices, self.empty = (tuple(choices) if choices is not None else None), empty
+        self.what = what or (f"one of {', '.join(map(repr, self.choices))}" if self.choices is not None else
+                             "a string" if empty else "a non-empty string")
+
+    def check(self, value, path, at):
+        if not isinstance(value, str) or (not self.empty and not value) or \
+                (self.choices is not None and value not in self.choices):
+            at.fail(path, value, self.what + _close(value, self.choices))
+        return value
+
+
+def _close(value, choices) -> str:
+    """`` (did you mean 'x'?)`` for a misspelt string among ``choices``."""
+    if not isinstance(value, str) or not choices:
+        return ""
+    near = difflib.get_close_matches(value, list(choices), n=2)
+    return f" (did you mean {' or '.join(map(repr, near))}?)" if near else ""
+
+
+class List(Field):
+    """A list of ``item`` with ``min_len`` to ``max_len`` entries."""
+
+    def __init__(self, item: Field, min_len=1, max_len=None, what=""):
+        self.item, self.min_len, self.max_len = item, min_len, max_len
+        size = (f"{min_len}" if max_len == min_len else
+                f"a non-empty list" if min_len == 1 and max_len is None else "a list")
+        self.what = what or (f"{size} of {_plural(item.what)}" if max_len != min_len
+                             else f"a list of {size} {_plural(item.what)}")
+
+    def check(self, value, path, at):
+        if not isinstance(value, list) or len(value) < self.min_len or \
+                (self.max_len is not None and len(value) > self.max_len):
+            at.fail(path, value, self.what)
+        return [self.item.check(v, _join(path, i), at) for i, v in enumerate(value)]
+
+
+def _plural(what: str) -> str:
+    for article in ("a ", "an "):
+        if what.startswith(article):
+            return what[len(article):].replace("number", "numbers", 1).replace("string", "strings", 1) \
+                .replace("integer", "integers", 1).replace("table", "tables", 1)
+    return what
+
+
+def Vec(n: int, unit: str = "", bound: float | None = None) -> List:  # noqa: N802 - a schema type
+    """``n`` finite numbers, e.g. ``[x, y, z]``, each within [-bound, bound] when given."""
+    item = Number() if bound is None else Number(-bound, bound)
+    within = f" within [-{bound:g}, {bound:g}]" if bound is not None else ""
+    return List(item, n, n, what=f"{n} finite numbers{within}{f' ({unit})' if unit else ''}")
+
+
+class Table(Field):
+    """A TOML table with known keys: ``fields`` (key -> Field), the ``required``
+    ones, ``defaults`` filled in when absent. ``values`` (a Field) instead
+    accepts any string key whose value fits it (``{ right_foot = 0.005 }``)."""
+
+    def __init__(self, fields: dict | None = None, required=(), defaults=None, values: Field | None = None,
+                 what=""):
+        self.fields, self.required, self.defaults = dict(fields or {}), tuple(required), dict(defaults or {})
+        self.values = values
+        self.what = what or "a table"
+
+    def check(self, value, path, at):
+        if not isinstance(value, dict):
+            at.fail(path, value, self.what)
+        for key in self.required:
+            if key not in value:
+                at.say(f"{path + ': ' if path else ''}missing key {key!r} ({self.fields[key].what})")
+        out = dict(self.defaults)
+        for key, v in value.items():
+            field = self.fields.get(key, self.values)
+            if field is None:
+                self._unknown(key, path, at)
+            out[key] = field.check(v, _join(path, key), at)
+        return out
+
+    def _unknown(self, key, path, at):
+        near = difflib.get_close_matches(str(key), list(self.fields), n=3)
+        hint = f" (did you mean {' or '.join(map(repr, near))}?)" if near else ""
+        at.say(f"unknown key {_join(path, key)}{hint}; expected some of: {', '.join(self.fields)}")
+
+
+def read_toml(path, error: type[HikbenchError], what: str) -> dict:
+    """The TOML file ``path`` parsed; one-line ``error`` naming the file when it
+    cannot be read, is not UTF-8 text, or is not TOML (``what``: "a scenario
+    TOML file", said in the error)."""
+    p = Path(path)
+    try:
+        raw = p.read_bytes()
+    except OSError as err:
+        raise error(f"{p}: cannot read the file: {err.strerror or err}; expected {what}") from err
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise error(f"{p}: not UTF-8 text ({err.reason} at byte {err.start}); expected {what}") from err
+    try:
+        return tomllib.loads(text)
+    except tomllib.TOMLDecodeError as err:
+        raise error(f"{p}: invalid TOML ({' '.join(str(err).split())}); expected {what}") from err
+    except RecursionError as err:  # arrays or inline tables nested thousands deep
+        raise error(f"{p}: invalid TOML (nested too deeply); expected {what}") from err
