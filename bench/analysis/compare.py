@@ -242,8 +242,8 @@ def baseline_for(base_dir, run_dir) -> Path:
     """The baseline run to compare RUN with: BASE itself when it holds a
     results.csv; else, BASE being a directory of baselines (one subdirectory
     per machine class, each a run directory), the subdirectory whose run.json
-    was recorded on RUN's machine class; failing that, one recorded before
-    run.json named numba's target, on RUN's CPU and OpenBLAS kernels.
+    was recorded on RUN's machine class (CPU model, OpenBLAS kernels and
+    numba's target: "AMD EPYC" alone spans Zen 2 to Zen 5, whose ratios differ).
     NoBaseline when none was; HikbenchError when BASE is neither, when RUN's
     class is unknown, or when two subdirectories have its class."""
     base = Path(base_dir)
@@ -260,9 +260,6 @@ def baseline_for(base_dir, run_dir) -> Path:
         raise HikbenchError(f"{run_dir}: its run.json names no machine (cpu, BLAS); cannot pick one of the "
                             f"baselines in {base}: give the baseline run directory itself")
     same = [d for d, c in classes.items() if c == want]
-    if not same:  # (a baseline whose run.json does not name numba's target: CPU and kernels alone)
-        untargeted = machine_class({**run_env, "numba_target": None})
-        same = [d for d, c in classes.items() if not envs[d].get("numba_target") and c == untargeted]
     if len(same) > 1:
         raise HikbenchError(f"{base}: {len(same)} baselines of machine class {want!r} "
                             f"({', '.join(d.name for d in same)}); keep one")
