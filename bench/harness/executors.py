@@ -80,13 +80,16 @@ def _dask_task(job: dict, timeout: float, session: str) -> dict:
     imported for an earlier run."""
     from distributed import get_worker
 
+    dask_worker = get_worker()
     current = getattr(_DASK_LOCAL, "worker", None)
     if current is None or current[0] != session:
         if current is not None:
             current[1].close()
-        current = _DASK_LOCAL.worker = (session, IsolatedWorker())
+        # the isolated process's stderr, capped as OUT/worker.log is, in the Dask worker's own folder
+        log = os.path.join(dask_worker.local_directory, "hikbench-worker.log")
+        current = _DASK_LOCAL.worker = (session, IsolatedWorker(log=log))
     res = run_job(current[1], job, timeout)
-    res["worker"] = get_worker().address
+    res["worker"] = dask_worker.address
     return res
 
 

@@ -33,3 +33,21 @@ def test_a_quiet_worker_log_is_kept_whole(tmp_path):
     with IsolatedWorker(log=log) as w:
         w.run({"kind": "yardstick", "hierarchy": tiny()}, timeout=120)
     assert log.read_bytes().startswith(b"earlier run\n") and b"omitted" not in log.read_bytes()
+
+
+def test_a_solver_flooding_fd_1_on_a_dask_worker_leaves_a_capped_log_in_its_folder():
+    """On a Dask worker the isolated process's stderr goes to ``hikbench-worker.log`` in the
+    Dask worker's own folder, capped as OUT/worker.log is (its head as it comes; the tail is
+    written when the process ends, with the cluster)."""
+    from hikbench.bench.harness.executors import DaskExecutor
+
+    job = {"kind": "solve", "hierarchy": tiny(), "solver": FLOOD, "mode": "cold", "repeat": 1, "warmup": 0}
+    ex = DaskExecutor(workers=1)
+    try:
+        ((_, res),) = list(ex.map([(0, job, 120.0)]))
+        (folder,) = ex.client.run(lambda dask_worker: dask_worker.local_directory).values()
+        text = (Path(folder) / "hikbench-worker.log").read_bytes()
+    finally:
+        ex.close()
+    assert res["status"] == "optimal", res.get("reason")
+    assert b"FLOOD START" in text and len(text) <= LOG_KEEP_BYTES < FLOOD_BYTES
