@@ -8,6 +8,7 @@ their total size against the machine's memory, before it reads any data.
 
 from __future__ import annotations
 
+import difflib
 import math
 import os
 import zipfile
@@ -102,6 +103,17 @@ def save_npz(h: Hierarchy, path: str | os.PathLike) -> None:
         raise ProblemFileError(f"{os.fspath(path)}: cannot write ({err.strerror or err})") from err
 
 
+def _refuse_unknown(path, headers: dict) -> None:
+    """An array whose name the format does not have (a misspelt ``x_0``) is an error
+    naming it and the closest known name, not an array silently left unread."""
+    known = (*_REQUIRED, "names", "x0")
+    for key in headers:
+        if key not in known:
+            close = difflib.get_close_matches(key, known, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ProblemFileError(f"{path}: unknown array {key!r}{hint}; expected some of {list(known)}")
+
+
 def load_npz(path: str | os.PathLike) -> Hierarchy:
     """Read a hierarchy from an ``.npz`` file; raises ProblemFileError when the
     file cannot be read or a key is missing, InvalidHierarchyError when its
@@ -119,6 +131,7 @@ def load_npz(path: str | os.PathLike) -> Hierarchy:
         missing = [k for k in _REQUIRED if k not in headers]
         if missing:
             raise ProblemFileError(f"{path}: missing array(s) {missing}; expected {list(_REQUIRED)}")
+        _refuse_unknown(path, headers)
         _check_headers(path, headers)
         with np.load(path, allow_pickle=False) as z:
             n = _array(z, "n", path)

@@ -31,6 +31,7 @@ so external solvers run in ``cold`` mode only.
 
 from __future__ import annotations
 
+import difflib
 import json
 import math
 import os
@@ -288,6 +289,10 @@ def _describe_element(v) -> str:
 _PROGRAM_STATUSES = STATUSES
 
 
+#: the fields of a program's answer (docs/adding-a-solver.md, "An external program")
+_ANSWER_KEYS = ("x", "status", "solve_time_s", "iterations", "reason")
+
+
 def _check_output(out, n: int) -> tuple[dict, str]:
     """Validate the JSON object a program wrote: ``(fields, "")`` or
     ``({}, what is wrong)``, naming the field and what was expected."""
@@ -298,6 +303,11 @@ def _check_output(out, n: int) -> tuple[dict, str]:
         return {}, f'"status" must be one of {", ".join(_PROGRAM_STATUSES)}; got {status!r}'
     if "x" not in out:
         return {}, f'"x" is missing (a list of {n} numbers is required)'
+    for key in out:
+        if key not in _ANSWER_KEYS:
+            close = difflib.get_close_matches(str(key), _ANSWER_KEYS, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            return {}, f"unknown field {key!r}{hint}; expected some of {', '.join(_ANSWER_KEYS)}"
     if out["x"] is None and status != OPTIMAL:
         x = None  # no solution, and the program says why
     elif out["x"] is None:

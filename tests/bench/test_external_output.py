@@ -52,8 +52,12 @@ def _job(prog, payload: dict) -> dict:
     ({"x": ["a", "b", "c", "d"]}, '"x" must be a list of 4 numbers'),
     ({"y": 1}, '"x" is missing'),
     ({"x": None}, '"x" is null with status optimal: expected a list of 4 numbers'),
+    ({"x": "X", "solve_time": 1e-4}, "unknown field 'solve_time' (did you mean 'solve_time_s'?); expected some of x, "
+                                     "status, solve_time_s, iterations, reason"),
+    ({"x": "X", "flops": 12}, "unknown field 'flops'; expected some of"),
 ], ids=["iterations string", "iterations negative", "iterations fraction", "time negative", "time string",
-        "status unknown", "status harness", "x short", "x strings", "x missing", "x null optimal"])
+        "status unknown", "status harness", "x short", "x strings", "x missing", "x null optimal",
+        "field misspelt", "field unknown"])
 def test_bad_output_is_an_error_row(prog, payload, fragment):
     res = run_external(_job(prog, payload), timeout=30)
     assert res["status"] == "error" and res["x"] is None and res["samples_ns"] == []

@@ -6,6 +6,7 @@ is checked against the machine's memory (problems/hierarchy.check_fits_in_memory
 from __future__ import annotations
 
 import json
+import re
 import subprocess
 import sys
 import zipfile
@@ -134,3 +135,16 @@ def test_a_run_with_such_a_problem_writes_an_error_row_for_its_yardstick():
     h = Hierarchy(np.zeros((0, N_BIG)), np.zeros(0), np.zeros(0), np.zeros(0, dtype=int), n=N_BIG)
     res = execute({"kind": "yardstick", "hierarchy": h})
     assert res["status"] == "error" and "holds 3 at once" in res["reason"], res
+
+
+@pytest.mark.parametrize("name, hint", [("x_0", " (did you mean 'x0'?)"), ("weights", "")],
+                         ids=["misspelt", "unknown"])
+def test_an_array_the_format_does_not_have_is_named(tmp_path, name, hint):
+    """An npz member the format does not have is refused, named with the closest known name,
+    not silently left unread."""
+    path = tmp_path / "p.npz"
+    np.savez(path, A=np.eye(2), lower=np.zeros(2), upper=np.ones(2), level=np.zeros(2, dtype=int), n=np.array(2),
+             **{name: np.zeros(2)})
+    with pytest.raises(ProblemFileError, match=f"^{re.escape(str(path))}: unknown array '{name}'{re.escape(hint)}; "
+                                               r"expected some of \['A', 'lower'"):
+        load_npz(path)
