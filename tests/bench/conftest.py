@@ -5,6 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from doubles import DECLINING_SUITE
+
+from hikbench.bench.cli import main
 from hikbench.problems import Hierarchy, Level
 from hikbench.problems.files import save_npz
 
@@ -18,3 +21,13 @@ def problem(tmp_path):
     path = tmp_path / "p.npz"
     save_npz(h, path)
     return h, str(path)
+
+
+@pytest.fixture(scope="session")
+def declining_run(tmp_path_factory):
+    """A small run where nullspace-svd declines ik-like (inequalities) and solves the
+    equality rows; shared by the report and summary tests (copy it before editing it)."""
+    d = tmp_path_factory.mktemp("decl")
+    (d / "s.toml").write_text(DECLINING_SUITE)
+    assert main(["run", "--quiet", "--suite", str(d / "s.toml"), "--out", str(d / "out")]) == 0
+    return d / "out"

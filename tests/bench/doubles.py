@@ -289,3 +289,18 @@ def verified_run(out, problems, solver="s") -> str:
                      "verified": True, "samples_ns": json.dumps([1000, 1010, 1020]), "time_median_s": 1.01e-6,
                      "calib_ns": 1_000_000, "host": "h"})
     return str(out)
+
+
+#: a small suite where nullspace-svd declines ik-like (the `declining_run` fixture of conftest.py)
+DECLINING_SUITE = """repeat = 1
+warmup = 0
+timeout = 20.0
+modes = ["cold"]
+solvers = ["nullspace-svd", "yardstick"]
+[[problems]]
+family = "equality"
+grid = { n = [6, 8], depth = [2] }
+[[problems]]
+family = "ik-like"
+grid = { n = [6] }
+"""

@@ -6,34 +6,12 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from doubles import DECLINING_SUITE
 
 from hikbench.bench.analysis.claims import slope_interval
 from hikbench.bench.cli import main
 from hikbench.bench.analysis.plots import loglog_slope, plot_profiles
 from hikbench.bench.suites.problemset import ProblemSpec
-
-SUITE = """repeat = 1
-warmup = 0
-timeout = 20.0
-modes = ["cold"]
-solvers = ["nullspace-svd", "yardstick"]
-[[problems]]
-family = "equality"
-grid = { n = [6, 8], depth = [2] }
-[[problems]]
-family = "ik-like"
-grid = { n = [6] }
-"""
-
-
-@pytest.fixture(scope="module")
-def declining_run(tmp_path_factory):
-    """nullspace-svd declines ik-like (inequalities), solves the equality rows."""
-    d = tmp_path_factory.mktemp("decl")
-    (d / "s.toml").write_text(SUITE)
-    assert main(["run", "--quiet", "--suite", str(d / "s.toml"), "--out", str(d / "out")]) == 0
-    return d / "out"
-
 
 def _table(md: str, title: str) -> dict:
     lines = md.splitlines()
@@ -242,7 +220,7 @@ def test_a_partial_run_says_so_and_tells_not_run_from_not_verified(tmp_path):
     """A run stopped by --limit: the report says which rows are missing, tells a solver that
     never ran a problem from one without a verified row ('-'), and marks a median over some
     seeds only with (k/m), so that it does not look like one over all of them."""
-    (tmp_path / "s.toml").write_text(SUITE.replace("grid = { n = [6] }", "grid = { n = [6] }\nseeds = [0, 1]"))
+    (tmp_path / "s.toml").write_text(DECLINING_SUITE.replace("grid = { n = [6] }", "grid = { n = [6] }\nseeds = [0, 1]"))
     out = tmp_path / "out"
     run = ["run", "--quiet", "--suite", str(tmp_path / "s.toml"), "--out", str(out)]
     assert main([*run, "--limit", "5"]) == 0  # both equality problems, nullspace-svd declining ik-like seed 0
