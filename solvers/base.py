@@ -101,7 +101,7 @@ class Solver(abc.ABC):
     starts with ``self.check_hierarchy(hierarchy)`` (a TypeError for anything
     but a Hierarchy passed from Python). Options are
     keyword arguments of ``__init__``; a wrong option raises
-    :class:`~hikbench.problems.errors.SolverOptionError` at construction.
+    :class:`~hikbench.solvers.errors.SolverOptionError` at construction.
     """
 
     name: ClassVar[str] = ""

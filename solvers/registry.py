@@ -23,12 +23,12 @@ from numbers import Integral, Real
 
 import numpy as np
 
-from hikbench.solvers.errors import SolverNotFoundError, SolverOptionError
 from hikbench.extras import install_hint
 from hikbench.solvers.base import Solver
+from hikbench.solvers.errors import SolverNotFoundError, SolverOptionError
 
-__all__ = ["SolverInfo", "available", "build", "check_bool", "check_buildable", "check_choice", "check_int", "check_number",
-           "check_numbers", "create", "get", "missing", "option_names"]
+__all__ = ["SolverInfo", "available", "build", "check_bool", "check_buildable", "check_choice", "check_int",
+           "check_number", "check_numbers", "create", "get", "missing", "option_names"]
 
 _BUILTIN_MODULES: tuple[str, ...] = (
     "hikbench.solvers.yardstick",
