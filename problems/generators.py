@@ -324,7 +324,8 @@ FAMILIES: dict[str, Family] = {f.name: f for f in (
 def all_families() -> dict[str, Family]:
     """The named families: :data:`FAMILIES` and the robot stacks'
     (``hikbench.problems.robots.testsets.ROBOT_FAMILIES``: ``robot-stack``, params
-    ``stack`` and ``robot``; pinocchio is imported on its first problem)."""
+    ``stack``, ``robot`` (a name or a .urdf path), ``srdf``, ``floating_base``, ``reference``;
+    pinocchio is imported on its first problem)."""
     from hikbench.problems.robots.testsets import ROBOT_FAMILIES  # (it imports Family from here)
 
     return {**FAMILIES, **ROBOT_FAMILIES}

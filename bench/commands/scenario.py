@@ -1,4 +1,5 @@
-"""``hikbench scenario NAME [--robot R] --solver S [--solver S2 ...] [--warm-start MODE ...]
+"""``hikbench scenario NAME [--robot R|PATH.urdf [--srdf PATH] [--floating-base] [--reference NAME]]
+[--frame ALIAS=FRAME ...] --solver S [--solver S2 ...] [--warm-start MODE ...]
 [--steps K] [--out DIR] [--plot] [--option KEY=VALUE ...]``.
 
 Runs a closed-loop robot scenario (``problems/robots/scenarios/NAME.toml`` or a
@@ -9,6 +10,7 @@ of ICRA 2010 sec. XII; prints the scenario's checks. Exit code 1 when a check fa
 
 from __future__ import annotations
 
+import argparse
 import re
 from pathlib import Path
 
@@ -24,7 +26,20 @@ def add_arguments(p) -> None:
     p.add_argument("name", nargs="?", default=None,
                    help="scenario name (reach, step, ...) or path of a scenario .toml; "
                         "`hikbench scenario --list` lists them")
-    p.add_argument("--robot", default=None, help="run on another robot (default: the scenario's)")
+    p.add_argument("--robot", default=None, metavar="NAME|PATH.urdf",
+                   help="run on another robot: a name (`hikbench list robots`) or the path of a URDF file "
+                        "(default: the scenario's)")
+    p.add_argument("--srdf", default=None, metavar="PATH",
+                   help="with --robot PATH.urdf: an SRDF whose group_state gives the reference configuration "
+                        "(and whose floating virtual_joint, if any, a floating base)")
+    p.add_argument("--floating-base", action=argparse.BooleanOptionalAction, default=None,
+                   help="with --robot PATH.urdf: add a free-flyer root joint (default: only when the SRDF "
+                        "declares a floating virtual_joint)")
+    p.add_argument("--reference", default=None, metavar="NAME",
+                   help="with --srdf: the group_state of the reference configuration (default: the first)")
+    p.add_argument("--frame", action="append", default=[], metavar="ALIAS=FRAME",
+                   help="frame alias of the robot (repeatable), e.g. right_hand=r_wrist_link "
+                        "(default: from the files' [frames] tables and the link names)")
     p.add_argument("--solver", action="append", default=None,
                    help="solver name or module:Class / file.py:Class (repeatable; default: yardstick)")
     p.add_argument("--warm-start", nargs="+", default=None, metavar="MODE",
@@ -60,7 +75,8 @@ def run(args) -> int:
                             "`hikbench scenario --list` lists them")
     if args.steps is not None and args.steps < 1:
         raise HikbenchError(f"--steps must be >= 1; got {args.steps}")
-    scenario = load_scenario(args.name, robot=args.robot)
+    scenario = load_scenario(args.name, robot=_robot(args), frames=_frames(args.frame))
+    print(_robot_line(scenario.robot))
     solvers = args.solver or ["yardstick"]
     options = parse_options(args.option)
     if "warm_start" in options and args.warm_start:
@@ -109,6 +125,38 @@ def run(args) -> int:
         for path in plot_runs(runs, out, joints=scenario.plot_joints):
             print(f"figure {path}")
     return 1 if failed else 0
+
+
+def _robot(args):
+    """The --robot reference with --srdf, --floating-base and --reference (None: the scenario's)."""
+    from hikbench.problems.robots.models import robot_source
+
+    given = [f"--{k.replace('_', '-')}" for k in ("srdf", "floating_base", "reference") if getattr(args, k) is not None]
+    if args.robot is None:
+        if given:
+            raise HikbenchError(f"{', '.join(given)}: expected --robot PATH.urdf as well")
+        return None
+    return robot_source(args.robot, args.srdf, args.floating_base, args.reference)
+
+
+def _frames(items: list[str]):
+    """``["right_hand=r_wrist"]`` -> a FrameTable for the --robot (None when empty)."""
+    from hikbench.problems.robots.models import FrameTable
+
+    names = {}
+    for item in items:
+        alias, sep, frame = item.partition("=")
+        if not sep or not alias or not frame:
+            raise HikbenchError(f"--frame {item!r}: expected ALIAS=FRAME, e.g. --frame right_hand=r_wrist_link")
+        names[alias] = frame
+    return FrameTable(names, "--frame", key="") if names else None
+
+
+def _robot_line(robot) -> str:
+    """``robot NAME: nq, nv, where it comes from; frames: alias=frame, ...``."""
+    frames = ", ".join(f"{a}={f}" for a, f in sorted(robot.frames.items()))
+    return (f"robot {robot.name}: nq={robot.nq} nv={robot.nv}, {robot.description or 'example-robot-data'}; "
+            f"frames: {frames or 'none'}")
 
 
 def _print_side_by_side(runs) -> None:

@@ -1,30 +1,48 @@
-"""Robot models from example-robot-data, loaded through pinocchio once per process.
+"""Robot models from example-robot-data or a user's URDF, loaded through pinocchio
+once per process.
 
 A :class:`Robot` bundles the pinocchio model, its nominal configuration ``q0``
 (half-sitting for the humanoids), task-frame aliases (``right_hand``,
 ``left_foot``, ...) so that stacks are written once for several robots, and the
 tangent-space mask of the joints that have position limits (1-DOF joints with
 finite limits; the free flyer and continuous joints are unbounded).
+
+A robot is named by a curated name (:data:`ROBOTS`, with their aliases), any
+other example-robot-data name, or a URDF path (``*.urdf``, or a
+:class:`~hikbench.problems.robots.urdf.UrdfSource` with an SRDF and the root
+joint: :mod:`hikbench.problems.robots.urdf`). Robots without curated aliases get
+the aliases their link names match (:mod:`hikbench.problems.robots.frames`);
+a ``[frames]`` table of a stack or scenario file (:class:`FrameTable`) adds or
+replaces aliases.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import functools
+import os
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
 from hikbench.problems.errors import HikbenchError
+from hikbench.problems.robots.frames import ALIAS_RULES, find_frames
+from hikbench.problems.robots.urdf import RobotFileError, UrdfSource, is_urdf_path, load_urdf
 
 __all__ = [
     "ROBOTS",
     "FrameNotFoundError",
+    "FrameTable",
     "Robot",
+    "RobotFileError",
     "RobotNotFoundError",
     "RobotSpec",
+    "UrdfSource",
     "load_robot",
+    "robot_source",
     "robot_names",
     "robot_rows",
 ]
@@ -76,6 +94,24 @@ ROBOTS: dict[str, RobotSpec] = {
         "fl_foot": "FL_FOOT", "fr_foot": "FR_FOOT", "hl_foot": "HL_FOOT", "hr_foot": "HR_FOOT",
         "base": "base_link"}),
 }
+
+
+@dataclass(frozen=True)
+class FrameTable:
+    """Aliases a file gives (alias -> frame name of the model), with where they were
+    written for errors: ``source`` (a file, or ``--frame``) and ``key`` (``frames``)."""
+
+    names: dict
+    source: str
+    key: str = "frames"
+
+    def place(self, alias: str, frame) -> str:
+        """``FILE: frames.ALIAS = 'FRAME'`` (``--frame ALIAS=FRAME`` for the command line)."""
+        return f"{self.source}: {self.key}.{alias} = {frame!r}" if self.key else f"{self.source} {alias}={frame}"
+
+
+#: aliases that a frame table can set for a robot that lacks them (shipped stacks use these)
+KNOWN_ALIASES = (*ALIAS_RULES, "base", "fl_foot", "fr_foot", "hl_foot", "hr_foot")
 
 
 @dataclass(frozen=True, eq=False)
@@ -152,18 +188,49 @@ class Robot:
             mask[:6] = False
         return mask
 
+    def has_frame(self, name: str) -> bool:
+        """``name`` is an alias of this robot or one of its pinocchio frame names."""
+        return self.model.existFrame(self.frames.get(name, name))
+
+    def frame_choices(self, name: str) -> str:
+        """What a frame name of this robot can be, with the close matches of ``name``
+        and, for a known alias it lacks, the key that sets it (for one-line errors)."""
+        aliases = ", ".join(sorted(self.frames)) or "none"
+        names = [f.name for f in self.model.frames]
+        close = difflib.get_close_matches(name, [*self.frames, *names], n=3, cutoff=0.6)
+        text = (f"an alias of robot {self.name!r} ({aliases}) or one of its {len(names)} pinocchio frame names"
+                + (f" (did you mean {' or '.join(map(repr, close))}?)" if close else
+                   f": {', '.join(names)}" if len(names) <= 60 else ""))
+        if name in KNOWN_ALIASES:
+            text += (f"; to name the {name} frame, set frames.{name} = \"<frame name>\" in the stack or scenario "
+                     f"file (or --frame {name}=FRAME)")
+        return text
+
     def frame_name(self, name: str) -> str:
         """Resolve an alias (``right_hand``) or check a raw frame name."""
         frame = self.frames.get(name, name)
         if not self.model.existFrame(frame):
-            aliases = ", ".join(sorted(self.frames)) or "none"
-            names = [f.name for f in self.model.frames]
-            close = difflib.get_close_matches(name, names, n=5, cutoff=0.6)
-            raise FrameNotFoundError(f"robot {self.name!r} has no frame {name!r} (aliases: {aliases}; "
-                                     f"or any of its {len(names)} pinocchio frame names"
-                                     + (f", e.g. {', '.join(close)}" if close else
-                                        f": {', '.join(names)}" if len(names) <= 60 else "") + ")")
+            raise FrameNotFoundError(f"robot {self.name!r} has no frame {name!r}; expected {self.frame_choices(name)}")
         return frame
+
+    def with_frames(self, *tables: FrameTable) -> Robot:
+        """This robot with the aliases of ``tables`` added (later tables win); each
+        value must be a pinocchio frame name of the model (FrameNotFoundError naming
+        the table's file and key otherwise)."""
+        frames = dict(self.frames)
+        for table in tables:
+            for alias, frame in table.names.items():
+                if not isinstance(frame, str) or not self.model.existFrame(frame):
+                    names = [f.name for f in self.model.frames]
+                    close = difflib.get_close_matches(str(frame), names, n=3, cutoff=0.6)
+                    raise FrameNotFoundError(
+                        f"{table.place(alias, frame)}: expected a pinocchio frame name of robot {self.name!r}"
+                        + (f" (did you mean {' or '.join(map(repr, close))}?)" if close else
+                           f" ({', '.join(names)})" if len(names) <= 60 else f" (one of its {len(names)} frames)"))
+                frames[alias] = frame
+        if frames == self.frames:
+            return self
+        return dataclasses.replace(self, frames=frames)
 
     def frame_id(self, name: str) -> int:
         return int(self.model.getFrameId(self.frame_name(name)))
@@ -211,12 +278,54 @@ def _erd_names() -> list[str]:
     return sorted(example_robot_data.ROBOTS)
 
 
-@functools.cache
-def load_robot(name: str) -> Robot:
-    """Load a robot by name (once per process).
+def robot_source(ref, srdf=None, floating_base: bool | None = None, reference: str | None = None,
+                 base: str | os.PathLike | None = None):
+    """A robot reference as :func:`load_robot` takes it: a robot name stays a name; a
+    URDF path (``*.urdf``) becomes a :class:`UrdfSource` with ``srdf``,
+    ``floating_base`` and ``reference``, its relative paths taken from the folder
+    ``base`` (a TOML file's folder; default: the working directory). SRDF options
+    with a robot name are an error."""
+    if isinstance(ref, UrdfSource):
+        return ref
+    here = Path(base) if base is not None else Path.cwd()
+    if not is_urdf_path(ref):
+        given = [k for k, v in (("srdf", srdf), ("floating_base", floating_base), ("reference", reference))
+                 if v is not None]
+        if given:
+            raise RobotFileError(f"robot {ref!r}: {', '.join(given)} apply to a URDF robot only; expected robot to "
+                                 "be the path of a .urdf file")
+        return ref
+    if srdf is None and reference is not None:
+        raise RobotFileError(f"robot {ref!r}: reference = {reference!r} names an SRDF group_state; expected an "
+                             "srdf as well")
+    return UrdfSource(urdf=(here / Path(ref)).resolve(),
+                      srdf=None if srdf is None else (here / Path(srdf)).resolve(),
+                      floating_base=floating_base, reference=reference)
 
-    ``name`` is one of :data:`ROBOTS` or any example-robot-data robot; raises
-    :class:`RobotNotFoundError` naming what is available otherwise."""
+
+def load_robot(ref) -> Robot:
+    """Load a robot (once per process for a given reference).
+
+    ``ref`` is one of :data:`ROBOTS`, any example-robot-data robot, a URDF path
+    (``*.urdf``, relative to the working directory) or a :class:`UrdfSource`;
+    raises :class:`RobotNotFoundError` naming what is available for an unknown
+    name and :class:`RobotFileError` naming the file for a bad URDF or SRDF."""
+    return _load(robot_source(ref))
+
+
+@functools.cache
+def _load(ref) -> Robot:
+    if isinstance(ref, UrdfSource):
+        loaded = load_urdf(ref)
+        model = loaded.model
+        return Robot(name=ref.name, model=model, q0=loaded.q0, frames=find_frames(model),
+                     bounded=_bounded_mask(model), floating_base=loaded.floating_base,
+                     description=loaded.description)
+    return _load_erd(ref)
+
+
+def _load_erd(name: str) -> Robot:
+    """An example-robot-data robot: curated aliases, or those its link names match."""
     import example_robot_data
 
     spec = ROBOTS.get(name, RobotSpec(name, f"example-robot-data {name}"))
@@ -224,12 +333,13 @@ def load_robot(name: str) -> Robot:
     if spec.loader not in available:
         raise RobotNotFoundError(
             f"robot {name!r} is not in the installed example-robot-data "
-            f"(curated: {', '.join(ROBOTS)}; available: {', '.join(available)})")
+            f"(curated: {', '.join(ROBOTS)}; available: {', '.join(available)}; or the path of a .urdf file)")
     wrapper = example_robot_data.load(spec.loader)
     model = wrapper.model
     q0 = np.array(wrapper.q0, dtype=float) if wrapper.q0 is not None else pin.neutral(model)
     floating = model.njoints > 1 and model.joints[1].shortname() == "JointModelFreeFlyer"
-    return Robot(name=name, model=model, q0=q0, frames=dict(spec.frames), bounded=_bounded_mask(model),
+    frames = dict(spec.frames) if name in ROBOTS else find_frames(model)
+    return Robot(name=name, model=model, q0=q0, frames=frames, bounded=_bounded_mask(model),
                  floating_base=floating, description=spec.description)
 
 

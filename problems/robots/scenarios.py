@@ -9,7 +9,8 @@ TOML format (``problems/robots/scenarios/*.toml``)::
 
     name = "reach"
     stack = "humanoid_reach"     # a shipped stack name or a stack TOML path
-    robot = "talos"              # optional: overrides the stack's robot
+    robot = "talos"              # optional: overrides the stack's robot (a name or a .urdf path,
+                                 # with optional srdf, floating_base, reference as in a stack)
     steps = 120                  # default number of control steps
     dt = 0.02                    # optional: overrides the stack's dt (s)
     [initial]                    # start at q0 (+) a seeded perturbation of the joints
@@ -32,6 +33,12 @@ TOML format (``problems/robots/scenarios/*.toml``)::
     tracked = { right_foot = 0.005 }   # max error along a trajectory
     [plot]
     joints = ["torso_1_joint"]   # joints of Fig. 3 (default: the 12 that move most)
+    [frames]                     # aliases of the scenario's robot: alias = frame name
+    right_hand = "gripper_right_base_link"
+
+Frames: a ``[frames]`` table applies to the robot of its file (the stack's when
+the scenario names none); a robot given to :func:`load_scenario` (``--robot``)
+replaces both files' robot and aliases, and takes its own (``--frame``).
 """
 
 from __future__ import annotations
@@ -46,7 +53,8 @@ import pinocchio as pin
 
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.robots.kinematics import KinematicState
-from hikbench.problems.robots.stacks import Stack, build_stack
+from hikbench.problems.robots.models import FrameTable
+from hikbench.problems.robots.stacks import ROBOT_KEYS, Stack, file_robot, load_stack_spec
 from hikbench.problems.robots.tasks import ComTask, PoseTask, PositionTask, Task
 from hikbench.problems.robots.trajectories import PointSegment, PoseSegment
 from hikbench.problems.schema import Bool, Int, List, Number, Str, Table, Vec, Where, read_toml
@@ -87,7 +95,7 @@ _TRAJECTORY = Table({"start": Number(0, unit="s"), "duration": Number(0, low_ope
 SCHEMA = Table({
     "name": Str(), "description": Str(empty=True),
     "stack": Str(what="a shipped stack name or the path of a stack .toml"),
-    "robot": Str(what="a robot name"),
+    **ROBOT_KEYS,
     "steps": Int(1, MAX_STEPS),
     "dt": Number(0, 1, low_open=True, unit="s, the control period"),
     "initial": Table({"perturbation": Number(0, MAX_PERTURBATION, unit="rad, a standard deviation"),
@@ -251,16 +259,23 @@ class Scenario:
         return self.stack.robot
 
     @classmethod
-    def from_dict(cls, d: dict, source: str = "<dict>", robot: str | None = None) -> Scenario:
+    def from_dict(cls, d: dict, source: str = "<dict>", robot=None, frames: FrameTable | None = None) -> Scenario:
         """A scenario from parsed TOML; every value is checked against :data:`SCHEMA`, then
         the task, frame and joint names against the stack (ScenarioError naming
-        ``source``, the key path and what was expected)."""
+        ``source``, the key path and what was expected). ``robot`` (a name, URDF path
+        or UrdfSource) replaces the files' robot, ``frames`` adds aliases to it."""
         at = Where(source, ScenarioError)
         d = SCHEMA.check(d, "", at)
         stack_ref = d["stack"]
         if stack_ref.endswith(".toml") and not os.path.isabs(stack_ref):
             stack_ref = str(Path(source).parent / stack_ref)
-        stack = build_stack(stack_ref, robot=robot or d.get("robot"))
+        extra = [frames] if frames is not None else []
+        own = file_robot(d, source, ScenarioError)
+        if robot is not None:
+            stack = Stack(load_stack_spec(stack_ref), robot=robot, frames=extra)
+        else:
+            stack = Stack(load_stack_spec(stack_ref), robot=own,
+                          frames=[FrameTable(dict(d.get("frames", {})), source), *extra])
         if "dt" in d:
             stack.dt = float(d["dt"])
         _check_names(d, stack, at, other_robot=robot is not None)
@@ -317,7 +332,7 @@ def scenario_names() -> list[str]:
     return sorted(p.stem for p in SCENARIO_DIR.glob("*.toml"))
 
 
-def load_scenario(name_or_path: str | os.PathLike, robot: str | None = None) -> Scenario:
+def load_scenario(name_or_path: str | os.PathLike, robot=None, frames: FrameTable | None = None) -> Scenario:
     """A shipped scenario by name, or a scenario TOML file by path (a name
     ending in ``.toml`` or an existing file; a directory named like a shipped
     scenario does not hide it)."""
@@ -327,5 +342,6 @@ def load_scenario(name_or_path: str | os.PathLike, robot: str | None = None) -> 
         if not p.exists():
             raise ScenarioError(f"unknown scenario {str(name_or_path)!r} (shipped: "
                                 f"{', '.join(scenario_names())}; or give the path of a .toml file)")
-    return Scenario.from_dict(read_toml(p, ScenarioError, "a scenario TOML file"), source=str(p), robot=robot)
+    return Scenario.from_dict(read_toml(p, ScenarioError, "a scenario TOML file"), source=str(p), robot=robot,
+                              frames=frames)
 

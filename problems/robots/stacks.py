@@ -8,6 +8,10 @@ TOML format (``problems/robots/stacks/*.toml``)::
     name = "humanoid_reach"
     robot = "talos"          # overridable: any robot with the aliases used below
     dt = 0.02                # control period, s
+    # robot = "my_robot.urdf"  (relative to this file), with optional
+    # srdf = "my_robot.srdf", floating_base = true, reference = "half_sitting"
+    # [frames]               # aliases of this file's robot: alias = frame name
+    # right_hand = "r_wrist_link"
     [[levels]]               # level 0 = highest priority
     tasks = [{ type = "joint_limits" }, { type = "velocity_limits", scale = 1.0 }]
     [[levels]]
@@ -23,6 +27,11 @@ given in the file is kept (``position`` / ``com``: ``[x, y, z]``; ``orientation`
 nominal configuration q0 (and :meth:`Stack.set_targets_from` moves only those).
 A level is a table with ``tasks`` and an optional ``name``; levels come in file
 order, level 0 first.
+
+A frame a task names (``frame``, ``frame_a``, ``frame_b``) must be an alias of
+the robot or one of its frame names: a StackError names the file, the key
+(``levels[3].tasks[0].frame``) and the close matches. The ``[frames]`` table
+applies to the robot the file names, not to a robot that replaces it.
 """
 
 from __future__ import annotations
@@ -39,7 +48,8 @@ from hikbench.problems.errors import HikbenchError
 from hikbench.problems.hierarchy import Hierarchy, Level
 from hikbench.problems.robots.kinematics import KinematicState
 from hikbench.problems.robots.limits import FrameDistance, JointPositionLimits, JointVelocityLimits
-from hikbench.problems.robots.models import Robot, load_robot
+from hikbench.problems.robots.models import FrameTable, Robot, RobotFileError, RobotNotFoundError, load_robot, \
+    robot_source
 from hikbench.problems.robots.tasks import (
     AlignmentTask,
     ComTask,
@@ -51,7 +61,7 @@ from hikbench.problems.robots.tasks import (
     PostureTask,
     Task,
 )
-from hikbench.problems.schema import Any, List, Number, Str, Table, Where, read_toml
+from hikbench.problems.schema import Any, Bool, List, Number, Str, Table, Where, read_toml
 
 __all__ = [
     "STACK_DIR",
@@ -85,7 +95,17 @@ _TASK = Table({"type": Str(what="a task type"), "name": Str(what="a task name")}
 _LEVEL = Table({"tasks": List(_TASK, what="a non-empty list of task tables { type = ..., ... }"),
                 "name": Str(what="a level name")}, required=("tasks",), what="a [[levels]] table")
 #: the stack file (see the module docstring); a task's other keys are its constructor's arguments
-SCHEMA = Table({"name": Str(), "robot": Str(what="a robot name"),
+#: the robot keys of stack and scenario files (URDF paths relative to the file)
+ROBOT_KEYS = {
+    "robot": Str(what="a robot name or the path of a .urdf file"),
+    "srdf": Str(what="the path of an .srdf file (with a .urdf robot)"),
+    "floating_base": Bool(),
+    "reference": Str(what="the name of an SRDF group_state (the reference configuration)"),
+    "frames": Table(values=Str(what="a frame name of the robot"),
+                    what='a table of alias = frame name, e.g. frames = { right_hand = "r_wrist" }'),
+}
+FRAME_KEYS = ("frame", "frame_a", "frame_b")  #: the task keys that name a frame
+SCHEMA = Table({"name": Str(), **ROBOT_KEYS,
                 "dt": Number(0, 1, low_open=True, unit="s, the control period"),
                 "levels": List(_LEVEL, what="a non-empty list of [[levels]] tables (level 0 first)"),
                 "description": Str(empty=True)}, required=("name", "robot", "levels"), defaults={"dt": 0.01})
@@ -96,12 +116,13 @@ class StackSpec:
     """A stack as written in TOML: ``levels`` is a list of lists of task dicts."""
 
     name: str
-    robot: str
+    robot: object  #: a robot name or a UrdfSource (:func:`~hikbench.problems.robots.models.robot_source`)
     dt: float
     levels: list[list[dict]]
     level_names: list[str | None] = field(default_factory=list)
     description: str = ""
     source: str = "<dict>"  #: the file it was read from, for error messages
+    frames: dict = field(default_factory=dict)  #: the file's [frames] table (for its own robot)
 
     @classmethod
     def from_dict(cls, d: dict, source: str = "<dict>") -> StackSpec:
@@ -109,14 +130,34 @@ class StackSpec:
         ``source``, the key path and what was expected); the task tables' own keys
         are checked when the tasks are made (:func:`make_task`)."""
         d = SCHEMA.check(d, "", Where(source, StackError))
-        return cls(name=d["name"], robot=d["robot"], dt=float(d["dt"]),
+        return cls(name=d["name"], robot=file_robot(d, source, StackError), dt=float(d["dt"]),
                    levels=[[dict(t) for t in lv["tasks"]] for lv in d["levels"]],
                    level_names=[lv.get("name") for lv in d["levels"]],
-                   description=d.get("description", ""), source=source)
+                   description=d.get("description", ""), source=source, frames=dict(d.get("frames", {})))
+
+    @property
+    def frame_table(self) -> FrameTable:
+        return FrameTable(self.frames, self.source)
 
     @classmethod
     def from_toml(cls, path: str | os.PathLike) -> StackSpec:
         return cls.from_dict(read_toml(path, StackError, "a stack TOML file"), source=str(path))
+
+
+def file_robot(d: dict, source: str, error: type[HikbenchError]):
+    """The robot a checked stack or scenario table names (``robot``, ``srdf``,
+    ``floating_base``, ``reference``; paths relative to the file ``source``), or
+    None when it names none."""
+    extra = [k for k in ("srdf", "floating_base", "reference") if k in d]
+    if "robot" not in d:
+        if extra:
+            raise error(f"{source}: {', '.join(extra)} without robot: expected robot = \"<path>.urdf\" too")
+        return None
+    base = Path(source).parent if source != "<dict>" else None
+    try:
+        return robot_source(d["robot"], d.get("srdf"), d.get("floating_base"), d.get("reference"), base=base)
+    except RobotFileError as err:
+        raise error(f"{source}: {err}") from err
 
 
 def stack_names() -> list[str]:
@@ -176,18 +217,21 @@ class Stack:
     Parameters
     ----------
     spec : StackSpec
-    robot : str, optional
-        Overrides ``spec.robot``.
+    robot : str or UrdfSource, optional
+        Overrides ``spec.robot`` (and drops the spec's ``[frames]``, written for its robot).
+    frames : sequence of FrameTable
+        Aliases added after the spec's (a scenario file's ``[frames]``, ``--frame``).
     """
 
-    def __init__(self, spec: StackSpec, robot: str | None = None):
+    def __init__(self, spec: StackSpec, robot=None, frames=()):
         self.spec = spec
-        self.robot = load_robot(robot or spec.robot)
+        self.robot = _robot(spec, robot, frames)
         self.dt = spec.dt
         self.levels: list[list[Task]] = []
         for k, lv in enumerate(spec.levels):
             tasks = []
             for i, t in enumerate(lv):
+                self._check_frames(k, i, t)
                 try:
                     tasks.append(make_task(self.robot, t))
                 except HikbenchError as err:  # (a TaskError or StackError without the place)
@@ -204,6 +248,14 @@ class Stack:
         self.given_targets = {task.name for lv, specs in zip(self.levels, spec.levels)
                               for task, t in zip(lv, specs) if "target" in t}
         self.set_targets_from(self.robot.q0)
+
+    def _check_frames(self, k: int, i: int, task: dict) -> None:
+        """The frames task ``i`` of level ``k`` names are the robot's (StackError naming the key)."""
+        for key in FRAME_KEYS:
+            frame = task.get(key)
+            if isinstance(frame, str) and not self.robot.has_frame(frame):
+                raise StackError(f"{self.spec.source}: levels[{k}].tasks[{i}].{key} = {frame!r}: expected "
+                                 f"{self.robot.frame_choices(frame)}")
 
     @property
     def tasks(self) -> list[Task]:
@@ -242,6 +294,20 @@ class Stack:
         return {t.name: t.error_norm(state, u) for t in self.tasks}
 
 
-def build_stack(name_or_path: str | os.PathLike, robot: str | None = None) -> Stack:
-    """A :class:`Stack` from a shipped name or a TOML path, optionally on another robot."""
-    return Stack(load_stack_spec(name_or_path), robot=robot)
+def _robot(spec: StackSpec, robot, frames) -> Robot:
+    """The robot of a stack: ``robot`` if given (with ``frames``), else the spec's
+    (with its [frames] table, then ``frames``). A robot the spec names that cannot
+    be loaded is a StackError naming the stack file."""
+    if robot is not None:
+        return load_robot(robot).with_frames(*frames)
+    try:
+        loaded = load_robot(spec.robot)
+    except (RobotFileError, RobotNotFoundError) as err:
+        raise StackError(f"{spec.source}: robot: {err}") from err
+    return loaded.with_frames(spec.frame_table, *frames)
+
+
+def build_stack(name_or_path: str | os.PathLike, robot=None, frames=()) -> Stack:
+    """A :class:`Stack` from a shipped name or a TOML path, optionally on another robot
+    (a name, a URDF path or a UrdfSource) with extra frame aliases (FrameTable)."""
+    return Stack(load_stack_spec(name_or_path), robot=robot, frames=frames)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import save_npz
 from hikbench.problems.family import Family
 from hikbench.problems.hierarchy import Hierarchy
@@ -22,7 +23,8 @@ DEFAULT_SEEDS = tuple(range(5))
 SHIPPED_STACKS = ("arm_reach", "humanoid_reach", "humanoid_step", "humanoid_tasks", "quadruped_stance")
 
 
-def stack_problem(stack_name: str, seed: int = 0, robot: str | None = None) -> Hierarchy:
+def stack_problem(stack_name: str, seed: int = 0, robot: str | None = None, srdf: str | None = None,
+                  floating_base: bool | None = None, reference: str | None = None) -> Hierarchy:
     """The hierarchy (in u, n = nv) of stack ``stack_name`` at a random configuration.
 
     Parameters
@@ -32,11 +34,21 @@ def stack_problem(stack_name: str, seed: int = 0, robot: str | None = None) -> H
     seed : int
         Seeds ``numpy.random.default_rng``: q first, then the target configuration.
     robot : str, optional
-        Run the stack on another robot having the frame aliases it uses.
+        Run the stack on another robot having the frame aliases it uses: a robot name or
+        the path of a .urdf file (relative to the working directory).
+    srdf, floating_base, reference : optional
+        With a .urdf robot: its SRDF path, root joint and SRDF group_state
+        (:mod:`hikbench.problems.robots.urdf`).
     """
-    from hikbench.problems.robots.stacks import build_stack  # pinocchio is imported on first use only
+    from hikbench.problems.robots.models import robot_source  # pinocchio is imported on first use only
+    from hikbench.problems.robots.stacks import build_stack
 
-    stack = build_stack(stack_name, robot=robot)
+    if robot is None and (srdf, floating_base, reference) != (None, None, None):
+        raise HikbenchError("srdf, floating_base and reference apply with robot = the path of a .urdf file")
+    if floating_base is not None and not isinstance(floating_base, bool):
+        raise HikbenchError(f"floating_base must be true or false; got {floating_base!r}")
+    ref = None if robot is None else robot_source(robot, srdf, floating_base, reference)
+    stack = build_stack(stack_name, robot=ref)
     rng = np.random.default_rng(seed)
     q = stack.robot.random_configuration(rng)
     stack.set_targets_from(stack.robot.random_configuration(rng))
@@ -59,8 +71,9 @@ def save_test_set(out_dir: str | os.PathLike, stacks: list[str] | None = None,
     return paths
 
 
-def _robot_stack(seed: int = 0, stack: str = "humanoid_reach", robot: str | None = None) -> Hierarchy:
-    return stack_problem(stack, seed=seed, robot=robot)
+def _robot_stack(seed: int = 0, stack: str = "humanoid_reach", robot: str | None = None, srdf: str | None = None,
+                 floating_base: bool | None = None, reference: str | None = None) -> Hierarchy:
+    return stack_problem(stack, seed=seed, robot=robot, srdf=srdf, floating_base=floating_base, reference=reference)
 
 
 #: generator families (``hikbench.problems.generators.Family``) for the harness: merge them into
@@ -68,5 +81,6 @@ def _robot_stack(seed: int = 0, stack: str = "humanoid_reach", robot: str | None
 ROBOT_FAMILIES: dict[str, Family] = {f.name: f for f in (
     Family("robot-stack", "a robot task stack (problems/robots/stacks) at a random configuration within "
            "the limits with reachable targets; variables u (n = nv)", _robot_stack,
-           {"stack": "humanoid_reach", "robot": None}, sweep={"stack": list(SHIPPED_STACKS)}),
+           {"stack": "humanoid_reach", "robot": None, "srdf": None, "floating_base": None, "reference": None},
+           sweep={"stack": list(SHIPPED_STACKS)}),
 )}

@@ -145,7 +145,7 @@ def test_robot_family_for_the_harness():
 def test_an_unknown_frame_suggests_the_closest_names(panda):
     from hikbench.problems.robots.models import FrameNotFoundError, load_robot
 
-    with pytest.raises(FrameNotFoundError, match="e.g. tool0"):
+    with pytest.raises(FrameNotFoundError, match="did you mean 'tool0'"):
         load_robot("ur5").frame_name("tool_0")
     with pytest.raises(FrameNotFoundError, match="frame names: universe, "):
         load_robot("ur5").frame_name("zzz")  # (22 frames: all listed)
