@@ -131,7 +131,8 @@ def _robot(args):
     """The --robot reference with --srdf, --floating-base and --reference (None: the scenario's)."""
     from hikbench.problems.robots.models import robot_source
 
-    given = [f"--{k.replace('_', '-')}" for k in ("srdf", "floating_base", "reference") if getattr(args, k) is not None]
+    given = [f"--{k.replace('_', '-')}" for k in ("srdf", "floating_base", "reference")
+             if getattr(args, k) is not None]
     if args.robot is None:
         if given:
             raise HikbenchError(f"{', '.join(given)}: expected --robot PATH.urdf as well")

@@ -210,7 +210,8 @@ class Robot:
         """Resolve an alias (``right_hand``) or check a raw frame name."""
         frame = self.frames.get(name, name)
         if not self.model.existFrame(frame):
-            raise FrameNotFoundError(f"robot {self.name!r} has no frame {name!r}; expected {self.frame_choices(name)}")
+            raise FrameNotFoundError(f"robot {self.name!r} has no frame {name!r}; "
+                                     f"expected {self.frame_choices(name)}")
         return frame
 
     def with_frames(self, *tables: FrameTable) -> Robot:
@@ -226,7 +227,8 @@ class Robot:
                     raise FrameNotFoundError(
                         f"{table.place(alias, frame)}: expected a pinocchio frame name of robot {self.name!r}"
                         + (f" (did you mean {' or '.join(map(repr, close))}?)" if close else
-                           f" ({', '.join(names)})" if len(names) <= 60 else f" (one of its {len(names)} frames)"))
+                           f" ({', '.join(names)})" if len(names) <= 60 else
+                           f" (one of its {len(names)} frames)"))
                 frames[alias] = frame
         if frames == self.frames:
             return self
@@ -292,8 +294,9 @@ def robot_source(ref, srdf=None, floating_base: bool | None = None, reference: s
         given = [k for k, v in (("srdf", srdf), ("floating_base", floating_base), ("reference", reference))
                  if v is not None]
         if given:
-            raise RobotFileError(f"robot {ref!r}: {', '.join(given)} apply to a URDF robot only; expected robot to "
-                                 "be the path of a .urdf file")
+            verb = "applies" if len(given) == 1 else "apply"
+            raise RobotFileError(f"robot {ref!r}: {', '.join(given)} {verb} to a URDF robot only; expected robot "
+                                 "to be the path of a .urdf file")
         return ref
     if srdf is None and reference is not None:
         raise RobotFileError(f"robot {ref!r}: reference = {reference!r} names an SRDF group_state; expected an "

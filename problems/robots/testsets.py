@@ -71,9 +71,10 @@ def save_test_set(out_dir: str | os.PathLike, stacks: list[str] | None = None,
     return paths
 
 
-def _robot_stack(seed: int = 0, stack: str = "humanoid_reach", robot: str | None = None, srdf: str | None = None,
-                 floating_base: bool | None = None, reference: str | None = None) -> Hierarchy:
-    return stack_problem(stack, seed=seed, robot=robot, srdf=srdf, floating_base=floating_base, reference=reference)
+def _robot_stack(seed: int = 0, stack: str = "humanoid_reach", robot: str | None = None,
+                 srdf: str | None = None, floating_base: bool | None = None, reference: str | None = None) -> Hierarchy:
+    return stack_problem(stack, seed=seed, robot=robot, srdf=srdf, floating_base=floating_base,
+                         reference=reference)
 
 
 #: generator families (``hikbench.problems.generators.Family``) for the harness: merge them into

@@ -118,6 +118,9 @@ def _xml_root(path: Path, kind: str) -> ET.Element:
         raise RobotFileError(f"{path}: the root element is <{root.tag}>; expected <robot> ({kind})")
     if kind == "URDF" and root.find("link") is None:
         raise RobotFileError(f"{path}: no <link> element; expected a URDF with at least one link")
+    if kind == "SRDF" and root.find("link") is not None:
+        raise RobotFileError(f"{path}: <link> elements at the top: a URDF; expected an SRDF (group_state, "
+                             "virtual_joint, ...)")
     return root
 
 
