@@ -292,6 +292,10 @@ class ComTask(Task):
     def __init__(self, robot: Robot, name: str = "com", target=None, axes: str = "xyz",
                  gain: float = 1.0):
         super().__init__(robot, name, gain)
+        mass = pin.computeTotalMass(robot.model)
+        if not mass > 0:  # c = sum m_i c_i / sum m_i: undefined without masses
+            raise TaskError(f"task {name!r}: robot {robot.name!r} has a total mass of {mass:g} kg (no <inertial> "
+                            "in its URDF); expected link masses for a com task")
         self.axes = axes_index(axes)
         self.target = None if target is None else _vector(target, 3, f"task {name!r} target")
 

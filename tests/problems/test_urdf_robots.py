@@ -9,7 +9,7 @@ from urdf_robots import arm_urdf, biped_srdf, biped_urdf, write_robots
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.robots.frames import find_frames, words
 from hikbench.problems.robots.models import FrameNotFoundError, RobotFileError, load_robot, robot_source
-from hikbench.problems.robots.stacks import StackError, build_stack
+from hikbench.problems.robots.stacks import build_stack
 from hikbench.problems.robots.testsets import ROBOT_FAMILIES, stack_problem
 from hikbench.problems.robots.urdf import UrdfSource
 from hikbench.problems.verify import verify
@@ -244,3 +244,14 @@ def test_a_robot_name_that_is_not_a_urdf_says_what_is_expected():
         load_robot("my_robot.xml")
     with pytest.raises(RobotFileError, match="floating_base applies to a URDF robot only"):
         robot_source("talos", floating_base=True)
+
+
+def test_a_com_task_on_a_robot_without_masses_is_one_line(tmp_path):
+    import re
+
+    (tmp_path / "massless.urdf").write_text(re.sub(r"<inertial>.*?</inertial>", "", arm_urdf()))
+    path = tmp_path / "s.toml"
+    path.write_text('name = "s"\nrobot = "massless.urdf"\n[[levels]]\ntasks = [{ type = "com" }]\n')
+    text = _error(lambda: build_stack(path))
+    assert text.startswith(f"{path}: level 0, task 0 (type 'com'): task 'com': robot 'massless' has a total mass "
+                           "of 0 kg (no <inertial> in its URDF)"), text
