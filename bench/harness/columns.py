@@ -13,6 +13,10 @@ __all__ = ["COLUMNS", "JSON_COLUMNS", "KEY", "markdown", "names"]
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("problem", ("problem id: family/param=value,.../seed=S (the file OUT/problems/<id>.npz, each / of the "
                  "id written __)")),
+    ("problem_hash", ("the problem's content: 16 hex digits of the SHA-256 of its arrays A, lower, upper, level, "
+                      "n, depth (hikbench.bench.harness.cache.problem_hash); its yardstick is cached as "
+                      "OUT/yardstick/<problem_hash>.npz. A finished row whose problem_hash differs from its "
+                      "problem's now (a family's parameters or code changed) is run again")),
     ("family", "problem family (a `hikbench list families` name, or module:function)"),
     ("params", "JSON dict of the family parameters given by the suite (defaults not repeated)"),
     ("seed", "generator seed"),
