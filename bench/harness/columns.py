@@ -31,7 +31,9 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("solver", "solver name (registry name; the class's `name` for module:Class and file.py:Class; external:NAME)"),
     ("settings", "settings name from the suite ('default' = the solver's own defaults)"),
     ("options", "JSON dict of the solver options of these settings"),
-    ("strict", "True for strict-hierarchy solvers (judged against the lexicographic optimum)"),
+    ("strict", ("the solver's claim: True for a strict-hierarchy solver (judged against the lexicographic optimum: "
+                "verified), False for a weighted or damped one (judged by its real times, per-level gaps and "
+                "level 0 met); from Solver.strict / SolverInfo.strict, or external:NAME[strict=false]=CMD")),
     ("mode", "cold (fresh solver object per repetition) or warm (re-solve on one object)"),
     ("repeat", "timed repetitions (after the discarded warm-up; with rounds, over all of them)"),
     ("status", ("solver status (optimal, max_iterations, infeasible_level, numerical_failure, "
