@@ -201,8 +201,8 @@ def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
                 ax.text(j, i, f"{100 * v:.0f}%", ha="center", va="center", fontsize=7)
     fig.colorbar(im, ax=ax, label="success [%]")
     # (two lines: on one, the title of a figure of one or two families was cut at both ends)
-    ax.set_title("Success rate per solver and family, by each solver's claim: strict = verified,\n"
-                 "non-strict = level 0 met as the yardstick does (unsupported rows left out)", fontsize=11)
+    ax.set_title("Success per solver and family, by each solver's claim\n"
+                 "(strict: verified; non-strict: level 0 met; unsupported left out)", fontsize=11)
     fig.tight_layout()
     fit_title(fig, ax)
     fig.savefig(path)
