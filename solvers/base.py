@@ -102,12 +102,18 @@ class Solver(abc.ABC):
     but a Hierarchy passed from Python). Options are
     keyword arguments of ``__init__``; a wrong option raises
     :class:`~hikbench.solvers.errors.SolverOptionError` at construction.
+
+    ``strict`` is the solver's claim: True, it returns the lexicographic
+    optimum (the strict hierarchy: judged against the yardstick); False, it
+    solves another problem (weighted, damped, stacked least squares) and is
+    reported by its real times and its per-level gap to the yardstick.
     """
 
     name: ClassVar[str] = ""
     description: ClassVar[str] = ""
     supports_inequalities: ClassVar[bool] = False
     supports_warm_start: ClassVar[bool] = False
+    strict: ClassVar[bool] = True
 
     @abc.abstractmethod
     def solve(self, hierarchy: Hierarchy) -> SolveResult:

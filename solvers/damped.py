@@ -207,6 +207,7 @@ class Weighted(_Stacked):
     """x = (J^T C J + W)^-1 J^T C e with per-level weights (lecture 003)."""
 
     name = "weighted"
+    strict = False
     description = "one weighted regularised least-squares step J# = (J^T C J + W)^-1 J^T C, per-level weights"
 
     def __init__(self, weights=None, ratio: float = 1e-2, regularization: float = 1e-9, passes: int = 3):
@@ -235,6 +236,7 @@ class DLS(_Stacked):
     """x = J^T (J J^T + lambda^2 I)^-1 e (damped least squares)."""
 
     name = "dls"
+    strict = False
     description = "one damped least-squares step J^T (J J^T + lambda^2 I)^-1 e, all levels stacked"
 
     def __init__(self, damping: float = 1e-3, passes: int = 3):
@@ -250,6 +252,7 @@ class DLSLiegeois(Solver):
     """Boutin et al. eqs. (1)-(2): DLS plus the Liegeois joint-limit gradient in the null space."""
 
     name = "dls-liegeois"
+    strict = False
     description = "iterated DLS + Liegeois joint-limit gradient projected in the null space (Boutin eqs. 1-2)"
     supports_inequalities = True
     supports_warm_start = False

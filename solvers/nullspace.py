@@ -245,6 +245,7 @@ class PinvAll(_EqualityOnly):
     """All levels stacked, ``u = Jbar^+ ebar`` (no hierarchy)."""
 
     name = "pinv-all"
+    strict = False
     description = "all levels stacked and solved at once by SVD pseudo-inverse (no hierarchy)"
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:

@@ -10,6 +10,9 @@
   alone: not comparable across solvers, and labelled so.
 * :func:`non_strict`: solvers that do not claim the lexicographic optimum,
   with their real times and their per-level gap to the yardstick.
+* :func:`claim_met`: each row judged by its solver's own claim (the success
+  of the per-family table and figure): a strict row by ``verified``, a
+  non-strict row by its highest-priority level, level 0, met.
 
 Every function takes the rows of one mode with a ``label`` column
 (:func:`hikbench.bench.analysis.plots.solver_label`).
@@ -26,7 +29,7 @@ import pandas as pd
 
 from hikbench.bench.analysis.shgeom import charge_failures, relative_time, shifted_geometric_mean, timed
 
-__all__ = ["Ranking", "non_strict", "own_problems", "rank", "strict_labels"]
+__all__ = ["Ranking", "claim_met", "level0_met", "non_strict", "own_problems", "rank", "strict_labels"]
 
 
 @dataclass
@@ -136,10 +139,43 @@ def non_strict(d: pd.DataFrame, strict: set[str]) -> list[dict]:
         lost = Counter(int(v) for v, side in zip(tried["verdict_level"], tried["verdict_side"])
                        if side == "worse" and pd.notna(v))
         gaps = _level_gaps(tried)
+        l0 = level0_met(tried).dropna()
         out.append({"solver": lab, "attempted": len(tried), "declined": len(g) - len(tried), "timed": len(t),
                     "median_time_s": float(t.median()) if len(t) else None,
                     "meets_yardstick": int(tried["verified"].eq(True).sum()),
+                    "level0_met": int(l0.sum()), "level0_judged": len(l0),
                     "first_level_lost": _most_lost(lost),
                     "median_gap_per_level": [float(np.median(x)) for x in gaps],
                     "problems_per_level": [len(x) for x in gaps]})
     return out
+
+
+#: verdict_side values that say level 0 is met (the verdict's first differing level is below it, or
+#: the row is better there) or not ('no x': no solution); any other side cannot tell (no yardstick)
+_LEVEL0_SIDES = ("worse", "better", "no x")
+
+
+def level0_met(d: pd.DataFrame) -> pd.Series:
+    """Per row, whether x meets the highest-priority level, level 0, as the
+    yardstick does: ``||v_0(x)|| <= ||v_0(x_ref)||`` within the suite's
+    accuracy tolerance, read from the verdict (verified, or a first differing
+    level below 0, or better at level 0: met; worse at level 0, or no x: not
+    met). 1.0 / 0.0, NaN where the row cannot tell (no yardstick)."""
+    side = d["verdict_side"].where(d["verdict_side"].isin(_LEVEL0_SIDES))
+    level = pd.to_numeric(d["verdict_level"], errors="coerce")
+    met = pd.Series(np.nan, index=d.index)
+    met[side.eq("no x")] = 0.0
+    met[side.eq("better")] = 1.0
+    met[side.eq("worse")] = (level[side.eq("worse")] > 0).astype(float)
+    met[side.eq("worse") & level.isna()] = np.nan  # (a verdict without its level cannot tell)
+    met[d["verified"].eq(True)] = 1.0
+    return met
+
+
+def claim_met(d: pd.DataFrame, strict: set[str]) -> pd.Series:
+    """Per row (with its ``label``), whether its solver met its own claim: a
+    strict solver's row when ``verified`` (1.0, else 0.0); a non-strict
+    solver's row when it meets level 0 (:func:`level0_met`: NaN when it cannot
+    tell). docs/reports.md, "Success by each solver's claim"."""
+    is_strict = d["label"].isin(strict)
+    return d["verified"].eq(True).astype(float).where(is_strict, level0_met(d))

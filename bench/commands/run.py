@@ -17,7 +17,8 @@ def add_arguments(p) -> None:
                    f"`hikbench list suites` says what each holds) or a TOML file (default: quick)")
     p.add_argument("--solvers", nargs="+", default=None, metavar="SOLVER",
                    help="replace the suite's solvers: names, glob patterns ('cascade-*'), module:Class, "
-                        "or external:NAME=CMD")
+                        "or external:NAME=CMD (external:NAME[strict=false]=CMD: a program that does not "
+                        "claim the lexicographic optimum)")
     p.add_argument("--out", default=None, help="output directory (default: results/<suite>)")
     p.add_argument("--repeat", type=int, default=None,
                    help="timed repetitions per row (default: the suite's)")

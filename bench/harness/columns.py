@@ -13,6 +13,10 @@ __all__ = ["COLUMNS", "JSON_COLUMNS", "KEY", "markdown", "names"]
 COLUMNS: tuple[tuple[str, str], ...] = (
     ("problem", ("problem id: family/param=value,.../seed=S (the file OUT/problems/<id>.npz, each / of the "
                  "id written __)")),
+    ("problem_hash", ("the problem's content: 16 hex digits of the SHA-256 of its arrays A, lower, upper, level, "
+                      "n, depth (hikbench.bench.harness.cache.problem_hash); its yardstick is cached as "
+                      "OUT/yardstick/<problem_hash>.npz. A finished row whose problem_hash differs from its "
+                      "problem's now (a family's parameters or code changed) is run again")),
     ("family", "problem family (a `hikbench list families` name, or module:function)"),
     ("params", "JSON dict of the family parameters given by the suite (defaults not repeated)"),
     ("seed", "generator seed"),
@@ -27,7 +31,9 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("solver", "solver name (registry name; the class's `name` for module:Class and file.py:Class; external:NAME)"),
     ("settings", "settings name from the suite ('default' = the solver's own defaults)"),
     ("options", "JSON dict of the solver options of these settings"),
-    ("strict", "True for strict-hierarchy solvers (judged against the lexicographic optimum)"),
+    ("strict", ("the solver's claim: True for a strict-hierarchy solver (judged against the lexicographic optimum: "
+                "verified), False for a weighted or damped one (judged by its real times, per-level gaps and "
+                "level 0 met); from Solver.strict / SolverInfo.strict, or external:NAME[strict=false]=CMD")),
     ("mode", "cold (fresh solver object per repetition) or warm (re-solve on one object)"),
     ("repeat", "timed repetitions (after the discarded warm-up; with rounds, over all of them)"),
     ("status", ("solver status (optimal, max_iterations, infeasible_level, numerical_failure, "

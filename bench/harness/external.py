@@ -1,4 +1,11 @@
-"""External solvers: ``--solvers external:NAME=CMD``.
+"""External solvers: ``--solvers external:NAME=CMD`` (strict) or
+``external:NAME[strict=false]=CMD``.
+
+The declaration in brackets is the program's claim (:func:`parse_spec`):
+``strict=true`` (the default) says it returns the lexicographic optimum (its
+rows are judged by ``verified``); ``strict=false`` says it solves another
+problem (weighted, damped): it is reported like ``weighted``, with its real
+times and its per-level gap to the yardstick, not as failing it.
 
 Protocol (docs/adding-a-solver.md, "An external program"): for every solve, the harness writes the
 problem to a temporary directory and runs CMD (split like a shell command line,
@@ -51,11 +58,68 @@ from hikbench.bench.harness.isolation import HeadTail, kill_session
 from hikbench.bench.harness.statuses import TIMEOUT
 from hikbench.solvers.base import ERROR, OPTIMAL, STATUSES, SolveResult
 
-__all__ = ["run_external"]
+__all__ = ["SPEC_KEYS", "ExternalSpec", "parse_spec", "run_external"]
+
+
+#: the declarations an external spec takes in brackets, ``external:NAME[strict=false]=CMD``
+SPEC_KEYS = ("strict",)
+_BOOLS = {"true": True, "false": False}
+
+
+@dataclass(frozen=True)
+class ExternalSpec:
+    """``external:NAME[strict=...]=CMD`` parsed: ``name`` (NAME), ``strict``, ``command`` (CMD)."""
+
+    name: str
+    strict: bool
+    command: str
+
+
+def parse_spec(text: str) -> ExternalSpec:
+    """Parse ``external:NAME=CMD`` or ``external:NAME[strict=true|false]=CMD``;
+    ValueError naming what is wrong (NAME missing, CMD without ``{out}``, an
+    unknown key in the brackets with its closest known one, a strict value
+    other than true or false)."""
+    name, decl, cmd = _split(text)
+    if not name or not cmd.strip():
+        raise ValueError("expected external:NAME=CMD, e.g. external:mysolver='./mysolver {problem} {out}'")
+    if "{out}" not in cmd:
+        raise ValueError("CMD must contain the placeholder {out} (where x is written)")
+    return ExternalSpec(name, _declarations(decl), cmd)
+
+
+def _split(text: str) -> tuple[str, str, str]:
+    """(NAME, the declaration in brackets, CMD) of ``external:NAME[...]=CMD``
+    (CMD empty when there is no '='); ValueError for brackets not closed by ']='."""
+    body = text[len("external:"):] if text.startswith("external:") else text
+    head, _, cmd = body.partition("=")
+    if "[" not in head:
+        return head, "", cmd
+    name, _, rest = body.partition("[")  # (the brackets hold '=': the command starts after the matching ']=')
+    decl, close, after = rest.partition("]")
+    if not close or not after.startswith("="):
+        raise ValueError("expected external:NAME[strict=true|false]=CMD: no ']=' after the declaration")
+    return name, decl, after[1:]
+
+
+def _declarations(decl: str) -> bool:
+    """The ``strict`` of the declaration ``strict=false`` (empty: True)."""
+    strict = True
+    for item in filter(None, (d.strip() for d in decl.split(","))):
+        key, eq, value = (p.strip() for p in item.partition("="))
+        if key not in SPEC_KEYS:
+            close = difflib.get_close_matches(key, SPEC_KEYS, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise ValueError(f"unknown declaration {key!r}{hint} in [...]: expected strict=true or strict=false")
+        if not eq or value not in _BOOLS:
+            raise ValueError(f"strict={value}: expected strict=true (the program returns the lexicographic "
+                             f"optimum) or strict=false (it does not: weighted, damped)")
+        strict = _BOOLS[value]
+    return strict
 
 
 def _command(spec: str) -> str:
-    return spec[len("external:"):].partition("=")[2]
+    return _split(spec)[2]
 
 
 _LAUNCHER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "launcher.py")

@@ -103,13 +103,15 @@ def finished_keys(out_dir) -> set[tuple]:
     return set(finished_rows(out_dir))
 
 
-def finished_rows(out_dir) -> dict[tuple, str]:
-    """Key (hikbench.bench.harness.columns.KEY) -> ``options`` JSON of the complete rows of
-    OUT/results.csv (the last row of a key wins)."""
+def finished_rows(out_dir) -> dict[tuple, tuple[str, str]]:
+    """Key (hikbench.bench.harness.columns.KEY) -> (``options`` JSON, ``problem_hash``) of the
+    complete rows of OUT/results.csv (the last row of a key wins): what a finished row
+    was run with, for resuming (hikbench.bench.harness.runner)."""
     path = Path(out_dir) / RESULTS
     if not path.exists():
         return {}
-    return {tuple(r[k] for k in KEY): r.get("options") or "{}" for r in _complete_rows(path)}
+    return {tuple(r[k] for k in KEY): (r.get("options") or "{}", r.get("problem_hash") or "")
+            for r in _complete_rows(path)}
 
 
 def _complete_rows(path: Path) -> list[dict]:

@@ -9,8 +9,11 @@ Layout of OUT::
     results.csv           one row per job (bench/harness/columns.py)
     run.json              environment, suite, calibration, sessions
     summary.json          rows, solvers, problems, verified counts, statuses, wall time (bench/harness/summary.py)
-    problems/<id>.npz     every problem of the suite (and .soth.txt if exported)
-    yardstick/<id>.npz    cached yardstick solution (x, status, reason)
+    problems/<id>.npz     every problem of the suite (and .soth.txt if exported); a file
+                          whose content is not its problem's is written again
+    yardstick/<problem_hash>.npz  cached yardstick solution (x, status, reason) of the
+                          problem of that content, by yardstick code version ``code``
+                          (hikbench.bench.harness.cache)
     worker.log            stderr of the isolated worker processes
     run.lock              held (flock) by the run writing to OUT: a second run on
                           the same OUT is refused; the OS releases it when the
@@ -25,16 +28,16 @@ import math
 import os
 import socket
 import sys
-import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
+from hikbench.bench.harness.cache import load_yardstick, save_yardstick, yardstick_code, yardstick_path
 from hikbench.bench.harness.calibration import KERNEL, calibrate
 from hikbench.bench.harness.columns import KEY
 from hikbench.bench.harness.environment import environment, read_run_json, utc_now, write_run_json
-from hikbench.bench.suites.problemset import file_stem, generate, problem_columns, save_problem
+from hikbench.bench.suites.problemset import generate, problem_columns, save_problems
 from hikbench.bench.harness.results import ResultsWriter, backup, compact, finished_rows
 from hikbench.bench.harness.summary import write_summary
 from hikbench.bench.suites import ACCURACY, Suite, SuiteError, Task, expand
@@ -61,30 +64,6 @@ def _finite(v):
 
 def _json_floats(a) -> str:
     return json.dumps([None if not math.isfinite(float(v)) else float(v) for v in a])
-
-
-def _load_yardstick(path: Path, n: int):
-    """(x or None, status, reason) cached in ``path``; None, said on stderr, when the
-    file cannot be read or does not hold a yardstick of ``n`` variables (a damaged
-    file: the caller computes it again)."""
-    try:
-        with np.load(path, allow_pickle=False) as z:
-            x, status, reason = z["x"], str(z["status"]), str(z["reason"])
-        if x.dtype.kind != "f" or x.shape not in ((0,), (n,)):
-            raise ValueError(f"x of dtype {x.dtype} and shape {x.shape}: expected float64 of shape ({n},)")
-    except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile) as err:
-        print(f"hikbench run: {path} cannot be read ({type(err).__name__}: {' '.join(str(err).split())}); "
-              f"computing the yardstick again", file=sys.stderr)
-        return None
-    return (x if x.size else None), status, reason
-
-
-def _save_yardstick(path: Path, x, status: str, reason: str) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_suffix(".tmp")
-    with open(tmp, "wb") as f:
-        np.savez(f, x=np.zeros(0) if x is None else np.asarray(x, float), status=status, reason=reason)
-    tmp.replace(path)
 
 
 def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: float) -> dict:
@@ -242,8 +221,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         export, export_skipped = _export_formats(suite.export)
         for name, why in skipped.items():
             print(f"hikbench run: skipping solver {name}: {why}", file=sys.stderr)
-        for pid, h in problems.items():
-            save_problem(h, out / "problems", pid, export)
+        save_problems(problems, out / "problems", export)
         if not tasks:  # e.g. every solver's backend missing: the problems are still exported, then fail
             why = "; ".join(f"skipped solver {k}: {v}" for k, v in skipped.items()) or (
                 f"none of its solvers runs in its modes {list(suite.modes)}: warm needs supports_warm_start")
@@ -252,14 +230,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
 
         compact(out)  # a run killed while replacing rows left old rows behind
         done = finished_rows(out)
-        if rerun:
-            todo = list(tasks)
-        else:  # a finished key whose settings' options changed runs again
-            todo = [t for t in tasks if done.get(t.key) != t.entry.options_json()]
-            changed = sum(t.key in done for t in todo)
-            if changed:
-                print(f"hikbench run: {changed} finished row(s) run again: their settings' options changed",
-                      file=sys.stderr)
+        todo = list(tasks) if rerun else _todo(tasks, done, pcols)
         summary.skipped_finished = len(tasks) - len(todo)
         if limit is not None:
             todo = todo[: max(int(limit), 0)]
@@ -275,7 +246,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         # (the solvers this directory's runs selected, skipped ones included: compare expects their cases)
         selected = sorted({t.entry.solver for t in tasks} | set(skipped) | set(meta.get("selected_solvers", [])))
         meta.update({"suite": suite.to_dict(), "suite_rows": len(tasks), "selected_solvers": selected,
-                     "calibration_kernel": KERNEL, "key": list(KEY),
+                     "calibration_kernel": KERNEL, "key": list(KEY), "yardstick_code": yardstick_code(),
                      "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
                      "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
         meta.setdefault("created", session["started"])
@@ -287,7 +258,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         session["executor"] = getattr(executor, "name", type(executor).__name__)
         try:
             with _Progress(quiet) as progress:
-                refs = _yardsticks(todo, problems, out, executor, max(timeout, suite.first_solve_timeout), progress)
+                refs = _yardsticks(todo, problems, pcols, out, executor, max(timeout, suite.first_solve_timeout),
+                                   progress)
                 tid = progress.add("solves", len(todo) * rounds)
                 earlier = {i: [] for i in range(len(todo))}  # results of the rounds before, per job
                 alive = list(earlier)  # jobs still to run in the next round
@@ -404,28 +376,71 @@ def _export_formats(formats) -> tuple[tuple, dict]:
     return tuple(keep), skipped
 
 
-def _yardsticks(todo, problems, out: Path, executor, timeout, progress) -> dict:
-    """x_ref, status, reason per problem id, from OUT/yardstick/ or computed
-    through the executor (isolated; ``timeout`` is the larger of the job
-    timeout and the first-solve allowance: the yardstick is trusted code and
-    its first call imports its QP backends)."""
-    refs, need = {}, []
-    for pid in dict.fromkeys(t.problem.id for t in todo):
-        path = out / "yardstick" / (file_stem(pid) + ".npz")
-        cached = _load_yardstick(path, problems[pid].n) if path.exists() else None
-        if cached is not None:
-            refs[pid] = cached
+def _todo(tasks: list[Task], done: dict, pcols: dict) -> list[Task]:
+    """The tasks to run when resuming: those without a finished row, and those
+    whose finished row was run with other settings' options or on another
+    problem content (``problem_hash``: a family's parameters or code changed
+    since); each such reason is one line on stderr."""
+    todo, options, content = [], 0, 0
+    for t in tasks:
+        if t.key not in done:
+            todo.append(t)
+            continue
+        opts, phash = done[t.key]
+        if opts != t.entry.options_json():
+            options += 1
+        elif phash != pcols[t.problem.id]["problem_hash"]:
+            content += 1
         else:
-            need.append(pid)
+            continue
+        todo.append(t)
+    if options:
+        print(f"hikbench run: {options} finished row(s) run again: their settings' options changed",
+              file=sys.stderr)
+    if content:
+        print(f"hikbench run: {content} finished row(s) run again: their problem's content changed (its "
+              f"problem_hash differs: the family's parameters or code changed); each new row replaces its old one",
+              file=sys.stderr)
+    return todo
+
+
+def _yardsticks(todo, problems, pcols, out: Path, executor, timeout, progress) -> dict:
+    """x_ref, status, reason per problem id, from OUT/yardstick/<problem_hash>.npz
+    or computed through the executor (isolated; ``timeout`` is the larger of the
+    job timeout and the first-solve allowance: the yardstick is trusted code and
+    its first call imports its QP backends); problems of the same content share
+    one. A cached file of other yardstick code (:func:`hikbench.bench.harness.cache.yardstick_code`)
+    is computed again, which one line on stderr says."""
+    code = yardstick_code()
+    refs, need, stale = {}, {}, 0
+    for pid in dict.fromkeys(t.problem.id for t in todo):
+        phash = pcols[pid]["problem_hash"]
+        if phash in need:
+            need[phash].append(pid)
+            continue
+        path = yardstick_path(out, phash)
+        cached = load_yardstick(path, problems[pid].n) if path.exists() else None
+        if cached is not None and cached[1] == (phash, code):
+            refs[pid] = cached[0]
+            continue
+        if cached is not None and cached[1][0] != phash:  # (a file copied or renamed by hand)
+            print(f"hikbench run: {path} holds the yardstick of problem_hash {cached[1][0]}, not {phash}; "
+                  f"computing the yardstick again", file=sys.stderr)
+        stale += cached is not None and cached[1][0] == phash
+        need[phash] = [pid]
+    if stale:
+        print(f"hikbench run: {stale} cached yardstick(s) computed again: the yardstick's code changed "
+              f"(hikbench.bench.harness.cache.YARDSTICK_MODULES, version {code})", file=sys.stderr)
     if need:
         tid = progress.add("yardstick", len(need))
-        items = ((pid, {"kind": "yardstick", "hierarchy": problems[pid]}, timeout) for pid in need)
-        for pid, res in executor.map(items):
+        items = ((phash, {"kind": "yardstick", "hierarchy": problems[pids[0]]}, timeout)
+                 for phash, pids in need.items())
+        for phash, res in executor.map(items):
             x = res.get("x") if res["status"] == "optimal" else None
-            refs[pid] = (x, res["status"], res.get("reason", ""))
+            for pid in need[phash]:
+                refs[pid] = (x, res["status"], res.get("reason", ""))
             # a killed or lost worker is no answer of the yardstick: not cached, the next run tries again
             if res["status"] not in (TIMEOUT, CRASHED):
-                _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), x, res["status"],
-                                res.get("reason", ""))
+                save_yardstick(yardstick_path(out, phash), x, res["status"], res.get("reason", ""), phash, code)
             progress.advance(tid)
     return refs

@@ -39,7 +39,7 @@ def solver_info(spec: str, name: str = "") -> registry.SolverInfo:
         if not callable(obj) or (isinstance(obj, type) and not callable(getattr(obj, "solve", None))):
             raise HikbenchError(f"{spec!r} is not a solver: expected a class with a solve(hierarchy) method "
                                 f"(a hikbench.solvers.base.Solver subclass) or a factory returning one")
-        return registry.SolverInfo(name or spec, "", obj)
+        return registry.SolverInfo(name or spec, "", obj, strict=bool(getattr(obj, "strict", True)))
     return registry.get(spec)
 
 

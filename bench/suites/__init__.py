@@ -281,8 +281,11 @@ def _entry_for_object(spec: str, where: str) -> SolverEntry:
     if (known is not None and known.factory is not obj) or name in registry.missing():  # (e.g. inherited)
         raise SuiteError(f"{where}: solver {spec!r} is named {name!r} (its attribute `name`), the name of a "
                          f"registered solver, whose rows it would take: give it a name of its own")
-    return SolverEntry(solver=name, spec=spec, strict=bool(getattr(obj, "strict", True)),
-                       warm=bool(getattr(obj, "supports_warm_start", False)))
+    strict = getattr(obj, "strict", True)
+    if not isinstance(strict, bool):  # (its claim decides how every row of it is judged: no guessing)
+        raise SuiteError(f"{where}: solver {spec!r} has strict = {strict!r}: expected True or False (True: it "
+                         f"returns the lexicographic optimum; False: weighted, damped, not strict)")
+    return SolverEntry(solver=name, spec=spec, strict=strict, warm=bool(getattr(obj, "supports_warm_start", False)))
 
 
 def _check_options(entry: SolverEntry, settings_name: str, options: dict, suite_file: str) -> None:
@@ -351,7 +354,7 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
     for pat in patterns:
         pat = registry.ALIASES.get(pat, pat)  # an earlier name of a solver: its rows take the current one
         if pat.startswith("external:"):
-            add(parse_external(pat))
+            add(parse_external(pat, where))
         elif ":" in pat:
             add(_entry_for_object(pat, where))
         elif any(c in pat for c in "*?["):
@@ -410,13 +413,14 @@ def expand(suite: Suite, solver_patterns=None) -> tuple[list[Task], dict[str, st
     return tasks, skipped
 
 
-def parse_external(text: str):
-    """``external:NAME=CMD`` -> SolverEntry."""
-    body = text[len("external:"):]
-    name, sep, cmd = body.partition("=")
-    if not sep or not name or not cmd.strip():
-        raise HikbenchError(f"{text!r}: expected external:NAME=CMD, e.g. "
-                            "external:mysolver='./mysolver {problem} {out}'")
-    if "{out}" not in cmd:
-        raise HikbenchError(f"{text!r}: CMD must contain the placeholder {{out}} (where x is written)")
-    return SolverEntry(solver=f"external:{name}", spec=text, strict=True, warm=False)
+def parse_external(text: str, where: str = "--solvers") -> SolverEntry:
+    """``external:NAME=CMD`` or ``external:NAME[strict=false]=CMD``
+    (hikbench.bench.harness.external.parse_spec) -> SolverEntry; SuiteError
+    naming ``where`` (the suite file, or --solvers) and the spec otherwise."""
+    from hikbench.bench.harness.external import parse_spec
+
+    try:
+        ext = parse_spec(text)
+    except ValueError as err:
+        raise SuiteError(f"{where}: {text!r}: {err}") from None
+    return SolverEntry(solver=f"external:{ext.name}", spec=text, strict=ext.strict, warm=False)

@@ -20,10 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from hikbench.bench.harness.cache import problem_hash
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.hierarchy import Hierarchy
 
-__all__ = ["ProblemSpec", "file_stem", "generate", "load_object", "problem_columns"]
+__all__ = ["ProblemSpec", "file_stem", "generate", "load_object", "problem_columns", "save_problem", "save_problems"]
 
 
 def load_object(spec: str):
@@ -171,6 +172,7 @@ def problem_columns(spec: ProblemSpec, h: Hierarchy) -> dict:
         ranks.append(int(np.linalg.matrix_rank(Ak)) if Ak.size else 0)
     return {
         "problem": spec.id,
+        "problem_hash": problem_hash(h),
         "family": spec.family_name,
         "params": spec.params_json(),
         "seed": spec.seed,
@@ -185,40 +187,62 @@ def problem_columns(spec: ProblemSpec, h: Hierarchy) -> dict:
     }
 
 
-def _readable_npz(path: Path) -> bool:
-    """Whether the problem file ``path`` loads; when not, says on stderr that it
-    will be written again."""
+def _stored(path: Path):
+    """The hierarchy in the problem file ``path``, or None when it cannot be
+    read, which a line on stderr says (it will be written again)."""
     from hikbench.problems.files import load_npz
 
     try:
-        load_npz(path)
+        return load_npz(path)
     except HikbenchError as err:
         print(f"hikbench run: {path} cannot be read ({' '.join(str(err).split())}); writing it again",
               file=sys.stderr)
-        return False
-    return True
+        return None
 
 
-def save_problem(h: Hierarchy, directory: str | os.PathLike, problem_id: str, formats=("npz",)) -> dict:
+def _same(a: Hierarchy, b: Hierarchy) -> bool:
+    """Whether two hierarchies are the same problem file: same content hash, names and x0."""
+    x0_same = (a.x0 is None and b.x0 is None) or (
+        a.x0 is not None and b.x0 is not None and np.array_equal(a.x0, b.x0))
+    return problem_hash(a) == problem_hash(b) and list(a.names) == list(b.names) and x0_same
+
+
+def save_problems(problems: dict, directory: str | os.PathLike, formats=("npz",)) -> None:
+    """:func:`save_problem` of every ``{problem id: Hierarchy}``; the files
+    written again because their content was another problem's (a family's
+    parameters or code changed since they were written) are counted in one
+    line on stderr."""
+    changed = sum(save_problem(h, directory, pid, formats)[1] for pid, h in problems.items())
+    if changed:
+        print(f"hikbench run: {changed} problem file(s) in {directory} written again: their content changed "
+              f"(the family's parameters or code)", file=sys.stderr)
+
+
+def save_problem(h: Hierarchy, directory: str | os.PathLike, problem_id: str,
+                 formats=("npz",)) -> tuple[dict, bool]:
     """Write h as OUT/problems/<stem>.<ext> for each format (npz, soth);
-    returns {format: path}. Existing files are kept (same spec, same problem),
-    except an .npz that cannot be read (a damaged file of an earlier run): it is
-    written again, which a line on stderr says."""
+    returns ({format: path}, whether a file of other content was replaced).
+    An existing .npz holding h (same content hash, names and x0) is kept; one
+    that cannot be read (a damaged file of an earlier run: a line on stderr
+    says so) or that holds another problem is written again, and so is the
+    SOTH text beside it."""
     from hikbench.problems.files import save_npz
 
     d = Path(directory)
     d.mkdir(parents=True, exist_ok=True)
-    out = {}
-    for fmt in formats:
+    out, replaced, fresh = {}, False, "npz" not in formats  # (SOTH alone: written every run, never stale)
+    for fmt in sorted(formats, key=lambda f: f != "npz"):  # (the .npz first: it tells whether h changed)
         if fmt == "npz":
             path = d / (file_stem(problem_id) + ".npz")
-            if not path.exists() or not _readable_npz(path):
+            old = _stored(path) if path.exists() else None
+            if old is None or not _same(old, h):
+                replaced, fresh = old is not None, True
                 tmp = path.with_suffix(".npz.tmp")
                 save_npz(h, tmp)
                 os.replace(tmp, path)
         elif fmt == "soth":
             path = d / (file_stem(problem_id) + ".soth.txt")
-            if not path.exists():
+            if not path.exists() or fresh:
                 try:
                     from hikbench.problems.soth import save_soth
                 except ModuleNotFoundError as err:
@@ -230,4 +254,4 @@ def save_problem(h: Hierarchy, directory: str | os.PathLike, problem_id: str, fo
         else:
             raise HikbenchError(f"unknown export format {fmt!r}: expected 'npz' or 'soth'")
         out[fmt] = path
-    return out
+    return out, replaced

@@ -44,16 +44,20 @@ def test_a_damaged_cached_yardstick_is_computed_again(tmp_path, capsys, damage):
 
 def test_a_cached_yardstick_of_another_size_is_computed_again(tmp_path, capsys):
     suite, out, ystick, _ = _first_run(tmp_path, capsys)
+    with np.load(ystick) as z:
+        key = {k: str(z[k]) for k in ("problem_hash", "code")}
     with open(ystick, "wb") as f:
-        np.savez(f, x=np.zeros(7), status="optimal", reason="")
+        np.savez(f, x=np.zeros(7), status="optimal", reason="", **key)
     err = _rerun(capsys, suite, out)
     assert "expected float64 of shape (4,)" in err, err
     assert read_results(out)["verified"].tolist() == [True]
 
 
-def test_a_damaged_problem_file_is_written_again(tmp_path, capsys):
+@pytest.mark.parametrize("damage", [b"", b"PK\x03\x04 cut short", b"not a zip at all", None],
+                         ids=["empty", "truncated zip", "garbage", "cut after 100 bytes"])
+def test_a_damaged_problem_file_is_written_again(tmp_path, capsys, damage):
     suite, out, _, problem = _first_run(tmp_path, capsys)
-    problem.write_bytes(problem.read_bytes()[:100])
+    problem.write_bytes(problem.read_bytes()[:100] if damage is None else damage)
     err = _rerun(capsys, suite, out)
     lines = [ln for ln in err.splitlines() if str(problem) in ln]
     assert len(lines) == 1 and "writing it again" in lines[0], err

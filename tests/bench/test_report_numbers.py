@@ -35,7 +35,7 @@ def test_verified_percent_leaves_unsupported_rows_out(declining_run, capsys):
     solvers = _table(md, "Each strict solver on the problems it attempted alone")
     assert solvers["nullspace-svd"]["declined"] == "1"
     assert solvers["nullspace-svd"]["success"] == "100% (2/2)"  # 2 of the 2 rows it supports
-    fam = _table(md, "Verified success rate per solver and family")
+    fam = _table(md, "Success rate per solver and family")
     assert fam["nullspace-svd"]["equality"] == "100%"
     assert fam["nullspace-svd"]["ik-like"] == "-"  # declined entirely: no rate, not 0%
     assert fam["yardstick"]["ik-like"] == "100%"
@@ -62,7 +62,7 @@ def test_verified_per_bound_scale_when_a_run_has_one(declining_run, tmp_path):
     (tmp_path / "s.toml").write_text(UNITS_SUITE)
     assert main(["run", "--quiet", "--suite", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 0
     assert main(["report", str(tmp_path / "out")]) == 0
-    units = _table((tmp_path / "out" / "report.md").read_text(), "Verified success rate per solver and bound_scale")
+    units = _table((tmp_path / "out" / "report.md").read_text(), "Success rate per solver and bound_scale")
     assert units["hcod"]["x 1"] == units["hcod"]["x 1e-09"] == "100%"  # 2 seeds x cold, warm
     assert all(units["cascade-clarabel"][c].endswith("%") for c in ("x 1", "x 1e-09"))
     assert units["nullspace-svd"]["x 1e-09"] == "-"  # (declines inequalities)
