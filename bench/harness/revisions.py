@@ -131,11 +131,13 @@ def _hcod_dir(root: Path) -> Path:
 
 def share_numba_cache(site: Path) -> bool:
     """Copy the working tree's compiled hcod kernels into the base's install when
-    every hcod source file is the same; True when copied."""
+    every hcod source file is the same on both sides; True when copied. All or
+    nothing: numba's cache of a kernel holds the kernels it calls from other files
+    and is checked against its own file only, so a partial copy could run the
+    working tree's code on the base."""
     from hikbench.solvers import hcod
 
-    mine = Path(hcod.__file__).parent
-    theirs = _hcod_dir(site)
+    mine, theirs = Path(hcod.__file__).parent, _hcod_dir(site)
     ours = sorted(p.name for p in mine.glob("*.py"))
     if not theirs.is_dir() or ours != sorted(p.name for p in theirs.glob("*.py")):
         return False
