@@ -33,6 +33,7 @@ COMMANDS: dict[str, str] = {
     "run": "run",
     "report": "report",
     "compare": "compare",
+    "regress": "regress",
     "claims": "claims",
     "columns": "columns",
     "scenario": "scenario",

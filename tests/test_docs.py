@@ -14,14 +14,14 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 DOCS = ROOT / "docs"
 PAGES = [ROOT / "README.md", ROOT / "CHANGELOG.md", *sorted(DOCS.glob("*.md")),
-         ROOT / "results" / "baseline" / "README.md", ROOT / "problems" / "robots" / "README.md"]
+         ROOT / "problems" / "robots" / "README.md"]
 README_MAX_LINES = 250
 
 #: the first component of a backticked span that is read as a repository path
 TOP = {p.name for p in ROOT.iterdir() if not p.name.startswith(".") or p.name == ".ci"} - {".venv"}
 #: folders that commands write under results/ (git-ignored: .gitignore's /results/*/); the committed
-#: ones (sample, baseline, peers) must exist
-RUN_OUTPUTS = {"quick", "paper", "ci", "ci-confirm-1", "ci-confirm-2", "scenarios", "mine", "external", "units"}
+#: ones (sample, peers) must exist
+RUN_OUTPUTS = {"quick", "paper", "ci", "regress", "scenarios", "mine", "external", "units"}
 _PATH = re.compile(r"^[A-Za-z0-9_.\-/]+$")
 _PLACEHOLDER = re.compile(r"(^|/)[A-Z][A-Z0-9_]*(/|$|\.)")  # NAME, OUT, RUN, DIR as a component
 

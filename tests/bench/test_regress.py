@@ -1,0 +1,178 @@
+"""``hikbench regress``: the decision on paired rounds (synthetic runs), and the
+command end to end on this checkout's HEAD as the base revision."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hikbench.bench.analysis.regress import FAILING, decide, markdown, to_json
+from hikbench.bench.cli import main
+from tests.bench.doubles import spec
+
+ROOT = Path(__file__).resolve().parents[2]
+CASES = [("p1", "hcod", "default", "cold"), ("p1", "hcod", "default", "warm"), ("p2", "daqp", "default", "cold")]
+
+
+def _frames(rounds: int, times: dict, noise: float, seed: int, verified=None) -> list[pd.DataFrame]:
+    """``rounds`` results frames: each case's time_median_s = times[case] x lognormal(noise)."""
+    rng = np.random.default_rng(seed)
+    verified = verified or {}
+    return [pd.DataFrame([{"problem": k[0], "solver": k[1], "settings": k[2], "mode": k[3],
+                           "status": "optimal", "reason": "", "verified": verified.get(k, True),
+                           "time_median_s": t * math.exp(noise * rng.standard_normal())}
+                          for k, t in times.items()]) for _ in range(rounds)]
+
+
+BASE_TIMES = {CASES[0]: 20e-6, CASES[1]: 12e-6, CASES[2]: 1e-3}
+
+
+@pytest.mark.parametrize("seed", range(20), ids=lambda s: f"seed{s}")
+def test_same_times_flag_nothing(seed):
+    """A/A: both sides drawn from one distribution (5 % noise per round): no case fails."""
+    dec = decide(_frames(6, BASE_TIMES, 0.05, seed), _frames(6, BASE_TIMES, 0.05, seed + 100))
+    assert not dec.failed, markdown(dec, "")
+
+
+@pytest.mark.parametrize("factor, verdict", [(1.4, "SLOWER"), (1.05, "ok"), (1 / 1.4, "faster")],
+                         ids=["slower-1.4", "slower-1.05-under-threshold", "faster-1.4"])
+def test_a_slowdown_is_flagged_past_the_threshold_only(factor, verdict):
+    change = BASE_TIMES | {CASES[0]: BASE_TIMES[CASES[0]] * factor}
+    dec = decide(_frames(8, BASE_TIMES, 0.02, 1), _frames(8, change, 0.02, 2))
+    case = next(c for c in dec.cases if (c.problem, c.solver, c.settings, c.mode) == CASES[0])
+    assert case.verdict == verdict, markdown(dec, "")
+    np.testing.assert_allclose(case.ratio, factor, rtol=0.03)
+    assert case.low <= case.ratio <= case.high
+    assert bool(dec.failed) == (verdict == "SLOWER")
+
+
+def test_a_significant_slowdown_near_the_threshold_is_borderline():
+    change = BASE_TIMES | {CASES[0]: BASE_TIMES[CASES[0]] * 1.15}
+    dec = decide(_frames(6, BASE_TIMES, 0.05, 3), _frames(6, change, 0.05, 4))
+    assert [(c.problem, c.solver, c.settings, c.mode) for c in dec.borderline] == [CASES[0]]
+
+
+def test_a_new_failure_is_a_regression():
+    dec = decide(_frames(3, BASE_TIMES, 0.02, 5), _frames(3, BASE_TIMES, 0.02, 6, verified={CASES[2]: False}))
+    assert [(c.verdict, c.solver) for c in dec.failed] == [("NEWLY FAILING", "daqp")]
+
+
+def test_a_case_gone_from_the_change_is_missing_when_its_solver_still_ran():
+    change = {k: t for k, t in BASE_TIMES.items() if k != CASES[1]}
+    dec = decide(_frames(3, BASE_TIMES, 0.02, 7), _frames(3, change, 0.02, 8),
+                 change_meta={"selected_solvers": ["hcod", "daqp"]})
+    assert [(c.verdict, c.mode) for c in dec.failed] == [("MISSING", "warm")]
+    dropped = decide(_frames(3, BASE_TIMES, 0.02, 7), _frames(3, change, 0.02, 8),
+                     change_meta={"selected_solvers": ["daqp"]})
+    assert not dropped.failed
+    gone = next(c for c in dropped.cases if c.mode == "warm")
+    assert (gone.verdict, gone.why) == ("not timed", "only in the base's suite")
+
+
+def test_the_markdown_and_json_outputs_carry_every_case(tmp_path):
+    change = BASE_TIMES | {CASES[0]: BASE_TIMES[CASES[0]] * 1.4}
+    dec = decide(_frames(8, BASE_TIMES, 0.02, 9), _frames(8, change, 0.02, 10, verified={CASES[2]: False}))
+    to_json(dec, {"suite": "ci", "exit": 1}, tmp_path / "r.json")
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert doc["regression"] and doc["counts"]["SLOWER"] == 1 and doc["counts"]["NEWLY FAILING"] == 1
+    assert [(c["problem"], c["mode"], c["verdict"]) for c in doc["cases"]] == [
+        ("p2", "cold", "NEWLY FAILING"), ("p1", "cold", "SLOWER"), ("p1", "warm", "ok")]
+    text = markdown(dec, "### head")
+    rows = [ln for ln in text.splitlines() if ln.startswith("| p")]
+    assert len(rows) == 3 and "SLOWER" in rows[1] and "1.4" in rows[1]
+    assert {c.verdict for c in dec.failed} == {"SLOWER", "NEWLY FAILING"} <= set(FAILING)
+
+
+def _regress(*argv, cwd: Path):
+    return subprocess.run([sys.executable, "-m", "hikbench", "regress", *map(str, argv)], capture_output=True,
+                          text=True, cwd=cwd, timeout=900, check=False)
+
+
+def _one_line_error(capsys, argv, *needles):
+    """``hikbench regress ARGV`` (in this process) exits 2 with one line naming ``needles``."""
+    assert main(["regress", *map(str, argv)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    for needle in needles:
+        assert needle in err, err
+
+
+def test_a_base_revision_that_does_not_exist_is_an_error(tmp_path, capsys):
+    _one_line_error(capsys, ["--base", "no-such-branch-xyz", "--repo", ROOT, "--out", tmp_path],
+                    "no-such-branch-xyz", "not a revision")
+
+
+def test_a_folder_outside_git_is_an_error(tmp_path, capsys):
+    _one_line_error(capsys, ["--base", "HEAD", "--repo", tmp_path, "--out", tmp_path / "o"],
+                    "not in a git repository")
+
+
+@pytest.mark.parametrize("pyproject, needle", [
+    (None, "has no pyproject.toml"),
+    ("[project]\nname = 'broken'\nversion = 'not a version'\n", "does not install"),
+], ids=["no-pyproject", "bad-pyproject"])
+def test_a_base_revision_that_does_not_install_is_an_error(tmp_path, capsys, pyproject, needle):
+    repo = tmp_path / "repo"
+    repo.mkdir()
+    (repo / "README").write_text("not hikbench\n")
+    if pyproject:
+        (repo / "pyproject.toml").write_text(pyproject)
+    git = ["git", "-C", str(repo), "-c", "user.name=t", "-c", "user.email=t@t"]
+    subprocess.run(["git", "init", "-q", str(repo)], check=True)
+    subprocess.run([*git, "add", "."], check=True)
+    subprocess.run([*git, "commit", "-q", "-m", "a revision"], check=True)
+    _one_line_error(capsys, ["--base", "HEAD", "--repo", repo, "--out", tmp_path / "o"], needle)
+
+
+@pytest.mark.parametrize("argv, needle", [
+    (["--threshold", "0.9"], "--threshold"), (["--alpha", "1"], "--alpha"),
+    (["--min-rounds", "5", "--max-rounds", "3"], "--min-rounds"), (["--budget", "-1"], "--budget"),
+    (["--repeat", "1"], "--repeat"), (["--suite", "missing.toml"], "no such file"),
+], ids=["threshold", "alpha", "rounds", "budget", "repeat", "suite-file"])
+def test_bad_options_are_one_line_errors(tmp_path, capsys, argv, needle):
+    _one_line_error(capsys, ["--base", "HEAD", *argv, "--out", tmp_path], needle)
+
+
+@pytest.fixture(scope="module")
+def gate_out(tmp_path_factory):
+    """One folder for the end-to-end runs: the base's install is made once."""
+    return tmp_path_factory.mktemp("regress")
+
+
+def _suite(path: Path, solver: str) -> Path:
+    path.write_text(f'repeat = 3\nwarmup = 1\ntimeout = 60.0\nmodes = ["cold"]\nsolvers = ["{solver}"]\n\n'
+                    f'[[problems]]\nfamily = "equality"\nparams = {{ n = 8, depth = 2, rows = 3 }}\n'
+                    f'seeds = [0]\n')
+    return path
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("solver, code", [("hcod", 0), (spec("BaseOnlySolver"), 1)],
+                         ids=["same-solver-passes", "new-failure-fails"])
+def test_the_gate_end_to_end(gate_out, solver, code):
+    """HEAD as the base, the working tree as the change, a one-case suite: exit 0 when
+    the case passes on both; exit 1 when it is verified on the base alone. The
+    Markdown and JSON outputs say the same. (Slow: about 20 s each on an idle
+    2-core machine; `.ci/run` runs the gate itself after `make test`.)"""
+    suite = _suite(gate_out / f"suite-{code}.toml", solver)
+    md, js = gate_out / f"gate-{code}.md", gate_out / f"gate-{code}.json"
+    proc = _regress("--base", "HEAD", "--repo", ROOT, "--suite", suite, "--out", gate_out / "out",
+                    "--min-rounds", 2, "--max-rounds", 2, "--markdown", md, "--json", js, cwd=gate_out)
+    assert proc.returncode == code, proc.stdout + proc.stderr
+    doc = json.loads(js.read_text())
+    assert doc["exit"] == code and doc["rounds"] == 2 and doc["regression"] == bool(code)
+    [case] = doc["cases"]
+    assert case["verdict"] == ("NEWLY FAILING" if code else case["verdict"])
+    if not code:
+        assert case["verdict"] in ("ok", "faster", "inconclusive") and case["rounds"] == 2
+        assert case["ratio"] > 0
+    text = md.read_text()
+    assert case["problem"] in text and case["verdict"] in text
+    assert ("REGRESSION" in text) == bool(code)
