@@ -34,6 +34,7 @@ SLOWER, FASTER, NEWLY_FAILING, MISSING = "SLOWER", "faster", "NEWLY FAILING", "M
 INCONCLUSIVE, OK, UNTIMED = "inconclusive", "ok", "not timed"
 #: verdicts that fail the gate (exit 1)
 FAILING = (SLOWER, NEWLY_FAILING, MISSING)
+_DIFFERS = "the problem differs between base and change"
 _ORDER = {v: i for i, v in enumerate((NEWLY_FAILING, MISSING, SLOWER, INCONCLUSIVE, FASTER, OK, UNTIMED))}
 
 
@@ -109,6 +110,14 @@ def _paired(base: list[pd.DataFrame], change: list[pd.DataFrame], key) -> np.nda
     return np.asarray(d)
 
 
+def _content_differs(base: list[pd.DataFrame], change: list[pd.DataFrame], key) -> bool:
+    """True when both sides record the case's ``problem_hash`` and they differ (a
+    changed generator: the two sides timed different problems under one id)."""
+    hashes = [{str(f.loc[key, "problem_hash"])} for f in (base[0], change[0])
+              if "problem_hash" in f.columns and key in f.index]
+    return len(hashes) == 2 and hashes[0] != hashes[1]
+
+
 def _t_stats(d: np.ndarray) -> tuple[float, float, float, float, float]:
     """ratio, interval low, high, p of a slowdown, p of a speed-up."""
     mean = float(d.mean())
@@ -139,6 +148,8 @@ def decide(base_frames: list[pd.DataFrame], change_frames: list[pd.DataFrame], t
         in_change = any(key in f.index for f in change)
         in_base = any(key in f.index for f in base)
         d = _paired(base, change, key)
+        if _content_differs(base, change, key):
+            d = d[:0]
         case.rounds = int(d.size)
         if all(b_ok) and in_base and not in_change:
             if key[1] in expected and key[0] in problems_of_change:
@@ -156,7 +167,9 @@ def decide(base_frames: list[pd.DataFrame], change_frames: list[pd.DataFrame], t
             case.ratio, case.low, case.high, up, down = _t_stats(d)
             timed.append((case, up, down))
         elif case.verdict == OK:
-            case.verdict, case.why = UNTIMED, f"timed in {d.size} paired round(s); 2 are needed"
+            case.verdict, case.why = UNTIMED, (
+                _DIFFERS if _content_differs(base, change, key)
+                else f"timed in {d.size} paired round(s); 2 are needed")
         cases.append(case)
     if timed:
         q_up = stats.false_discovery_control([t[1] for t in timed])
@@ -172,6 +185,10 @@ def decide(base_frames: list[pd.DataFrame], change_frames: list[pd.DataFrame], t
             elif case.ratio > limit:
                 case.verdict = INCONCLUSIVE
             case.borderline = bool(case.verdict == INCONCLUSIVE or (qu < alpha and case.low <= limit <= case.high))
+    changed = sorted({c.problem for c in cases if c.why == _DIFFERS})
+    if changed:
+        notes.append(f"{len(changed)} problem(s) differ in content between base and change (problem_hash), "
+                     f"not timed: {', '.join(changed)}")
     cases.sort(key=lambda c: (_ORDER[c.verdict], -(c.ratio if math.isfinite(c.ratio) else 0.0)))
     return Decision(cases, threshold, alpha, notes)
 

@@ -176,3 +176,15 @@ def test_the_gate_end_to_end(gate_out, solver, code):
     text = md.read_text()
     assert case["problem"] in text and case["verdict"] in text
     assert ("REGRESSION" in text) == bool(code)
+
+
+def test_a_problem_whose_content_changed_is_not_timed():
+    """Base and change generated different problems under one id (problem_hash differs):
+    the case is listed, not judged, and a note names the problem."""
+    base = [f.assign(problem_hash="aaaa") for f in _frames(4, BASE_TIMES, 0.02, 11)]
+    change = [f.assign(problem_hash=["bbbb", "bbbb", "aaaa"]) for f in
+              _frames(4, BASE_TIMES | {CASES[0]: 3 * BASE_TIMES[CASES[0]]}, 0.02, 12)]
+    dec = decide(base, change)
+    p1 = [(c.verdict, c.why) for c in dec.cases if c.problem == "p1"]
+    assert p1 == [("not timed", "the problem differs between base and change")] * 2
+    assert not dec.failed and any("p1" in n and "problem_hash" in n for n in dec.notes)
