@@ -30,8 +30,8 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("strict", "True for strict-hierarchy solvers (judged against the lexicographic optimum)"),
     ("mode", "cold (fresh solver object per repetition) or warm (re-solve on one object)"),
     ("repeat", ("timed repetitions (after the discarded warm-up; with rounds, over all of them): the suite's "
-                "`repeat`, or more, up to its `samples`, for a fast solve (docs/running.md, Timing); external programs: "
-                "exactly `repeat`")),
+                "`repeat`, or more, up to its `samples`, for a fast solve (docs/running.md, Timing); external "
+                "programs: exactly `repeat`")),
     ("status", ("solver status (optimal, max_iterations, infeasible_level, numerical_failure, "
                 "unsupported, error) or harness status (timeout: killed after --timeout; "
                 "crashed: the worker process died, e.g. segfault)")),

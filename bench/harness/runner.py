@@ -295,7 +295,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                 alive = list(earlier)  # jobs still to run in the next round
                 with ResultsWriter(out) as writer:
                     for rnd in range(rounds):
-                        share = _share(repeat, rounds, rnd), _share(samples, rounds, rnd), suite.sample_time / rounds
+                        share = (_share(repeat, rounds, rnd), _share(samples, rounds, rnd),
+                                 suite.sample_time / rounds)
                         items = ((i, _job(suite, todo[i], problems, *share), timeout) for i in alive)
                         again = []
                         for i, res in executor.map(items):
@@ -346,7 +347,8 @@ def _job(suite: Suite, t: Task, problems: dict, repeat: int, samples: int | None
     return {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
             "hierarchy": problems[t.problem.id], "solver": t.entry.spec, "options": t.entry.options,
             "mode": t.mode, "repeat": repeat, "samples": samples,
-            "sample_time": suite.sample_time if sample_time is None else sample_time, "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
+            "sample_time": suite.sample_time if sample_time is None else sample_time, "warmup": suite.warmup,
+            "first_timeout": suite.first_solve_timeout,
             "calibrate": suite.calibrate_each_job}
 
 

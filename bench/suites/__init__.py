@@ -233,7 +233,8 @@ SCHEMA = Table({
     "settings": List(_SETTINGS, min_len=0, what="[[settings]] tables"),
     "problems": List(_GROUP, what="[[problems]] tables (at least one)"),
 }, required=("problems",), defaults={
-    "description": "", "repeat": 5, "sample_time": SAMPLE_TIME, "rounds": 1, "warmup": 1, "timeout": 60.0, "first_solve_timeout": 300.0,
+    "description": "", "repeat": 5, "sample_time": SAMPLE_TIME, "rounds": 1, "warmup": 1, "timeout": 60.0,
+    "first_solve_timeout": 300.0,
     "calibrate_each_job": False, "modes": ["cold"], "accuracy": "default", "export": ["npz"],
     "solvers": ["*"], "settings": []})
 
