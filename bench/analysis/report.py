@@ -228,8 +228,9 @@ def _tail_section(doc: _Doc, tail: dict[str, list[dict]]) -> None:
              "are over its timed repetitions (`repeat`: a suite that sets no count times a solve under 1 ms "
              "100 times, docs/running.md); below, per solver, the median of each over its rows (the verified "
              "rows of a strict solver, every timed row of a non-strict one), the median over rows of p99 / "
-             "p50, and the slowest single solve of all its rows. With fewer than 100 samples per row, p99 "
-             "lies between a row's two slowest solves.")
+             "p50, and the slowest single solve of all its rows."
+             + (" With fewer than 100 samples per row, p99 lies between a row's slowest solves." if any(
+                 t["samples_per_row"] < 100 for rows in tail.values() for t in rows) else ""))
     doc.table("tail", "Tail latency per solver (medians over each solver's own rows: NOT a ranking)",
               ["solver", "mode", "rows", "samples per row", "p50 [us]", "p90 [us]", "p99 [us]", "max [us]",
                "p99 / p50", "slowest solve [us] (problem)"],

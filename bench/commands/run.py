@@ -19,8 +19,9 @@ def add_arguments(p) -> None:
                    help="replace the suite's solvers: names, glob patterns ('cascade-*'), module:Class, "
                         "or external:NAME=CMD")
     p.add_argument("--out", default=None, help="output directory (default: results/<suite>)")
-    p.add_argument("--repeat", type=int, default=None,
-                   help="timed repetitions per row (default: the suite's)")
+    p.add_argument("--repeat", type=int, default=None, metavar="R",
+                   help="exactly R timed repetitions per row (default: the suite's repeat, and up to its "
+                        "samples for a fast solve: 100 for a solve under 1 ms in quick)")
     p.add_argument("--rounds", type=int, default=None,
                    help="split each row's repetitions over K rounds, each round running every job once, so "
                         "that a slow moment of the machine shifts part of every row, not whole rows "

@@ -139,15 +139,22 @@ def time_solves(make_solver: Callable[[], Solver], h: Hierarchy, repeat: int = 1
             solver.solve(h)
             for _ in range(max(warmup - 1, 0)):
                 solver.solve(h)
-        start, i = clock(), 0
-        while i < repeat or (i < most and i * np.median(buf[:i]) < budget_ns and clock() - start < wall_ns):
+        start, i, top = clock(), 0, 0
+        while i < repeat or (i < most and _below(buf, i, top, budget_ns) and clock() - start < wall_ns):
             if mode == "cold":
                 solver = make_solver()
             t0 = clock()
             results.append(solver.solve(h))
             buf[i] = clock() - t0
+            top = max(top, int(buf[i]))
             i += 1
     return Timing(buf[:i].copy(), reported_result([checked_result(r, h, solver) for r in results], h))
+
+
+def _below(buf: np.ndarray, i: int, top: int, budget_ns: int) -> bool:
+    """i m_i < budget for the median m_i of buf[:i] (i >= 1); the largest sample
+    ``top`` answers first when it can (m_i <= top: no median to take)."""
+    return i * top < budget_ns or i * np.median(buf[:i]) < budget_ns
 
 
 def reported_result(results: list[SolveResult], h: Hierarchy, rtol: float = 1e-9) -> SolveResult:

@@ -137,3 +137,46 @@ def test_a_run_times_a_fast_row_to_its_samples_and_repeat_on_the_command_line_fi
     assert row["repeat"] == 2
     session = json.loads((out / "run.json").read_text())["sessions"]
     assert [(s["repeat"], s["samples"]) for s in session] == [(5, 40), (2, None)]
+
+
+def _tail_row(label, problem, strict, verified, times, status="optimal", repeat=100):
+    return {"label": label, "problem": problem, "strict": strict, "verified": verified, "status": status,
+            "repeat": repeat, **dict(zip(("time_median_s", "time_p90_s", "time_p99_s", "time_max_s"), times))}
+
+
+def test_the_tail_table_takes_medians_over_the_rows_that_count():
+    """A strict solver over its verified rows, a non-strict one over every row with a time."""
+    import pandas as pd
+
+    from hikbench.bench.analysis.tail import tail_table
+
+    d = pd.DataFrame([
+        _tail_row("a", "p1", True, True, (1.0, 2.0, 3.0, 4.0)),
+        _tail_row("a", "p2", True, True, (3.0, 4.0, 5.0, 8.0), repeat=40),
+        _tail_row("a", "p3", True, False, (100.0, 100.0, 100.0, 900.0)),  # not verified: left out
+        _tail_row("b", "p1", False, False, (10.0, 10.0, 20.0, 40.0)),
+        _tail_row("b", "p2", False, False, (np.nan,) * 4, status="unsupported"),
+    ])
+    a, b = tail_table(d, strict={"a"})
+    assert (a["solver"], a["rows"], a["samples_per_row"], a["worst_problem"]) == ("a", 2, 70.0, "p2")
+    np.testing.assert_allclose([a["p50_s"], a["p90_s"], a["p99_s"], a["max_s"], a["worst_s"]],
+                               [2.0, 3.0, 4.0, 6.0, 8.0], rtol=1e-12, atol=0)
+    np.testing.assert_allclose(a["p99_over_p50"], (3.0 + 5.0 / 3.0) / 2, rtol=1e-12, atol=0)
+    assert (b["solver"], b["rows"], b["worst_s"], b["p99_over_p50"]) == ("b", 1, 40.0, 2.0)
+
+
+def test_the_report_shows_the_tail_per_solver(declining_run, tmp_path):
+    import shutil
+
+    run = tmp_path / "run"
+    shutil.copytree(declining_run, run)
+    assert main(["report", str(run)]) == 0
+    data = json.loads((run / "report.json").read_text())
+    rows = data["tail"]["cold"]
+    assert {r["solver"] for r in rows} == {"nullspace-svd", "yardstick"}
+    for r in rows:
+        assert r["p50_s"] <= r["p90_s"] <= r["p99_s"] <= r["max_s"] <= r["worst_s"], r
+    md = (run / "report.md").read_text()
+    assert "## Tail latency" in md and "[Tail latency](#tail-latency)" in md
+    (table,) = [t for t in data["tables"] if t["key"] == "tail"]
+    assert table["columns"][4:8] == ["p50 [us]", "p90 [us]", "p99 [us]", "max [us]"]
