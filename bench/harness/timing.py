@@ -144,8 +144,9 @@ def time_solves(make_solver: Callable[[], Solver], h: Hierarchy, repeat: int = 1
             if mode == "cold":
                 solver = make_solver()
             t0 = clock()
-            results.append(solver.solve(h))
+            res = solver.solve(h)
             buf[i] = clock() - t0
+            results.append(res)
             top = max(top, int(buf[i]))
             i += 1
     return Timing(buf[:i].copy(), reported_result([checked_result(r, h, solver) for r in results], h))
