@@ -29,6 +29,7 @@ lighter still; a solver without modes: solid, dashed if non-strict).
 from __future__ import annotations
 
 import re
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -102,6 +103,11 @@ def run_styles(runs: list) -> dict[str, dict]:
     return out
 
 
+def _short(label: str) -> str:
+    """A run's label without the folders of a ``path/file.py:Class`` solver."""
+    return re.sub(r"\S*/", "", label)
+
+
 def _ms(df, column: str) -> np.ndarray:
     return df[column].to_numpy(dtype=float) * 1e3
 
@@ -128,11 +134,15 @@ def _rug(ax, steps, mask: np.ndarray, y: float, color: str, label: str) -> None:
 
 
 def _fit(fig, axes) -> None:
+    """tight_layout, then the titles that run off the figure wrapped (one draw when all fit)."""
     from hikbench.bench.analysis.plots import fit_title
 
     fig.tight_layout()
+    fig.canvas.draw()
+    page = fig.bbox
     for ax in axes:
-        if ax.get_title():
+        box = ax.title.get_window_extent()
+        if ax.get_title() and not (box.x0 >= page.x0 and box.x1 <= page.x1 and box.y1 <= page.y1):
             fit_title(fig, ax)
 
 
@@ -149,11 +159,11 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
     fig, (ax, axb) = plt.subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [3, 1]})
     for run in runs:
         df, st = run.records, styles[run.label]
-        _cost_lines(ax, df, st, run.label)
+        _cost_lines(ax, df, st, _short(run.label))
         bad, text = not_optimal(df)
         if bad.any():
             ax.scatter(df["step"][bad], _ms(df, "solve_time_min_s")[bad], s=18, facecolors="none",
-                       edgecolors=st["color"], zorder=3, label=f"{run.label}: not optimal ({text})")
+                       edgecolors=st["color"], zorder=3, label=f"{_short(run.label)}: not optimal ({text})")
     ax.set_xlabel("control step")
     ax.set_ylabel("solve time (ms)")
     ax.set_yscale("log")
@@ -165,7 +175,7 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
     cost = [r.records["solve_time_min_s"].to_numpy(dtype=float) * 1e3 for r in runs]
     axb.bar(x, [np.median(c) for c in cost], color=[styles[r.label]["color"] for r in runs], label="median step")
     axb.scatter(x, [c.max() for c in cost], marker="_", s=200, color="k", zorder=3, label="worst step")
-    axb.set_xticks(x, [r.label for r in runs], rotation=30, ha="right")
+    axb.set_xticks(x, [textwrap.fill(_short(r.label), 18) for r in runs], rotation=30, ha="right")
     axb.set_ylabel("solver's cost per step (ms)")
     axb.set_yscale("log")
     axb.set_title("median and worst step")
@@ -195,8 +205,8 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
             ax.text(0.01, 0.9, "the active set did not change", transform=ax.transAxes, fontsize=8)
         ax.set_yscale("log")
         ax.set_ylabel("solve time (ms)")
-        ax.set_title(f"{name} — {run.label}: solver's cost over the run, active-set changes marked (Fig. 2)",
-                     fontsize=10)
+        ax.set_title(f"{name} — {_short(run.label)}: solver's cost over the run, active-set changes marked "
+                     f"(Fig. 2)", fontsize=10)
         ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))  # (outside: no data hidden)
     axes[-1, 0].set_xlabel("control step")
     _fit(fig, axes[:, 0])
@@ -221,7 +231,7 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
         ax.set_ylim(-1.1, 1.1)
         ax.set_xlabel("time (s)")
         ax.set_ylabel("2 (q - q_l) / (q_u - q_l) - 1  (limits at ±1)")
-        ax.set_title(f"{name} — {run.label}: normalised joint trajectories (Fig. 3)")
+        ax.set_title(f"{name} — {_short(run.label)}: normalised joint trajectories (Fig. 3)")
         ax.legend(fontsize=7, ncol=2, loc="center left", bbox_to_anchor=(1.0, 0.5))
         fig.tight_layout()
         paths.append(out / f"fig3_joints_{_slug(run.label)}.png")
@@ -239,7 +249,7 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
         for run in runs:
             df, st = run.records, styles[run.label]
             ax.semilogy(df["time_s"], np.maximum(df[f"err_{task.name}"], 1e-16), lw=1.0, color=st["color"],
-                        ls=st["linestyle"], label=run.label)
+                        ls=st["linestyle"], label=_short(run.label))
         for te in _events_within(runs[0].scenario, max(float(r.records["time_s"].max()) for r in runs)):
             ax.axvline(te, color="grey", ls=":", lw=0.8)
         unit = {"PoseTask": "log6 error (m, rad)", "OrientationTask": "rad", "PostureTask": "rad",

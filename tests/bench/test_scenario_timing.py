@@ -112,3 +112,28 @@ def test_cli_repeat(tmp_path, capsys):
     assert "solve time per step (min of 3 calls) median" in out and "first call median" in out
     df = pd.read_csv(tmp_path / "reach_talos_yardstick.csv")
     assert df["repeat"].eq(3).all() and (df["solve_time_min_s"] <= df["solve_time_first_s"]).all()
+
+
+def test_long_solver_names_fit_the_figures(tmp_path, monkeypatch, reach):
+    """A file.py:Class solver is named without its folders; a long module:Class name is wrapped
+    under the bars: every title fits (one of them did not, and the command stopped)."""
+    import matplotlib.figure
+
+    from hikbench.bench.analysis.plots import title_fits
+
+    saved = []
+    real = matplotlib.figure.Figure.savefig
+
+    def spy(self, *args, **kwargs):
+        saved.append(all(title_fits(self, ax) for ax in self.axes if ax.get_title()))
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(matplotlib.figure.Figure, "savefig", spy)
+    runs = []
+    for solver, mode in ((spec("WarmReference"), "none"), (spec("WarmReference"), "time"),
+                         ("hikbench.solvers.yardstick:YardstickSolver", "n/a")):
+        run = still_run(reach, 3)
+        run.solver, run.warm_start = solver, mode
+        runs.append(run)
+    paths = plot_runs(runs, tmp_path)
+    assert len(paths) == len(saved) and all(saved), saved
