@@ -4,7 +4,8 @@ report.md opens with a table of contents, the run's one-line summary
 (bench/harness/summary.py) and the ranking (bench/analysis/ranking.py: one
 problem set per mode, success first, then time relative to the fastest, with
 failures charged 10 x the slowest success on their problem, never the job
-timeout); then each solver on its own problems, the non-strict solvers with
+timeout); then each solver on its own problems, the tail latency per solver
+(bench/analysis/tail.py), the non-strict solvers with
 their per-level gap to the yardstick, the details, the figures, and the
 environment last. report.json holds the same numbers (docs/reports.md).
 
@@ -24,6 +25,7 @@ from hikbench.bench.analysis import plots
 from hikbench.bench.analysis.plots import solver_label
 from hikbench.bench.analysis.ranking import Ranking, claim_met, non_strict, own_problems, rank, strict_labels
 from hikbench.bench.analysis.shgeom import FAILURE_FACTOR, SHIFT_S, shifted_geometric_mean, timed
+from hikbench.bench.analysis.tail import tail_table
 from hikbench.bench.harness.environment import read_run_json
 from hikbench.bench.harness.results import read_results
 from hikbench.bench.harness.summary import run_summary, summary_line
@@ -120,7 +122,7 @@ def _percent(ok: pd.Series) -> str:
     return f"{100 * ok.mean():.0f}%" if len(ok) else "-"
 
 
-TIME_COLUMNS = ("time_median_s", "time_min_s", "time_p95_s")
+TIME_COLUMNS = ("time_median_s", "time_p90_s", "time_p99_s", "time_max_s", "time_min_s")
 #: file name prefixes of the figures write_report draws in RUN/plots/
 REPORT_FIGURES = ("time_vs_", "success_rate", "performance_profile_", "accuracy_per_level", "cold_vs_warm")
 
@@ -163,7 +165,7 @@ class _Doc:
 
 
 #: report.md's sections, in order: (title, what decides whether it is written)
-SECTIONS = ("Ranking", "Each solver on its own problems", "Non-strict solvers", "Success per family",
+SECTIONS = ("Ranking", "Each solver on its own problems", "Tail latency", "Non-strict solvers", "Success per family",
             "Speed per problem", "Statuses and unverified rows", "Claims of the paper", "Figures", "Environment")
 
 
@@ -218,6 +220,23 @@ def _own_section(doc: _Doc, own: dict[str, list[dict]]) -> None:
                 f"{_percent_of(o['success'], o['attempted'])} ({o['success']}/{o['attempted']})",
                 _us(o["sgm_time_s"]), _us(o["median_time_s"])]
                for mode, rows in own.items() for o in rows])
+
+
+def _tail_section(doc: _Doc, tail: dict[str, list[dict]]) -> None:
+    doc.section("Tail latency")
+    doc.text("A controller waits for its slowest solve, not its typical one. Each row's p50, p90, p99 and max "
+             "are over its timed repetitions (`repeat`: a suite that sets no count times a solve under 1 ms "
+             "100 times, docs/running.md); below, per solver, the median of each over its rows (the verified "
+             "rows of a strict solver, every timed row of a non-strict one), the median over rows of p99 / "
+             "p50, and the slowest single solve of all its rows."
+             + (" With fewer than 100 samples per row, p99 lies between a row's slowest solves." if any(
+                 t["samples_per_row"] < 100 for rows in tail.values() for t in rows) else ""))
+    doc.table("tail", "Tail latency per solver (medians over each solver's own rows: NOT a ranking)",
+              ["solver", "mode", "rows", "samples per row", "p50 [us]", "p90 [us]", "p99 [us]", "max [us]",
+               "p99 / p50", "slowest solve [us] (problem)"],
+              [[t["solver"], mode, t["rows"], f"{t['samples_per_row']:g}", _us(t["p50_s"]), _us(t["p90_s"]),
+                _us(t["p99_s"]), _us(t["max_s"]), _num(t["p99_over_p50"]),
+                f"{_us(t['worst_s'])} ({t['worst_problem']})"] for mode, rows in tail.items() for t in rows])
 
 
 def _percent_of(k: int, n: int) -> str:
@@ -452,6 +471,7 @@ def write_report(run_dir) -> Path:
     rankings = {m: rank(df[df["mode"] == m], strict, m) for m in modes}
     own = {m: own_problems(df[df["mode"] == m], strict) for m in modes}
     ns = {m: non_strict(df[df["mode"] == m], strict) for m in modes}
+    tail = {m: tail_table(df[df["mode"] == m], strict) for m in modes}
     has_ns = any(ns.values())
     with_claims = (meta.get("suite") or {}).get("name") == CLAIMS_SUITE
 
@@ -468,6 +488,7 @@ def write_report(run_dir) -> Path:
     doc.text(f"**Summary:** {summary_line(summary)}")
     _ranking_section(doc, rankings, has_ns)
     _own_section(doc, own)
+    _tail_section(doc, tail)
     if has_ns:
         _non_strict_section(doc, ns)
     _family_section(doc, df, strict)
@@ -480,12 +501,12 @@ def write_report(run_dir) -> Path:
     _environment_section(doc, df, meta, norm_note)
     out = run_dir / "report.md"
     out.write_text("\n".join(doc.lines).rstrip() + "\n")
-    _write_json(run_dir, summary, rankings, own, ns, claims, figures, _calibration_ms(df), doc, meta)
+    _write_json(run_dir, summary, rankings, own, ns, claims, figures, _calibration_ms(df), doc, meta, tail)
     return out
 
 
 def _write_json(run_dir: Path, summary, rankings, own, ns, claims, figures, calibration, doc: _Doc,
-                meta: dict) -> Path:
+                meta: dict, tail: dict) -> Path:
     """RUN/report.json: the numbers of report.md (docs/reports.md, "report.json")."""
     data = {
         "summary": summary,
@@ -495,6 +516,7 @@ def _write_json(run_dir: Path, summary, rankings, own, ns, claims, figures, cali
             "problems": len(r.problems), "problem_ids": r.problems, "unsolved": r.unsolved,
             "solvers": r.rows, "not_ranked": r.apart} for m, r in rankings.items()},
         "own_problems": own,
+        "tail": tail,
         "non_strict": ns,
         "claims": claims,
         "figures": [{"title": f["title"], "path": None if f["path"] is None else str(f["path"].relative_to(run_dir)),

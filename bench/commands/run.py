@@ -20,8 +20,9 @@ def add_arguments(p) -> None:
                         "or external:NAME=CMD (external:NAME[strict=false]=CMD: a program that does not "
                         "claim the lexicographic optimum)")
     p.add_argument("--out", default=None, help="output directory (default: results/<suite>)")
-    p.add_argument("--repeat", type=int, default=None,
-                   help="timed repetitions per row (default: the suite's)")
+    p.add_argument("--repeat", type=int, default=None, metavar="R",
+                   help="exactly R timed repetitions per row (default: the suite's repeat, and up to its "
+                        "samples for a fast solve: 100 for a solve under 1 ms in quick)")
     p.add_argument("--rounds", type=int, default=None,
                    help="split each row's repetitions over K rounds, each round running every job once, so "
                         "that a slow moment of the machine shifts part of every row, not whole rows "

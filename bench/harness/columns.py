@@ -35,7 +35,9 @@ COLUMNS: tuple[tuple[str, str], ...] = (
                 "verified), False for a weighted or damped one (judged by its real times, per-level gaps and "
                 "level 0 met); from Solver.strict / SolverInfo.strict, or external:NAME[strict=false]=CMD")),
     ("mode", "cold (fresh solver object per repetition) or warm (re-solve on one object)"),
-    ("repeat", "timed repetitions (after the discarded warm-up; with rounds, over all of them)"),
+    ("repeat", ("timed repetitions (after the discarded warm-up; with rounds, over all of them): the suite's "
+                "`repeat`, or more, up to its `samples`, for a fast solve (docs/running.md, Timing); external "
+                "programs: exactly `repeat`")),
     ("status", ("solver status (optimal, max_iterations, infeasible_level, numerical_failure, "
                 "unsupported, error) or harness status (timeout: killed after --timeout; "
                 "crashed: the worker process died, e.g. segfault)")),
@@ -59,9 +61,13 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("activations", "active-set activations (last timed repetition)"),
     ("deactivations", "active-set deactivations (last timed repetition)"),
     ("flops", "multiply-adds counted by the solver, if it counts"),
-    ("time_median_s", "median over the repetitions of the wall time of the solve call, seconds"),
+    ("time_median_s", ("p50 (the median) over the timed repetitions of the wall time of the solve call, "
+                       "seconds: the time the ranking, compare and the figures use")),
+    ("time_p90_s", "p90 of the same samples (numpy.percentile, linear interpolation), seconds"),
+    ("time_p99_s", ("p99 of the same samples, seconds (with fewer than 100 samples it lies between the two "
+                    "largest: see `repeat`)")),
+    ("time_max_s", "maximum of the same samples (the worst timed solve), seconds"),
     ("time_min_s", "minimum of the same samples, seconds"),
-    ("time_p95_s", "95th percentile of the same samples, seconds"),
     ("build_time_s", "time the solver reports for assembling matrices (last repetition), seconds"),
     ("solve_time_s", "time the solver (or an external program) reports for itself, seconds"),
     ("samples_ns", "JSON list: every timed repetition, nanoseconds (used by compare)"),
@@ -79,7 +85,8 @@ JSON_COLUMNS = ("params", "rows_per_level", "ranks", "options", "level_norms", "
                 "iterations_per_level", "samples_ns")
 NUMBER_COLUMNS = ("seed", "n", "depth", "rows", "eq_rows", "ineq_rows", "rank", "repeat", "verdict_level",
                   "verdict_diff", "x_norm", "iterations", "activations", "deactivations", "flops", "time_median_s",
-                  "time_min_s", "time_p95_s", "build_time_s", "solve_time_s", "calib_ns", "wall_s")
+                  "time_p90_s", "time_p99_s", "time_max_s", "time_min_s", "build_time_s", "solve_time_s",
+                  "calib_ns", "wall_s")
 
 
 def names() -> list[str]:

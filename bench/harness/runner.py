@@ -40,6 +40,7 @@ from hikbench.bench.harness.environment import environment, read_run_json, utc_n
 from hikbench.bench.suites.problemset import generate, problem_columns, save_problems
 from hikbench.bench.harness.results import ResultsWriter, backup, compact, finished_rows
 from hikbench.bench.harness.summary import write_summary
+from hikbench.bench.harness.timing import tail_columns
 from hikbench.bench.suites import ACCURACY, Suite, SuiteError, Task, expand
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.verify import level_norms, verify
@@ -99,9 +100,7 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: floa
     if res.get("iterations_per_level"):
         row["iterations_per_level"] = json.dumps(res["iterations_per_level"])
     if samples.size:
-        row.update(time_median_s=float(np.median(samples)) * 1e-9, time_min_s=float(samples.min()) * 1e-9,
-                   time_p95_s=float(np.percentile(samples,
-                                                  95)) * 1e-9, samples_ns=json.dumps(samples.tolist()))
+        row.update(tail_columns(samples), samples_ns=json.dumps(samples.tolist()))
     row["build_time_s"] = _finite(res.get("build_time_s"))
     row["solve_time_s"] = _finite(res.get("solve_time_s"))
     row.update(calib_ns=res.get("calib_ns"), host=res.get("host"), worker=res.get("worker"),
@@ -178,7 +177,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     """Run ``suite`` into directory ``out`` (see the module docstring).
 
     ``solvers`` (patterns) replaces the suite's solver lists; ``repeat``,
-    ``rounds`` and ``timeout`` override the suite's; ``limit`` stops after
+    ``rounds`` and ``timeout`` override the suite's (``repeat`` fixes the
+    count: no extra ``samples``); ``limit`` stops after
     that many new rows (the run resumes later). With ``rounds`` R > 1 the
     ``repeat`` timed solves of a row are split over R rounds, each round
     running every job of the run once (:func:`_merge_rounds`): a slow window
@@ -194,6 +194,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     from hikbench.bench.harness.executors import SerialExecutor
 
     out = Path(out)
+    samples = None if repeat else suite.samples  # (--repeat: exactly that many)
     repeat = int(repeat or suite.repeat)
     if rounds is None and suite.rounds > repeat:  # (a smaller --repeat than the suite's)
         print(f"hikbench run: the suite's rounds = {suite.rounds} lowered to repeat = {repeat}: each round "
@@ -242,7 +243,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
 
         meta = read_run_json(out)
         session = {"started": utc_now(), "calibration_start_ns": calibrate(), "todo": len(todo),
-                   "repeat": repeat, "rounds": rounds, "timeout": timeout}
+                   "repeat": repeat, "samples": samples, "sample_time": suite.sample_time, "rounds": rounds,
+                   "timeout": timeout}
         # (the solvers this directory's runs selected, skipped ones included: compare expects their cases)
         selected = sorted({t.entry.solver for t in tasks} | set(skipped) | set(meta.get("selected_solvers", [])))
         meta.update({"suite": suite.to_dict(), "suite_rows": len(tasks), "selected_solvers": selected,
@@ -265,8 +267,9 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                 alive = list(earlier)  # jobs still to run in the next round
                 with ResultsWriter(out) as writer:
                     for rnd in range(rounds):
-                        share = repeat // rounds + (rnd < repeat % rounds)
-                        items = ((i, _job(suite, todo[i], problems, share), timeout) for i in alive)
+                        share = (_share(repeat, rounds, rnd), _share(samples, rounds, rnd),
+                                 suite.sample_time / rounds)
+                        items = ((i, _job(suite, todo[i], problems, *share), timeout) for i in alive)
                         again = []
                         for i, res in executor.map(items):
                             t = todo[i]
@@ -304,11 +307,20 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         lock.close()
 
 
-def _job(suite: Suite, t: Task, problems: dict, repeat: int) -> dict:
-    """The worker's job (hikbench.bench.harness.worker) timing ``repeat`` solves of task t."""
+def _share(count: int | None, rounds: int, rnd: int) -> int | None:
+    """Round ``rnd``'s share of ``count`` repetitions (None: none asked)."""
+    return None if count is None else count // rounds + (rnd < count % rounds)
+
+
+def _job(suite: Suite, t: Task, problems: dict, repeat: int, samples: int | None = None,
+         sample_time: float | None = None) -> dict:
+    """The worker's job (hikbench.bench.harness.worker) timing ``repeat`` solves of task t,
+    or more up to ``samples`` within ``sample_time`` s (hikbench.bench.harness.timing)."""
     return {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
             "hierarchy": problems[t.problem.id], "solver": t.entry.spec, "options": t.entry.options,
-            "mode": t.mode, "repeat": repeat, "warmup": suite.warmup, "first_timeout": suite.first_solve_timeout,
+            "mode": t.mode, "repeat": repeat, "samples": samples,
+            "sample_time": suite.sample_time if sample_time is None else sample_time, "warmup": suite.warmup,
+            "first_timeout": suite.first_solve_timeout,
             "calibrate": suite.calibrate_each_job}
 
 

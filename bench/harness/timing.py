@@ -8,6 +8,19 @@ GC off while timing; BLAS threads limited to 1. Two modes:
 * ``warm``: one solver object solves the problem once (discarded), then each
   repetition re-solves the same problem on it (warm start from its last
   active set).
+
+How many repetitions: at least ``repeat``; with ``samples`` S > repeat, more
+until the row has S samples or its k samples, counted at their median m_k,
+add up to ``sample_time`` T (k m_k >= T), and at most ``WALL_FACTOR`` x T of
+the loop's wall time (fresh solvers of cold mode included). A solve whose
+median is under T / S (1 ms at the defaults S = 100, T = 0.1 s) gets S
+samples: k m_k < k T / S < T for every k < S; a slower one about T / m
+samples. The median, not the sum: a few pauses of the machine (5-9 ms
+beside 0.8 ms solves on a loaded 2-core VM) would otherwise end a fast
+row's sampling early.
+The tail of a row is ``tail_columns``: p50 (the median), p90, p99, max and
+min of its samples (numpy.percentile, linear interpolation: with fewer than
+100 samples p99 lies between the two largest).
 """
 
 from __future__ import annotations
@@ -25,9 +38,15 @@ from hikbench.problems.hierarchy import Hierarchy
 from hikbench.problems.verify import compare_lexicographic, level_norms, level_scales
 from hikbench.solvers.base import OPTIMAL, Solver, SolveResult, checked_result
 
-__all__ = ["MODES", "Timing", "quiet_timing", "reported_result", "time_solves"]
+__all__ = ["MODES", "SAMPLES", "SAMPLE_TIME", "WALL_FACTOR", "Timing", "quiet_timing", "reported_result",
+           "tail_columns", "time_solves"]
 
 MODES = ("cold", "warm")
+SAMPLES = 100       #: samples a suite asks for by default (one that sets no ``repeat``)
+SAMPLE_TIME = 0.1   #: s of timed solves a row may spend to reach them
+WALL_FACTOR = 10    #: the loop's wall time stops the extra samples at WALL_FACTOR x sample_time
+#: results.csv's time columns: name -> percentile of the samples (numpy.percentile)
+TAIL = {"time_median_s": 50, "time_p90_s": 90, "time_p99_s": 99, "time_max_s": 100, "time_min_s": 0}
 
 
 @dataclass(frozen=True)
@@ -36,8 +55,9 @@ class Timing:
 
     Attributes
     ----------
-    samples_ns : ndarray of int64, shape (repeat,)
-        One wall-clock duration per repetition, nanoseconds.
+    samples_ns : ndarray of int64, shape (repeats,)
+        One wall-clock duration per repetition, nanoseconds (repeats >= ``repeat``
+        of :func:`time_solves`).
     result : SolveResult
         The result of the last timed repetition, unless an earlier one was worse
         (:func:`reported_result`): a non-optimal status beside the last's optimal,
@@ -57,8 +77,19 @@ class Timing:
         return float(np.min(self.samples_ns)) * 1e-9
 
     @property
-    def p95_s(self) -> float:
-        return float(np.percentile(self.samples_ns, 95)) * 1e-9
+    def max_s(self) -> float:
+        return float(np.max(self.samples_ns)) * 1e-9
+
+
+def tail_columns(samples_ns) -> dict[str, float]:
+    """The time columns of a row from its samples (ns, shape (R,), R >= 1):
+    ``time_median_s`` (p50), ``time_p90_s``, ``time_p99_s``, ``time_max_s``,
+    ``time_min_s``, seconds; {} for no samples."""
+    s = np.asarray(samples_ns, dtype=np.float64)
+    if not s.size:
+        return {}
+    values = np.percentile(s, list(TAIL.values()))
+    return {k: float(v) * 1e-9 for k, v in zip(TAIL, values)}
 
 
 @contextmanager
@@ -76,8 +107,12 @@ def quiet_timing():
 
 
 def time_solves(make_solver: Callable[[], Solver], h: Hierarchy, repeat: int = 1,
-                mode: str = "cold", warmup: int = 1) -> Timing:
-    """Time ``repeat`` solves of ``h`` (see the module docstring for modes).
+                mode: str = "cold", warmup: int = 1, samples: int | None = None,
+                sample_time: float = SAMPLE_TIME) -> Timing:
+    """Time at least ``repeat`` solves of ``h``, up to ``samples`` while k of
+    them at their median add up to less than ``sample_time`` s (see the module
+    docstring for the rule and the modes; ``samples`` None or <= repeat:
+    exactly ``repeat``).
 
     ``warmup`` untimed solves come first (caches, branch predictors), after
     the collector's pass and the BLAS limit of :func:`quiet_timing`, which
@@ -88,28 +123,39 @@ def time_solves(make_solver: Callable[[], Solver], h: Hierarchy, repeat: int = 1
         raise ValueError(f"mode must be one of {MODES}; got {mode!r}")
     if repeat < 1:
         raise ValueError(f"repeat must be >= 1; got {repeat}")
-    samples = np.empty(repeat, dtype=np.int64)
-    results = [None] * repeat
+    if not sample_time > 0:
+        raise ValueError(f"sample_time must be > 0; got {sample_time}")
+    most = max(repeat, samples or 0)
+    budget_ns, wall_ns = int(sample_time * 1e9), int(WALL_FACTOR * sample_time * 1e9)
+    buf = np.empty(most, dtype=np.int64)
+    results = []
     clock = time.perf_counter_ns
     with quiet_timing():
         if mode == "cold":
             for _ in range(warmup):
                 make_solver().solve(h)
-            for i in range(repeat):
-                solver = make_solver()
-                t0 = clock()
-                results[i] = solver.solve(h)
-                samples[i] = clock() - t0
         else:
             solver = make_solver()
             solver.solve(h)
             for _ in range(max(warmup - 1, 0)):
                 solver.solve(h)
-            for i in range(repeat):
-                t0 = clock()
-                results[i] = solver.solve(h)
-                samples[i] = clock() - t0
-    return Timing(samples, reported_result([checked_result(r, h, solver) for r in results], h))
+        start, i, top = clock(), 0, 0
+        while i < repeat or (i < most and _below(buf, i, top, budget_ns) and clock() - start < wall_ns):
+            if mode == "cold":
+                solver = make_solver()
+            t0 = clock()
+            res = solver.solve(h)
+            buf[i] = clock() - t0
+            results.append(res)
+            top = max(top, int(buf[i]))
+            i += 1
+    return Timing(buf[:i].copy(), reported_result([checked_result(r, h, solver) for r in results], h))
+
+
+def _below(buf: np.ndarray, i: int, top: int, budget_ns: int) -> bool:
+    """i m_i < budget for the median m_i of buf[:i] (i >= 1); the largest sample
+    ``top`` answers first when it can (m_i <= top: no median to take)."""
+    return i * top < budget_ns or i * np.median(buf[:i]) < budget_ns
 
 
 def reported_result(results: list[SolveResult], h: Hierarchy, rtol: float = 1e-9) -> SolveResult:

@@ -4,7 +4,8 @@ Runs inside the isolated worker process (``python -m hikbench.bench.harness.isol
 for external programs, in the caller. A job is a dict::
 
     {"kind": "solve" | "yardstick", "hierarchy": Hierarchy, "solver": spec,
-     "options": {...}, "mode": "cold" | "warm", "repeat": R, "warmup": W}
+     "options": {...}, "mode": "cold" | "warm", "repeat": R, "warmup": W,
+     "samples": S or None, "sample_time": T}      # (hikbench.bench.harness.timing.time_solves)
 
 ``spec`` is a registry name or ``module:Class`` / ``file.py:Class`` (a
 :class:`~hikbench.solvers.base.Solver` subclass or any factory), which is how tests
@@ -78,7 +79,7 @@ def execute(job: dict, notify=None) -> dict:
             from hikbench.solvers.yardstick import yardstick_solution
             x = yardstick_solution(h)
             return {**base, "status": "optimal", "reason": "", "x": np.asarray(x, dtype=float)}
-        from hikbench.bench.harness.timing import time_solves
+        from hikbench.bench.harness.timing import SAMPLE_TIME, time_solves
         make = solver_factory(job["solver"], job.get("options", {}))
         first = make()
         if callable(getattr(first, "warmup", None)):  # (module:Class solvers need not derive from Solver)
@@ -100,7 +101,8 @@ def execute(job: dict, notify=None) -> dict:
             calib.append(calibrate(reps=3))
         # every warm-up solve in time_solves, after its gc.collect() and BLAS limit: the first
         # solve after them took 2-7x the median when the untimed first solve counted as one
-        t = time_solves(make, h, repeat=int(job["repeat"]), mode=job["mode"], warmup=int(job["warmup"]))
+        t = time_solves(make, h, repeat=int(job["repeat"]), mode=job["mode"], warmup=int(job["warmup"]),
+                        samples=job.get("samples"), sample_time=job.get("sample_time", SAMPLE_TIME))
         out = {**base, **_result_dict(t.result, t.samples_ns)}
         if calib:
             out["calib_ns"] = min(calib[0], calibrate(reps=3))  # around the timed solves

@@ -1,28 +1,49 @@
 """The figures of ICRA 2010 sec. XII for scenario runs (matplotlib, Agg backend).
 
+Times are the solver's cost per step, ``solve_time_min_s`` (the minimum of
+the step's timed calls, bench/scenarios/runner.py), drawn with the first
+call's time (``solve_time_first_s``, what a controller sees, a pause of the
+machine included) faint behind it. A solver has the colour and marker of
+the run report's figures (:func:`hikbench.bench.analysis.plots.solver_styles`
+over every installed solver, as a ``solvers = ["*"]`` suite selects them);
+a solver's warm-start modes are told apart by line style and shade (time:
+solid, the solver's colour; stage: dash-dot, lighter; none: dotted,
+lighter still; a solver without modes: solid, dashed if non-strict).
+
 * Fig. 1 ``fig1_solve_time.png``: solve time per step (ms) of each run
-  (warm_start none / stage / time, or several solvers), and the median per run.
-* Fig. 2 ``fig2_time_activations.png``: solve time over the run with the steps
-  where constraints were activated / deactivated marked (the peaks).
+  (warm_start none / stage / time, or several solvers), and per run the
+  median and the worst step.
+* Fig. 2 ``fig2_time_activations.png``: one panel per run, the solve time
+  over the run, and below it a tick at every step where the active set
+  changed: rows entering (``rows_entered``) and leaving (``rows_left``),
+  found from u alike for every solver. (Not the solver's own
+  ``activations``: they count from its starting active set, so a solver that
+  starts cold, hcod with warm_start none or stage, counts every active row
+  at every step, and every step was marked.)
 * Fig. 3 ``fig3_joints_<run>.png``: joint trajectories normalised to their
   limits, 2 (q - q_l) / (q_u - q_l) - 1 (so -1 and 1 are the two limits).
 * Fig. 4 ``fig4_task_errors.png``: task error norms (log scale), one panel per
-  task, one line per run.
+  task, one line per run (the styles of Figs. 1-2).
 """
 
 from __future__ import annotations
 
 import re
+import textwrap
 from pathlib import Path
 
+import matplotlib
+import matplotlib.colors
 import numpy as np
 
-__all__ = ["normalised_joints", "plot_runs"]
+__all__ = ["normalised_joints", "plot_runs", "run_styles"]
+
+#: line style and shade (1: the solver's colour, less: mixed with white) of a warm-start mode
+MODE_STYLE = {"time": ("-", 1.0), "stage": ("-.", 0.7), "none": (":", 0.45)}
+FAINT = 0.3  #: alpha of the first-call times behind the solver's cost
 
 
 def _plt():
-    import matplotlib
-
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
@@ -57,6 +78,74 @@ def not_optimal(records) -> tuple[np.ndarray, str]:
     return bad, ", ".join(f"{k} {v}" for k, v in counts.sort_index().items())
 
 
+def run_styles(runs: list) -> dict[str, dict]:
+    """{run label: color, marker, linestyle}: the solver's colour and marker of
+    the run report (module docstring), the line style of its warm-start mode."""
+    import pandas as pd
+
+    from hikbench.bench.analysis.plots import solver_styles
+    from hikbench.bench.harness.worker import solver_info
+    from hikbench.solvers import registry
+
+    strict = {name: info.strict for name, info in registry.available().items()}
+    for run in runs:  # (a module:Class solver: its own place after the registry's)
+        strict.setdefault(run.solver, bool(getattr(solver_info(run.solver).factory, "strict", True)))
+    styles = solver_styles(pd.DataFrame({"solver": list(strict), "settings": "default",
+                                         "strict": [str(v) for v in strict.values()]}))
+    out = {}
+    for run in runs:
+        st = dict(styles[run.solver])
+        if run.warm_start in MODE_STYLE:
+            ls, shade = MODE_STYLE[run.warm_start]
+            rgb = np.asarray(matplotlib.colors.to_rgb(st["color"]))
+            st.update(linestyle=ls, color=matplotlib.colors.to_hex(1.0 - shade * (1.0 - rgb)))
+        out[run.label] = st
+    return out
+
+
+def _short(label: str) -> str:
+    """A run's label without the folders of a ``path/file.py:Class`` solver."""
+    return re.sub(r"\S*/", "", label)
+
+
+def _ms(df, column: str) -> np.ndarray:
+    return df[column].to_numpy(dtype=float) * 1e3
+
+
+def _cost_lines(ax, df, style: dict, label: str, ls: str | None = None) -> None:
+    """The first-call times faint, the per-step minimum over them (ms)."""
+    every = max(1, len(df) // 12)
+    ax.plot(df["step"], _ms(df, "solve_time_first_s"), lw=0.6, color=style["color"], alpha=FAINT,
+            label=f"{label}: first call")
+    ax.plot(df["step"], _ms(df, "solve_time_min_s"), lw=1.0, color=style["color"], ls=ls or style["linestyle"],
+            marker=style["marker"], markevery=every, ms=4, label=f"{label}: solver's cost")
+
+
+def _room_below(lo: float, hi: float, share: float = 0.15) -> tuple[float, float]:
+    """Log-axis limits putting ``lo`` at ``share`` of the height (the ticks of _rug go below it)."""
+    a, b = np.log10(lo), np.log10(hi)
+    return 10 ** ((a - share * b) / (1 - share)), hi
+
+
+def _rug(ax, steps, mask: np.ndarray, y: float, color: str, label: str) -> None:
+    """A tick at each step of ``mask``, at height ``y`` in axes units (below the data)."""
+    ax.plot(np.asarray(steps)[mask], np.full(int(mask.sum()), y), ls="none", marker="|", ms=7, mew=1.0,
+            color=color, transform=ax.get_xaxis_transform(), label=label)
+
+
+def _fit(fig, axes) -> None:
+    """tight_layout, then the titles that run off the figure wrapped (one draw when all fit)."""
+    from hikbench.bench.analysis.plots import fit_title
+
+    fig.tight_layout()
+    fig.canvas.draw()
+    page = fig.bbox
+    for ax in axes:
+        box = ax.title.get_window_extent()
+        if ax.get_title() and not (box.x0 >= page.x0 and box.x1 <= page.x1 and box.y1 <= page.y1):
+            fit_title(fig, ax)
+
+
 def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) -> list[Path]:
     """Write the four figures for ``runs`` (ScenarioRun objects of one scenario); returns paths."""
     plt = _plt()
@@ -64,55 +153,63 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
     out.mkdir(parents=True, exist_ok=True)
     paths = []
     name = runs[0].scenario.name
+    styles = run_styles(runs)
 
     # Fig. 1: solve time per step, per run
-    fig, (ax, axb) = plt.subplots(1, 2, figsize=(11, 4), gridspec_kw={"width_ratios": [3, 1]})
-    for i, run in enumerate(runs):
-        df = run.records
-        ax.plot(df["step"], df["solve_time_s"] * 1e3, lw=0.8, color=f"C{i}", label=run.label)
+    fig, (ax, axb) = plt.subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [3, 1]})
+    for run in runs:
+        df, st = run.records, styles[run.label]
+        _cost_lines(ax, df, st, _short(run.label))
         bad, text = not_optimal(df)
         if bad.any():
-            ax.scatter(df["step"][bad], df["solve_time_s"][bad] * 1e3, s=18, facecolors="none",
-                       edgecolors=f"C{i}", zorder=3, label=f"{run.label}: not optimal ({text})")
+            ax.scatter(df["step"][bad], _ms(df, "solve_time_min_s")[bad], s=18, facecolors="none",
+                       edgecolors=st["color"], zorder=3, label=f"{_short(run.label)}: not optimal ({text})")
     ax.set_xlabel("control step")
     ax.set_ylabel("solve time (ms)")
     ax.set_yscale("log")
-    ax.set_title(f"{name}: solve time per step (Fig. 1)")
+    k = sorted({int(v) for r in runs for v in r.records["repeat"]})
+    ax.set_title(f"{name}: solve time per step, min of {'/'.join(map(str, k))} calls (first call faint) (Fig. 1)")
     # (below the axes: inside, the legend covered the lines of the slower runs)
-    ax.legend(title="solver (warm start)", fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=3)
-    med = [float(np.median(r.records["solve_time_s"])) * 1e3 for r in runs]
-    axb.bar(range(len(runs)), med, color=[f"C{i}" for i in range(len(runs))])
-    axb.set_xticks(range(len(runs)), [r.label for r in runs], rotation=30, ha="right")
-    axb.set_ylabel("median solve time (ms)")
-    axb.set_title("median per run")
-    fig.tight_layout()
+    ax.legend(title="solver (warm start)", fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.2), ncol=2)
+    x = np.arange(len(runs))
+    cost = [r.records["solve_time_min_s"].to_numpy(dtype=float) * 1e3 for r in runs]
+    axb.bar(x, [np.median(c) for c in cost], color=[styles[r.label]["color"] for r in runs], label="median step")
+    axb.scatter(x, [c.max() for c in cost], marker="_", s=200, color="k", zorder=3, label="worst step")
+    axb.set_xticks(x, [textwrap.fill(_short(r.label), 18) for r in runs], rotation=30, ha="right")
+    axb.set_ylabel("solver's cost per step (ms)")
+    axb.set_yscale("log")
+    axb.set_title("median and worst step")
+    axb.legend(fontsize=7)
+    _fit(fig, (ax, axb))
     paths.append(out / "fig1_solve_time.png")
     fig.savefig(paths[-1], dpi=110, bbox_inches="tight")
     plt.close(fig)
 
-    # Fig. 2: time over the run, activation peaks marked
-    fig, axes = plt.subplots(len(runs), 1, figsize=(10, 2.6 * len(runs)), sharex=True, squeeze=False)
+    # Fig. 2: time over the run, active-set changes marked
+    fig, axes = plt.subplots(len(runs), 1, figsize=(10, 2.8 * len(runs)), sharex=True, squeeze=False)
     for ax, run in zip(axes[:, 0], runs):
-        df = run.records
-        t_ms = df["solve_time_s"].to_numpy() * 1e3
-        ax.plot(df["step"], t_ms, lw=0.8, color="C0", label="solve time")
-        act = df["activations"].to_numpy() > 0
-        deact = df["deactivations"].to_numpy() > 0
-        ax.scatter(df["step"][act], t_ms[act], s=14, color="C3", zorder=3,
-                   label=f"activation ({int(act.sum())} steps)")
-        ax.scatter(df["step"][deact], t_ms[deact], s=14, marker="x", color="C2", zorder=3,
-                   label=f"deactivation ({int(deact.sum())} steps)")
+        df, st = run.records, styles[run.label]
+        t_ms = _ms(df, "solve_time_min_s")
+        _cost_lines(ax, df, st, "solve time", ls="-")  # (one run per panel: solid)
+        entered = df["rows_entered"].fillna(0).to_numpy() > 0
+        left = df["rows_left"].fillna(0).to_numpy() > 0
+        _rug(ax, df["step"], entered, 0.09, "#d62728",
+             f"rows entering the active set ({int(entered.sum())} steps)")
+        _rug(ax, df["step"], left, 0.03, "#2ca02c", f"rows leaving it ({int(left.sum())} steps)")
+        ax.set_ylim(*_room_below(np.nanmin(t_ms), 1.5 * np.nanmax(_ms(df, "solve_time_first_s"))))
         bad, text = not_optimal(df)
         if bad.any():
             ax.scatter(df["step"][bad], t_ms[bad], s=40, facecolors="none", edgecolors="k", zorder=4,
                        label=f"status not optimal ({text})")
-        if not (act.any() or deact.any()):
-            ax.text(0.01, 0.9, "solver reports no active-set changes", transform=ax.transAxes, fontsize=8)
+        if not (entered.any() or left.any()):
+            ax.text(0.01, 0.9, "the active set did not change", transform=ax.transAxes, fontsize=8)
+        ax.set_yscale("log")
         ax.set_ylabel("solve time (ms)")
-        ax.set_title(f"{name} — {run.label}: cost over the run (Fig. 2)", fontsize=10)
+        ax.set_title(f"{name} — {_short(run.label)}: solver's cost over the run, active-set changes marked "
+                     f"(Fig. 2)", fontsize=10)
         ax.legend(fontsize=8, loc="center left", bbox_to_anchor=(1.01, 0.5))  # (outside: no data hidden)
     axes[-1, 0].set_xlabel("control step")
-    fig.tight_layout()
+    _fit(fig, axes[:, 0])
     paths.append(out / "fig2_time_activations.png")
     fig.savefig(paths[-1], dpi=110, bbox_inches="tight")
     plt.close(fig)
@@ -134,7 +231,7 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
         ax.set_ylim(-1.1, 1.1)
         ax.set_xlabel("time (s)")
         ax.set_ylabel("2 (q - q_l) / (q_u - q_l) - 1  (limits at ±1)")
-        ax.set_title(f"{name} — {run.label}: normalised joint trajectories (Fig. 3)")
+        ax.set_title(f"{name} — {_short(run.label)}: normalised joint trajectories (Fig. 3)")
         ax.legend(fontsize=7, ncol=2, loc="center left", bbox_to_anchor=(1.0, 0.5))
         fig.tight_layout()
         paths.append(out / f"fig3_joints_{_slug(run.label)}.png")
@@ -149,10 +246,10 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
     nrow = int(np.ceil(len(tasks) / ncol))
     fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 3.0 * nrow), squeeze=False, sharex=True)
     for ax, task in zip(axes.flat, tasks):
-        for i, run in enumerate(runs):
-            df = run.records
-            ax.semilogy(df["time_s"], np.maximum(df[f"err_{task.name}"], 1e-16), lw=1.0, color=f"C{i}",
-                        label=run.label)
+        for run in runs:
+            df, st = run.records, styles[run.label]
+            ax.semilogy(df["time_s"], np.maximum(df[f"err_{task.name}"], 1e-16), lw=1.0, color=st["color"],
+                        ls=st["linestyle"], label=_short(run.label))
         for te in _events_within(runs[0].scenario, max(float(r.records["time_s"].max()) for r in runs)):
             ax.axvline(te, color="grey", ls=":", lw=0.8)
         unit = {"PoseTask": "log6 error (m, rad)", "OrientationTask": "rad", "PostureTask": "rad",

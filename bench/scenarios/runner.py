@@ -1,8 +1,22 @@
 """The closed loop of a robot scenario (ICRA 2010 sec. XII): at each control step
 k (time t_k = k dt) set the targets of t_k, build the stack's hierarchy at q_k,
-solve it with any registered solver (one solver object for the whole run, so a
-solver with warm start keeps its state from step to step), integrate
-``q_{k+1} = pin.integrate(q_k, u dt)``, repeat.
+solve it with any registered solver, integrate ``q_{k+1} = pin.integrate(q_k,
+u dt)``, repeat.
+
+Timing: each step is solved by ``repeat`` solver objects (default
+:data:`REPEAT` = 5), built alike and fed the same hierarchies from step 0, so
+that a solver with warm start holds the same state in each of them at every
+step (what a controller's one solver object would hold; no state is copied
+or restored, the solver is not touched). The first object is the
+controller's: its call is timed first, after the new hierarchy is built
+(``solve_time_first_s``: what a controller sees), and its x, status and
+counts are the step's record; the others then solve the same hierarchy, and
+``solve_time_min_s`` is the minimum of the ``repeat`` times (the solver's
+own cost: a pause of the machine, which lengthens one call, is left out).
+``repeats_agree`` says whether every object returned the first's answer
+(status, iterations, activations, deactivations, x bit for bit): a solver
+whose objects drift apart (a nondeterministic backend) times other work in
+its minimum, and the CLI says how many steps did.
 
 Per-step record (one row per step; :data:`COLUMNS` then one column per task
 and per level):
@@ -13,11 +27,21 @@ warm_start                 ``none`` / ``stage`` / ``time`` (the solver's ``warm_
                            option), ``n/a`` for a solver without that option
 step                       k
 time_s                     t_k = k dt (s)
-solve_time_s               wall time of ``solver.solve`` (perf_counter_ns, GC off, BLAS
-                           threads = 1; one untimed warm-up solve on a separate solver
-                           object before the run), s
-iterations                 SolveResult.iterations
-activations, deactivations SolveResult counts (active-set solvers; 0 otherwise)
+solve_time_min_s           minimum over the ``repeat`` timed calls of ``solver.solve``
+                           (perf_counter_ns, GC off, BLAS threads = 1; one untimed
+                           warm-up solve on a separate solver object before the run), s
+solve_time_first_s         the first of them (the controller's call), s
+repeat                     timed calls of the step
+repeats_agree              every call returned the first's answer (see above)
+iterations                 SolveResult.iterations (the first call's)
+activations, deactivations SolveResult counts (active-set solvers; 0 otherwise): the
+                           solver's own, from its starting active set (a cold start
+                           counts every row it activates)
+active_rows                inequality rows at or beyond a bound at u: within
+                           :data:`ACTIVE_RTOL` x max(1, |bound|) of it (any solver)
+rows_entered, rows_left    rows of ``active_rows`` that were not active at the previous
+                           step / active rows of the previous step that are not now
+                           (empty at step 0): the active-set changes Fig. 2 marks
 status                     SolveResult.status, or ``diverged`` when q (+) u dt is not
                            finite (the run stops there)
 reason                     SolveResult.reason (empty when optimal)
@@ -50,11 +74,18 @@ from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult, checked_result
 from hikbench.problems.verify import level_norms
 
-__all__ = ["COLUMNS", "NO_WARM_START", "ScenarioRun", "check_run", "run_scenario", "warm_start_default"]
+__all__ = ["ACTIVE_RTOL", "COLUMNS", "NO_WARM_START", "REPEAT", "ScenarioRun", "active_rows", "check_run",
+           "run_scenario", "warm_start_default"]
 
-COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_s", "iterations", "activations",
-           "deactivations", "status", "reason", "min_joint_limit_margin")
+COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_min_s", "solve_time_first_s", "repeat",
+           "repeats_agree", "iterations", "activations", "deactivations", "active_rows", "rows_entered",
+           "rows_left", "status", "reason", "min_joint_limit_margin")
 NO_WARM_START = "n/a"
+REPEAT = 5  #: timed calls per step (``hikbench scenario --repeat``)
+#: a row within ACTIVE_RTOL x max(1, |bound|) of its bound is active: the solvers of the reach
+#: scenario put their active rows within 1e-10 (hcod) and 1e-6 (cascade-daqp) of them, and the
+#: nearest inactive row 1e-4 away (400 steps, 64 inequality rows a step)
+ACTIVE_RTOL = 1e-6
 
 
 @dataclass
@@ -87,8 +118,21 @@ def warm_start_default(info: registry.SolverInfo) -> str | None:
     return str(param.default)
 
 
+def active_rows(h, u: np.ndarray) -> np.ndarray:
+    """Bool mask, shape (rows,): the inequality rows (lower < upper) of ``h``
+    whose A_i u is within ACTIVE_RTOL x max(1, |bound|) of a finite bound or
+    beyond it (saturated or violated: the rows an active-set solver holds as
+    equalities); equality and free rows are False."""
+    Au = h.A @ u
+    ineq = h.lower < h.upper
+    with np.errstate(invalid="ignore"):  # (inf - inf of free rows: NaN, compared False)
+        low = np.isfinite(h.lower) & (Au - h.lower <= ACTIVE_RTOL * np.maximum(1.0, np.abs(h.lower)))
+        up = np.isfinite(h.upper) & (h.upper - Au <= ACTIVE_RTOL * np.maximum(1.0, np.abs(h.upper)))
+    return ineq & (low | up)
+
+
 def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
-                 warm_start: str | None = None, steps: int | None = None) -> ScenarioRun:
+                 warm_start: str | None = None, steps: int | None = None, repeat: int = REPEAT) -> ScenarioRun:
     """Run ``scenario`` in closed loop with solver ``solver``.
 
     Parameters
@@ -103,6 +147,8 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
         none / stage / time); ignored, and the column reads ``n/a``, for the others.
     steps : int, optional
         Number of control steps (default: the scenario's).
+    repeat : int
+        Timed calls per step, on as many solver objects (module docstring).
     """
     options = dict(options or {})
     info = solver_info(solver)
@@ -113,10 +159,12 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
         mode = str(options.get("warm_start", default))
     else:
         mode = NO_WARM_START
-    slv = registry.build(info, **options)
     steps = scenario.steps if steps is None else int(steps)
     if steps < 1:
         raise HikbenchError(f"steps must be >= 1; got {steps}")
+    if int(repeat) < 1:
+        raise HikbenchError(f"repeat must be >= 1; got {repeat}")
+    solvers = [registry.build(info, **options) for _ in range(int(repeat))]  # [0]: the controller's
     robot, stack, dt = scenario.robot, scenario.stack, scenario.dt
     # warm-up (untimed, on a separate solver object): numba compilation, backend caches
     scenario.reset()
@@ -125,25 +173,23 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
     _solve(registry.build(info, **options), stack.hierarchy(scenario.q_init, state))  # (step 0 reports a failure)
     scenario.reset()
     q = scenario.q_init.copy()
-    traj, rows = [q.copy()], []
+    traj, rows, before = [q.copy()], [], None
     with threadpool_limits(limits=1):
         for k in range(steps):
             t = k * dt
             state = KinematicState(robot, q)
             scenario.targets_at(t, state)
             h = stack.hierarchy(q, state)
-            gc.disable()  # GC off around the timed call only, as in the harness (bench/harness/timing.py)
-            try:
-                t0 = time.perf_counter_ns()
-                res = _solve(slv, h)
-                elapsed = (time.perf_counter_ns() - t0) * 1e-9
-            finally:
-                gc.enable()
+            res, times, agree = _timed_calls(solvers, h)
             u = res.x
-            row = {"solver": solver, "warm_start": mode, "step": k, "time_s": t, "solve_time_s": elapsed,
-                   "iterations": int(res.iterations), "activations": int(res.activations),
-                   "deactivations": int(res.deactivations), "status": res.status, "reason": res.reason,
+            now = active_rows(h, u) if u is not None and np.all(np.isfinite(u)) else None
+            row = {"solver": solver, "warm_start": mode, "step": k, "time_s": t,
+                   "solve_time_min_s": min(times), "solve_time_first_s": times[0], "repeat": len(times),
+                   "repeats_agree": agree, "iterations": int(res.iterations), "activations": int(res.activations),
+                   "deactivations": int(res.deactivations), **_changes(before, now), "status": res.status,
+                   "reason": res.reason,
                    "min_joint_limit_margin": float(np.min(robot.limit_margin(q), initial=np.inf))}
+            before = now
             row.update({f"err_{name}": v for name, v in stack.errors(q, u, state).items()})
             norms = level_norms(h, u) if u is not None else np.full(h.depth, np.nan)
             row.update({f"level_norm_{name}": float(v) for name, v in zip(h.names, norms)})
@@ -156,6 +202,40 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
                 break
             traj.append(q.copy())
     return ScenarioRun(scenario, solver, mode, pd.DataFrame(rows), np.array(traj))
+
+
+def _timed_calls(solvers: list, h) -> tuple[SolveResult, list[float], bool]:
+    """Each solver object solves ``h`` once, timed (s; GC off around each call
+    only, as in the harness, bench/harness/timing.py), the first first. Returns
+    the first's result, the times, and whether every result is the first's."""
+    times, results = [], []
+    for slv in solvers:
+        gc.disable()
+        try:
+            t0 = time.perf_counter_ns()
+            res = _solve(slv, h)
+            times.append((time.perf_counter_ns() - t0) * 1e-9)
+        finally:
+            gc.enable()
+        results.append(res)
+    first = results[0]
+    return first, times, all(_same_answer(first, r) for r in results[1:])
+
+
+def _same_answer(a: SolveResult, b: SolveResult) -> bool:
+    """Same status, counts and x (bit for bit, or both None)."""
+    same_x = (a.x is None and b.x is None) or (a.x is not None and b.x is not None and np.array_equal(a.x, b.x))
+    return same_x and (a.status, a.iterations, a.activations, a.deactivations) == (
+        b.status, b.iterations, b.activations, b.deactivations)
+
+
+def _changes(before: np.ndarray | None, now: np.ndarray | None) -> dict:
+    """active_rows, rows_entered, rows_left of a step (None where unknown:
+    no u, or no previous step, or another number of rows)."""
+    out = {"active_rows": None if now is None else int(now.sum()), "rows_entered": None, "rows_left": None}
+    if before is not None and now is not None and before.shape == now.shape:
+        out.update(rows_entered=int((now & ~before).sum()), rows_left=int((before & ~now).sum()))
+    return out
 
 
 def _solve(slv, h) -> SolveResult:

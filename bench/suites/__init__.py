@@ -5,7 +5,9 @@ Built-in suites live in ``bench/suites/<name>.toml``; ``--suite`` also takes a
 path. Schema (every key optional except ``problems``)::
 
     description = "..."
-    repeat = 5              # timed repetitions per row
+    repeat = 5              # timed repetitions per row (at least; setting it alone fixes the count)
+    samples = 100           # more repetitions, up to this many, for a fast solve (default 100 without repeat)
+    sample_time = 0.1       # ... while the row's timed solves add up to less than this (s)
     rounds = 1              # the repetitions split over rounds: round r runs every job once (slow windows)
     warmup = 1              # discarded solves before timing
     timeout = 60.0          # seconds per job (warm-up + repetitions), hard
@@ -42,6 +44,12 @@ Decisions (docs/suites.md, "The suite file"):
   are checked against their solver before the run starts.
 * The settings' options are part of a row's identity for resuming: after a
   ``[[settings]]`` changes, its rows run again and replace the old ones.
+* Repetitions: a suite that sets no ``repeat`` times each row at least 5
+  times, then up to ``samples`` = 100 while its timed solves add up to less
+  than ``sample_time`` = 0.1 s (every solve under 1 ms gets 100 samples, so
+  p99 is measured; hikbench.bench.harness.timing); a suite that sets
+  ``repeat`` alone gets exactly that many (the ``ci`` suite: its baselines
+  hold 9), and ``samples`` with it raises the count again.
 * ``grid = { case = "*" }`` expands to every ``hikbench.problems.generators.DEGENERATE_CASES``.
 """
 
@@ -55,6 +63,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from hikbench.bench.suites.problemset import ProblemSpec
+from hikbench.bench.harness.timing import SAMPLE_TIME, SAMPLES
 from hikbench.bench.harness.worker import solver_info
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.schema import Any, Bool, Int, List, Number, Str, Table, Where, read_toml, short
@@ -114,6 +123,8 @@ class Suite:
     name: str
     description: str = ""
     repeat: int = 5
+    samples: int | None = None  # None: exactly ``repeat`` (see the module docstring)
+    sample_time: float = SAMPLE_TIME
     rounds: int = 1
     warmup: int = 1
     timeout: float = 60.0
@@ -150,7 +161,8 @@ class Suite:
 
     def to_dict(self) -> dict:
         return {"name": self.name, "source": self.source, "description": self.description,
-                "repeat": self.repeat, "rounds": self.rounds, "warmup": self.warmup, "timeout": self.timeout,
+                "repeat": self.repeat, "samples": self.samples, "sample_time": self.sample_time,
+                "rounds": self.rounds, "warmup": self.warmup, "timeout": self.timeout,
                 "first_solve_timeout": self.first_solve_timeout, "calibrate_each_job": self.calibrate_each_job,
                 "modes": list(self.modes), "accuracy": self.accuracy, "export": list(self.export),
                 "solvers": list(self.solvers), "settings": self.settings, "problems": self.groups}
@@ -211,7 +223,8 @@ _SETTINGS = Table({"solver": Str(what="a solver name"), "name": Str(what="a sett
                   required=("solver", "name"), what="a [[settings]] table")
 #: the suite file (see the module docstring); solver options are checked against their solvers later
 SCHEMA = Table({
-    "description": Str(empty=True), "repeat": Int(1), "rounds": Int(1), "warmup": Int(0),
+    "description": Str(empty=True), "repeat": Int(1), "samples": Int(1), "sample_time": _SECONDS,
+    "rounds": Int(1), "warmup": Int(0),
     "timeout": _SECONDS, "first_solve_timeout": _SECONDS, "calibrate_each_job": Bool(),
     "modes": List(Str(("cold", "warm")), what='a non-empty list of strings, e.g. modes = ["cold", "warm"]'),
     "accuracy": Str(tuple(ACCURACY)),
@@ -220,7 +233,8 @@ SCHEMA = Table({
     "settings": List(_SETTINGS, min_len=0, what="[[settings]] tables"),
     "problems": List(_GROUP, what="[[problems]] tables (at least one)"),
 }, required=("problems",), defaults={
-    "description": "", "repeat": 5, "rounds": 1, "warmup": 1, "timeout": 60.0, "first_solve_timeout": 300.0,
+    "description": "", "repeat": 5, "sample_time": SAMPLE_TIME, "rounds": 1, "warmup": 1, "timeout": 60.0,
+    "first_solve_timeout": 300.0,
     "calibrate_each_job": False, "modes": ["cold"], "accuracy": "default", "export": ["npz"],
     "solvers": ["*"], "settings": []})
 
@@ -230,6 +244,7 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
     (SuiteError naming the suite file, the key path and what was expected)."""
     at = Where(f"suite {source or name}", SuiteError)
     d = SCHEMA.check(data, "", at)
+    samples = d.get("samples", None if "repeat" in data else SAMPLES)  # (repeat alone: a fixed count)
     for i, g in enumerate(d["problems"]):
         _check_grid(g, f"problems[{i}]", at)
     seen = set()
@@ -243,7 +258,8 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
     if d["rounds"] > d["repeat"]:
         at.say(f"rounds = {d['rounds']}: expected at most repeat = {d['repeat']} (each round times at "
                "least one solve of every row)")
-    return Suite(name=name, description=d["description"], repeat=d["repeat"], rounds=d["rounds"],
+    return Suite(name=name, description=d["description"], repeat=d["repeat"], samples=samples,
+                 sample_time=float(d["sample_time"]), rounds=d["rounds"],
                  warmup=d["warmup"], timeout=float(d["timeout"]), first_solve_timeout=float(d["first_solve_timeout"]),
                  calibrate_each_job=d["calibrate_each_job"], modes=tuple(d["modes"]), accuracy=d["accuracy"],
                  export=tuple(d["export"]), solvers=tuple(d["solvers"]), settings=d["settings"],

@@ -215,8 +215,10 @@ def still_run(sc, steps: int, status=None, err: float = 1e-3):
     from hikbench.bench.scenarios.runner import ScenarioRun
 
     status = list(status or ["optimal"] * steps)
-    rec = pd.DataFrame({"step": np.arange(steps), "time_s": np.arange(steps) * sc.dt, "solve_time_s": 1e-4,
-                        "activations": 0, "deactivations": 0, "status": status, "reason": "",
+    rec = pd.DataFrame({"step": np.arange(steps), "time_s": np.arange(steps) * sc.dt, "solve_time_min_s": 1e-4,
+                        "solve_time_first_s": 2e-4, "repeat": 5, "repeats_agree": True, "activations": 0,
+                        "deactivations": 0, "active_rows": 0, "rows_entered": 0, "rows_left": 0,
+                        "status": status, "reason": "",
                         **{f"err_{task.name}": err for task in sc.stack.tasks}})
     n_q = steps if status[-1] == "diverged" else steps + 1
     return ScenarioRun(sc, "hcod", "time", rec, np.tile(sc.q_init, (n_q, 1)))
@@ -318,3 +320,41 @@ class BaseOnlySolver(Solver):
 
         on_base = Path(hikbench.__file__).parents[1].name == "site"
         return SolveResult(nullspace_yardstick(hierarchy) if on_base else np.zeros(hierarchy.n), OPTIMAL)
+
+
+class CountingSolver(Solver):
+    """The yardstick's answer; its iterations are the calls this object has answered, this one
+    included: a state that grows with every solve, as a warm start's does."""
+
+    name = "counting"
+    supports_inequalities = True
+
+    def __init__(self):
+        from hikbench.solvers.yardstick import YardstickSolver
+
+        self._ref = YardstickSolver()
+        self.calls = 0
+
+    def solve(self, hierarchy):
+        self.calls += 1
+        res = self._ref.solve(hierarchy)
+        res.iterations = self.calls
+        return res
+
+
+class SerialSolver(CountingSolver):
+    """The yardstick's answer; its iterations are the order in which its object was built
+    (objects that disagree)."""
+
+    name = "serial"
+    built = 0
+
+    def __init__(self):
+        super().__init__()
+        SerialSolver.built += 1
+        self.serial = SerialSolver.built
+
+    def solve(self, hierarchy):
+        res = self._ref.solve(hierarchy)
+        res.iterations = self.serial
+        return res

@@ -30,7 +30,7 @@ def make_row(problem, solver, strict, t, ok, mode="cold"):
     if t is None:
         return {**r, "status": "unsupported", "verified": False}
     r.update(status="optimal" if np.isfinite(t) else "timeout", verified=ok, time_median_s=t, time_min_s=t,
-             time_p95_s=t)
+             time_p90_s=t, time_p99_s=t, time_max_s=t)
     if np.isfinite(t):
         r.update(level_norms=json.dumps([0.0, 0.5 if not strict else 0.2]), ref_level_norms=json.dumps([0.0, 0.2]))
     if not ok:

@@ -76,9 +76,9 @@ def test_claim_c_compares_the_same_problems():
 
 
 def _scenario(modes):
-    rows = [{"solver": "hcod", "warm_start": m, "step": k, "solve_time_s": t, "iterations": 1, "activations": 0}
+    rows = [{"solver": "hcod", "warm_start": m, "step": k, "solve_time_min_s": t, "iterations": 1, "activations": 0}
             for m, t in modes.items() for k in range(5)]
-    rows += [{"solver": "cascade-daqp", "warm_start": "n/a", "step": k, "solve_time_s": 1e-3, "iterations": 1,
+    rows += [{"solver": "cascade-daqp", "warm_start": "n/a", "step": k, "solve_time_min_s": 1e-3, "iterations": 1,
               "activations": 0} for k in range(5)]
     return pd.DataFrame(rows)
 

@@ -125,12 +125,15 @@ def empty_run(tmp_path):
 @pytest.mark.parametrize("make, fragment", [
     (lambda d: d / "nosuch.csv", "--scenario {p}: no such file or directory"),
     (lambda d: _write(d / "ik12.npz", b"PK\x03\x04\xff\xfe binary"), "{p}: not a text CSV file"),
-    (lambda d: _write(d / "x.csv", b"a,b\n1,2\n"), "{p}: missing column(s) step, solver, solve_time_s"),
+    (lambda d: _write(d / "x.csv", b"a,b\n1,2\n"), "{p}: missing column(s) step, solver, solve_time_min_s"),
     # a benchmark's results.csv has solver and solve_time_s too: it read as a scenario without hcod rows
-    (lambda d: _results_csv(d / "results.csv"), "{p}: missing column(s) step;"),
+    (lambda d: _results_csv(d / "results.csv"), "{p}: missing column(s) step, solve_time_min_s;"),
+    (lambda d: _write(d / "one.csv", b"step,solver,solve_time_s\n0,hcod,0.001\n"),
+     "{p}: one timed call per step (solve_time_s), no solve_time_min_s: the claims take the solver's cost"),
     (lambda d: _write(d / "e.csv", b""), "{p}: cannot read as CSV"),
     (lambda d: _mkdir(d / "empty"), "--scenario {p}: no *.csv file in this directory"),
-], ids=["missing", "binary", "wrong columns", "results.csv", "empty file", "empty directory"])
+], ids=["missing", "binary", "wrong columns", "results.csv", "one-call-per-step", "empty file",
+        "empty directory"])
 def test_claims_bad_scenario(capsys, tmp_path, empty_run, make, fragment):
     p = make(tmp_path)
     code, _, err = run(capsys, "claims", empty_run, "--scenario", p)

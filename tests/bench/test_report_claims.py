@@ -99,9 +99,9 @@ def test_claims_d_e_from_scenario_csv(tmp_path):
     rows = []
     for ws, base in (("none", 10), ("stage", 5), ("time", 1)):
         for s, a in zip(steps, act):
-            rows.append({"solver": "hcod", "step": s, "warm_start": ws, "solve_time_s": 3e-3,
+            rows.append({"solver": "hcod", "step": s, "warm_start": ws, "solve_time_min_s": 3e-3,
                          "iterations": base + 2 * a, "activations": a})
-    rows += [{"solver": "cascade-osqp", "step": s, "warm_start": "none", "solve_time_s": 30e-3,
+    rows += [{"solver": "cascade-osqp", "step": s, "warm_start": "none", "solve_time_min_s": 30e-3,
               "iterations": 0, "activations": 0} for s in steps]
     sc = pd.DataFrame(rows)
     d = claim_d(sc)
@@ -125,7 +125,7 @@ def test_claim_e_leaves_out_the_cold_first_step_of_time_warm_start():
         for s in steps:
             a = int(s == 5 or (ws == "time" and s == 0))
             it = 9 if (ws == "time" and s == 0) else base + 2 * a
-            rows.append({"solver": "hcod", "step": s, "warm_start": ws, "solve_time_s": 3e-3,
+            rows.append({"solver": "hcod", "step": s, "warm_start": ws, "solve_time_min_s": 3e-3,
                          "iterations": it, "activations": a})
     e = claim_e(pd.DataFrame(rows))
     assert e.status == PASS, e.measured
@@ -149,10 +149,10 @@ def test_scenario_csvs_are_found_and_concatenated(sweep_run, tmp_path):
     d = tmp_path / "scenarios" / "reach"
     d.mkdir(parents=True)
     for ws, it in (("none", 10), ("stage", 5), ("time", 1)):
-        pd.DataFrame({"solver": "hcod", "warm_start": ws, "step": range(6), "solve_time_s": 3e-3,
+        pd.DataFrame({"solver": "hcod", "warm_start": ws, "step": range(6), "solve_time_min_s": 3e-3,
                       "iterations": [it, it, it + 1, it, it, it], "activations": [0, 0, 1, 0, 0, 0]}
                      ).to_csv(d / f"reach_talos_hcod_{ws}_.csv", index=False)
-    pd.DataFrame({"solver": "cascade-daqp", "warm_start": "n/a", "step": range(6), "solve_time_s": 3e-2,
+    pd.DataFrame({"solver": "cascade-daqp", "warm_start": "n/a", "step": range(6), "solve_time_min_s": 3e-2,
                   "iterations": 3, "activations": 0}).to_csv(d / "reach_talos_cascade-daqp.csv", index=False)
     sc = load_scenario(tmp_path)
     assert len(sc) == 24
@@ -166,10 +166,11 @@ def test_scenario_csvs_are_found_and_concatenated(sweep_run, tmp_path):
 def test_times_from_several_hosts_are_normalised():
     from hikbench.bench.analysis.report import normalise_hosts
 
-    df = pd.DataFrame({"host": ["a", "a", "b"], "calib_ns": [1e6, 1e6, 2e6], "time_median_s": [1.0, 1.0, 2.0],
-                       "time_min_s": [1.0, 1.0, 2.0], "time_p95_s": [1.0, 1.0, 2.0]})
+    times = {c: [1.0, 1.0, 2.0] for c in ("time_median_s", "time_p90_s", "time_p99_s", "time_max_s", "time_min_s")}
+    df = pd.DataFrame({"host": ["a", "a", "b"], "calib_ns": [1e6, 1e6, 2e6], **times})
     out, note = normalise_hosts(df)
-    np.testing.assert_allclose(out["time_median_s"], [1.0, 1.0, 1.0], rtol=1e-12)
+    for c in times:  # (every time column, the tail's too)
+        np.testing.assert_allclose(out[c], [1.0, 1.0, 1.0], rtol=1e-12, err_msg=c)
     assert "host a" in note
     _, note = normalise_hosts(df[df["host"] == "a"])
     assert note.startswith("as measured")

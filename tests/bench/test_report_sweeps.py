@@ -20,7 +20,8 @@ def _row(solver, n, t, verified=True, status="optimal"):
     r.update(problem=f"equality/depth=3,n={n},rows=4/seed=0", family="equality",
              params=json.dumps({"depth": 3, "n": n, "rows": 4}), seed=0, n=n, depth=3, solver=solver,
              settings="default", options="{}", strict=True, mode="cold", repeat=1, status=status,
-             verified=verified, time_median_s=t, time_min_s=t, time_p95_s=t, host="h", calib_ns=1e6)
+             verified=verified, time_median_s=t, time_min_s=t, time_p90_s=t, time_p99_s=t, time_max_s=t,
+             host="h", calib_ns=1e6)
     return r
 
 

@@ -117,7 +117,7 @@ def _solver_params(names):
 def test_reach_checks_pass(solver):
     """ICRA 2010 sec. XII: limits respected, CoM/feet regulated, reach error to its lowest value
     while out of reach, then to 0 (700 steps; ~1 s with a cascade, ~10 s with the yardstick)."""
-    run = run_scenario(load_scenario("reach"), solver)
+    run = run_scenario(load_scenario("reach"), solver, repeat=1)  # (the checks, not the timing)
     checks = check_run(run)
     failed = [c for c in checks if not c.passed]
     assert not failed, failed
@@ -126,7 +126,7 @@ def test_reach_checks_pass(solver):
 @pytest.mark.slow
 @pytest.mark.parametrize("solver", _solver_params(["hcod", "cascade-daqp", "yardstick"]))
 def test_step_checks_pass(solver):
-    run = run_scenario(load_scenario("step"), solver)
+    run = run_scenario(load_scenario("step"), solver, repeat=1)
     checks = check_run(run)
     assert all(c.passed for c in checks), [c for c in checks if not c.passed]
 
@@ -137,7 +137,7 @@ def test_step_with_dls_liegeois_shows_its_posture_fighting_the_feet():
     rows) pulls against the feet and the CoM, and the tracking checks fail. (Taking the posture
     task, unit equality rows, for its joint-limit box and dropping it from the task would make
     them pass; the real box, level 0, has two rows per joint, intersected.)"""
-    run = run_scenario(load_scenario("step"), "dls-liegeois")
+    run = run_scenario(load_scenario("step"), "dls-liegeois", repeat=1)
     checks = {c.name: c for c in check_run(run)}
     assert checks["run completed"].passed
     assert not checks["com_xy tracked"].passed and not checks["right_foot tracked"].passed
