@@ -8,7 +8,14 @@ STAMP  := $(VENV)/.installed
 SUITE  ?= quick
 OUT    ?= results/$(SUITE)
 
-.PHONY: install warmup bench paper test test-all clean
+# the C++ peers SOTH and LexLS (docs/peers.md): sources from PEERS_SRC (a folder holding their pinned
+# tarballs; default ../shared/third_party when it exists, else a shallow clone at the pinned commits);
+# MARCH_NATIVE=1 adds -march=native (recorded in run.json)
+PEERS_SRC    ?= $(if $(wildcard ../shared/third_party),../shared/third_party,)
+MARCH_NATIVE ?= 0
+PEERS_STAMP  := $(VENV)/.peers-installed
+
+.PHONY: install warmup bench paper peers test test-all clean
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -19,6 +26,13 @@ $(STAMP): pyproject.toml | $(PY)
 	touch $(STAMP)
 
 install: $(STAMP)
+
+$(PEERS_STAMP): pyproject.toml | $(STAMP)
+	$(PY) -m pip install --quiet -e '.[peers]'
+	touch $(PEERS_STAMP)
+
+peers: $(PEERS_STAMP)
+	$(PY) peers/build.py $(if $(PEERS_SRC),--src $(PEERS_SRC)) $(if $(filter 1,$(MARCH_NATIVE)),--march-native)
 
 warmup: install
 	$(VENV)/bin/hikbench warmup

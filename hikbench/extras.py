@@ -4,7 +4,8 @@ missing module belongs to.
 
 ``pip install hikbench`` gives the core (the model, ``hcod``, the yardstick,
 the qpsolvers cascades, the harness, the reports); ``robots``, ``cvxpy`` and
-``dask`` add the rest, ``all`` all three.
+``dask`` add the rest, ``all`` all three. ``peers`` holds the headers ``make peers``
+compiles the C++ peers SOTH and LexLS with (docs/peers.md).
 """
 
 from __future__ import annotations

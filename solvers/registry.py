@@ -37,6 +37,7 @@ _BUILTIN_MODULES: tuple[str, ...] = (
     "hikbench.solvers.cascade_cvxpy",
     "hikbench.solvers.nullspace",
     "hikbench.solvers.damped",
+    "hikbench.solvers.peers",
 )
 _OWN_PACKAGES = ("hikbench",)
 #: other names of registered solvers: ``reference`` is the yardstick's earlier name

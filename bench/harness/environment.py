@@ -96,8 +96,17 @@ def environment() -> dict:
         "versions": _versions(),
         "blas": _blas(),
         "git": _git(),
+        "peers": _peers(),
         "argv": sys.argv,
     }
+
+
+def _peers() -> dict | None:
+    """How the C++ peers soth and lexls were built (``make peers``: commits,
+    compiler, flags, ``march_native``), None when they are not built."""
+    from hikbench.solvers.peers import build_info
+
+    return build_info()
 
 
 def openblas_kernels(threadpools: list[dict]) -> str | None:

@@ -1,0 +1,238 @@
+"""Build the C++ peers SOTH and LexLS and hikbench's adapters to them (``make peers``).
+
+    python peers/build.py [--src DIR] [--out DIR] [--march-native] [--jobs N]
+
+Sources: ``--src`` (``make peers PEERS_SRC=DIR``), a folder holding the pinned
+tarballs ``soth-d2485f4.tar.gz`` and ``lexls-f13b6b6.tar.gz``; without it, a
+shallow clone of the public repositories at the pinned commits (needs git and
+the network). Headers: Eigen (cmeel-eigen), Boost (cmeel-boost) and pybind11
+from PyPI (``pip install 'hikbench[peers]'``); the system C++ compiler (``$CXX``,
+else ``c++``). Output: two Python extension modules, ``_hik_soth`` and
+``_hik_lexls``, and ``peers.json`` (commits, compiler, flags, build time) in
+``--out``, by default the folder :func:`hikbench.solvers.peers.peers_dir` reads
+(``<environment>/lib/hikbench-peers``, or ``$HIKBENCH_PEERS_DIR``).
+
+How each peer is built (docs/peers.md):
+
+* SOTH: the library sources of its ``src/CMakeLists.txt`` (its CMake needs the
+  jrl-cmakemodules submodule, which the pinned snapshot lacks) compiled directly,
+  its debug/trace mode compiled out: the ``#define SOTH_DEBUG`` and
+  ``#define SOTH_DEBUG_MODE`` lines at the top of four sources are dropped from
+  the extracted copy, ``-DNDEBUG`` is added, and every source's preprocessed
+  macros are checked before compiling (neither ``SOTH_DEBUG`` defined nor
+  ``NDEBUG`` missing). ``Random.cpp`` (its unit tests' generator) is not built.
+* LexLS: header-only; its cap on factorizations is a run-time parameter, which
+  the adapter raises (``max_factorizations``, default 1000 where LexLS says 200).
+
+A missing compiler, source folder or header package is one line saying what to
+do, exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import re
+import shutil
+import subprocess
+import sys
+import sysconfig
+import tarfile
+import tempfile
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+# name -> (public repository, pinned commit, tarball in PEERS_SRC)
+PINNED = {
+    "soth": ("https://github.com/stack-of-tasks/soth", "d2485f4a29d2af65e4badd72b5a2fe7ae30792fc",
+             "soth-d2485f4.tar.gz"),
+    "lexls": ("https://github.com/jrl-umi3218/lexls", "f13b6b668146aabbf838b1e2fc3fe9b65d752db5",
+              "lexls-f13b6b6.tar.gz"),
+}
+#: SOTH's library sources (its src/CMakeLists.txt), Random.cpp (unit tests only) left out
+SOTH_SOURCES = ("Allocator.cpp", "Algebra.cpp", "Bound.cpp", "BaseY.cpp", "HCOD.cpp", "Givens.cpp", "debug.cpp",
+                "Stage.cpp", "BasicStage.cpp")
+#: the lines switching SOTH's debug/trace mode on, at the top of HCOD.cpp, Stage.cpp, BasicStage.cpp, Random.cpp
+SOTH_DEBUG_LINE = re.compile(r"^[ \t]*#[ \t]*define[ \t]+SOTH_DEBUG(_MODE)?\b.*$", re.M)
+#: seconds to compile each unit on a 2-core machine, to start the longest first (make peers prints them)
+COST = {"lexls_adapter.cpp": 71, "Stage.cpp": 58, "HCOD.cpp": 18, "soth_adapter.cpp": 18, "BaseY.cpp": 10,
+        "BasicStage.cpp": 8, "Givens.cpp": 4}
+FLAGS = ("-O3", "-DNDEBUG", "-std=c++17", "-fPIC", "-fvisibility=hidden", "-w")
+
+
+class BuildError(Exception):
+    """What the user must do, in one line (exit status 2)."""
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(prog="peers/build.py", description=__doc__.split("\n\n")[0])
+    p.add_argument("--src", default=os.environ.get("PEERS_SRC") or None,
+                   help="folder holding the pinned tarballs (default: a shallow clone of the public repositories)")
+    p.add_argument("--out", default=None, help="where the modules go (default: hikbench.solvers.peers.peers_dir())")
+    p.add_argument("--march-native", action="store_true", help="add -march=native (recorded in peers.json)")
+    p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel compiler processes")
+    args = p.parse_args(argv)
+    try:
+        info = build(args.src, args.out, args.march_native, max(args.jobs, 1))
+    except BuildError as err:
+        print(f"make peers: {err}", file=sys.stderr)
+        return 2
+    units = ", ".join(f"{k} {v:.0f} s" for k, v in sorted(info["compile_s"].items(), key=lambda kv: -kv[1]))
+    print(f"make peers: built soth and lexls in {info['build_time_s']:.0f} s ({info['jobs']} jobs; {units}) "
+          f"into {info['dir']}")
+    return 0
+
+
+def build(src: str | None, out: str | None, march_native: bool, jobs: int) -> dict:
+    t0 = time.perf_counter()
+    cxx = find_compiler()
+    inc = header_dirs()
+    if out is None:
+        from hikbench.solvers.peers import peers_dir
+        out = peers_dir()
+    out = Path(out)
+    flags = [*FLAGS, *(["-march=native"] if march_native else [])]
+    with tempfile.TemporaryDirectory(prefix="hikbench-peers-") as tmp:
+        tmp = Path(tmp)
+        soth, lexls = (fetch_source(name, src, tmp) for name in ("soth", "lexls"))
+        soth_inc = strip_soth_debug(soth, tmp)
+        includes = [f"-I{d}" for d in (*inc.values(), sysconfig.get_paths()["include"])]
+        soth_flags = [*flags, *includes, f"-I{soth_inc}"]
+        check_soth_defines(cxx, soth_flags, soth_inc / "soth")
+        suffix = sysconfig.get_config_var("EXT_SUFFIX")
+        objects = [(cxx, soth_flags, soth_inc / "soth" / s, tmp / f"soth_{Path(s).stem}.o") for s in SOTH_SOURCES]
+        objects.append((cxx, soth_flags, HERE / "soth_adapter.cpp", tmp / "soth_adapter.o"))
+        lexls_flags = [*flags, *includes, f"-I{lexls / 'include'}"]
+        objects.append((cxx, lexls_flags, HERE / "lexls_adapter.cpp", tmp / "lexls_adapter.o"))
+        objects.sort(key=lambda o: -COST.get(o[2].name, 1))  # longest first: the two cores end together
+        with ThreadPoolExecutor(jobs) as pool:
+            unit_s = dict(zip((o[2].name for o in objects), pool.map(lambda o: compile_one(*o), objects)))
+        out.mkdir(parents=True, exist_ok=True)
+        link(cxx, flags, [o[3] for o in objects if o[3].name.startswith("soth")], out / f"_hik_soth{suffix}")
+        link(cxx, flags, [tmp / "lexls_adapter.o"], out / f"_hik_lexls{suffix}")
+    info = {"dir": str(out), "compiler": compiler_version(cxx), "flags": flags, "march_native": march_native,
+            "jobs": jobs, "machine": platform.machine(),
+            "peers": {name: {"repository": repo, "commit": commit} for name, (repo, commit, _) in PINNED.items()},
+            "source": str(Path(src).resolve()) if src else "git clone",
+            "eigen": inc["eigen"], "boost": inc["boost"],
+            "build_time_s": round(time.perf_counter() - t0, 2),
+            "compile_s": {k: round(v, 2) for k, v in unit_s.items()}}
+    (out / "peers.json").write_text(json.dumps(info, indent=2) + "\n")
+    return info
+
+
+def find_compiler() -> str:
+    for cand in (os.environ.get("CXX"), "c++", "g++", "clang++"):
+        if cand and shutil.which(cand):
+            return shutil.which(cand)
+    raise BuildError("no C++ compiler found ($CXX, c++, g++, clang++): install one (e.g. `apt-get install g++`) "
+                     "or set CXX")
+
+
+def header_dirs() -> dict[str, str]:
+    """Eigen's, Boost's and pybind11's include folders, from their PyPI packages."""
+    found: dict[str, str] = {}
+    for entry in map(Path, sys.path):
+        prefix = entry / "cmeel.prefix" / "include"
+        if "eigen" not in found and (prefix / "eigen3" / "Eigen" / "Core").is_file():
+            found["eigen"] = str(prefix / "eigen3")
+        if "boost" not in found and (prefix / "boost" / "version.hpp").is_file():
+            found["boost"] = str(prefix)
+    try:
+        import pybind11
+        found["pybind11"] = pybind11.get_include()
+    except ModuleNotFoundError:
+        pass
+    lacking = [pkg for key, pkg in (("eigen", "cmeel-eigen"), ("boost", "cmeel-boost"), ("pybind11", "pybind11"))
+               if key not in found]
+    if lacking:
+        raise BuildError(f"header package(s) {', '.join(lacking)} not installed in {sys.prefix}: run "
+                         f"`{Path(sys.executable).name} -m pip install 'hikbench[peers]'` (or `make peers`)")
+    return found
+
+
+def fetch_source(name: str, src: str | None, tmp: Path) -> Path:
+    """The peer's source tree, extracted from its tarball in ``src`` or cloned at its pinned commit."""
+    repo, commit, tarball = PINNED[name]
+    if src is not None:
+        path = Path(src) / tarball
+        if not path.is_file():
+            raise BuildError(f"{path} not found: PEERS_SRC must be a folder holding {PINNED['soth'][2]} and "
+                             f"{PINNED['lexls'][2]} (e.g. ../shared/third_party), or leave it unset to clone "
+                             f"the public repositories")
+        with tarfile.open(path) as tar:
+            tar.extractall(tmp, filter="data")
+        tree = tmp / name
+        if not tree.is_dir():
+            raise BuildError(f"{path} does not hold a top folder {name}/: expected the pinned snapshot")
+        return tree
+    tree = tmp / name
+    if shutil.which("git") is None:
+        raise BuildError("no PEERS_SRC and no git to clone the peers: install git, or pass "
+                         "PEERS_SRC=folder-with-the-tarballs")
+    for cmd in (["git", "init", "-q", str(tree)], ["git", "-C", str(tree), "fetch", "-q", "--depth", "1", repo, commit],
+                ["git", "-C", str(tree), "checkout", "-q", "FETCH_HEAD"]):
+        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if done.returncode:
+            raise BuildError(f"cloning {repo} at {commit[:7]} failed ({done.stderr.strip().splitlines()[-1:]}): "
+                             f"pass PEERS_SRC=folder-with-the-tarballs")
+    return tree
+
+
+def strip_soth_debug(soth: Path, tmp: Path) -> Path:
+    """An include folder ``<dir>/soth/`` holding SOTH's src/ with the debug-mode
+    ``#define`` lines removed (SOTH's headers are included as ``soth/X.hpp``)."""
+    inc = tmp / "soth-include"
+    shutil.copytree(soth / "src", inc / "soth")
+    for f in (inc / "soth").glob("*.cpp"):
+        text = f.read_text()
+        stripped = SOTH_DEBUG_LINE.sub("", text)
+        if stripped != text:
+            f.write_text(stripped)
+    return inc
+
+
+def check_soth_defines(cxx: str, flags: list[str], src: Path) -> None:
+    """Each SOTH source, preprocessed with the build's flags, defines NDEBUG and
+    not SOTH_DEBUG (the trace mode that makes SOTH 150-330x slower)."""
+    for name in SOTH_SOURCES:
+        done = subprocess.run([cxx, *flags, "-dM", "-E", str(src / name)], capture_output=True, text=True,
+                              check=False)
+        if done.returncode:
+            raise BuildError(f"preprocessing SOTH's {name} failed: {done.stderr.strip()[:300]}")
+        macros = set(re.findall(r"^#define (\w+)", done.stdout, re.M))
+        if "SOTH_DEBUG" in macros or "NDEBUG" not in macros:
+            raise BuildError(f"SOTH's {name} still compiles its debug mode (SOTH_DEBUG defined or NDEBUG missing): "
+                             f"the pinned source changed; update peers/build.py")
+
+
+def compile_one(cxx: str, flags: list[str], src: Path, obj: Path) -> float:
+    """Compile ``src`` into ``obj``; the seconds it took."""
+    t0 = time.perf_counter()
+    done = subprocess.run([cxx, *flags, "-c", str(src), "-o", str(obj)], capture_output=True, text=True,
+                          check=False)
+    if done.returncode:
+        raise BuildError(f"compiling {src.name} failed:\n{done.stderr.strip()[-2000:]}")
+    return time.perf_counter() - t0
+
+
+def link(cxx: str, flags: list[str], objects: list[Path], target: Path) -> None:
+    tmp_target = target.with_name(target.name + ".tmp")
+    done = subprocess.run([cxx, *flags, "-shared", *map(str, objects), "-o", str(tmp_target)], capture_output=True,
+                          text=True, check=False)
+    if done.returncode:
+        raise BuildError(f"linking {target.name} failed:\n{done.stderr.strip()[-2000:]}")
+    tmp_target.replace(target)  # (atomic: a running process keeps the old file)
+
+
+def compiler_version(cxx: str) -> str:
+    done = subprocess.run([cxx, "--version"], capture_output=True, text=True, check=False)
+    return (done.stdout.splitlines() or [cxx])[0]
+
+
+if __name__ == "__main__":
+    sys.exit(main())
