@@ -188,3 +188,25 @@ def test_a_problem_whose_content_changed_is_not_timed():
     p1 = [(c.verdict, c.why) for c in dec.cases if c.problem == "p1"]
     assert p1 == [("not timed", "the problem differs between base and change")] * 2
     assert not dec.failed and any("p1" in n and "problem_hash" in n for n in dec.notes)
+
+
+@pytest.mark.parametrize("edit, shared", [(None, True), ("__init__.py", True), ("_linalg.py", False)],
+                         ids=["same-sources", "wrapper-edited", "kernel-source-edited"])
+def test_the_base_shares_the_compiled_kernels_only_with_the_same_kernel_sources(tmp_path, edit, shared):
+    """The working tree's numba cache is copied into the base's install when hcod's kernel
+    sources (all but __init__.py, which the cache's stamp leaves out) are the same."""
+    from hikbench.bench.harness.revisions import share_numba_cache
+    from hikbench.solvers import hcod
+
+    mine = Path(hcod.__file__).parent
+    theirs = tmp_path / "site" / "hikbench" / "solvers" / "hcod"
+    theirs.mkdir(parents=True)
+    for f in mine.glob("*.py"):
+        (theirs / f.name).write_bytes(f.read_bytes())
+    if edit:
+        (theirs / edit).write_text((theirs / edit).read_text() + "\n# an edit\n")
+    assert share_numba_cache(tmp_path / "site") is shared
+    copied = sorted(p.name for p in (theirs / "__pycache__").glob("*.nb[ic]")) if shared else []
+    assert copied == (sorted(p.name for p in (mine / "__pycache__").glob("*.nb[ic]")) if shared else [])
+    if shared:
+        assert (theirs / "_linalg.py").stat().st_mtime_ns == (mine / "_linalg.py").stat().st_mtime_ns
