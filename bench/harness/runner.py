@@ -10,7 +10,7 @@ Layout of OUT::
     run.json              environment, suite, calibration, sessions
     summary.json          rows, solvers, problems, verified counts, statuses, wall time (bench/harness/summary.py)
     problems/<id>.npz     every problem of the suite (and .soth.txt if exported)
-    yardstick/<id>.npz    cached yardstick solution (x, status, reason)
+    yardstick/<id>.npz    cached yardstick (x, status, reason, kind, kind_reason, certify_budget)
     worker.log            stderr of the isolated worker processes
     run.lock              held (flock) by the run writing to OUT: a second run on
                           the same OUT is refused; the OS releases it when the
@@ -63,33 +63,51 @@ def _json_floats(a) -> str:
     return json.dumps([None if not math.isfinite(float(v)) else float(v) for v in a])
 
 
+#: what a row's yardstick is (column ``yardstick``): certified by the exact certificate, a
+#: reference point the certificate did not accept (or did not reach in its budget), none at all
+CERTIFIED, REFERENCE_ONLY, NO_YARDSTICK = "certified", "reference-only", "none"
+
+
 def _load_yardstick(path: Path, n: int):
-    """(x or None, status, reason) cached in ``path``; None, said on stderr, when the
-    file cannot be read or does not hold a yardstick of ``n`` variables (a damaged
-    file: the caller computes it again)."""
+    """(x or None, status, reason, kind, kind_reason, certify_budget) cached in ``path``; None,
+    said on stderr, when the file cannot be read or does not hold a yardstick of ``n`` variables
+    (a damaged file: the caller computes it again); None, silently, for a file without a
+    ``kind`` (written before yardsticks were certified)."""
     try:
         with np.load(path, allow_pickle=False) as z:
+            if "kind" not in z.files:
+                return None
             x, status, reason = z["x"], str(z["status"]), str(z["reason"])
+            kind, kind_reason, budget = str(z["kind"]), str(z["kind_reason"]), float(z["certify_budget"])
         if x.dtype.kind != "f" or x.shape not in ((0,), (n,)):
             raise ValueError(f"x of dtype {x.dtype} and shape {x.shape}: expected float64 of shape ({n},)")
+        if kind not in (CERTIFIED, REFERENCE_ONLY, NO_YARDSTICK):
+            raise ValueError(f"kind {kind!r}: expected {CERTIFIED}, {REFERENCE_ONLY} or {NO_YARDSTICK}")
     except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile) as err:
         print(f"hikbench run: {path} cannot be read ({type(err).__name__}: {' '.join(str(err).split())}); "
               f"computing the yardstick again", file=sys.stderr)
         return None
-    return (x if x.size else None), status, reason
+    return (x if x.size else None), status, reason, kind, kind_reason, budget
 
 
-def _save_yardstick(path: Path, x, status: str, reason: str) -> None:
+def _save_yardstick(path: Path, x, status: str, reason: str, kind: str = NO_YARDSTICK, kind_reason: str = "",
+                    certify_budget: float = 0.0) -> None:
+    """Cache a yardstick; ``certify_budget`` > 0: its certification stopped at that budget (a run
+    with a larger one tries again)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     with open(tmp, "wb") as f:
-        np.savez(f, x=np.zeros(0) if x is None else np.asarray(x, float), status=status, reason=reason)
+        np.savez(f, x=np.zeros(0) if x is None else np.asarray(x, float), status=status, reason=reason,
+                 kind=kind, kind_reason=kind_reason, certify_budget=float(certify_budget))
     tmp.replace(path)
 
 
 def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: float) -> dict:
-    """One results.csv row from a job result (hikbench.bench.harness.worker) and the yardstick."""
-    x_ref, ref_status, ref_reason = ref
+    """One results.csv row from a job result (hikbench.bench.harness.worker) and the yardstick
+    ``ref`` (:func:`_load_yardstick`'s tuple). A row is verified only against a certified
+    yardstick: against a reference-only one ``verified`` is empty and ``verdict_side`` says
+    ``no certified yardstick``."""
+    x_ref, ref_status, ref_reason, kind, kind_reason = ref[:5]
     x = res.get("x")
     samples = np.asarray(res.get("samples_ns") or [], dtype=np.int64)
     row = dict(pcols)
@@ -103,10 +121,14 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: floa
         row["x_norm"] = float(np.linalg.norm(x))
     if x_ref is not None:
         row["ref_level_norms"] = _json_floats(level_norms(h, x_ref))
+    row.update(yardstick=kind, yardstick_reason=kind_reason)
     if x_ref is None:
         row["verified"] = None
         row["verdict_side"] = "no yardstick"
         row["reason"] = (row["reason"] + "; " if row["reason"] else "") + f"yardstick {ref_status}: {ref_reason}"
+    elif kind != CERTIFIED:
+        row["verified"] = None
+        row["verdict_side"] = "no certified yardstick"
     elif x is None or np.shape(x) != (h.n,):
         row.update(verified=False, verdict_side="no x")
     else:
@@ -287,7 +309,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         session["executor"] = getattr(executor, "name", type(executor).__name__)
         try:
             with _Progress(quiet) as progress:
-                refs = _yardsticks(todo, problems, out, executor, max(timeout, suite.first_solve_timeout), progress)
+                refs = _yardsticks(todo, problems, out, executor, max(timeout, suite.first_solve_timeout),
+                                   suite.certify_timeout, progress)
                 tid = progress.add("solves", len(todo) * rounds)
                 earlier = {i: [] for i in range(len(todo))}  # results of the rounds before, per job
                 alive = list(earlier)  # jobs still to run in the next round
@@ -404,28 +427,101 @@ def _export_formats(formats) -> tuple[tuple, dict]:
     return tuple(keep), skipped
 
 
-def _yardsticks(todo, problems, out: Path, executor, timeout, progress) -> dict:
-    """x_ref, status, reason per problem id, from OUT/yardstick/ or computed
-    through the executor (isolated; ``timeout`` is the larger of the job
-    timeout and the first-solve allowance: the yardstick is trusted code and
-    its first call imports its QP backends)."""
-    refs, need = {}, []
+def _yardsticks(todo, problems, out: Path, executor, timeout, certify_timeout, progress) -> dict:
+    """The yardstick of each problem id, :func:`_load_yardstick`'s tuple, from OUT/yardstick/ or
+    computed through the executor (isolated): the candidates (the independent yardstick and
+    hcod, :func:`hikbench.bench.harness.worker.yardstick_candidates`; ``timeout`` is the larger
+    of the job timeout and the first-solve allowance), the lexicographically lowest of them
+    (:func:`_lowest`), then its exact certificate (:func:`_certify_all`). A killed or lost
+    worker is no answer of the yardstick: not cached, the next run tries again."""
+    refs, need, recertify = {}, [], []
     for pid in dict.fromkeys(t.problem.id for t in todo):
         path = out / "yardstick" / (file_stem(pid) + ".npz")
         cached = _load_yardstick(path, problems[pid].n) if path.exists() else None
-        if cached is not None:
-            refs[pid] = cached
-        else:
+        if cached is None:
             need.append(pid)
+            continue
+        refs[pid] = cached
+        if cached[3] == REFERENCE_ONLY and 0 < cached[5] < certify_timeout:  # (a larger budget: try again)
+            recertify.append(pid)
+    points = {}
     if need:
         tid = progress.add("yardstick", len(need))
         items = ((pid, {"kind": "yardstick", "hierarchy": problems[pid]}, timeout) for pid in need)
         for pid, res in executor.map(items):
-            x = res.get("x") if res["status"] == "optimal" else None
-            refs[pid] = (x, res["status"], res.get("reason", ""))
-            # a killed or lost worker is no answer of the yardstick: not cached, the next run tries again
-            if res["status"] not in (TIMEOUT, CRASHED):
-                _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), x, res["status"],
-                                res.get("reason", ""))
             progress.advance(tid)
+            if res["status"] in (TIMEOUT, CRASHED):
+                refs[pid] = (None, res["status"], res.get("reason", ""), NO_YARDSTICK, "", 0.0)
+                continue
+            x, note = _lowest(problems[pid], res)
+            if x is None:
+                refs[pid] = (None, res["status"], "; ".join(filter(None, (res.get("reason"), res.get("hcod_reason")))),
+                             NO_YARDSTICK, "no candidate point", 0.0)
+                _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), *refs[pid])
+                continue
+            points[pid] = (x, note)
+    points.update({pid: (refs[pid][0], refs[pid][2]) for pid in recertify})
+    for pid, ref in _certify_all(points, problems, executor, certify_timeout, progress).items():
+        refs[pid] = ref
+        _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), *ref)
+    return refs
+
+
+def _lowest(h, res: dict):
+    """The lexicographically lowest of a yardstick job's candidate points (hikbench.problems.verify
+    at 1e-9 of each level's scale; a tie keeps the independent yardstick's) and a note naming
+    it; (None, "") when there is none."""
+    x, xh = res.get("x"), res.get("x_hcod")
+    if x is None and xh is None:
+        return None, ""
+    if xh is None:
+        return x, "the independent yardstick's point" + (f" ({res['hcod_reason']})" if res.get("hcod_reason") else "")
+    if x is None:
+        return xh, f"hcod's point (the independent yardstick failed: {res.get('reason', '')})"
+    v = verify(h, xh, x, rtol=1e-9)
+    if not v.equal and v.lower == "a":
+        return xh, f"hcod's point (the independent yardstick's is above it at level {v.level})"
+    return x, "the independent yardstick's point" + ("" if v.equal else f" (hcod's is above it at level {v.level})")
+
+
+def _certify_all(points: dict, problems: dict, executor, budget: float, progress) -> dict:
+    """The exact certificate of each problem's chosen point (pid -> (x, note)), through the
+    executor with ``budget`` seconds each; a problem whose estimated cost
+    (:func:`hikbench.problems.exact.estimated_seconds`) exceeds twice the budget is not tried.
+    Returns pid -> the yardstick tuple: ``certified`` (x, or the certificate's exact optimum
+    where x is above it), else ``reference-only`` with the reason (refused, timed out, not
+    tried, failed), never losing the point."""
+    from hikbench.problems.exact import estimated_seconds
+
+    refs, items = {}, []
+    for pid, (x, note) in points.items():
+        est = estimated_seconds(problems[pid])
+        if est > 2 * budget:
+            refs[pid] = (x, "optimal", note, REFERENCE_ONLY,
+                         f"{note}; not certified: the exact certificate was not tried, its estimated time "
+                         f"({est:.0f} s) is beyond twice certify_timeout ({budget:g} s)", budget)
+        else:
+            items.append((pid, {"kind": "certify", "hierarchy": problems[pid], "x": x}, budget))
+    if items:
+        tid = progress.add("certificate", len(items))
+        for pid, res in executor.map(iter(items)):
+            progress.advance(tid)
+            x, note = points[pid]
+            if res["status"] == TIMEOUT:
+                refs[pid] = (x, "optimal", note, REFERENCE_ONLY,
+                             f"{note}; not certified: the exact certificate did not finish in certify_timeout "
+                             f"({budget:g} s)", budget)
+            elif res["status"] != "optimal":
+                refs[pid] = (x, "optimal", note, REFERENCE_ONLY,
+                             f"{note}; not certified: the exact certificate {res['status']}: {res.get('reason', '')}",
+                             budget if res["status"] == CRASHED else 0.0)
+            elif not res["certified"]:
+                refs[pid] = (x, "optimal", note, REFERENCE_ONLY,
+                             f"{note}; the exact certificate refused it: {res['reason']}", 0.0)
+            elif res["attains"]:
+                refs[pid] = (x, "optimal", note, CERTIFIED, note, 0.0)
+            else:
+                refs[pid] = (res["x_cert"], "optimal", note, CERTIFIED,
+                             f"the certificate's exact optimum x*: {note} is above it at level {res['above_level']}",
+                             0.0)
     return refs

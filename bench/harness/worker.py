@@ -3,8 +3,11 @@
 Runs inside the isolated worker process (``python -m hikbench.bench.harness.isolation``) or,
 for external programs, in the caller. A job is a dict::
 
-    {"kind": "solve" | "yardstick", "hierarchy": Hierarchy, "solver": spec,
+    {"kind": "solve" | "yardstick" | "certify", "hierarchy": Hierarchy, "solver": spec,
      "options": {...}, "mode": "cold" | "warm", "repeat": R, "warmup": W}
+
+A ``yardstick`` job returns the yardstick's candidate points (:func:`yardstick_candidates`), a
+``certify`` job (with ``"x"``) the exact certificate of x (:func:`certify_point`).
 
 ``spec`` is a registry name or ``module:Class`` / ``file.py:Class`` (a
 :class:`~hikbench.solvers.base.Solver` subclass or any factory), which is how tests
@@ -23,7 +26,7 @@ import numpy as np
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult
 
-__all__ = ["execute", "solver_factory", "solver_info"]
+__all__ = ["certify_point", "execute", "solver_factory", "solver_info", "yardstick_candidates"]
 
 _frozen: set[str] = set()  # solvers whose first solve in this process is behind gc.freeze()
 
@@ -62,6 +65,46 @@ def _result_dict(res: SolveResult, samples_ns) -> dict:
     }
 
 
+def yardstick_candidates(h) -> dict:
+    """The candidate points of h's yardstick: the independent yardstick's
+    (:func:`hikbench.solvers.yardstick.yardstick_solution`) as ``x`` and ``hcod``'s as
+    ``x_hcod``, each None with its reason (``reason``, ``hcod_reason``) where it gave no finite
+    point; ``status`` optimal when either gave one, else error."""
+    from hikbench.solvers.yardstick import yardstick_solution
+
+    out = {"x": None, "reason": "", "x_hcod": None, "hcod_reason": ""}
+    try:
+        out["x"] = np.asarray(yardstick_solution(h), dtype=float)
+    except Exception as err:  # noqa: BLE001 - a yardstick that fails is recorded, hcod may still answer
+        out["reason"] = f"{type(err).__name__}: {err}"
+    try:
+        res = registry.create("hcod").solve(h)
+        if res.x is not None and res.status == "optimal" and np.all(np.isfinite(res.x)):
+            out["x_hcod"] = np.asarray(res.x, dtype=float)
+        else:
+            out["hcod_reason"] = f"hcod: {res.status} {res.reason}".strip()
+    except Exception as err:  # noqa: BLE001 - hcod missing or failing: the independent point alone
+        out["hcod_reason"] = f"hcod: {type(err).__name__}: {err}"
+    out["status"] = "optimal" if out["x"] is not None or out["x_hcod"] is not None else ERROR
+    return out
+
+
+def certify_point(h, x: np.ndarray) -> dict:
+    """The exact certificate of x (:func:`hikbench.problems.exact.certify`): ``certified``,
+    ``reason`` (why not), and where certified ``x_cert`` (the exact optimum x*, rounded) and
+    ``attains`` (x's level norms equal x*'s at 1e-9 of each level's scale, or lower)."""
+    from hikbench.problems.exact import certify
+    from hikbench.problems.verify import verify
+
+    cert = certify(h, x)
+    out = {"status": "optimal", "certified": bool(cert.certified), "reason": cert.reason}
+    if cert.certified:
+        v = verify(h, x, cert.x, rtol=1e-9)
+        out.update(x_cert=np.asarray(cert.x, dtype=float), attains=bool(v.equal or v.lower == "a"),
+                   above_level=None if v.equal else int(v.level))
+    return out
+
+
 def execute(job: dict, notify=None) -> dict:
     """Run one job; never raises for a solver failure (the reason is returned).
 
@@ -75,9 +118,9 @@ def execute(job: dict, notify=None) -> dict:
     h = job["hierarchy"]
     try:
         if job["kind"] == "yardstick":
-            from hikbench.solvers.yardstick import yardstick_solution
-            x = yardstick_solution(h)
-            return {**base, "status": "optimal", "reason": "", "x": np.asarray(x, dtype=float)}
+            return {**base, **yardstick_candidates(h)}
+        if job["kind"] == "certify":
+            return {**base, **certify_point(h, np.asarray(job["x"], dtype=float))}
         from hikbench.bench.harness.timing import time_solves
         make = solver_factory(job["solver"], job.get("options", {}))
         first = make()

@@ -10,6 +10,7 @@ path. Schema (every key optional except ``problems``)::
     warmup = 1              # discarded solves before timing
     timeout = 60.0          # seconds per job (warm-up + repetitions), hard
     first_solve_timeout = 300.0  # allowance for a solver's first solve in a worker process (JIT: hcod ~70 s without a cache)
+    certify_timeout = 30.0  # seconds for the exact certificate of one problem's yardstick (docs/verification.md)
     calibrate_each_job = false  # time the calibration kernel around every job (else once per worker)
     modes = ["cold", "warm"]
     accuracy = "default"    # verification profile, see ACCURACY
@@ -118,6 +119,7 @@ class Suite:
     warmup: int = 1
     timeout: float = 60.0
     first_solve_timeout: float = 300.0
+    certify_timeout: float = 30.0
     calibrate_each_job: bool = False
     modes: tuple[str, ...] = ("cold",)
     accuracy: str = "default"
@@ -151,7 +153,8 @@ class Suite:
     def to_dict(self) -> dict:
         return {"name": self.name, "source": self.source, "description": self.description,
                 "repeat": self.repeat, "rounds": self.rounds, "warmup": self.warmup, "timeout": self.timeout,
-                "first_solve_timeout": self.first_solve_timeout, "calibrate_each_job": self.calibrate_each_job,
+                "first_solve_timeout": self.first_solve_timeout, "certify_timeout": self.certify_timeout,
+                "calibrate_each_job": self.calibrate_each_job,
                 "modes": list(self.modes), "accuracy": self.accuracy, "export": list(self.export),
                 "solvers": list(self.solvers), "settings": self.settings, "problems": self.groups}
 
@@ -212,7 +215,7 @@ _SETTINGS = Table({"solver": Str(what="a solver name"), "name": Str(what="a sett
 #: the suite file (see the module docstring); solver options are checked against their solvers later
 SCHEMA = Table({
     "description": Str(empty=True), "repeat": Int(1), "rounds": Int(1), "warmup": Int(0),
-    "timeout": _SECONDS, "first_solve_timeout": _SECONDS, "calibrate_each_job": Bool(),
+    "timeout": _SECONDS, "first_solve_timeout": _SECONDS, "certify_timeout": _SECONDS, "calibrate_each_job": Bool(),
     "modes": List(Str(("cold", "warm")), what='a non-empty list of strings, e.g. modes = ["cold", "warm"]'),
     "accuracy": Str(tuple(ACCURACY)),
     "export": List(Str(_EXPORTS), what='a non-empty list of strings, e.g. export = ["npz"]'),
@@ -221,7 +224,7 @@ SCHEMA = Table({
     "problems": List(_GROUP, what="[[problems]] tables (at least one)"),
 }, required=("problems",), defaults={
     "description": "", "repeat": 5, "rounds": 1, "warmup": 1, "timeout": 60.0, "first_solve_timeout": 300.0,
-    "calibrate_each_job": False, "modes": ["cold"], "accuracy": "default", "export": ["npz"],
+    "certify_timeout": 30.0, "calibrate_each_job": False, "modes": ["cold"], "accuracy": "default", "export": ["npz"],
     "solvers": ["*"], "settings": []})
 
 
@@ -245,6 +248,7 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
                "least one solve of every row)")
     return Suite(name=name, description=d["description"], repeat=d["repeat"], rounds=d["rounds"],
                  warmup=d["warmup"], timeout=float(d["timeout"]), first_solve_timeout=float(d["first_solve_timeout"]),
+                 certify_timeout=float(d["certify_timeout"]),
                  calibrate_each_job=d["calibrate_each_job"], modes=tuple(d["modes"]), accuracy=d["accuracy"],
                  export=tuple(d["export"]), solvers=tuple(d["solvers"]), settings=d["settings"],
                  groups=d["problems"], source=source)
