@@ -75,12 +75,12 @@ def _load_yardstick(path: Path, n: int):
     ``kind`` (written before yardsticks were certified)."""
     try:
         with np.load(path, allow_pickle=False) as z:
+            x, status, reason = z["x"], str(z["status"]), str(z["reason"])
+            if x.dtype.kind != "f" or x.shape not in ((0,), (n,)):
+                raise ValueError(f"x of dtype {x.dtype} and shape {x.shape}: expected float64 of shape ({n},)")
             if "kind" not in z.files:
                 return None
-            x, status, reason = z["x"], str(z["status"]), str(z["reason"])
             kind, kind_reason, budget = str(z["kind"]), str(z["kind_reason"]), float(z["certify_budget"])
-        if x.dtype.kind != "f" or x.shape not in ((0,), (n,)):
-            raise ValueError(f"x of dtype {x.dtype} and shape {x.shape}: expected float64 of shape ({n},)")
         if kind not in (CERTIFIED, REFERENCE_ONLY, NO_YARDSTICK):
             raise ValueError(f"kind {kind!r}: expected {CERTIFIED}, {REFERENCE_ONLY} or {NO_YARDSTICK}")
     except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile) as err:
@@ -429,11 +429,12 @@ def _export_formats(formats) -> tuple[tuple, dict]:
 
 def _yardsticks(todo, problems, out: Path, executor, timeout, certify_timeout, progress) -> dict:
     """The yardstick of each problem id, :func:`_load_yardstick`'s tuple, from OUT/yardstick/ or
-    computed through the executor (isolated): the candidates (the independent yardstick and
-    hcod, :func:`hikbench.bench.harness.worker.yardstick_candidates`; ``timeout`` is the larger
-    of the job timeout and the first-solve allowance), the lexicographically lowest of them
-    (:func:`_lowest`), then its exact certificate (:func:`_certify_all`). A killed or lost
-    worker is no answer of the yardstick: not cached, the next run tries again."""
+    computed through the executor (isolated), each step its own job with its own timeout (one
+    that fails costs its candidate, never the other's point nor the run): the independent
+    yardstick's point and ``hcod``'s (``timeout``: the larger of the job timeout and the
+    first-solve allowance, both being first calls in a worker), the lexicographically lowest of
+    them (:func:`_lowest`), then its exact certificate (:func:`_certify_all`). A yardstick
+    whose job a killed or lost worker ended is not cached: the next run tries again."""
     refs, need, recertify = {}, [], []
     for pid in dict.fromkeys(t.problem.id for t in todo):
         path = out / "yardstick" / (file_stem(pid) + ".npz")
@@ -444,40 +445,50 @@ def _yardsticks(todo, problems, out: Path, executor, timeout, certify_timeout, p
         refs[pid] = cached
         if cached[3] == REFERENCE_ONLY and 0 < cached[5] < certify_timeout:  # (a larger budget: try again)
             recertify.append(pid)
-    points = {}
+    points, killed = {}, set()
     if need:
-        tid = progress.add("yardstick", len(need))
-        items = ((pid, {"kind": "yardstick", "hierarchy": problems[pid]}, timeout) for pid in need)
-        for pid, res in executor.map(items):
+        tid = progress.add("yardstick", 2 * len(need))
+        found = {pid: {} for pid in need}
+        jobs = [((pid, "x"), {"kind": "yardstick", "hierarchy": problems[pid]}, timeout) for pid in need]
+        jobs += [((pid, "x_hcod"), {"kind": "candidate", "hierarchy": problems[pid], "solver": "hcod"}, timeout)
+                 for pid in need]
+        for (pid, which), res in executor.map(iter(jobs)):
             progress.advance(tid)
             if res["status"] in (TIMEOUT, CRASHED):
-                refs[pid] = (None, res["status"], res.get("reason", ""), NO_YARDSTICK, "", 0.0)
-                continue
-            x, note = _lowest(problems[pid], res)
+                killed.add(pid)
+            ok = res["status"] == "optimal" and res.get("x") is not None
+            found[pid][which] = res["x"] if ok else None
+            found[pid]["reason" if which == "x" else "hcod_reason"] = (
+                "" if ok else f"{'yardstick' if which == 'x' else 'hcod'} {res['status']}: {res.get('reason', '')}")
+        for pid in need:
+            x, note = _lowest(problems[pid], found[pid])
             if x is None:
-                refs[pid] = (None, res["status"], "; ".join(filter(None, (res.get("reason"), res.get("hcod_reason")))),
-                             NO_YARDSTICK, "no candidate point", 0.0)
-                _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), *refs[pid])
-                continue
-            points[pid] = (x, note)
+                why = "; ".join(filter(None, (found[pid].get("reason"), found[pid].get("hcod_reason"))))
+                refs[pid] = (None, TIMEOUT if pid in killed else ERROR, why, NO_YARDSTICK, "no candidate point", 0.0)
+                if pid not in killed:
+                    _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), *refs[pid])
+            else:
+                points[pid] = (x, note)
     points.update({pid: (refs[pid][0], refs[pid][2]) for pid in recertify})
     for pid, ref in _certify_all(points, problems, executor, certify_timeout, progress).items():
         refs[pid] = ref
-        _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), *ref)
+        if pid not in killed:
+            _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), *ref)
     return refs
 
 
 def _lowest(h, res: dict):
-    """The lexicographically lowest of a yardstick job's candidate points (hikbench.problems.verify
-    at 1e-9 of each level's scale; a tie keeps the independent yardstick's) and a note naming
-    it; (None, "") when there is none."""
+    """The lexicographically lowest of the candidate points ``x`` (the independent yardstick's)
+    and ``x_hcod`` (hikbench.problems.verify at 1e-9 of each level's scale; a tie keeps the
+    independent yardstick's) and a note naming it; (None, "") when there is none."""
     x, xh = res.get("x"), res.get("x_hcod")
     if x is None and xh is None:
         return None, ""
     if xh is None:
-        return x, "the independent yardstick's point" + (f" ({res['hcod_reason']})" if res.get("hcod_reason") else "")
+        return x, "the independent yardstick's point" + (f" (no hcod point: {res['hcod_reason']})"
+                                                          if res.get("hcod_reason") else "")
     if x is None:
-        return xh, f"hcod's point (the independent yardstick failed: {res.get('reason', '')})"
+        return xh, f"hcod's point (no independent point: {res.get('reason', '')})"
     v = verify(h, xh, x, rtol=1e-9)
     if not v.equal and v.lower == "a":
         return xh, f"hcod's point (the independent yardstick's is above it at level {v.level})"

@@ -3,11 +3,13 @@
 Runs inside the isolated worker process (``python -m hikbench.bench.harness.isolation``) or,
 for external programs, in the caller. A job is a dict::
 
-    {"kind": "solve" | "yardstick" | "certify", "hierarchy": Hierarchy, "solver": spec,
+    {"kind": "solve" | "yardstick" | "candidate" | "certify", "hierarchy": Hierarchy, "solver": spec,
      "options": {...}, "mode": "cold" | "warm", "repeat": R, "warmup": W}
 
-A ``yardstick`` job returns the yardstick's candidate points (:func:`yardstick_candidates`), a
-``certify`` job (with ``"x"``) the exact certificate of x (:func:`certify_point`).
+A ``yardstick`` job returns the independent yardstick's point, a ``candidate`` job (with
+``"solver"``) one cold solve's point of a registry solver (:func:`candidate_point`: ``hcod``'s, the
+yardstick's other candidate), a ``certify`` job (with ``"x"``) the exact certificate of x
+(:func:`certify_point`).
 
 ``spec`` is a registry name or ``module:Class`` / ``file.py:Class`` (a
 :class:`~hikbench.solvers.base.Solver` subclass or any factory), which is how tests
@@ -26,7 +28,7 @@ import numpy as np
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult
 
-__all__ = ["certify_point", "execute", "solver_factory", "solver_info", "yardstick_candidates"]
+__all__ = ["candidate_point", "certify_point", "execute", "solver_factory", "solver_info"]
 
 _frozen: set[str] = set()  # solvers whose first solve in this process is behind gc.freeze()
 
@@ -65,28 +67,14 @@ def _result_dict(res: SolveResult, samples_ns) -> dict:
     }
 
 
-def yardstick_candidates(h) -> dict:
-    """The candidate points of h's yardstick: the independent yardstick's
-    (:func:`hikbench.solvers.yardstick.yardstick_solution`) as ``x`` and ``hcod``'s as
-    ``x_hcod``, each None with its reason (``reason``, ``hcod_reason``) where it gave no finite
-    point; ``status`` optimal when either gave one, else error."""
-    from hikbench.solvers.yardstick import yardstick_solution
-
-    out = {"x": None, "reason": "", "x_hcod": None, "hcod_reason": ""}
-    try:
-        out["x"] = np.asarray(yardstick_solution(h), dtype=float)
-    except Exception as err:  # noqa: BLE001 - a yardstick that fails is recorded, hcod may still answer
-        out["reason"] = f"{type(err).__name__}: {err}"
-    try:
-        res = registry.create("hcod").solve(h)
-        if res.x is not None and res.status == "optimal" and np.all(np.isfinite(res.x)):
-            out["x_hcod"] = np.asarray(res.x, dtype=float)
-        else:
-            out["hcod_reason"] = f"hcod: {res.status} {res.reason}".strip()
-    except Exception as err:  # noqa: BLE001 - hcod missing or failing: the independent point alone
-        out["hcod_reason"] = f"hcod: {type(err).__name__}: {err}"
-    out["status"] = "optimal" if out["x"] is not None or out["x_hcod"] is not None else ERROR
-    return out
+def candidate_point(h, solver: str) -> dict:
+    """One cold solve of h by the registry solver ``solver`` (default options): ``status``
+    optimal and ``x`` where it gave a finite x with status optimal, else ``status`` error and
+    the ``reason``."""
+    res = registry.create(solver).solve(h)
+    if res.x is not None and res.status == "optimal" and np.all(np.isfinite(res.x)):
+        return {"status": "optimal", "reason": "", "x": np.asarray(res.x, dtype=float)}
+    return {"status": ERROR, "reason": f"{res.status} {res.reason}".strip(), "x": None}
 
 
 def certify_point(h, x: np.ndarray) -> dict:
@@ -118,7 +106,11 @@ def execute(job: dict, notify=None) -> dict:
     h = job["hierarchy"]
     try:
         if job["kind"] == "yardstick":
-            return {**base, **yardstick_candidates(h)}
+            from hikbench.solvers.yardstick import yardstick_solution
+            x = yardstick_solution(h)
+            return {**base, "status": "optimal", "reason": "", "x": np.asarray(x, dtype=float)}
+        if job["kind"] == "candidate":
+            return {**base, **candidate_point(h, job["solver"])}
         if job["kind"] == "certify":
             return {**base, **certify_point(h, np.asarray(job["x"], dtype=float))}
         from hikbench.bench.harness.timing import time_solves
