@@ -49,7 +49,7 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("verdict_diff", "solver norm - yardstick norm at verdict_level"),
     ("yardstick", ("what the problem's yardstick is: 'certified' (the lexicographically lowest of the "
                    "independent yardstick's and hcod's points, accepted by the exact certificate "
-                   "hikbench.problems.exact.certify), 'reference-only' (a point the certificate refused, "
+                   "hikbench.problems.exact.certify: the exact optimum), 'reference-only' (a point the certificate refused, "
                    "or did not reach within the suite's certify_timeout: rows are not verified against "
                    "it), 'none' (no candidate gave a point)")),
     ("yardstick_reason", ("which candidate the yardstick is (the independent yardstick's point or "

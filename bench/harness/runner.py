@@ -430,11 +430,16 @@ def _export_formats(formats) -> tuple[tuple, dict]:
 def _yardsticks(todo, problems, out: Path, executor, timeout, certify_timeout, progress) -> dict:
     """The yardstick of each problem id, :func:`_load_yardstick`'s tuple, from OUT/yardstick/ or
     computed through the executor (isolated), each step its own job with its own timeout (one
-    that fails costs its candidate, never the other's point nor the run): the independent
-    yardstick's point and ``hcod``'s (``timeout``: the larger of the job timeout and the
-    first-solve allowance, both being first calls in a worker), the lexicographically lowest of
-    them (:func:`_lowest`), then its exact certificate (:func:`_certify_all`). A yardstick
-    whose job a killed or lost worker ended is not cached: the next run tries again."""
+    that fails costs its step, never a point already found nor the run; ``timeout``: the
+    larger of the job timeout and the first-solve allowance):
+
+    1. the independent yardstick's point, and its exact certificate (:func:`_certify_all`);
+       certified, it is the lexicographic optimum and the yardstick;
+    2. otherwise ``hcod``'s point too: the lexicographically lowest of the two
+       (:func:`_lowest`), certified in turn where the independent one was refused or missing
+       (a certificate stopped by its budget is not tried again on the other point).
+
+    A yardstick whose step a killed or lost worker ended is not cached: the next run tries again."""
     refs, need, recertify = {}, [], []
     for pid in dict.fromkeys(t.problem.id for t in todo):
         path = out / "yardstick" / (file_stem(pid) + ".npz")
@@ -445,35 +450,43 @@ def _yardsticks(todo, problems, out: Path, executor, timeout, certify_timeout, p
         refs[pid] = cached
         if cached[3] == REFERENCE_ONLY and 0 < cached[5] < certify_timeout:  # (a larger budget: try again)
             recertify.append(pid)
-    points, killed = {}, set()
-    if need:
-        tid = progress.add("yardstick", 2 * len(need))
-        found = {pid: {} for pid in need}
-        jobs = [((pid, "x"), {"kind": "yardstick", "hierarchy": problems[pid]}, timeout) for pid in need]
-        jobs += [((pid, "x_hcod"), {"kind": "candidate", "hierarchy": problems[pid], "solver": "hcod"}, timeout)
-                 for pid in need]
-        for (pid, which), res in executor.map(iter(jobs)):
+    found, killed = {pid: {} for pid in need}, set()
+
+    def collect(kind: str, pids) -> None:
+        """The candidate point ``kind`` (x: the independent yardstick's; x_hcod) of each of pids."""
+        job = {"x": {"kind": "yardstick"}, "x_hcod": {"kind": "candidate", "solver": "hcod"}}[kind]
+        tid = progress.add("yardstick" if kind == "x" else "yardstick: hcod's point", len(pids))
+        for pid, res in executor.map(iter([(pid, {**job, "hierarchy": problems[pid]}, timeout) for pid in pids])):
             progress.advance(tid)
-            if res["status"] in (TIMEOUT, CRASHED):
-                killed.add(pid)
+            killed.update([pid] if res["status"] in (TIMEOUT, CRASHED) else [])
             ok = res["status"] == "optimal" and res.get("x") is not None
-            found[pid][which] = res["x"] if ok else None
-            found[pid]["reason" if which == "x" else "hcod_reason"] = (
-                "" if ok else f"{'yardstick' if which == 'x' else 'hcod'} {res['status']}: {res.get('reason', '')}")
-        for pid in need:
-            x, note = _lowest(problems[pid], found[pid])
-            if x is None:
-                why = "; ".join(filter(None, (found[pid].get("reason"), found[pid].get("hcod_reason"))))
-                refs[pid] = (None, TIMEOUT if pid in killed else ERROR, why, NO_YARDSTICK, "no candidate point", 0.0)
-                if pid not in killed:
-                    _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), *refs[pid])
-            else:
-                points[pid] = (x, note)
-    points.update({pid: (refs[pid][0], refs[pid][2]) for pid in recertify})
-    for pid, ref in _certify_all(points, problems, executor, certify_timeout, progress).items():
-        refs[pid] = ref
+            found[pid][kind] = res["x"] if ok else None
+            found[pid]["reason" if kind == "x" else "hcod_reason"] = (
+                "" if ok else f"{'yardstick' if kind == 'x' else 'hcod'} {res['status']}: {res.get('reason', '')}")
+
+    if need:
+        collect("x", need)
+    first = {pid: (found[pid]["x"], "the independent yardstick's point") for pid in need if found[pid]["x"] is not None}
+    first.update({pid: (refs[pid][0], refs[pid][2]) for pid in recertify})
+    refs.update(_certify_all(first, problems, executor, certify_timeout, progress))
+    others = [pid for pid in need if pid not in refs or refs[pid][3] != CERTIFIED]
+    if others:
+        collect("x_hcod", others)
+    second = {}
+    for pid in others:
+        x, note = _lowest(problems[pid], found[pid])
+        if x is None:
+            why = "; ".join(filter(None, (found[pid].get("reason"), found[pid].get("hcod_reason"))))
+            refs[pid] = (None, TIMEOUT if pid in killed else ERROR, why, NO_YARDSTICK, "no candidate point", 0.0)
+        elif pid not in refs or (x is not found[pid]["x"] and refs[pid][5] == 0):
+            second[pid] = (x, note)  # (none certified yet, or hcod's point lower than a refused one)
+        else:  # (the independent point stays; its certificate's outcome, with the candidates named)
+            refs[pid] = (x, refs[pid][1], note, refs[pid][3],
+                         note + refs[pid][4][refs[pid][4].index(";"):] if ";" in refs[pid][4] else note, refs[pid][5])
+    refs.update(_certify_all(second, problems, executor, certify_timeout, progress))
+    for pid in [*need, *recertify]:
         if pid not in killed:
-            _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), *ref)
+            _save_yardstick(out / "yardstick" / (file_stem(pid) + ".npz"), *refs[pid])
     return refs
 
 

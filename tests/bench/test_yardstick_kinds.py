@@ -58,3 +58,23 @@ def test_a_certificate_beyond_its_budget_leaves_a_reference_only_yardstick(tmp_p
     assert df["yardstick"].eq("reference-only").all()
     assert df["yardstick_reason"].str.contains(fragment).all(), df["yardstick_reason"].tolist()
     assert df["ref_level_norms"].notna().all() and df["verified"].isna().all()
+
+
+def test_the_lowest_candidate_is_taken_and_named():
+    """Of the independent yardstick's point and hcod's, the lexicographically lower is the
+    yardstick (here the old yardstick's point on A x 1e-12, above hcod's from level 1); a tie keeps
+    the independent one; a missing candidate leaves the other."""
+    from doubles import OldYardstickSolver, rescaled_random
+
+    from hikbench.bench.harness.runner import _lowest
+    from hikbench.solvers.hcod import HcodSolver
+
+    h = rescaled_random(i=0)
+    x_old, x_hcod = OldYardstickSolver().solve(h).x, HcodSolver().solve(h).x
+    x, note = _lowest(h, {"x": x_old, "x_hcod": x_hcod})
+    assert x is x_hcod and note == "hcod's point (the independent yardstick's is above it at level 1)"
+    x, note = _lowest(h, {"x": x_hcod, "x_hcod": x_hcod.copy()})
+    assert x is x_hcod and note == "the independent yardstick's point"
+    x, note = _lowest(h, {"x": None, "reason": "yardstick error: E", "x_hcod": x_hcod})
+    assert x is x_hcod and "no independent point: yardstick error: E" in note
+    assert _lowest(h, {"x": None, "x_hcod": None}) == (None, "")
