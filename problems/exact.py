@@ -301,15 +301,17 @@ def _nnls(E: _Exact, C, g, free, gscale) -> list:
     return lam
 
 
-#: seconds of :func:`certify` (one reading, 50 digits) per ``n^2 x rows x levels``: the quick suite's
-#: problems (n = 6 .. 48, 4 .. 65 rows) took 0.5 to 38 s on an AMD EPYC core, within a factor 2 of it
+#: seconds of :func:`certify` (one reading, 50 digits) per ``n^2 x rows x levels``, an upper estimate:
+#: the quick, ci and paper suites' problems (n = 6 .. 50, 4 .. 65 rows) and a robot stack (n = 38, 117
+#: rows) took 0.2 to 1 times it on an AMD EPYC core (1 on a loaded machine)
 COST_S = 2.5e-4
 
 
 def estimated_seconds(h: Hierarchy) -> float:
     """The time :func:`certify` is expected to take on h when its first reading certifies
     (:data:`COST_S` ``n^2 rows depth``; dense SVDs in software arithmetic): 1 s at n = 12 with
-    12 rows in 3 levels, ~500 s at a robot stack of n = 38 and 117 rows in 5 levels."""
+    12 rows in 3 levels, 211 s at a robot stack of n = 38 and 117 rows in 5 levels (99 s
+    measured)."""
     return COST_S * float(h.n) ** 2 * h.rows * h.depth
 
 
