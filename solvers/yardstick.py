@@ -686,8 +686,9 @@ def _level_exponents(h: Hierarchy) -> np.ndarray:
     norms = _safe_row_norms(h.A)
     if not np.any(norms > 0):
         return e
-    log_med = float(np.median(np.log2(norms[norms > 0])))  # (in logs: the mean of two 1e308 overflows)
-    every = abs(log_med) > np.log2(ROWS_BAND)
+    logs = np.sort(np.log2(norms[norms > 0]))
+    log_med = float(logs[logs.size // 2])  # (a row's norm: the mean of two 1e308 overflows, that of
+    every = abs(log_med) > np.log2(ROWS_BAND)  # rows of norm 1 and 1e-154 is neither's)
     for k in range(h.depth):
         nk = norms[h.level_rows(k)]
         m = float(np.max(nk, initial=0.0))
@@ -701,7 +702,9 @@ def _level_exponents(h: Hierarchy) -> np.ndarray:
 def _units_exponent(h: Hierarchy) -> int:
     """0, or the e that brings ``2^e d`` into [1, 2), ``d`` the median of ``|bound_i| /
     ||a_i||`` over the finite nonzero bounds of nonzero rows (the distances of the bounds'
-    hyperplanes from the origin, in units of x), when ``d < UNITS_MIN`` or ``d > UNITS_MAX``.
+    hyperplanes from the origin, in units of x), when ``d < UNITS_MIN``, or its lower middle
+    element when that is beyond ``UNITS_MAX`` (the mean of the two middle ones of distances 1
+    and 1e143, a wide problem in its units, is neither's).
     The median, not the largest: a robot stack's distances spread over 1e-4 .. 500 around a
     median of 1-4, and bringing its largest to 1 left the yardstick at bounds x 1e-6 above the
     optimum again (humanoid_reach seed 0: level 0 at 1.7e-8 of its size, the levels below lower
@@ -714,10 +717,14 @@ def _units_exponent(h: Hierarchy) -> int:
     d = d[np.isfinite(d)]
     if not d.size:
         return 0
-    log_med = float(np.median(np.log2(d)))  # (in logs: the mean of two distances of 1e308 overflows)
-    if np.log2(UNITS_MIN) <= log_med <= np.log2(UNITS_MAX):
+    top = np.ldexp(1.0, int(np.frexp(np.max(d))[1]) - 1)  # (a power of 2: d / top is exact, <= 2)
+    med = float(np.median(d / top))  # (scaled: the mean of two distances of 1e308 overflows)
+    low = float(np.sort(d)[(d.size - 1) // 2])  # (the lower middle: not the mean of 1 and 1e143)
+    if med * top >= UNITS_MIN and low <= UNITS_MAX:
         return 0
-    return -int(np.floor(log_med))
+    if low > UNITS_MAX:
+        return int(1 - np.frexp(low)[1])
+    return int(1 - np.frexp(med)[1] - np.frexp(top)[1] + 1)
 
 
 def _normalized(h: Hierarchy) -> tuple[Hierarchy, np.ndarray, int]:

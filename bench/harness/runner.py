@@ -450,7 +450,7 @@ def _yardsticks(todo, problems, out: Path, executor, timeout, certify_timeout, p
         refs[pid] = cached
         if cached[3] == REFERENCE_ONLY and 0 < cached[5] < certify_timeout:  # (a larger budget: try again)
             recertify.append(pid)
-    found, killed = {pid: {} for pid in need}, set()
+    found, killed = {pid: {} for pid in need}, {}  # (killed: pid -> the status of a job a lost worker ended)
 
     def collect(kind: str, pids) -> None:
         """The candidate point ``kind`` (x: the independent yardstick's; x_hcod) of each of pids."""
@@ -458,11 +458,12 @@ def _yardsticks(todo, problems, out: Path, executor, timeout, certify_timeout, p
         tid = progress.add("yardstick" if kind == "x" else "yardstick: hcod's point", len(pids))
         for pid, res in executor.map(iter([(pid, {**job, "hierarchy": problems[pid]}, timeout) for pid in pids])):
             progress.advance(tid)
-            killed.update([pid] if res["status"] in (TIMEOUT, CRASHED) else [])
+            if res["status"] in (TIMEOUT, CRASHED):
+                killed[pid] = res["status"]
             ok = res["status"] == "optimal" and res.get("x") is not None
             found[pid][kind] = res["x"] if ok else None
-            found[pid]["reason" if kind == "x" else "hcod_reason"] = (
-                "" if ok else f"{'yardstick' if kind == 'x' else 'hcod'} {res['status']}: {res.get('reason', '')}")
+            found[pid]["reason" if kind == "x" else "hcod_reason"] = "" if ok else (
+                f"{'independent yardstick' if kind == 'x' else 'hcod'} {res['status']}: {res.get('reason', '')}")
 
     if need:
         collect("x", need)
@@ -477,7 +478,7 @@ def _yardsticks(todo, problems, out: Path, executor, timeout, certify_timeout, p
         x, note = _lowest(problems[pid], found[pid])
         if x is None:
             why = "; ".join(filter(None, (found[pid].get("reason"), found[pid].get("hcod_reason"))))
-            refs[pid] = (None, TIMEOUT if pid in killed else ERROR, why, NO_YARDSTICK, "no candidate point", 0.0)
+            refs[pid] = (None, killed.get(pid, ERROR), why, NO_YARDSTICK, "no candidate point", 0.0)
         elif pid not in refs or (x is not found[pid]["x"] and refs[pid][5] == 0):
             second[pid] = (x, note)  # (none certified yet, or hcod's point lower than a refused one)
         else:  # (the independent point stays; its certificate's outcome, with the candidates named)
