@@ -100,8 +100,19 @@ def level_scales(h: Hierarchy, x=None) -> np.ndarray:
         s = h.level_rows(k)
         b = np.concatenate([h.lower[s], h.upper[s]])
         b = b[np.isfinite(b)]
-        out[k] = _norm(h.A[s]) * xn + _norm(b)
+        out[k] = _scaled_product(h.A[s], xn) + _norm(b)
     return out
+
+
+def _scaled_product(A: np.ndarray, xn: float) -> float:
+    """``||A||_F * xn`` without overflow where the product is a double (rows of norm 1e308
+    with x of 1e-3: ``||A||_F`` alone overflowed, and an infinite tolerance passed any answer)."""
+    m = float(np.max(np.abs(A), initial=0.0))
+    if m == 0 or not np.isfinite(m) or xn == 0:
+        return _norm(A) * xn
+    e = int(np.frexp(m)[1])
+    with np.errstate(over="ignore"):  # (beyond the doubles: inf, as the level's terms are)
+        return float(np.ldexp(_norm(np.ldexp(A, -e)) * xn, e))
 
 
 @dataclass(frozen=True)

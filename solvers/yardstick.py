@@ -41,8 +41,9 @@ Two methods that share no code with the HCOD solver:
   ``backend``. Where no try gives a point, the last is the primal active set
   :func:`_descend` from the level above's point (feasible: the levels above
   are frozen at it), kept where the KKT conditions certify it at 1e-9
-  (:func:`_descend_stage`). A problem whose bounds all lie near the origin is solved in
-  units that bring them to O(1) (:data:`UNITS_MIN`, :func:`cascade_yardstick`).
+  (:func:`_descend_stage`). Levels of norms far from 1 and bounds far from the origin are
+  solved scaled by powers of 2 to O(1) (:data:`ROWS_BAND`,
+  :data:`LEVEL_BAND`, :data:`UNITS_MIN`, :data:`UNITS_MAX`, :func:`cascade_yardstick`); so is the null-space recursion's input.
 """
 
 from __future__ import annotations
@@ -56,8 +57,8 @@ from hikbench.problems.hierarchy import Hierarchy, check_fits_in_memory
 from hikbench.solvers.base import ERROR, OPTIMAL, Solver, SolveResult
 from hikbench.solvers.registry import SolverInfo
 
-__all__ = ["RANK_RTOL", "UNITS_MIN", "WIDEN_RTOL", "YardstickSolver", "cascade_yardstick", "nullspace_yardstick",
-           "yardstick_solution"]
+__all__ = ["LEVEL_BAND", "RANK_RTOL", "ROWS_BAND", "UNITS_MAX", "UNITS_MIN", "WIDEN_RTOL", "YardstickSolver",
+           "cascade_yardstick", "nullspace_yardstick", "yardstick_solution"]
 
 RANK_RTOL = 1e-10  #: singular values below RANK_RTOL * ||A_k||_2 count as zero
 _ACTIVE_RTOL = 1e-7  #: a constraint within this (relative) distance of its bound is read as active
@@ -84,9 +85,17 @@ _HELD_RTOL = 1e-9  #: a descended point whose rows above leave their bounds beyo
 #: widenings of the frozen inequality bounds (relative to each row's scale) tried, in order, on a
 #: stage no backend solved; the last is _ACTIVE_RTOL: polishing reads rows that close as active anyway
 WIDEN_RTOL = (1e-9, _ACTIVE_RTOL)
-#: a problem whose bounds lie, as a median, within this of the origin (in units of x) is solved in
-#: units that bring that median to [1, 2) (:func:`_units`); problems beyond it are left bit for bit
+#: a problem whose bounds lie, as a median, within UNITS_MIN of the origin or beyond UNITS_MAX (in
+#: units of x) is solved in units that bring that median to [1, 2) (:func:`_units_exponent`);
+#: problems between them are left bit for bit
 UNITS_MIN = 2.0**-5
+UNITS_MAX = 2.0**10
+#: levels are solved scaled to ``||A_k||_F`` in [1, 2) (by powers of 2) where the problem's median row
+#: norm lies outside [1 / ROWS_BAND, ROWS_BAND], or the level's ``||A_k||_F`` outside [1 / LEVEL_BAND,
+#: LEVEL_BAND] (:func:`_level_exponents`); problems within both are left bit for bit (the shipped
+#: families, badly_scaled's rows of 1e-4 .. 1e4 included)
+ROWS_BAND = 2.0**5
+LEVEL_BAND = 2.0**20
 
 
 class YardstickError(HikbenchError):
@@ -118,12 +127,13 @@ def nullspace_yardstick(h: Hierarchy) -> np.ndarray:
     if h.has_inequalities:
         raise YardstickError("nullspace_yardstick solves equality-only hierarchies; use cascade_yardstick")
     check_fits_in_memory(h.n, "yardstick", matrices=YARDSTICK_MATRICES)
+    h, _, e_x = _normalized(h)
     x = np.zeros(h.n)
     Z = np.eye(h.n)
     for k in range(h.depth):
         s = h.level_rows(k)
         x, Z = _null_update(x, Z, h.A[s], h.lower[s])
-    return x
+    return np.ldexp(x, -e_x)
 
 
 def _rowwise_lstsq_update(x: np.ndarray, Z: np.ndarray, A: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -659,24 +669,81 @@ def _freeze(A_k, lo_k, up_k, x):
     return w, np.where(pinned, achieved, lo_k + w), np.where(pinned, achieved, up_k + w)
 
 
-def _units(h: Hierarchy) -> float:
-    """1, or the power of 2 f that brings ``d``, the median of ``|bound_i| /
-    ||a_i||`` over the finite nonzero bounds of nonzero rows (the distances of
-    the bounds' hyperplanes from the origin, in units of x), into [1, 2)
-    when ``d < UNITS_MIN``. The median, not the largest: a robot stack's
-    distances spread over 1e-4 .. 500 around a median of 1-4, and bringing
-    its largest to 1 left the reference at bounds x 1e-6 above the optimum
-    again (humanoid_reach seed 0: level 0 at 1.7e-8 of its size, the levels
-    below lower than they can be)."""
+def _safe_row_norms(A: np.ndarray) -> np.ndarray:
+    """Each row's 2-norm without overflow (entries up to the largest double), shape (rows,)."""
+    m = np.max(np.abs(A), axis=1, initial=0.0)
+    return m * np.linalg.norm(A / np.where(m > 0, m, 1.0)[:, None], axis=1)
+
+
+def _level_exponents(h: Hierarchy) -> np.ndarray:
+    """Per level, 0 or the e_k that brings ``2^e_k ||A_k||_F`` into [1, 2), shape (depth,),
+    ints, computed without overflow (rows of norm 1e308): every level when the median row norm
+    of the problem lies outside [1 / ROWS_BAND, ROWS_BAND] (A in other units), else each level
+    whose ``||A_k||_F`` lies outside [1 / LEVEL_BAND, LEVEL_BAND]; 0 for a level of zero rows.
+    Level k times ``2^e_k``, bounds alike, has the same minimisers: its slack is scaled, not
+    reshaped."""
+    e = np.zeros(h.depth, dtype=int)
+    norms = _safe_row_norms(h.A)
+    if not np.any(norms > 0):
+        return e
+    logs = np.sort(np.log2(norms[norms > 0]))
+    log_med = float(logs[logs.size // 2])  # (a row's norm: the mean of two 1e308 overflows, that of
+    every = abs(log_med) > np.log2(ROWS_BAND)  # rows of norm 1 and 1e-154 is neither's)
+    for k in range(h.depth):
+        nk = norms[h.level_rows(k)]
+        m = float(np.max(nk, initial=0.0))
+        if m > 0:
+            log_fro = np.log2(m) + np.log2(np.linalg.norm(nk / m))
+            if every or abs(log_fro) > np.log2(LEVEL_BAND):
+                e[k] = -int(np.floor(log_fro))
+    return e
+
+
+def _units_exponent(h: Hierarchy) -> int:
+    """0, or the e that brings ``2^e d`` into [1, 2), ``d`` the median of ``|bound_i| /
+    ||a_i||`` over the finite nonzero bounds of nonzero rows (the distances of the bounds'
+    hyperplanes from the origin, in units of x), when ``d < UNITS_MIN``, or its lower middle
+    element when that is beyond ``UNITS_MAX`` (the mean of the two middle ones of distances 1
+    and 1e143, a wide problem in its units, is neither's).
+    The median, not the largest: a robot stack's distances spread over 1e-4 .. 500 around a
+    median of 1-4, and bringing its largest to 1 left the yardstick at bounds x 1e-6 above the
+    optimum again (humanoid_reach seed 0: level 0 at 1.7e-8 of its size, the levels below lower
+    than they can be)."""
     b = np.concatenate([h.lower, h.upper])
-    norms = np.tile(np.linalg.norm(h.A, axis=1), 2)
+    norms = np.tile(_safe_row_norms(h.A), 2)
     ok = (norms > 0) & np.isfinite(b) & (b != 0)
-    if not ok.any():
-        return 1.0
-    med = float(np.median(np.abs(b[ok]) / norms[ok]))
-    if not 0.0 < med < UNITS_MIN:
-        return 1.0
-    return float(np.ldexp(1.0, min(1 - np.frexp(med)[1], 1021)))
+    with np.errstate(over="ignore"):
+        d = np.abs(b[ok]) / norms[ok]
+    d = d[np.isfinite(d)]
+    if not d.size:
+        return 0
+    top = np.ldexp(1.0, int(np.frexp(np.max(d))[1]) - 1)  # (a power of 2: d / top is exact, <= 2)
+    med = float(np.median(d / top))  # (scaled: the mean of two distances of 1e308 overflows)
+    low = float(np.sort(d)[(d.size - 1) // 2])  # (the lower middle: not the mean of 1 and 1e143)
+    if med * top >= UNITS_MIN and low <= UNITS_MAX:
+        return 0
+    if low > UNITS_MAX:
+        return int(1 - np.frexp(low)[1])
+    return int(1 - np.frexp(med)[1] - np.frexp(top)[1] + 1)
+
+
+def _normalized(h: Hierarchy) -> tuple[Hierarchy, np.ndarray, int]:
+    """h with each level scaled (:func:`_level_exponents`, e_k) and in units of x that bring its
+    bounds to O(1) (:func:`_units_exponent`, e_x): rows ``2^e_k a_i``, bounds ``2^(e_k + e_x)
+    bound_i``, both exact (powers of 2). Its minimisers are ``2^e_x`` times h's. Returns the
+    scaled hierarchy, e (shape (depth,)) and e_x; h itself with zeros where no scaling is
+    needed (problems within the bands are solved bit for bit as given), or where a scaled
+    number would leave the doubles."""
+    e, e_x = _level_exponents(h), _units_exponent(h)
+    if not (e.any() or e_x):
+        return h, e, 0
+    row_e = e[h.level]
+    A = np.ldexp(h.A, row_e[:, None])
+    lower, upper = np.ldexp(h.lower, row_e + e_x), np.ldexp(h.upper, row_e + e_x)
+    if not (np.all(np.isfinite(A)) and np.all(np.isfinite(lower) == np.isfinite(h.lower))
+            and np.all(np.isfinite(upper) == np.isfinite(h.upper))):
+        return h, np.zeros_like(e), 0
+    return Hierarchy(A, lower, upper, h.level, n=h.n, depth=h.depth), e, e_x
 
 
 def cascade_yardstick(h: Hierarchy) -> tuple[np.ndarray, dict]:
@@ -689,14 +756,20 @@ def cascade_yardstick(h: Hierarchy) -> tuple[np.ndarray, dict]:
     no backend solves a stage, not even on widened bounds with a certified
     polished point (:func:`_stage`).
 
-    The QPs' tolerances and the regularisation ``_Y_REG`` are absolute: a
+    The QPs' tolerances and the regularisation ``_Y_REG`` are absolute, so the
+    problem is solved in numbers of O(1) (:func:`_normalized`): where the
+    problem's median row norm lies outside [1 / ROWS_BAND, ROWS_BAND], every
+    level, else each level whose ``||A_k||_F`` lies outside [1 / LEVEL_BAND,
+    LEVEL_BAND], is multiplied by the power of 2 that brings its
+    ``||A_k||_F`` to [1, 2), bounds alike
+    (``info["levels_scaled_by"]``: the same minimisers, its slack scaled); a
     problem whose bounds lie, as a median, within ``UNITS_MIN`` of the origin
-    (in x, see :func:`_units`) is solved with its bounds times a power of 2
-    (exact) that brings that median to [1, 2), then x and the slacks divided by it
-    (``info["bounds_scaled_by"]``). The problem is homogeneous in (x,
-    bounds): the same minimisers. With bounds x 1e-6 .. 1e-9 (IK-like and
-    random mixed, seeds 0-9) the reference was above the exact optimum at a
-    level on 20 of 20 problems, by up to 14 times the level's size.
+    or beyond ``UNITS_MAX`` (in x, :func:`_units_exponent`) is solved with its
+    bounds times the power of 2 that brings that median to [1, 2), then x and
+    the slacks divided by it (``info["bounds_scaled_by"]``: the problem is
+    homogeneous in (x, bounds)). Without them, bounds x 1e-6 .. 1e-9 left the
+    yardstick above the exact optimum on 20 of 20 IK-like and random problems,
+    and A x 1e-12 or x 1e100 (random n = 12 seed 0) from level 1 or level 3 on.
 
     A level frozen at its polished (exact) optimum can leave the next stage a
     feasible set with no interior to round-off, a sliver no backend solves
@@ -706,12 +779,18 @@ def cascade_yardstick(h: Hierarchy) -> tuple[np.ndarray, dict]:
     within the QP's tolerances of the optimum; the level is then recorded
     unpolished, its backend label saying why."""
     check_fits_in_memory(h.n, "yardstick", matrices=YARDSTICK_MATRICES)
-    f = _units(h)
-    if f != 1.0:
-        x, info = cascade_yardstick(h.with_bounds(h.lower * f, h.upper * f))
-        info["slack"] = [w / f for w in info["slack"]]
-        info["bounds_scaled_by"] = f
-        return x / f, info
+    hs, e, e_x = _normalized(h)
+    if hs is not h:
+        x, info = _cascade(hs)
+        info["slack"] = [np.ldexp(w, -(int(ek) + e_x)) for w, ek in zip(info["slack"], e)]
+        info["levels_scaled_by"] = [float(np.ldexp(1.0, int(ek))) for ek in e]
+        info["bounds_scaled_by"] = float(np.ldexp(1.0, e_x))
+        return np.ldexp(x, -e_x), info
+    return _cascade(h)
+
+
+def _cascade(h: Hierarchy) -> tuple[np.ndarray, dict]:
+    """:func:`cascade_yardstick` on a hierarchy as given (no scaling)."""
     n = h.n
     levels = [(h.A[s], h.lower[s], h.upper[s]) for s in map(h.level_rows, range(h.depth))]
     frozen: list[tuple[np.ndarray, np.ndarray]] = []  # (lower, upper) of each level above

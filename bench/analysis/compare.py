@@ -16,7 +16,9 @@ So runs of different machines or of a loaded CI runner compare as ratios. A case
   the threshold with p >= alpha is **inconclusive** (shown, not failed: the
   samples are too few or too spread to tell a slowdown of that size),
 
-**newly failing** when it was verified in BASE and is not verified in RUN,
+**newly failing** when it was verified in BASE and is not verified in RUN
+(but for want of a certified yardstick in RUN: its timing is judged and the
+reason shown),
 and **missing** when it was verified in BASE and RUN has no row for it
 although RUN ran the same suite (run.json's suite name) and selected its
 solver (run.json's ``selected_solvers``: the suite's or ``--solvers``'), a
@@ -191,7 +193,12 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
             ratio_min = float(np.min(ns) / np.min(bs))
             p = float(mannwhitneyu(ns, bs, alternative="greater").pvalue)
         why = ""
-        if _true(b["verified"]) and not _true(n["verified"]):
+        # a row not verified for want of a certified yardstick is not the solver's failure: its
+        # timing is judged, the reason shown (docs/verification.md, "The yardstick of a run")
+        unjudged = n.get("verdict_side") == "no certified yardstick"
+        if unjudged:
+            why = f"not verified: no certified yardstick ({n.get('yardstick_reason', '')})"
+        if _true(b["verified"]) and not _true(n["verified"]) and not unjudged:
             verdict = "NEWLY FAILING"
             why = _why(n)
         elif np.isfinite(ratio) and ratio > threshold and ratio_min > threshold:

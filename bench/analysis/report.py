@@ -324,6 +324,7 @@ def _status_section(doc: _Doc, df: pd.DataFrame) -> None:
     st = df.pivot_table(index="label", columns="status", values="problem", aggfunc="count", fill_value=0)
     doc.table("statuses", "Statuses per solver", ["solver", *st.columns],
               [[i, *st.loc[i].tolist()] for i in st.index])
+    _yardstick_table(doc, df)
     unverified = df[~df["verified"].eq(True)]
     strict = unverified["strict"].astype(str).eq("True") & (unverified["status"] != "unsupported")
     bad = unverified[strict].sort_values(["label", "problem", "mode"])
@@ -334,6 +335,26 @@ def _status_section(doc: _Doc, df: pd.DataFrame) -> None:
                 f"{r.verdict_side} at level {int(r.verdict_level)}" if pd.notna(r.verdict_level) else
                 (r.verdict_side if isinstance(r.verdict_side, str) else ""),
                 _cut(str(r.reason), 240).replace("|", "/")] for r in bad.head(40).itertuples()])
+
+
+def _yardstick_table(doc: _Doc, df: pd.DataFrame) -> None:
+    """Problems and rows by the kind of their yardstick, and the problems whose yardstick is not
+    certified with the reason (rows are verified only against a certified yardstick)."""
+    from hikbench.bench.harness.summary import yardstick_counts
+
+    counts = yardstick_counts(df)
+    if not counts:
+        return
+    doc.table("yardstick", "Problems and rows by yardstick (a row is verified only against a certified one; "
+              "docs/verification.md)", ["yardstick", "problems", "rows"],
+              [[k, c["problems"], c["rows"]] for k, c in counts.items()])
+    uncertified = df[~df["yardstick"].eq("certified")].drop_duplicates("problem")
+    if len(uncertified):
+        doc.table("yardstick_uncertified", f"Problems without a certified yardstick ({len(uncertified)}, first 20)",
+                  ["problem", "yardstick", "why"],
+                  [[r.problem, r.yardstick if isinstance(r.yardstick, str) else "none",
+                    _cut(str(r.yardstick_reason) if isinstance(r.yardstick_reason, str) else "", 240).replace("|", "/")]
+                   for r in uncertified.head(20).itertuples()])
 
 
 def _claims_section(doc: _Doc, run_dir: Path) -> list[dict]:

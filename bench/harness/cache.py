@@ -12,9 +12,10 @@
   included, makes every cached yardstick be computed again: a change that
   alters the yardstick cannot be forgotten, as a constant to bump could be.
 * ``OUT/yardstick/<problem_hash>.npz`` holds ``x``, ``status``, ``reason``,
-  ``problem_hash`` and ``code``: a file that cannot be read, holds a
-  yardstick of another size, of another problem or of other code is
-  computed again (hikbench.bench.harness.runner).
+  ``kind`` (certified, reference-only, none), ``kind_reason``,
+  ``certify_budget``, ``problem_hash`` and ``code``: a file that cannot be
+  read, holds a yardstick of another size, of another problem or of other
+  code is computed again (hikbench.bench.harness.runner).
 """
 
 from __future__ import annotations
@@ -29,12 +30,15 @@ import numpy as np
 
 from hikbench.problems.hierarchy import Hierarchy
 
-__all__ = ["YARDSTICK_MODULES", "load_yardstick", "problem_hash", "save_yardstick", "yardstick_code",
+__all__ = ["CERTIFIED", "NO_YARDSTICK", "REFERENCE_ONLY", "YARDSTICK_MODULES", "load_yardstick", "problem_hash", "save_yardstick", "yardstick_code",
            "yardstick_path"]
 
 #: the modules whose source computes a yardstick (the worker's yardstick job calls them); a module
 #: added to that computation is added here, so that a change in it recomputes the cached yardsticks
-YARDSTICK_MODULES: tuple[str, ...] = ("hikbench.solvers.yardstick",)
+YARDSTICK_MODULES: tuple[str, ...] = ("hikbench.solvers.yardstick", "hikbench.problems.exact")
+#: what a row's yardstick is (column ``yardstick``): certified by the exact certificate, a
+#: reference point the certificate did not accept (or did not reach in its budget), none at all
+CERTIFIED, REFERENCE_ONLY, NO_YARDSTICK = "certified", "reference-only", "none"
 _DIGITS = 16  # hex digits kept of a SHA-256: 64 bits, no collision in any realistic set of problems
 
 
@@ -76,28 +80,36 @@ def yardstick_path(out: Path, phash: str) -> Path:
 
 
 def load_yardstick(path: Path, n: int):
-    """``((x or None, status, reason), (problem_hash, code))`` cached in
-    ``path``, or None, said on stderr in one line naming the file, when it
+    """``((x or None, status, reason, kind, kind_reason, certify_budget), (problem_hash, code))``
+    cached in ``path``, or None, said on stderr in one line naming the file, when it
     cannot be read or holds no yardstick of ``n`` variables (a damaged file:
-    the caller computes it again, as it does for a key other than its own)."""
+    the caller computes it again, as it does for a key other than its own). A file
+    without ``kind`` (written before yardsticks were certified) has the code ``""``."""
     try:
         with np.load(path, allow_pickle=False) as z:
             x, status, reason = z["x"], str(z["status"]), str(z["reason"])
-            key = (str(z["problem_hash"]), str(z["code"]))
+            key = (str(z["problem_hash"]), str(z["code"]) if "kind" in z.files else "")
+            kind = (str(z["kind"]), str(z["kind_reason"]), float(z["certify_budget"])) if "kind" in z.files \
+                else (NO_YARDSTICK, "", 0.0)
         if x.dtype.kind != "f" or x.shape not in ((0,), (n,)):
             raise ValueError(f"x of dtype {x.dtype} and shape {x.shape}: expected float64 of shape ({n},)")
+        if kind[0] not in (CERTIFIED, REFERENCE_ONLY, NO_YARDSTICK):
+            raise ValueError(f"kind {kind[0]!r}: expected {CERTIFIED}, {REFERENCE_ONLY} or {NO_YARDSTICK}")
     except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile) as err:
         print(f"hikbench run: {path} cannot be read ({type(err).__name__}: {' '.join(str(err).split())}); "
               f"computing the yardstick again", file=sys.stderr)
         return None
-    return ((x if x.size else None), status, reason), key
+    return ((x if x.size else None), status, reason, *kind), key
 
 
-def save_yardstick(path: Path, x, status: str, reason: str, phash: str, code: str) -> None:
-    """Write the yardstick of the problem ``phash`` computed by yardstick code ``code`` (atomically)."""
+def save_yardstick(path: Path, ref: tuple, phash: str, code: str) -> None:
+    """Write the yardstick ``ref`` (x, status, reason, kind, kind_reason, certify_budget) of
+    the problem ``phash`` computed by yardstick code ``code`` (atomically); certify_budget > 0:
+    its certification stopped at that budget (a run with a larger one tries again)."""
+    x, status, reason, kind, kind_reason, budget = ref
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_suffix(".tmp")
     with open(tmp, "wb") as f:
         np.savez(f, x=np.zeros(0) if x is None else np.asarray(x, float), status=status, reason=reason,
-                 problem_hash=phash, code=code)
+                 kind=kind, kind_reason=kind_reason, certify_budget=float(budget), problem_hash=phash, code=code)
     tmp.replace(path)

@@ -45,14 +45,23 @@ COLUMNS: tuple[tuple[str, str], ...] = (
                 "repetition other than the last, which one and why (see verified)")),
     ("verified", ("True when the level norms recomputed from x are lexicographically not worse than "
                   "the yardstick's (tolerance from the suite's accuracy profile); False otherwise; "
-                  "empty when the yardstick itself failed. x, status and the counts are those of the "
+                  "empty when the yardstick is not certified (see yardstick): a row is never verified "
+                  "against an uncertified point. x, status and the counts are those of the "
                   "last timed repetition unless an earlier one was worse: a status other than optimal "
                   "beside the last's optimal, or an x above the last's at some level beyond 1e-9 of its "
                   "scale (hikbench.bench.harness.timing.reported_result); the row then reports that one")),
     ("verdict_level", "first level whose norm differs from the yardstick beyond tolerance (empty: none)"),
     ("verdict_side", ("at verdict_level: 'worse' (solver higher than the yardstick), 'better', "
-                      "'no x' (no solution), 'no yardstick'; empty when equal")),
+                      "'no x' (no solution), 'no yardstick', 'no certified yardstick' (yardstick "
+                      "reference-only); empty when equal")),
     ("verdict_diff", "solver norm - yardstick norm at verdict_level"),
+    ("yardstick", ("what the problem's yardstick is: 'certified' (the lexicographically lowest of the "
+                   "independent yardstick's and hcod's points, accepted by the exact certificate "
+                   "hikbench.problems.exact.certify: the exact optimum), 'reference-only' (a point the certificate refused, "
+                   "or did not reach within the suite's certify_timeout: rows are not verified against "
+                   "it), 'none' (no candidate gave a point)")),
+    ("yardstick_reason", ("which candidate the yardstick is (the independent yardstick's point or "
+                          "hcod's) and, when not certified, why")),
     ("level_norms", "JSON list: ||v_k(x)||_2 per level, recomputed from x (hikbench.problems.verify.level_norms)"),
     ("ref_level_norms", "JSON list: the same for the yardstick's solution (hikbench.solvers.yardstick)"),
     ("x_norm", "||x||_2 of the solution (minimum-norm solvers match the yardstick's)"),

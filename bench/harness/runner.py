@@ -11,9 +11,9 @@ Layout of OUT::
     summary.json          rows, solvers, problems, verified counts, statuses, wall time (bench/harness/summary.py)
     problems/<id>.npz     every problem of the suite (and .soth.txt if exported); a file
                           whose content is not its problem's is written again
-    yardstick/<problem_hash>.npz  cached yardstick solution (x, status, reason) of the
-                          problem of that content, by yardstick code version ``code``
-                          (hikbench.bench.harness.cache)
+    yardstick/<problem_hash>.npz  cached yardstick of the problem of that content (x, status,
+                          reason, kind, kind_reason, certify_budget), by yardstick code
+                          version ``code`` (hikbench.bench.harness.cache)
     worker.log            stderr of the isolated worker processes
     run.lock              held (flock) by the run writing to OUT: a second run on
                           the same OUT is refused; the OS releases it when the
@@ -33,7 +33,15 @@ from pathlib import Path
 
 import numpy as np
 
-from hikbench.bench.harness.cache import load_yardstick, save_yardstick, yardstick_code, yardstick_path
+from hikbench.bench.harness.cache import (
+    CERTIFIED,
+    NO_YARDSTICK,
+    REFERENCE_ONLY,
+    load_yardstick,
+    save_yardstick,
+    yardstick_code,
+    yardstick_path,
+)
 from hikbench.bench.harness.calibration import KERNEL, calibrate
 from hikbench.bench.harness.columns import KEY
 from hikbench.bench.harness.environment import environment, read_run_json, utc_now, write_run_json
@@ -68,8 +76,11 @@ def _json_floats(a) -> str:
 
 
 def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: float) -> dict:
-    """One results.csv row from a job result (hikbench.bench.harness.worker) and the yardstick."""
-    x_ref, ref_status, ref_reason = ref
+    """One results.csv row from a job result (hikbench.bench.harness.worker) and the yardstick
+    ``ref`` (:func:`_yardsticks`' tuple). A row is verified only against a certified
+    yardstick: against a reference-only one ``verified`` is empty and ``verdict_side`` says
+    ``no certified yardstick``."""
+    x_ref, ref_status, ref_reason, kind, kind_reason = ref[:5]
     x = res.get("x")
     samples = np.asarray(res.get("samples_ns") or [], dtype=np.int64)
     row = dict(pcols)
@@ -83,10 +94,14 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: floa
         row["x_norm"] = float(np.linalg.norm(x))
     if x_ref is not None:
         row["ref_level_norms"] = _json_floats(level_norms(h, x_ref))
+    row.update(yardstick=kind, yardstick_reason=kind_reason)
     if x_ref is None:
         row["verified"] = None
         row["verdict_side"] = "no yardstick"
         row["reason"] = (row["reason"] + "; " if row["reason"] else "") + f"yardstick {ref_status}: {ref_reason}"
+    elif kind != CERTIFIED:
+        row["verified"] = None
+        row["verdict_side"] = "no certified yardstick"
     elif x is None or np.shape(x) != (h.n,):
         row.update(verified=False, verdict_side="no x")
     else:
@@ -261,7 +276,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         try:
             with _Progress(quiet) as progress:
                 refs = _yardsticks(todo, problems, pcols, out, executor, max(timeout, suite.first_solve_timeout),
-                                   progress)
+                                   suite.certify_timeout, progress)
                 tid = progress.add("solves", len(todo) * rounds)
                 earlier = {i: [] for i in range(len(todo))}  # results of the rounds before, per job
                 alive = list(earlier)  # jobs still to run in the next round
@@ -416,43 +431,148 @@ def _todo(tasks: list[Task], done: dict, pcols: dict) -> list[Task]:
     return todo
 
 
-def _yardsticks(todo, problems, pcols, out: Path, executor, timeout, progress) -> dict:
-    """x_ref, status, reason per problem id, from OUT/yardstick/<problem_hash>.npz
-    or computed through the executor (isolated; ``timeout`` is the larger of the
-    job timeout and the first-solve allowance: the yardstick is trusted code and
-    its first call imports its QP backends); problems of the same content share
-    one. A cached file of other yardstick code (:func:`hikbench.bench.harness.cache.yardstick_code`)
-    is computed again, which one line on stderr says."""
+def _yardsticks(todo, problems, pcols, out: Path, executor, timeout, certify_timeout, progress) -> dict:
+    """The yardstick of each problem id, (x, status, reason, kind, kind_reason, certify_budget),
+    from ``OUT/yardstick/<problem_hash>.npz`` or computed through the executor (isolated), each
+    step its own job with its own timeout (one that fails costs its step, never a point already
+    found nor the run; ``timeout``: the larger of the job timeout and the first-solve allowance):
+
+    1. the independent yardstick's point, and its exact certificate (:func:`_certify_all`);
+       certified, it is the lexicographic optimum and the yardstick;
+    2. otherwise ``hcod``'s point too: the lexicographically lowest of the two
+       (:func:`_lowest`), certified in turn where the independent one was refused or missing
+       (a certificate stopped by its budget is not tried again on the other point).
+
+    Problems of the same content share one. A cached file of other yardstick code
+    (:func:`hikbench.bench.harness.cache.yardstick_code`) is computed again, which one line on
+    stderr says. A yardstick whose step a killed or lost worker ended is not cached: the next
+    run tries again."""
     code = yardstick_code()
-    refs, need, stale = {}, {}, 0
+    refs, need, recertify, first_of, twins, stale = {}, [], [], {}, {}, 0
     for pid in dict.fromkeys(t.problem.id for t in todo):
         phash = pcols[pid]["problem_hash"]
-        if phash in need:
-            need[phash].append(pid)
+        if phash in first_of:
+            twins[pid] = first_of[phash]
             continue
+        first_of[phash] = pid
         path = yardstick_path(out, phash)
         cached = load_yardstick(path, problems[pid].n) if path.exists() else None
-        if cached is not None and cached[1] == (phash, code):
-            refs[pid] = cached[0]
-            continue
         if cached is not None and cached[1][0] != phash:  # (a file copied or renamed by hand)
             print(f"hikbench run: {path} holds the yardstick of problem_hash {cached[1][0]}, not {phash}; "
                   f"computing the yardstick again", file=sys.stderr)
-        stale += cached is not None and cached[1][0] == phash
-        need[phash] = [pid]
+            cached = None
+        elif cached is not None and cached[1][1] != code:
+            stale += 1
+            cached = None
+        if cached is None:
+            need.append(pid)
+            continue
+        refs[pid] = cached[0]
+        if cached[0][3] == REFERENCE_ONLY and 0 < cached[0][5] < certify_timeout:  # (a larger budget: again)
+            recertify.append(pid)
     if stale:
         print(f"hikbench run: {stale} cached yardstick(s) computed again: the yardstick's code changed "
               f"(hikbench.bench.harness.cache.YARDSTICK_MODULES, version {code})", file=sys.stderr)
-    if need:
-        tid = progress.add("yardstick", len(need))
-        items = ((phash, {"kind": "yardstick", "hierarchy": problems[pids[0]]}, timeout)
-                 for phash, pids in need.items())
-        for phash, res in executor.map(items):
-            x = res.get("x") if res["status"] == "optimal" else None
-            for pid in need[phash]:
-                refs[pid] = (x, res["status"], res.get("reason", ""))
-            # a killed or lost worker is no answer of the yardstick: not cached, the next run tries again
-            if res["status"] not in (TIMEOUT, CRASHED):
-                save_yardstick(yardstick_path(out, phash), x, res["status"], res.get("reason", ""), phash, code)
+    found, killed = {pid: {} for pid in need}, {}  # (killed: pid -> the status of a job a lost worker ended)
+
+    def collect(kind: str, pids) -> None:
+        """The candidate point ``kind`` (x: the independent yardstick's; x_hcod) of each of pids."""
+        job = {"x": {"kind": "yardstick"}, "x_hcod": {"kind": "candidate", "solver": "hcod"}}[kind]
+        tid = progress.add("yardstick" if kind == "x" else "yardstick: hcod's point", len(pids))
+        for pid, res in executor.map(iter([(pid, {**job, "hierarchy": problems[pid]}, timeout) for pid in pids])):
             progress.advance(tid)
+            if res["status"] in (TIMEOUT, CRASHED):
+                killed[pid] = res["status"]
+            ok = res["status"] == "optimal" and res.get("x") is not None
+            found[pid][kind] = res["x"] if ok else None
+            found[pid]["reason" if kind == "x" else "hcod_reason"] = "" if ok else (
+                f"{'independent yardstick' if kind == 'x' else 'hcod'} {res['status']}: {res.get('reason', '')}")
+
+    if need:
+        collect("x", need)
+    first = {pid: (found[pid]["x"], "the independent yardstick's point") for pid in need if found[pid]["x"] is not None}
+    first.update({pid: (refs[pid][0], refs[pid][2]) for pid in recertify})
+    refs.update(_certify_all(first, problems, executor, certify_timeout, progress))
+    others = [pid for pid in need if pid not in refs or refs[pid][3] != CERTIFIED]
+    if others:
+        collect("x_hcod", others)
+    second = {}
+    for pid in others:
+        x, note = _lowest(problems[pid], found[pid])
+        if x is None:
+            why = "; ".join(filter(None, (found[pid].get("reason"), found[pid].get("hcod_reason"))))
+            refs[pid] = (None, killed.get(pid, ERROR), why, NO_YARDSTICK, "no candidate point", 0.0)
+        elif pid not in refs or (x is not found[pid]["x"] and refs[pid][5] == 0):
+            second[pid] = (x, note)  # (none certified yet, or hcod's point lower than a refused one)
+        else:  # (the independent point stays; its certificate's outcome, with the candidates named)
+            refs[pid] = (x, refs[pid][1], note, refs[pid][3],
+                         note + refs[pid][4][refs[pid][4].index(";"):] if ";" in refs[pid][4] else note, refs[pid][5])
+    refs.update(_certify_all(second, problems, executor, certify_timeout, progress))
+    for pid in [*need, *recertify]:
+        if pid not in killed:
+            phash = pcols[pid]["problem_hash"]
+            save_yardstick(yardstick_path(out, phash), refs[pid], phash, code)
+    for pid, first in twins.items():
+        refs[pid] = refs[first]
+    return refs
+
+
+def _lowest(h, res: dict):
+    """The lexicographically lowest of the candidate points ``x`` (the independent yardstick's)
+    and ``x_hcod`` (hikbench.problems.verify at 1e-9 of each level's scale; a tie keeps the
+    independent yardstick's) and a note naming it; (None, "") when there is none."""
+    x, xh = res.get("x"), res.get("x_hcod")
+    if x is None and xh is None:
+        return None, ""
+    if xh is None:
+        return x, "the independent yardstick's point" + (f" (no hcod point: {res['hcod_reason']})"
+                                                          if res.get("hcod_reason") else "")
+    if x is None:
+        return xh, f"hcod's point (no independent point: {res.get('reason', '')})"
+    v = verify(h, xh, x, rtol=1e-9)
+    if not v.equal and v.lower == "a":
+        return xh, f"hcod's point (the independent yardstick's is above it at level {v.level})"
+    return x, "the independent yardstick's point" + ("" if v.equal else f" (hcod's is above it at level {v.level})")
+
+
+def _certify_all(points: dict, problems: dict, executor, budget: float, progress) -> dict:
+    """The exact certificate of each problem's chosen point (pid -> (x, note)), through the
+    executor with ``budget`` seconds each; a problem whose estimated cost
+    (:func:`hikbench.problems.exact.estimated_seconds`) exceeds twice the budget is not tried.
+    Returns pid -> the yardstick tuple: ``certified`` (x, or the certificate's exact optimum
+    where x is above it), else ``reference-only`` with the reason (refused, timed out, not
+    tried, failed), never losing the point."""
+    from hikbench.problems.exact import estimated_seconds
+
+    refs, items = {}, []
+    for pid, (x, note) in points.items():
+        est = estimated_seconds(problems[pid])
+        if est > 2 * budget:
+            refs[pid] = (x, "optimal", note, REFERENCE_ONLY,
+                         f"{note}; not certified: the exact certificate was not tried, its estimated time "
+                         f"({est:.0f} s) is beyond twice certify_timeout ({budget:g} s)", budget)
+        else:
+            items.append((pid, {"kind": "certify", "hierarchy": problems[pid], "x": x}, budget))
+    if items:
+        tid = progress.add("certificate", len(items))
+        for pid, res in executor.map(iter(items)):
+            progress.advance(tid)
+            x, note = points[pid]
+            if res["status"] == TIMEOUT:
+                refs[pid] = (x, "optimal", note, REFERENCE_ONLY,
+                             f"{note}; not certified: the exact certificate did not finish in certify_timeout "
+                             f"({budget:g} s)", budget)
+            elif res["status"] != "optimal":
+                refs[pid] = (x, "optimal", note, REFERENCE_ONLY,
+                             f"{note}; not certified: the exact certificate {res['status']}: {res.get('reason', '')}",
+                             budget if res["status"] == CRASHED else 0.0)
+            elif not res["certified"]:
+                refs[pid] = (x, "optimal", note, REFERENCE_ONLY,
+                             f"{note}; the exact certificate refused it: {res['reason']}", 0.0)
+            elif res["attains"]:
+                refs[pid] = (x, "optimal", note, CERTIFIED, note, 0.0)
+            else:
+                refs[pid] = (res["x_cert"], "optimal", note, CERTIFIED,
+                             f"the certificate's exact optimum x*: {note} is above it at level {res['above_level']}",
+                             0.0)
     return refs

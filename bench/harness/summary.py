@@ -7,7 +7,9 @@ Keys: ``rows``, ``solvers`` (their names, ``[settings]`` variants apart),
 ``not_verified`` (rows attempted and not verified: False, or no yardstick),
 ``unsupported`` (rows a solver declined), ``statuses`` ({status: rows}),
 ``strict`` and ``non_strict`` (the same three counts for the rows of each
-kind of solver), ``sessions`` and ``wall_time_s`` (the sum over the run's
+kind of solver), ``yardstick`` ({kind: {"problems": P, "rows": R}} for the
+kinds ``certified``, ``reference-only``, ``none`` of results.csv's
+``yardstick`` column: rows are verified only against a certified one), ``sessions`` and ``wall_time_s`` (the sum over the run's
 sessions of finished - started, from run.json; None while one is unfinished).
 """
 
@@ -22,7 +24,7 @@ import pandas as pd
 from hikbench.bench.harness.environment import read_run_json
 from hikbench.bench.harness.results import read_results
 
-__all__ = ["SUMMARY_FILE", "run_summary", "summary_line", "write_summary"]
+__all__ = ["SUMMARY_FILE", "run_summary", "summary_line", "write_summary", "yardstick_counts"]
 
 SUMMARY_FILE = "summary.json"
 
@@ -33,6 +35,16 @@ def _counts(df: pd.DataFrame) -> dict:
     ok = df["verified"].eq(True)
     return {"verified": int(ok.sum()), "not_verified": int((~ok & ~declined).sum()),
             "unsupported": int(declined.sum())}
+
+
+def yardstick_counts(df: pd.DataFrame) -> dict:
+    """{kind: {"problems": P, "rows": R}} of the ``yardstick`` column, every kind listed ({} for
+    a results.csv without the column)."""
+    if "yardstick" not in df.columns:
+        return {}
+    kinds = df["yardstick"].fillna("none")
+    return {k: {"problems": int(df.loc[kinds == k, "problem"].nunique()), "rows": int((kinds == k).sum())}
+            for k in ("certified", "reference-only", "none")}
 
 
 def wall_time_s(meta: dict) -> float | None:
@@ -53,7 +65,7 @@ def run_summary(df: pd.DataFrame, meta: dict) -> dict:
             "solvers": sorted(labels.unique()), "problems": int(df["problem"].nunique()),
             "modes": sorted(df["mode"].unique()), **_counts(df),
             "statuses": {k: int(v) for k, v in sorted(df["status"].value_counts().items())},
-            "strict": _counts(df[strict]), "non_strict": _counts(df[~strict]),
+            "strict": _counts(df[strict]), "non_strict": _counts(df[~strict]), "yardstick": yardstick_counts(df),
             "sessions": len(meta.get("sessions") or []), "wall_time_s": wall_time_s(meta)}
 
 
@@ -61,9 +73,12 @@ def summary_line(s: dict) -> str:
     """The summary in one line of prose (report.md's opening line)."""
     wall = "wall time unknown (a session did not finish)" if s["wall_time_s"] is None else \
         f"wall time {s['wall_time_s']:.0f} s over {s['sessions']} session{'s' * (s['sessions'] != 1)}"
+    y = s.get("yardstick")
     return (f"{s['rows']} rows: {len(s['solvers'])} solvers x {s['problems']} problems "
             f"({', '.join(s['modes'])}); {s['verified']} verified, {s['not_verified']} not verified "
-            f"(strict solvers: {s['strict']['not_verified']}), {s['unsupported']} unsupported; {wall}.")
+            f"(strict solvers: {s['strict']['not_verified']}), {s['unsupported']} unsupported; "
+            + (f"yardstick certified on {y['certified']['problems']} of {s['problems']} problems; " if y else "")
+            + f"{wall}.")
 
 
 def write_summary(out) -> Path:

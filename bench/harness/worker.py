@@ -3,9 +3,14 @@
 Runs inside the isolated worker process (``python -m hikbench.bench.harness.isolation``) or,
 for external programs, in the caller. A job is a dict::
 
-    {"kind": "solve" | "yardstick", "hierarchy": Hierarchy, "solver": spec,
+    {"kind": "solve" | "yardstick" | "candidate" | "certify", "hierarchy": Hierarchy, "solver": spec,
      "options": {...}, "mode": "cold" | "warm", "repeat": R, "warmup": W,
      "samples": S or None, "sample_time": T}      # (hikbench.bench.harness.timing.time_solves)
+
+A ``yardstick`` job returns the independent yardstick's point, a ``candidate`` job (with
+``"solver"``) one cold solve's point of a registry solver (:func:`candidate_point`: ``hcod``'s, the
+yardstick's other candidate), a ``certify`` job (with ``"x"``) the exact certificate of x
+(:func:`certify_point`).
 
 ``spec`` is a registry name or ``module:Class`` / ``file.py:Class`` (a
 :class:`~hikbench.solvers.base.Solver` subclass or any factory), which is how tests
@@ -24,7 +29,7 @@ import numpy as np
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult
 
-__all__ = ["execute", "solver_factory", "solver_info"]
+__all__ = ["candidate_point", "certify_point", "execute", "solver_factory", "solver_info"]
 
 _frozen: set[str] = set()  # solvers whose first solve in this process is behind gc.freeze()
 
@@ -63,6 +68,32 @@ def _result_dict(res: SolveResult, samples_ns) -> dict:
     }
 
 
+def candidate_point(h, solver: str) -> dict:
+    """One cold solve of h by the registry solver ``solver`` (default options): ``status``
+    optimal and ``x`` where it gave a finite x with status optimal, else ``status`` error and
+    the ``reason``."""
+    res = registry.create(solver).solve(h)
+    if res.x is not None and res.status == "optimal" and np.all(np.isfinite(res.x)):
+        return {"status": "optimal", "reason": "", "x": np.asarray(res.x, dtype=float)}
+    return {"status": ERROR, "reason": f"{res.status} {res.reason}".strip(), "x": None}
+
+
+def certify_point(h, x: np.ndarray) -> dict:
+    """The exact certificate of x (:func:`hikbench.problems.exact.certify`): ``certified``,
+    ``reason`` (why not), and where certified ``x_cert`` (the exact optimum x*, rounded) and
+    ``attains`` (x's level norms equal x*'s at 1e-9 of each level's scale, or lower)."""
+    from hikbench.problems.exact import certify
+    from hikbench.problems.verify import verify
+
+    cert = certify(h, x)
+    out = {"status": "optimal", "certified": bool(cert.certified), "reason": cert.reason}
+    if cert.certified:
+        v = verify(h, x, cert.x, rtol=1e-9)
+        out.update(x_cert=np.asarray(cert.x, dtype=float), attains=bool(v.equal or v.lower == "a"),
+                   above_level=None if v.equal else int(v.level))
+    return out
+
+
 def execute(job: dict, notify=None) -> dict:
     """Run one job; never raises for a solver failure (the reason is returned).
 
@@ -79,6 +110,10 @@ def execute(job: dict, notify=None) -> dict:
             from hikbench.solvers.yardstick import yardstick_solution
             x = yardstick_solution(h)
             return {**base, "status": "optimal", "reason": "", "x": np.asarray(x, dtype=float)}
+        if job["kind"] == "candidate":
+            return {**base, **candidate_point(h, job["solver"])}
+        if job["kind"] == "certify":
+            return {**base, **certify_point(h, np.asarray(job["x"], dtype=float))}
         from hikbench.bench.harness.timing import SAMPLE_TIME, time_solves
         make = solver_factory(job["solver"], job.get("options", {}))
         first = make()

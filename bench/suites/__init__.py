@@ -12,6 +12,7 @@ path. Schema (every key optional except ``problems``)::
     warmup = 1              # discarded solves before timing
     timeout = 60.0          # seconds per job (warm-up + repetitions), hard
     first_solve_timeout = 300.0  # allowance for a solver's first solve in a worker process (JIT: hcod ~70 s without a cache)
+    certify_timeout = 30.0  # seconds for the exact certificate of one problem's yardstick (docs/verification.md)
     calibrate_each_job = false  # time the calibration kernel around every job (else once per worker)
     modes = ["cold", "warm"]
     accuracy = "default"    # verification profile, see ACCURACY
@@ -129,6 +130,7 @@ class Suite:
     warmup: int = 1
     timeout: float = 60.0
     first_solve_timeout: float = 300.0
+    certify_timeout: float = 30.0
     calibrate_each_job: bool = False
     modes: tuple[str, ...] = ("cold",)
     accuracy: str = "default"
@@ -163,7 +165,8 @@ class Suite:
         return {"name": self.name, "source": self.source, "description": self.description,
                 "repeat": self.repeat, "samples": self.samples, "sample_time": self.sample_time,
                 "rounds": self.rounds, "warmup": self.warmup, "timeout": self.timeout,
-                "first_solve_timeout": self.first_solve_timeout, "calibrate_each_job": self.calibrate_each_job,
+                "first_solve_timeout": self.first_solve_timeout, "certify_timeout": self.certify_timeout,
+                "calibrate_each_job": self.calibrate_each_job,
                 "modes": list(self.modes), "accuracy": self.accuracy, "export": list(self.export),
                 "solvers": list(self.solvers), "settings": self.settings, "problems": self.groups}
 
@@ -225,7 +228,7 @@ _SETTINGS = Table({"solver": Str(what="a solver name"), "name": Str(what="a sett
 SCHEMA = Table({
     "description": Str(empty=True), "repeat": Int(1), "samples": Int(1), "sample_time": _SECONDS,
     "rounds": Int(1), "warmup": Int(0),
-    "timeout": _SECONDS, "first_solve_timeout": _SECONDS, "calibrate_each_job": Bool(),
+    "timeout": _SECONDS, "first_solve_timeout": _SECONDS, "certify_timeout": _SECONDS, "calibrate_each_job": Bool(),
     "modes": List(Str(("cold", "warm")), what='a non-empty list of strings, e.g. modes = ["cold", "warm"]'),
     "accuracy": Str(tuple(ACCURACY)),
     "export": List(Str(_EXPORTS), what='a non-empty list of strings, e.g. export = ["npz"]'),
@@ -234,7 +237,7 @@ SCHEMA = Table({
     "problems": List(_GROUP, what="[[problems]] tables (at least one)"),
 }, required=("problems",), defaults={
     "description": "", "repeat": 5, "sample_time": SAMPLE_TIME, "rounds": 1, "warmup": 1, "timeout": 60.0,
-    "first_solve_timeout": 300.0,
+    "first_solve_timeout": 300.0, "certify_timeout": 30.0,
     "calibrate_each_job": False, "modes": ["cold"], "accuracy": "default", "export": ["npz"],
     "solvers": ["*"], "settings": []})
 
@@ -261,6 +264,7 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
     return Suite(name=name, description=d["description"], repeat=d["repeat"], samples=samples,
                  sample_time=float(d["sample_time"]), rounds=d["rounds"],
                  warmup=d["warmup"], timeout=float(d["timeout"]), first_solve_timeout=float(d["first_solve_timeout"]),
+                 certify_timeout=float(d["certify_timeout"]),
                  calibrate_each_job=d["calibrate_each_job"], modes=tuple(d["modes"]), accuracy=d["accuracy"],
                  export=tuple(d["export"]), solvers=tuple(d["solvers"]), settings=d["settings"],
                  groups=d["problems"], source=source)

@@ -358,3 +358,28 @@ class SerialSolver(CountingSolver):
         res = self._ref.solve(hierarchy)
         res.iterations = self.serial
         return res
+
+
+#: random n=12 seed 0 with A rescaled, and the yardstick's point on it before levels and units were
+#: scaled (above the optimum): tests/solvers/data/rescaled_random_12_0.npz
+RESCALED = Path(__file__).parents[1] / "solvers" / "data" / "rescaled_random_12_0.npz"
+
+
+def rescaled_random(seed: int = 0, i: int = 0) -> Hierarchy:
+    """A family (``seed`` unused): :data:`RESCALED`'s problem with A times its i-th scale (1e-12, 1e100)."""
+    with np.load(RESCALED) as z:
+        return Hierarchy(z["A"] * z["scales"][i], z["lower"], z["upper"], z["level"])
+
+
+class OldYardstickSolver(Solver):
+    """Returns the old yardstick's point on :func:`rescaled_random`'s problems (optimal by its own
+    status, above the optimum by the certified yardstick); x = 0 on any other problem."""
+
+    name = "old-yardstick"
+
+    def solve(self, hierarchy):
+        with np.load(RESCALED) as z:
+            for i in range(len(z["scales"])):
+                if np.array_equal(hierarchy.A, z["A"] * z["scales"][i]):
+                    return SolveResult(z[f"x_old_{i}"], OPTIMAL)
+        return SolveResult(np.zeros(hierarchy.n), OPTIMAL)

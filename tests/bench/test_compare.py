@@ -69,6 +69,17 @@ def test_newly_failing_case():
     assert len(c.new_failures) == 20 and c.failed
 
 
+def test_a_row_unverified_for_want_of_a_certified_yardstick_is_not_newly_failing():
+    """verified empty with verdict_side 'no certified yardstick' (the ci suite's n = 80, 120 problems,
+    beyond the certificate's budget): not the solver's failure; a slowdown is still caught."""
+    rng = np.random.default_rng(4)
+    new = _frame(_samples(rng, scale=2.0), verified=None).assign(verdict_side="no certified yardstick",
+                                                                 yardstick_reason="not tried")
+    c = compare_frames(_frame(_samples(rng)), new, {}, {})
+    assert not len(c.new_failures) and c.failed
+    assert c.table["verdict"].eq("SLOWER").all() and c.table["why"].str.contains("no certified yardstick").all()
+
+
 def _same_calibration(out) -> None:
     """Sleep does not scale with the CPU: pin calib_ns so that the test sees
     the sleeps alone (normalisation is tested above on synthetic frames)."""

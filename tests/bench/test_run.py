@@ -312,8 +312,8 @@ def test_changed_settings_options_run_again_and_replace_their_rows(tmp_path, cap
 
 
 class _ReferenceCrashes:
-    """An executor whose reference jobs come back ``crashed`` (a killed worker, a lost Dask
-    worker); the solves run for real."""
+    """An executor whose yardstick jobs (the independent point and hcod's candidate) come back
+    ``crashed`` (a killed worker, a lost Dask worker); the solves run for real."""
 
     name = "reference-crashes"
 
@@ -324,7 +324,7 @@ class _ReferenceCrashes:
 
     def map(self, items):
         for tag, job, timeout in items:
-            if job["kind"] == "yardstick":
+            if job["kind"] in ("yardstick", "candidate"):
                 yield tag, {"status": "crashed", "reason": "worker process killed by signal SIGKILL",
                             "x": None, "samples_ns": []}
             else:

@@ -198,3 +198,43 @@ def test_multipliers_vanish_only_where_multipliers_of_the_right_sign_exist(rows,
     E.A = [[E.ctx.mpf(v) for v in r] for r in rows]  # (held rows indexed into E.A)
     held = [(j, 0 if f else 1) for j, f in enumerate(free)]
     assert _multipliers_vanish(E, gm, E.ctx.mpf(1), held, 25) is expected
+
+
+def _box_then_sum_scaled(a: float, level0: float = 1.0) -> tuple[Hierarchy, float]:
+    """BOX_THEN_SUM with A times ``a`` (x* divided by a) and level 0 times ``level0``, its bounds
+    alike (the same minimisers, level 0's norm times level0); returns it and x*'s factor."""
+    c = np.array([level0, level0, 1.0])
+    h = BOX_THEN_SUM
+    return Hierarchy(h.A * a * c[:, None], h.lower * c, h.upper * c, h.level), 1.0 / a
+
+
+@pytest.mark.parametrize(("a", "level0"), [(1e-100, 1.0), (1e-12, 1.0), (1e12, 1.0), (1e100, 1.0), (1.0, 1e308 / 1.5),
+                                           (1e-3, 1e308)],
+                         ids=["A1e-100", "A1e-12", "A1e12", "A1e100", "level0-rows-1e308", "rows-1e308-x1e3"])
+def test_the_certificate_does_not_depend_on_the_units(a, level0):
+    """A times a (x divided by a) and a level times c, bounds alike, are the same problem: the
+    optimum is certified, the wrong point (1, -0.5) refused, at any scale. With a row scale
+    ``|a_i| (1 + ||x||) + |bound_i|``, A x 1e100 read every row as held and certified any point;
+    rows of norm 1e308 overflowed A x."""
+    h, f = _box_then_sum_scaled(a, level0)
+    cert = certify(h, [1.0 * f, 0.0])
+    assert cert.certified, cert.reason
+    np.testing.assert_allclose(cert.x, [f, 0.0], rtol=1e-15, atol=1e-40 * f)  # (50 digits)
+    np.testing.assert_allclose(cert.level_norms, [0.0, 2.0], rtol=1e-15, atol=1e-40)
+    assert not certify(h, [1.0 * f, -0.5 * f]).certified
+
+
+@pytest.mark.parametrize("i", [0, pytest.param(1, marks=pytest.mark.slow)], ids=["A1e-12", "A1e100"])
+def test_the_old_yardsticks_point_on_a_rescaled_problem_is_refused(i):
+    """Random n=12 seed 0 with A x 1e-12 and x 1e100: the yardstick's point before levels and units were
+    scaled is above the optimum (from level 1, level 3): refused; hcod's point is certified there."""
+    from hikbench.solvers.hcod import HcodSolver
+
+    with np.load(DATA / "rescaled_random_12_0.npz") as z:
+        h = Hierarchy(z["A"] * z["scales"][i], z["lower"], z["upper"], z["level"])
+        x_old = z[f"x_old_{i}"]
+    assert not certify(h, x_old).certified
+    x = HcodSolver().solve(h).x
+    cert = certify(h, x)
+    assert cert.certified, cert.reason
+    assert level_norms(h, x_old)[1 if i == 0 else 3] > 10 * cert.level_norms[1 if i == 0 else 3] + 1e-6
