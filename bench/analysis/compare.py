@@ -195,7 +195,7 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
         why = ""
         # a row not verified for want of a certified yardstick is not the solver's failure: its
         # timing is judged, the reason shown (docs/verification.md, "The yardstick of a run")
-        unjudged = n.get("verdict_side") == "no certified yardstick"
+        unjudged = str(n.get("verdict_side")).startswith("no certified yardstick")
         if unjudged:
             why = f"not verified: no certified yardstick ({n.get('yardstick_reason', '')})"
         if _true(b["verified"]) and not _true(n["verified"]) and not unjudged:

@@ -53,7 +53,9 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("verdict_level", "first level whose norm differs from the yardstick beyond tolerance (empty: none)"),
     ("verdict_side", ("at verdict_level: 'worse' (solver higher than the yardstick), 'better', "
                       "'no x' (no solution), 'no yardstick', 'no certified yardstick' (yardstick "
-                      "reference-only); empty when equal")),
+                      "reference-only, x equal to its point; '...; worse than its point' or '...; better "
+                      "than its point' with verdict_level when not: not a verdict, verified stays empty); "
+                      "empty when equal")),
     ("verdict_diff", "solver norm - yardstick norm at verdict_level"),
     ("yardstick", ("what the problem's yardstick is: 'certified' (the lexicographically lowest of the "
                    "independent yardstick's and hcod's points, accepted by the exact certificate "

@@ -75,11 +75,16 @@ def _json_floats(a) -> str:
     return json.dumps([None if not math.isfinite(float(v)) else float(v) for v in a])
 
 
+#: verdict_side of a row whose yardstick is not certified (x equal to its point; else a suffix says how)
+NO_CERTIFIED = "no certified yardstick"
+
+
 def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: float) -> dict:
     """One results.csv row from a job result (hikbench.bench.harness.worker) and the yardstick
     ``ref`` (:func:`_yardsticks`' tuple). A row is verified only against a certified
     yardstick: against a reference-only one ``verified`` is empty and ``verdict_side`` says
-    ``no certified yardstick``."""
+    ``no certified yardstick`` when x is equal to its point, with ``; worse than its point``
+    or ``; better than its point`` (and ``verdict_level``) when it is not."""
     x_ref, ref_status, ref_reason, kind, kind_reason = ref[:5]
     x = res.get("x")
     samples = np.asarray(res.get("samples_ns") or [], dtype=np.int64)
@@ -101,7 +106,12 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: floa
         row["reason"] = (row["reason"] + "; " if row["reason"] else "") + f"yardstick {ref_status}: {ref_reason}"
     elif kind != CERTIFIED:
         row["verified"] = None
-        row["verdict_side"] = "no certified yardstick"
+        row["verdict_side"] = NO_CERTIFIED
+        if x is not None and np.shape(x) == (h.n,):  # (how x compares with the uncertified point, said apart)
+            v = verify(h, x, x_ref, rtol=rtol, atol=atol)
+            if not v.equal:
+                row.update(verdict_level=v.level, verdict_diff=_finite(float(v.difference)),
+                           verdict_side=f"{NO_CERTIFIED}; {'better' if v.lower == 'a' else 'worse'} than its point")
     elif x is None or np.shape(x) != (h.n,):
         row.update(verified=False, verdict_side="no x")
     else:

@@ -75,6 +75,23 @@ def test_claim_c_compares_the_same_problems():
     assert claim_c(pd.DataFrame(only_unverified)).status == MISSING
 
 
+@pytest.mark.parametrize("side, used", [("no certified yardstick", True),
+                                        ("no certified yardstick; worse than its point", False)],
+                         ids=["equal-to-an-uncertified-yardstick", "worse-than-it"])
+def test_claim_c_takes_rows_equal_to_an_uncertified_yardstick_and_says_so(side, used):
+    """A problem beyond the certificate's budget: rows equal to its (uncertified) yardstick count
+    as solved, said in the measured text; a row worse than that point does not."""
+    rows = [_row("hcod", 50, 5, 8, 1e-4, verified=None), _row("nullspace-svd", 50, 5, 8, 5e-4, verified=None)]
+    rows[0]["verdict_side"] = "no certified yardstick"
+    rows[1]["verdict_side"] = side
+    c = claim_c(pd.DataFrame(rows))
+    if used:
+        assert c.status == PASS and "5.0x" in c.measured, c.measured
+        assert "2 of 2 rows judged against a yardstick that is not certified" in c.measured, c.measured
+    else:
+        assert c.status == MISSING, c.measured
+
+
 def _scenario(modes):
     rows = [{"solver": "hcod", "warm_start": m, "step": k, "solve_time_min_s": t, "iterations": 1, "activations": 0}
             for m, t in modes.items() for k in range(5)]

@@ -41,7 +41,9 @@ def test_a_problem_the_certificate_refuses_is_judged_by_no_row(tmp_path):
     assert df["yardstick"].eq("reference-only").all()
     assert df["yardstick_reason"].str.contains("the exact certificate refused it").all()
     assert df["verified"].isna().all()
-    assert df["verdict_side"].eq("no certified yardstick").all()
+    side = df.set_index("solver")["verdict_side"]
+    assert side["hcod"] == "no certified yardstick"  # (equal to the point, which is not a verdict)
+    assert side["wrong"] == "no certified yardstick; worse than its point"
 
 
 @pytest.mark.parametrize(("cost", "fragment"), [(None, "did not finish in certify_timeout"),
