@@ -18,6 +18,8 @@ re-canonicalises a new Problem at every level).
 
 from __future__ import annotations
 
+import importlib.util
+import sys
 import time
 import warnings
 
@@ -110,11 +112,12 @@ class CvxpyCascade(CascadeBase):
 
 
 def _cvxpy_installed() -> bool:
-    try:
-        import cvxpy  # noqa: F401
-    except ModuleNotFoundError:
-        return False
-    return True
+    """Whether cvxpy is installed, found without importing it (its import takes 1-2 s, which
+    every command listing the solvers would pay): a module blocked in ``sys.modules`` (None)
+    counts as missing."""
+    if "cvxpy" in sys.modules:
+        return sys.modules["cvxpy"] is not None
+    return importlib.util.find_spec("cvxpy") is not None
 
 
 _DEFAULTS = {"solver": "CLARABEL", "freeze": "shift", "accuracy": "high", "regularization": None,
