@@ -26,12 +26,15 @@ def add_arguments(p) -> None:
     p.add_argument("--alpha", type=float, default=0.01,
                    help="significance level after the Benjamini-Hochberg correction over the cases "
                         "(default 0.01)")
-    p.add_argument("--min-rounds", type=int, default=6, help="rounds always run (default 6)")
-    p.add_argument("--max-rounds", type=int, default=16,
-                   help="rounds at most, the ones past --min-rounds only while a case is borderline (default 16)")
-    p.add_argument("--budget", type=float, default=240.0,
-                   help="seconds of rounds after which no further round is started (default 240)")
-    p.add_argument("--repeat", type=int, default=None, help="timed repetitions per row (default: the suite's)")
+    p.add_argument("--min-rounds", type=int, default=20,
+                   help="paired rounds always run (default 20); each times every case once on each side")
+    p.add_argument("--max-rounds", type=int, default=60,
+                   help="paired rounds at most, the ones past --min-rounds only while a case is borderline "
+                        "(default 60)")
+    p.add_argument("--budget", type=float, default=150.0,
+                   help="seconds of paired rounds after which no further round is started (default 150)")
+    p.add_argument("--repeat", type=int, default=None,
+                   help="timed repetitions per job of a paired round (default 15)")
     p.add_argument("--repo", default=".", help="the git checkout holding the base revision (default: .)")
     p.add_argument("--markdown", metavar="FILE", help="also write the Markdown table here (a PR comment)")
     p.add_argument("--json", metavar="FILE", help="also write the JSON decision here")
@@ -72,7 +75,7 @@ def _warm(side) -> None:
 
 def run(args) -> int:
     from hikbench.bench.analysis.regress import decide, markdown, to_json
-    from hikbench.bench.harness.interleave import Rounds
+    from hikbench.bench.harness.interleave import PairedTimer, Rounds
     from hikbench.bench.harness.revisions import install_revision, working_side
 
     _check(args)
@@ -86,25 +89,35 @@ def run(args) -> int:
     for side in (base, change):
         _warm(side)
     rounds = Rounds(base, change, suite, out, repeat=args.repeat)
+    rounds.run_round()  # (each side's full run: statuses, verification, the problem files)
+    meta_change = _meta(out / "rounds" / "change-1" / "run.json")
+    timer = PairedTimer(base, change, rounds, repeat=args.repeat or 15)
     t_rounds, dec = time.perf_counter(), None
-    while rounds.done < args.max_rounds:
-        started = time.perf_counter()
-        rounds.run_round()
-        lasted = time.perf_counter() - started
-        dec = decide(rounds.frames["base"], rounds.frames["change"], args.threshold, args.alpha,
-                     _meta(out / "rounds" / "change-1" / "run.json"))
-        print(f"hikbench regress: round {rounds.done} in {lasted:.0f} s: {len(dec.failed)} failing, "
-              f"{len(dec.borderline)} borderline", file=sys.stderr, flush=True)
-        if rounds.done >= args.min_rounds and (
-                not dec.borderline or time.perf_counter() - t_rounds + lasted > args.budget):
-            break
+    try:
+        while timer.done < args.max_rounds:
+            started = time.perf_counter()
+            timer.run_round()
+            lasted = time.perf_counter() - started
+            dec = decide(timer.frames["base"], timer.frames["change"], args.threshold, args.alpha, meta_change)
+            if timer.done % 5 == 0 or timer.done >= args.min_rounds:
+                print(f"hikbench regress: paired round {timer.done} in {lasted:.1f} s: {len(dec.failed)} failing, "
+                      f"{len(dec.borderline)} borderline", file=sys.stderr, flush=True)
+            if timer.done >= args.min_rounds and (
+                    not dec.borderline or time.perf_counter() - t_rounds + lasted > args.budget):
+                break
+    finally:
+        timer.close()
+    if timer.skipped:
+        dec.notes.append(f"{len(timer.skipped)} case(s) not timed in pairs (a solver outside the registry, or a "
+                         f"case of one side only): {', '.join(' · '.join(map(str, k)) for k in timer.skipped[:5])}"
+                         + (" ..." if len(timer.skipped) > 5 else ""))
     wall = time.perf_counter() - t0
     head = (f"### hikbench regress: {change.label} vs base {base.label}, suite {args.suite}\n\n"
             f"{'REGRESSION' if dec.failed else 'no regression'}: {len(dec.failed)} failing of {len(dec.cases)} "
-            f"cases; {rounds.done} rounds (base and change alternating), {wall:.0f} s in all")
+            f"cases; {timer.done} paired rounds (each case on base and change back to back), {wall:.0f} s in all")
     text = markdown(dec, head)
     meta = {"base": {"revision": args.base, "label": base.label}, "change": {"label": change.label},
-            "suite": args.suite, "rounds": rounds.done, "wall_s": wall,
+            "suite": args.suite, "rounds": timer.done, "wall_s": wall, "paired_s": time.perf_counter() - t_rounds,
             "run_seconds": rounds.seconds, "exit": 1 if dec.failed else 0}
     (out / "regress.md").write_text(text)
     to_json(dec, meta, out / "regress.json")

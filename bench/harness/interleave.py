@@ -1,9 +1,10 @@
-"""Rounds of one suite run alternately on two sides (``hikbench regress``):
-round r runs the suite once on each side, the order alternating ABBA (base,
-change, change, base, ...) so that a drift of the machine's speed falls on both
-sides alike. Each run is a plain ``hikbench run`` of that side into
-``OUT/rounds/<side>-<r>``; a side's later rounds start from its first round's
-problem files and yardsticks (copied), so they only time.
+"""The two sides of ``hikbench regress`` run and timed:
+
+* :class:`Rounds`: the suite run on each side (a plain ``hikbench run`` into
+  ``OUT/rounds/<side>-<r>``, the order alternating): statuses, verification and
+  the problem files of every case;
+* :class:`PairedTimer`: every case timed on both sides back to back, job by job,
+  in persistent workers, round after round: the times the decision compares.
 """
 
 from __future__ import annotations
@@ -72,3 +73,81 @@ class Rounds:
         if not csv.exists():
             raise RevisionError(f"`hikbench run --suite {self.suite}` on {side.label} wrote no {csv}")
         return pd.read_csv(csv)
+
+
+class PairedTimer:
+    """Times every case of a finished round on both sides **alternately, job by job**:
+    one persistent isolated worker per side (the base's runs the base's code: its
+    install first on PYTHONPATH), and for each case a job on one side then at once
+    the same job on the other, the order alternating. The machine's speed drifts
+    within a second on a shared VM (hcod's 12 us solve read 5.7-12.8 us in blocks
+    0.2 s apart in one process): measured milliseconds apart, both sides of a pair see
+    the same speed, and the ratio of the pair cancels it.
+
+    Only registry solvers are timed (a case's ``solver`` column names them); the
+    problems are the change's round-1 files (``OUT/rounds/change-1/problems``)."""
+
+    def __init__(self, base: Side, change: Side, rounds: Rounds, repeat: int = 15, timeout: float = 60.0):
+        from hikbench.bench.harness.isolation import IsolatedWorker
+
+        self.repeat, self.timeout = repeat, timeout
+        self.workers = {name: IsolatedWorker(log=rounds.out / f"worker-{name}.log", path_first=side.path_first,
+                                             cwd=side.cwd)
+                        for name, side in (("base", base), ("change", change))}
+        self.labels = {"base": base.label, "change": change.label}
+        self.verified = {name: frames[0] for name, frames in rounds.frames.items()}
+        self.cases, self.skipped = self._cases(rounds.out / "rounds" / "change-1")
+        self.frames: dict[str, list[pd.DataFrame]] = {"base": [], "change": []}
+        self.done = 0
+
+    def _cases(self, run_dir: Path):
+        import json
+
+        from hikbench.bench.harness.columns import KEY
+        from hikbench.bench.suites.problemset import file_stem
+        from hikbench.problems.files import load
+        from hikbench.solvers import registry
+
+        known = registry.available()
+        base_rows = self.verified["base"].drop_duplicates(list(KEY)).set_index(list(KEY))
+        cases, skipped = [], []
+        for row in self.verified["change"].drop_duplicates(list(KEY)).itertuples(index=False):
+            key = tuple(getattr(row, k) for k in KEY)
+            if row.solver not in known or key not in base_rows.index:
+                skipped.append(key)
+                continue
+            if str(base_rows.loc[key].get("problem_hash")) != str(getattr(row, "problem_hash", None)):
+                skipped.append(key)
+                continue
+            h = load(run_dir / "problems" / f"{file_stem(row.problem)}.npz")
+            cases.append((key, {"kind": "solve", "hierarchy": h, "solver": row.solver,
+                                "options": json.loads(row.options) if isinstance(row.options, str) else {},
+                                "mode": row.mode, "repeat": self.repeat, "warmup": 1, "samples": None}))
+        return cases, skipped
+
+    def run_round(self) -> None:
+        """One job per case and side, each case's pair back to back, the order alternating."""
+        import numpy as np
+
+        from hikbench.bench.harness.columns import KEY
+
+        rows = {"base": [], "change": []}
+        for i, (key, job) in enumerate(self.cases):
+            order = ("base", "change") if (i + self.done) % 2 == 0 else ("change", "base")
+            for name in order:
+                res = self.workers[name].run(job, self.timeout, first_timeout=max(self.timeout, 300.0))
+                samples = res.get("samples_ns") or []
+                if res.get("status") in ("timeout", "crashed"):
+                    raise RevisionError(f"a timing job of {key[1]} on {key[0]} ({key[3]}) ended {res['status']} on "
+                                        f"{self.labels[name]}: {res.get('reason', '')}")
+                rows[name].append(dict(zip(KEY, key), time_median_s=float(np.median(samples)) * 1e-9
+                                       if samples else float("nan")))
+        for name in rows:  # (the side's round-1 rows, with this round's paired times; NaN where untimed)
+            timed = pd.DataFrame(rows[name], columns=[*KEY, "time_median_s"])
+            first = self.verified[name].drop_duplicates(list(KEY)).drop(columns=["time_median_s"])
+            self.frames[name].append(first.merge(timed, on=list(KEY), how="left"))
+        self.done += 1
+
+    def close(self) -> None:
+        for w in self.workers.values():
+            w.close()

@@ -228,11 +228,15 @@ class IsolatedWorker:
         and last ``LOG_KEEP_BYTES`` only: :class:`CappedLog`); None inherits it.
     startup_timeout : float
         Seconds allowed for the process to start and calibrate.
+    path_first : sequence of str
+        Folders put first on the child's ``PYTHONPATH`` (another install of hikbench:
+        ``hikbench regress``'s base revision), with ``cwd`` its working directory.
     """
 
-    def __init__(self, log=None, startup_timeout: float = 120.0):
+    def __init__(self, log=None, startup_timeout: float = 120.0, path_first=(), cwd=None):
         self.log = log
         self.startup_timeout = startup_timeout
+        self.path_first, self.cwd = tuple(map(str, path_first)), cwd
         self.proc: subprocess.Popen | None = None
         self._log_pump: CappedLog | None = None
         self.info: dict = {}
@@ -246,7 +250,7 @@ class IsolatedWorker:
     def _env(self) -> dict:
         env = dict(os.environ)
         paths = [p for p in sys.path if p and os.path.isdir(p)]
-        env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys([os.getcwd(), *paths]))
+        env["PYTHONPATH"] = os.pathsep.join(dict.fromkeys([*self.path_first, os.getcwd(), *paths]))
         for var in _THREAD_ENV:
             env[var] = "1"
         return env
@@ -261,7 +265,7 @@ class IsolatedWorker:
             # `crashed` row); the child dies with its parent through PR_SET_PDEATHSIG (Linux)
             self.proc = subprocess.Popen([sys.executable, "-m", "hikbench.bench.harness.isolation"], stdin=subprocess.PIPE,
                                          stdout=subprocess.PIPE, stderr=err[1] if err else None, env=self._env(),
-                                         start_new_session=True)
+                                         start_new_session=True, cwd=self.cwd)
         except BaseException:
             if err:
                 os.close(err[0])

@@ -42,6 +42,7 @@ class Side:
     argv: tuple[str, ...]
     env: dict
     cwd: Path
+    path_first: tuple[str, ...] = ()  # (folders first on PYTHONPATH: the base's install)
 
     def command(self, *args: str) -> list[str]:
         return [*self.argv, *args]
@@ -113,7 +114,7 @@ def install_revision(repo: Path, rev: str, work: Path, progress=print) -> Side:
         (home / "installed").write_text(sha + "\n")
     env = _thread_env(os.environ | {"PYTHONPATH": os.pathsep.join([str(site), os.environ.get("PYTHONPATH", "")])
                                                   .rstrip(os.pathsep)})
-    side = Side("base", label, (sys.executable, "-P", "-m", "hikbench"), env, home)
+    side = Side("base", label, (sys.executable, "-P", "-m", "hikbench"), env, home, (str(site),))
     where = subprocess.run(side.command("--version"), env=env, cwd=home, capture_output=True, check=False)
     probe = subprocess.run([sys.executable, "-P", "-c", "import hikbench; print(hikbench.__file__)"],
                            env=env, cwd=home, capture_output=True, check=False)
