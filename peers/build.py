@@ -90,6 +90,8 @@ def main(argv=None) -> int:
 def build(src: str | None, out: str | None, march_native: bool, jobs: int) -> dict:
     t0 = time.perf_counter()
     cxx = find_compiler()
+    for name in ("soth", "lexls") if src is not None else ():  # (what to fix first: the sources, then headers)
+        check_tarball(src, PINNED[name][2])
     inc = header_dirs()
     if out is None:
         from hikbench.solvers.peers import peers_dir
@@ -155,15 +157,21 @@ def header_dirs() -> dict[str, str]:
     return found
 
 
+def check_tarball(src: str, tarball: str) -> Path:
+    """``src/tarball``, or a BuildError saying what PEERS_SRC must hold."""
+    path = Path(src) / tarball
+    if not path.is_file():
+        raise BuildError(f"{path} not found: PEERS_SRC must be a folder holding {PINNED['soth'][2]} and "
+                         f"{PINNED['lexls'][2]} (e.g. ../shared/third_party), or leave it unset to clone "
+                         f"the public repositories")
+    return path
+
+
 def fetch_source(name: str, src: str | None, tmp: Path) -> Path:
     """The peer's source tree, extracted from its tarball in ``src`` or cloned at its pinned commit."""
     repo, commit, tarball = PINNED[name]
     if src is not None:
-        path = Path(src) / tarball
-        if not path.is_file():
-            raise BuildError(f"{path} not found: PEERS_SRC must be a folder holding {PINNED['soth'][2]} and "
-                             f"{PINNED['lexls'][2]} (e.g. ../shared/third_party), or leave it unset to clone "
-                             f"the public repositories")
+        path = check_tarball(src, tarball)
         with tarfile.open(path) as tar:
             tar.extractall(tmp, filter="data")
         tree = tmp / name
