@@ -178,8 +178,10 @@ def _contents(titles: list[str]) -> str:
     return "Contents: " + " · ".join(f"[{t}](#{_anchor(t)})" for t in titles)
 
 
-def _ranking_section(doc: _Doc, rankings: dict[str, Ranking | None], has_non_strict: bool) -> None:
-    """The headline tables, one per mode, with the solvers listed apart."""
+def _ranking_section(doc: _Doc, rankings: dict[str, Ranking | None], has_non_strict: bool,
+                     uncertified: frozenset = frozenset()) -> None:
+    """The headline tables, one per mode, with the solvers listed apart; ``uncertified``: the
+    problems whose yardstick is not certified (their rows are never verified)."""
     doc.section("Ranking")
     doc.text(f"Strict solvers over the problems every one of them attempted, one table per mode. Success "
              f"(`verified`) first, then the shifted geometric mean (shift {SHIFT_S * 1e6:g} us) of each "
@@ -200,14 +202,27 @@ def _ranking_section(doc: _Doc, rankings: dict[str, Ranking | None], has_non_str
                     _num(row["relative_time"]), f"{row['fastest_on']}/{solved}", row["charged"],
                     _us(row["median_time_s"])] for i, row in enumerate(r.rows)])
         notes = []
-        if r.unsolved:
-            notes.append(f"No solver of the ranking solved {len(r.unsolved)} of the {P} problems (left out of "
-                         f"the time): {', '.join(r.unsolved[:5])}{' ...' if len(r.unsolved) > 5 else ''}.")
+        unjudged = [p for p in r.unsolved if p in uncertified]
+        unsolved = [p for p in r.unsolved if p not in uncertified]
+        if unjudged:
+            notes.append(f"{len(unjudged)} of the {P} problems have no certified yardstick, so no row of them is "
+                         f"verified (left out of the time; column `yardstick_reason` says why): "
+                         f"{', '.join(unjudged[:5])}{' ...' if len(unjudged) > 5 else ''}.")
+        if unsolved:
+            notes.append(f"No solver of the ranking solved {len(unsolved)} of the {P} problems (left out of "
+                         f"the time): {', '.join(unsolved[:5])}{' ...' if len(unsolved) > 5 else ''}.")
         if r.apart:
             notes.append(f"Not ranked in {mode} (declined some problems): " + "; ".join(
                 f"{lab} declined {a['declined']} of its {a['of']}" for lab, a in r.apart.items()) + ".")
         if notes:
             doc.text(*notes)
+
+
+def _uncertified_problems(df: pd.DataFrame) -> frozenset:
+    """Problems whose yardstick is there but not certified (column ``yardstick``)."""
+    if "yardstick" not in df:
+        return frozenset()
+    return frozenset(df.loc[df["yardstick"].isin(["reference-only", "none"]), "problem"])
 
 
 def _own_section(doc: _Doc, own: dict[str, list[dict]]) -> None:
@@ -507,7 +522,7 @@ def write_report(run_dir) -> Path:
                  f"covers the rows run so far only.")
     doc.text(_contents(titles))
     doc.text(f"**Summary:** {summary_line(summary)}")
-    _ranking_section(doc, rankings, has_ns)
+    _ranking_section(doc, rankings, has_ns, _uncertified_problems(df))
     _own_section(doc, own)
     _tail_section(doc, tail)
     if has_ns:

@@ -80,3 +80,14 @@ def test_the_lowest_candidate_is_taken_and_named():
     x, note = _lowest(h, {"x": None, "reason": "yardstick error: E", "x_hcod": x_hcod})
     assert x is x_hcod and "no independent point: yardstick error: E" in note
     assert _lowest(h, {"x": None, "x_hcod": None}) == (None, "")
+
+
+def test_the_ranking_tells_problems_without_a_certified_yardstick_from_unsolved_ones():
+    """The ranking's note lists the problems left out because their yardstick is not certified
+    apart from those no solver solved."""
+    from hikbench.bench.analysis.report import _uncertified_problems
+
+    df = pd.DataFrame({"problem": ["a", "a", "b", "c"], "yardstick": ["certified", "certified", "reference-only",
+                                                                      "none"]})
+    assert _uncertified_problems(df) == {"b", "c"}
+    assert _uncertified_problems(df.drop(columns=["yardstick"])) == frozenset()
