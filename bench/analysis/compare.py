@@ -133,7 +133,7 @@ def _true(v) -> bool:
 
 
 def _why(row) -> str:
-    """What a failing row of RUN says: its status and reason, or its verdict against the reference."""
+    """What a failing row of RUN says: its status and reason, or its verdict against the yardstick."""
     status = row.get("status")
     reason = row.get("reason")
     reason = reason if isinstance(reason, str) else ""

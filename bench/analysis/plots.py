@@ -261,7 +261,7 @@ def plot_accuracy(df: pd.DataFrame, path: Path, *, styles: dict[str, dict]) -> P
     ax.xaxis.set_major_locator(matplotlib.ticker.MaxNLocator(integer=True))
     ax.set_ylabel("median | ||v_k(x)|| - ||v_k(x_ref)|| |  [units of the task]")
     _legend(ax)
-    return _finish(fig, ax, path, "Per-level accuracy against the reference (floored at 1e-17; levels\n"
+    return _finish(fig, ax, path, "Per-level accuracy against the yardstick (floored at 1e-17; levels\n"
                    "reached by one or under 10 % of a solver's problems not drawn)")
 
 

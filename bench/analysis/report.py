@@ -383,10 +383,13 @@ def _claims_section(doc: _Doc, run_dir: Path) -> list[dict]:
     return [{"claim": c.name, "result": c.status, "measured": c.measured, "paper": c.paper} for c in claims]
 
 
-def _draw_figures(df: pd.DataFrame, plot_dir: Path, doc: _Doc) -> list[dict]:
+def _draw_figures(df: pd.DataFrame, plot_dir: Path, doc: _Doc, uncertified: frozenset = frozenset()) -> list[dict]:
     """Every figure of the report, drawn in ``plot_dir``; the slope tables go to
-    ``doc``. Returns [{title, path (None: not drawn), why}]."""
+    ``doc``. The success figure and the profiles leave out the ``uncertified``
+    problems (no row of theirs can be verified). Returns [{title, path (None: not
+    drawn), why}]."""
     figures = []
+    judged = df[~df["problem"].isin(uncertified)]
     styles = plots.solver_styles(df)  # (a solver's colour, marker and line style: the same in every figure)
     for var, what in (("n", "DOF"), ("depth", "depth")):
         for i, (family, fixed, g) in enumerate(plots.sweeps(df, var)):
@@ -405,11 +408,13 @@ def _draw_figures(df: pd.DataFrame, plot_dir: Path, doc: _Doc) -> list[dict]:
                           f"(verified rows{span}; - = fewer than 3 verified sizes)",
                           ["solver", "slope", "std. err.", "sizes verified / attempted"],
                           [[s, _num(a), _num(b), f"{k}/{m}"] for s, (a, b, k, m) in sorted(slopes.items())])
-    p = plots.plot_success(df, plot_dir / "success_rate.png")
+    p = plots.plot_success(judged, plot_dir / "success_rate.png")
+    left_out = (f" ({len(uncertified)} problem{'s' * (len(uncertified) != 1)} without a certified yardstick "
+                f"left out)") if uncertified else ""
     if p:
-        figures.append({"title": "Success rate by each solver's claim", "path": p})
+        figures.append({"title": f"Success rate by each solver's claim{left_out}", "path": p})
     for mode in ("cold", "warm"):
-        for what, slug, g in _profile_groups(df[df["mode"] == mode]):
+        for what, slug, g in _profile_groups(judged[judged["mode"] == mode]):
             title = f"Performance profile, {mode}{what}"
             n = g["problem"].nunique()
             if n < MIN_PROFILE_PROBLEMS:
@@ -426,7 +431,7 @@ def _draw_figures(df: pd.DataFrame, plot_dir: Path, doc: _Doc) -> list[dict]:
                                     f"Performance profiles (Dolan-More), {mode} solves; failures never reach 1"
                                     + (f"\n{what[2:]}" if what else ""), styles=styles)
             if p:
-                figures.append({"title": title, "path": p})
+                figures.append({"title": title + left_out, "path": p})
     for name, draw, title in (("accuracy_per_level.png", plots.plot_accuracy, "Per-level accuracy"),
                               ("cold_vs_warm.png", plots.plot_cold_warm, "Cold vs warm")):
         p = draw(df, plot_dir / name, styles=styles)
@@ -513,7 +518,7 @@ def write_report(run_dir) -> Path:
 
     doc = _Doc()
     slopes = _Doc()  # (the slope tables come with the figures, and are printed after the speed tables)
-    figures = _draw_figures(df, plot_dir, slopes)
+    figures = _draw_figures(df, plot_dir, slopes, _uncertified_problems(df))
     titles = [t for t in SECTIONS if (t != "Non-strict solvers" or has_ns) and (t != "Claims of the paper"
                                                                                   or with_claims)]
     doc.lines += [f"# hikbench report: suite {summary['suite'] or '?'}", ""]
