@@ -20,10 +20,6 @@ from hikbench.bench.harness.revisions import RevisionError, Side
 
 __all__ = ["Rounds"]
 
-#: folders of a run directory a later round of the same side reuses
-_SEEDED = ("problems", "yardstick")
-
-
 class Rounds:
     """Runs rounds of ``suite`` on ``base`` and ``change``; ``frames[side]`` holds one
     results DataFrame per finished round of that side."""
@@ -49,11 +45,6 @@ class Rounds:
         side = self.sides[name]
         target = self.out / "rounds" / f"{name}-{r + 1}"
         shutil.rmtree(target, ignore_errors=True)
-        first = self.out / "rounds" / f"{name}-1"
-        if r:
-            for folder in _SEEDED:
-                if (first / folder).is_dir():
-                    shutil.copytree(first / folder, target / folder)
         args = ["run", "--suite", self.suite, "--out", str(target), "--quiet"]
         if self.repeat:
             args += ["--repeat", str(self.repeat)]
