@@ -19,15 +19,15 @@
 
 #include <lexls/lexlsi.h>
 
+#include "layout.hpp"
+
 namespace py = pybind11;
 using Index = LexLS::Index;
-using Doubles = py::array_t<double, py::array::c_style | py::array::forcecast>;
-using Ints = py::array_t<int64_t, py::array::c_style | py::array::forcecast>;
+using namespace hik;  // Doubles, Ints, Row, Layout, the Code values
 
 namespace {
 
-enum Code { OPTIMAL = 0, MAX_ITERATIONS = 1, NUMERICAL_FAILURE = 2, ERROR = 3 };
-
+// 0 free, 1 equality, 2 one- or two-sided (LexLS takes both bounds, infinite or not)
 int8_t kind_of(double lo, double up) {
   if (lo == up) return 1;
   return std::isfinite(lo) || std::isfinite(up) ? 2 : 0;  // (0: free)
@@ -43,22 +43,18 @@ class Peer {
 
   // the hierarchy into the objectives' blocks; true when a new LexLSI object was built (cold)
   bool load(const Doubles& A, const Doubles& lower, const Doubles& upper, const Ints& starts) {
-    const Index m = A.shape(0), n = A.shape(1), depth = starts.shape(0) - 1;
+    const bool fresh = layout_.update(A, lower, upper, starts);
+    if (fresh) rebuild();
+    const Row n = layout_.n;
     const double* a = A.data();
     const double* lo = lower.data();
     const double* up = upper.data();
-    const int64_t* st = starts.data();
-    kinds_new_.resize(m);
-    for (Index i = 0; i < m; ++i) kinds_new_[i] = kind_of(lo[i], up[i]);
-    std::vector<int64_t> st_new(st, st + depth + 1);
-    const bool fresh = !built_ || n != n_ || st_new != starts_ || kinds_new_ != kinds_;
-    if (fresh) rebuild(n, st_new);
-    for (size_t k = 0; k < rows_.size(); ++k) {
+    for (size_t k = 0; k < layout_.rows.size(); ++k) {
       LexLS::dMatrixType& D = data_[k];
-      const std::vector<Index>& rows = rows_[k];
-      for (Index r = 0; r < (Index)rows.size(); ++r) {
-        const Index i = rows[r];
-        for (Index j = 0; j < n; ++j) D(r, j) = a[i * n + j];
+      const std::vector<Row>& rows = layout_.rows[k];
+      for (Row r = 0; r < (Row)rows.size(); ++r) {
+        const Row i = rows[r];
+        for (Row j = 0; j < n; ++j) D(r, j) = a[i * n + j];
         D(r, n) = lo[i];
         D(r, n + 1) = up[i];
       }
@@ -68,12 +64,13 @@ class Peer {
 
   // (x, code, activations, deactivations, factorizations, cycling, message)
   py::tuple solve(bool warm) {
-    py::array_t<double> x(n_ < 0 ? 0 : n_);
+    const Row n = layout_.n;
+    py::array_t<double> x(n < 0 ? 0 : n);
     double* xp = x.mutable_data();
     int code = OPTIMAL;
     std::string msg;
-    if (!built_ || rows_.empty()) {
-      for (Index j = 0; j < x.shape(0); ++j) xp[j] = 0.0;
+    if (!s_) {  // (no row left: x = 0)
+      for (Row j = 0; j < x.shape(0); ++j) xp[j] = 0.0;
       return py::make_tuple(x, code, 0, 0, 0, 0, msg);
     }
     LexLS::TerminationStatus status = LexLS::TERMINATION_STATUS_UNKNOWN;
@@ -82,7 +79,7 @@ class Peer {
     try {
       if (used_) s_->reset();
       used_ = true;
-      for (size_t k = 0; k < rows_.size(); ++k) s_->setData(k, data_[k]);
+      for (size_t k = 0; k < data_.size(); ++k) s_->setData(k, data_[k]);
       if (reapply)
         for (size_t k = 0; k < ws_.size(); ++k)
           for (size_t i = 0; i < ws_[k].size(); ++i)
@@ -108,7 +105,7 @@ class Peer {
       msg = "lexls: termination status " + std::to_string((int)status);
     }
     const LexLS::dVectorType& xs = s_->get_x();
-    for (Index j = 0; j < n_; ++j) {
+    for (Row j = 0; j < n; ++j) {
       xp[j] = code == ERROR ? std::nan("") : xs[j];
       if (code == OPTIMAL && !std::isfinite(xp[j])) {
         code = NUMERICAL_FAILURE;
@@ -130,43 +127,30 @@ class Peer {
   long max_factorizations() const { return prm_.max_number_of_factorizations; }
 
  private:
-  void rebuild(Index n, const std::vector<int64_t>& st) {
-    n_ = n;
-    starts_ = st;
-    kinds_ = kinds_new_;
-    rows_.clear();
-    for (size_t k = 0; k + 1 < st.size(); ++k) {
-      std::vector<Index> rows;
-      for (int64_t i = st[k]; i < st[k + 1]; ++i)
-        if (kinds_[i] != 0) rows.push_back(i);
-      if (!rows.empty()) rows_.push_back(rows);
-    }
-    const Index nobj = rows_.size();
+  // a new LexLSI object for the layout's levels (none when no row is left)
+  void rebuild() {
+    const Index nobj = layout_.rows.size(), n = layout_.n;
     data_.assign(nobj, LexLS::dMatrixType());
     ws_.assign(nobj, {});
     std::vector<Index> dims(nobj);
     std::vector<LexLS::ObjectiveType> types(nobj, LexLS::GENERAL_OBJECTIVE);
     for (Index k = 0; k < nobj; ++k) {
-      dims[k] = rows_[k].size();
+      dims[k] = layout_.rows[k].size();
       data_[k].resize(dims[k], n + 2);
     }
     s_.reset();
     solved_ = used_ = false;
-    built_ = true;
-    if (nobj == 0) return;  // (no LexLSI: x = 0)
+    if (nobj == 0) return;
     s_.reset(new LexLS::internal::LexLSI(n, nobj, dims.data(), types.data()));
     s_->setParameters(prm_);
   }
 
   LexLS::ParametersLexLSI prm_;
-  Index n_ = -1;
-  std::vector<int64_t> starts_;
-  std::vector<int8_t> kinds_, kinds_new_;
-  std::vector<std::vector<Index>> rows_;  // the rows of hikbench's hierarchy in each LexLS objective
+  Layout<kind_of> layout_;  // the rows of hikbench's hierarchy in each LexLS objective
   std::vector<LexLS::dMatrixType> data_;
   std::vector<std::vector<LexLS::ConstraintActivationType>> ws_;  // the last solve's working set
   std::unique_ptr<LexLS::internal::LexLSI> s_;
-  bool built_ = false, solved_ = false, used_ = false;
+  bool solved_ = false, used_ = false;
 };
 
 }  // namespace

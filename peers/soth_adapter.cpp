@@ -20,6 +20,8 @@
 #include <soth/HCOD.hpp>
 #include <soth/Stage.hpp>
 
+#include "layout.hpp"
+
 #ifndef NDEBUG
 #error "SOTH is timed with its assertions compiled out: build with -DNDEBUG (peers/build.py)"
 #endif
@@ -28,16 +30,13 @@
 #endif
 
 namespace py = pybind11;
-using Index = Eigen::Index;
-using Doubles = py::array_t<double, py::array::c_style | py::array::forcecast>;
-using Ints = py::array_t<int64_t, py::array::c_style | py::array::forcecast>;
+using namespace hik;  // Doubles, Ints, Row, Layout, the Code values
 
 namespace {
 
-enum Code { OPTIMAL = 0, MAX_ITERATIONS = 1, NUMERICAL_FAILURE = 2, ERROR = 3 };
 enum Kind : int8_t { FREE = 0, TWIN = 1, LOWER = 2, UPPER = 3, DOUBLE = 4 };
 
-Kind kind_of(double lo, double up) {
+int8_t kind_of(double lo, double up) {
   if (lo == up) return TWIN;
   const bool l = std::isfinite(lo), u = std::isfinite(up);
   return l && u ? DOUBLE : l ? LOWER : u ? UPPER : FREE;
@@ -49,24 +48,20 @@ class Peer {
 
   // the hierarchy into the stages' buffers; true when a new HCOD object was built (cold)
   bool load(const Doubles& A, const Doubles& lower, const Doubles& upper, const Ints& starts) {
-    const Index m = A.shape(0), n = A.shape(1), depth = starts.shape(0) - 1;
+    const bool fresh = layout_.update(A, lower, upper, starts);
+    if (fresh) rebuild();
+    const Row n = layout_.n;
     const double* a = A.data();
     const double* lo = lower.data();
     const double* up = upper.data();
-    const int64_t* st = starts.data();
-    kinds_new_.resize(m);
-    for (Index i = 0; i < m; ++i) kinds_new_[i] = kind_of(lo[i], up[i]);
-    std::vector<int64_t> st_new(st, st + depth + 1);
-    const bool fresh = !hcod_ || n != n_ || st_new != starts_ || kinds_new_ != kinds_;
-    if (fresh) rebuild(n, st_new);
-    for (size_t k = 0; k < rows_.size(); ++k) {
+    for (size_t k = 0; k < layout_.rows.size(); ++k) {
       Eigen::MatrixXd& J = J_[k];  // column-major: SOTH maps it so
       soth::VectorBound& b = b_[k];
-      const std::vector<Index>& rows = rows_[k];
-      for (Index r = 0; r < (Index)rows.size(); ++r) {
-        const Index i = rows[r];
-        for (Index j = 0; j < n; ++j) J(r, j) = a[i * n + j];
-        switch (kinds_[i]) {
+      const std::vector<Row>& rows = layout_.rows[k];
+      for (Row r = 0; r < (Row)rows.size(); ++r) {
+        const Row i = rows[r];
+        for (Row j = 0; j < n; ++j) J(r, j) = a[i * n + j];
+        switch (layout_.kinds[i]) {
           case TWIN: b[r] = soth::Bound(lo[i]); break;
           case LOWER: b[r] = soth::Bound(lo[i], soth::Bound::BOUND_INF); break;
           case UPPER: b[r] = soth::Bound(up[i], soth::Bound::BOUND_SUP); break;
@@ -79,13 +74,14 @@ class Peer {
 
   // (x, code, activations, deactivations, message)
   py::tuple solve(bool warm) {
-    py::array_t<double> x(n_ < 0 ? 0 : n_);
+    const Row n = layout_.n;
+    py::array_t<double> x(n < 0 ? 0 : n);
     double* xp = x.mutable_data();
     int code = OPTIMAL;
     std::string msg;
     activations_ = deactivations_ = 0;
-    if (!hcod_ || rows_.empty()) {
-      for (Index j = 0; j < x.shape(0); ++j) xp[j] = 0.0;
+    if (!hcod_) {  // (no row left: x = 0)
+      for (Row j = 0; j < x.shape(0); ++j) xp[j] = 0.0;
       return py::make_tuple(x, code, 0, 0, msg);
     }
     soth::Stage::EPSILON = epsilon_;  // (a static of SOTH: set on every call)
@@ -105,9 +101,9 @@ class Peer {
       msg = "soth: unknown exception";
     }
     if (code != OPTIMAL) {
-      for (Index j = 0; j < n_; ++j) xp[j] = std::nan("");
+      for (Row j = 0; j < n; ++j) xp[j] = std::nan("");
     } else {
-      for (Index j = 0; j < n_; ++j) {
+      for (Row j = 0; j < n; ++j) {
         xp[j] = u_[j];
         if (!std::isfinite(xp[j])) code = NUMERICAL_FAILURE;
       }
@@ -123,29 +119,21 @@ class Peer {
   double epsilon() const { return epsilon_; }
 
  private:
-  void rebuild(Index n, const std::vector<int64_t>& st) {
+  // a new HCOD object, a stage per level of the layout (none when no row is left)
+  void rebuild() {
+    const auto& levels = layout_.rows;
     hcod_.reset();
-    n_ = n;
-    starts_ = st;
-    kinds_ = kinds_new_;
-    rows_.clear();
-    for (size_t k = 0; k + 1 < st.size(); ++k) {
-      std::vector<Index> rows;
-      for (int64_t i = st[k]; i < st[k + 1]; ++i)
-        if (kinds_[i] != FREE) rows.push_back(i);
-      if (!rows.empty()) rows_.push_back(rows);
+    J_.assign(levels.size(), Eigen::MatrixXd());
+    b_.assign(levels.size(), soth::VectorBound());
+    for (size_t k = 0; k < levels.size(); ++k) {
+      J_[k].resize(levels[k].size(), layout_.n);
+      b_[k].resize(levels[k].size());
     }
-    J_.assign(rows_.size(), Eigen::MatrixXd());
-    b_.assign(rows_.size(), soth::VectorBound());
-    for (size_t k = 0; k < rows_.size(); ++k) {
-      J_[k].resize(rows_[k].size(), n);
-      b_[k].resize(rows_[k].size());
-    }
-    u_.resize(n);
+    u_.resize(layout_.n);
     solved_ = false;
-    if (rows_.empty()) return;  // (no HCOD: x = 0)
-    hcod_.reset(new soth::HCOD(n, rows_.size()));
-    for (size_t k = 0; k < rows_.size(); ++k) hcod_->pushBackStage(rows_[k].size(), J_[k].data(), b_[k].data());
+    if (levels.empty()) return;
+    hcod_.reset(new soth::HCOD(layout_.n, levels.size()));
+    for (size_t k = 0; k < levels.size(); ++k) hcod_->pushBackStage(levels[k].size(), J_[k].data(), b_[k].data());
     // SOTH notifies every change of active set: counted as activations / deactivations
     hcod_->notifiorRegistration([this](std::string, soth::ConstraintRef, std::string what) {
       if (what == "update") ++activations_;
@@ -154,10 +142,7 @@ class Peer {
   }
 
   double epsilon_;
-  Index n_ = -1;
-  std::vector<int64_t> starts_;
-  std::vector<int8_t> kinds_, kinds_new_;
-  std::vector<std::vector<Index>> rows_;  // the rows of hikbench's hierarchy in each SOTH stage
+  Layout<kind_of> layout_;  // the rows of hikbench's hierarchy in each SOTH stage
   std::vector<Eigen::MatrixXd> J_;
   std::vector<soth::VectorBound> b_;
   std::unique_ptr<soth::HCOD> hcod_;
