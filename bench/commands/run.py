@@ -107,4 +107,9 @@ def run(args) -> int:
     print(f"hikbench run: suite {suite.name}: {s.total} rows in the suite, "
           f"{s.skipped_finished} already done, "
           f"{s.written} written ({statuses}) -> {out / 'results.csv'}")
+    if s.scenario_runs:
+        st = ", ".join(f"{k} {v}" for k, v in sorted(s.scenario_statuses.items())) or "none"
+        print(f"hikbench run: suite {suite.name}: {s.scenario_runs} scenario runs in the suite, "
+              f"{s.scenario_skipped_finished} already done, {s.scenario_written} written ({st}) "
+              f"-> {out / 'scenarios.csv'}")
     return 0

@@ -465,7 +465,10 @@ def _child_main() -> None:
             return
         if job is None:
             return
-        _send(channel, execute(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE, token)), token)
+        run = execute
+        if job.get("kind") == "scenario":  # (a suite's [[scenarios]]: pinocchio and the robots, loaded here only)
+            from hikbench.bench.scenarios.job import execute_scenario as run
+        _send(channel, run(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE, token)), token)
 
 
 if __name__ == "__main__":
