@@ -44,7 +44,8 @@ def add_arguments(p) -> None:
                    help="run finished rows again; each re-run row replaces its old one, the others are "
                         "kept, and the previous results.csv is first copied to a new backup "
                         "(results.csv.bak, results.csv.bak.1, ...)")
-    p.add_argument("--limit", type=int, default=None, help="stop after N new rows (N >= 0; resume later)")
+    p.add_argument("--limit", type=int, default=None,
+                   help="stop after N new rows, a suite's scenario rows after its problem rows (N >= 0; resume later)")
     p.add_argument("--quiet", action="store_true", help="no progress bar (CI)")
 
 

@@ -25,6 +25,9 @@ took (its caches are on disk now), capped by ``first_timeout``; a solver
 whose first solve ran past the allowance gets the job timeout only. The
 ``timeout`` row's reason says which limit applied.
 
+A ``scenario`` job (a suite's ``[[scenarios]]``: hikbench.bench.scenarios.job) runs in
+the same process, under the same timeouts, through the same channel.
+
 Plain subprocesses (not ``multiprocessing``) so that this also works inside
 daemonic Dask worker processes.
 """

@@ -21,7 +21,7 @@ import pandas as pd
 
 from hikbench.problems.errors import HikbenchError
 
-__all__ = ["FINISHED", "KEY", "SCENARIOS_CSV", "SCENARIO_COLUMNS", "finished_keys", "read_scenario_rows", "run_stem",
+__all__ = ["FINISHED", "KEY", "SCENARIOS_CSV", "SCENARIO_COLUMNS", "finished_keys", "markdown", "read_scenario_rows", "run_stem",
            "slug", "summary_row", "write_scenario_row"]
 
 SCENARIOS_CSV = "scenarios.csv"
@@ -62,6 +62,11 @@ KEY = ("scenario", "robot", "solver", "warm_start", "steps")  #: a row's identit
 
 def names() -> list[str]:
     return [c for c, _ in SCENARIO_COLUMNS]
+
+
+def markdown() -> str:
+    """The columns as a markdown table (docs/columns.md holds it)."""
+    return "\n".join(["| column | meaning |", "|---|---|", *(f"| `{c}` | {d} |" for c, d in SCENARIO_COLUMNS)])
 
 
 def slug(text: str) -> str:

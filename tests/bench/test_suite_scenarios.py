@@ -240,3 +240,13 @@ def test_a_solver_that_is_not_installed_is_skipped_with_its_hint(tmp_path, capsy
     tasks, skipped = expand_scenarios(load_suite(str(suite)))
     assert [t.solver for t in tasks] == ["hcod"]
     assert skipped[missing[0]] == f"not installed: {registry.missing()[missing[0]]}"
+
+
+def test_the_columns_page_holds_the_generated_scenario_columns():
+    from pathlib import Path
+
+    from hikbench.bench.scenarios.rows import markdown
+
+    page = Path(__file__).resolve().parents[2] / "docs" / "columns.md"
+    assert markdown() in page.read_text(), (
+        "docs/columns.md's scenarios.csv table is out of date: paste hikbench.bench.scenarios.rows.markdown()")
