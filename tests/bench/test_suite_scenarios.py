@@ -153,6 +153,19 @@ def test_a_second_run_skips_the_finished_scenario_runs(scenario_run, tmp_path, c
     assert (out / SCENARIOS_CSV).read_bytes() == before
 
 
+def test_limit_counts_the_scenario_rows_after_the_problem_rows(scenario_run, tmp_path, capsys):
+    out = tmp_path / "out"
+    shutil.copytree(scenario_run, out)
+    before = (out / SCENARIOS_CSV).read_bytes()
+    (tmp_path / "s.toml").write_text(_suite_text())
+    code, stdout, _ = run(capsys, "run", "--quiet", "--rerun", "--limit", 1, "--suite", tmp_path / "s.toml",
+                          "--out", out)
+    assert code == 0
+    assert "1 written" in stdout.splitlines()[0]  # (the problem row took the one row of the limit)
+    assert f"{len(SOLVERS)} scenario runs in the suite, 0 already done, 0 written" in stdout
+    assert (out / SCENARIOS_CSV).read_bytes() == before
+
+
 def test_a_row_run_again_replaces_the_row_of_its_key(tmp_path):
     key = {"scenario": "reach", "robot": "talos", "solver": "hcod", "warm_start": "time", "steps": 3,
            "scenario_steps": 700, "repeat": 1}
