@@ -6,7 +6,8 @@ problem set per mode, success first, then time relative to the fastest, with
 failures charged 10 x the slowest success on their problem, never the job
 timeout); then each solver on its own problems, the tail latency per solver
 (bench/analysis/tail.py), the non-strict solvers with
-their per-level gap to the yardstick, the details, the figures, and the
+their per-level gap to the yardstick, the details, the runs of the suite's
+``[[scenarios]]`` (bench/analysis/scenarios.py), the figures, and the
 environment last. report.json holds the same numbers (docs/reports.md).
 
 report.md is diff-friendly: every table has a one-line title before it, rows
@@ -23,6 +24,7 @@ import pandas as pd
 
 from hikbench.bench.analysis import plots
 from hikbench.bench.analysis.plots import solver_label
+from hikbench.bench.analysis.scenarios import scenario_rows, scenario_section
 from hikbench.bench.analysis.ranking import Ranking, claim_met, non_strict, own_problems, rank, strict_labels
 from hikbench.bench.analysis.shgeom import FAILURE_FACTOR, SHIFT_S, shifted_geometric_mean, timed
 from hikbench.bench.analysis.tail import tail_table
@@ -166,7 +168,7 @@ class _Doc:
 
 #: report.md's sections, in order: (title, what decides whether it is written)
 SECTIONS = ("Ranking", "Each solver on its own problems", "Tail latency", "Non-strict solvers", "Success per family",
-            "Speed per problem", "Statuses and unverified rows", "Claims of the paper", "Figures", "Environment")
+            "Speed per problem", "Scenarios", "Statuses and unverified rows", "Claims of the paper", "Figures", "Environment")
 
 
 def _anchor(title: str) -> str:
@@ -519,8 +521,10 @@ def write_report(run_dir) -> Path:
     doc = _Doc()
     slopes = _Doc()  # (the slope tables come with the figures, and are printed after the speed tables)
     figures = _draw_figures(df, plot_dir, slopes, _uncertified_problems(df))
+    has_scenarios = bool(scenario_rows(run_dir))
     titles = [t for t in SECTIONS if (t != "Non-strict solvers" or has_ns) and (t != "Claims of the paper"
-                                                                                  or with_claims)]
+                                                                                  or with_claims)
+              and (t != "Scenarios" or has_scenarios)]
     doc.lines += [f"# hikbench report: suite {summary['suite'] or '?'}", ""]
     if isinstance(meta.get("suite_rows"), int) and len(df) < meta["suite_rows"]:
         doc.text(f"**Incomplete run: {_rows_note(len(df), meta['suite_rows'])}.** Every table and figure below "
@@ -536,18 +540,20 @@ def write_report(run_dir) -> Path:
     _speed_section(doc, df)
     doc.lines += slopes.lines
     doc.tables += slopes.tables
+    scenarios = scenario_section(doc, run_dir, meta)
     _status_section(doc, df)
     claims = _claims_section(doc, run_dir) if with_claims else None
     _figures_section(doc, figures, run_dir)
     _environment_section(doc, df, meta, norm_note)
     out = run_dir / "report.md"
     out.write_text("\n".join(doc.lines).rstrip() + "\n")
-    _write_json(run_dir, summary, rankings, own, ns, claims, figures, _calibration_ms(df), doc, meta, tail)
+    _write_json(run_dir, summary, rankings, own, ns, claims, figures, _calibration_ms(df), doc, meta, tail,
+                scenarios)
     return out
 
 
 def _write_json(run_dir: Path, summary, rankings, own, ns, claims, figures, calibration, doc: _Doc,
-                meta: dict, tail: dict) -> Path:
+                meta: dict, tail: dict, scenarios: list[dict]) -> Path:
     """RUN/report.json: the numbers of report.md (docs/reports.md, "report.json")."""
     data = {
         "summary": summary,
@@ -560,6 +566,7 @@ def _write_json(run_dir: Path, summary, rankings, own, ns, claims, figures, cali
         "tail": tail,
         "non_strict": ns,
         "claims": claims,
+        "scenarios": scenarios,
         "figures": [{"title": f["title"], "path": None if f["path"] is None else str(f["path"].relative_to(run_dir)),
                      "why": f.get("why")} for f in figures],
         "calibration_ms": calibration,

@@ -44,7 +44,8 @@ def add_arguments(p) -> None:
                    help="run finished rows again; each re-run row replaces its old one, the others are "
                         "kept, and the previous results.csv is first copied to a new backup "
                         "(results.csv.bak, results.csv.bak.1, ...)")
-    p.add_argument("--limit", type=int, default=None, help="stop after N new rows (N >= 0; resume later)")
+    p.add_argument("--limit", type=int, default=None,
+                   help="stop after N new rows, a suite's scenario rows after its problem rows (N >= 0; resume later)")
     p.add_argument("--quiet", action="store_true", help="no progress bar (CI)")
 
 
@@ -107,4 +108,9 @@ def run(args) -> int:
     print(f"hikbench run: suite {suite.name}: {s.total} rows in the suite, "
           f"{s.skipped_finished} already done, "
           f"{s.written} written ({statuses}) -> {out / 'results.csv'}")
+    if s.scenario_runs:
+        st = ", ".join(f"{k} {v}" for k, v in sorted(s.scenario_statuses.items())) or "none"
+        print(f"hikbench run: suite {suite.name}: {s.scenario_runs} scenario runs in the suite, "
+              f"{s.scenario_skipped_finished} already done, {s.scenario_written} written ({st}) "
+              f"-> {out / 'scenarios.csv'}")
     return 0

@@ -11,7 +11,6 @@ of ICRA 2010 sec. XII; prints the scenario's checks. Exit code 1 when a check fa
 from __future__ import annotations
 
 import argparse
-import re
 from pathlib import Path
 
 import numpy as np
@@ -58,12 +57,9 @@ def add_arguments(p) -> None:
     p.add_argument("--list", action="store_true", help="list the shipped scenarios and stacks, then exit")
 
 
-def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_")
-
-
 def run(args) -> int:
     from hikbench.bench.cli import solver_calls_killable
+    from hikbench.bench.scenarios.rows import run_stem, slug
     from hikbench.bench.scenarios.runner import REPEAT, check_run, run_scenario, warm_start_default
     from hikbench.bench.harness.worker import solver_info
     from hikbench.problems.robots.scenarios import load_scenario, scenario_names
@@ -89,7 +85,7 @@ def run(args) -> int:
     if "warm_start" in options and args.warm_start:
         raise HikbenchError("give the warm-start mode either with --warm-start or --option warm_start=..., "
                             "not both")
-    out = Path(args.out or Path("results") / "scenarios" / _slug(scenario.name))
+    out = Path(args.out or Path("results") / "scenarios" / slug(scenario.name))
     if out.exists() and not out.is_dir():
         raise HikbenchError(f"--out {out}: is a file; expected a directory (created if missing)")
     try:
@@ -111,7 +107,7 @@ def run(args) -> int:
         with solver_calls_killable():  # a backend looping in C code still ends on SIGTERM / Ctrl-C
             run_ = run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps, repeat=repeat)
         runs.append(run_)
-        stem = _slug(f"{scenario.name}_{scenario.robot.name}_{run_.label}")
+        stem = run_stem(scenario.name, scenario.robot.name, run_.label)
         csv = out / f"{stem}.csv"
         run_.records.to_csv(csv, index=False)
         np.save(out / f"{stem}_q.npy", run_.q)

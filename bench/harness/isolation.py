@@ -25,6 +25,9 @@ took (its caches are on disk now), capped by ``first_timeout``; a solver
 whose first solve ran past the allowance gets the job timeout only. The
 ``timeout`` row's reason says which limit applied.
 
+A ``scenario`` job (a suite's ``[[scenarios]]``: hikbench.bench.scenarios.job) runs in
+the same process, under the same timeouts, through the same channel.
+
 Plain subprocesses (not ``multiprocessing``) so that this also works inside
 daemonic Dask worker processes.
 """
@@ -465,7 +468,10 @@ def _child_main() -> None:
             return
         if job is None:
             return
-        _send(channel, execute(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE, token)), token)
+        run = execute
+        if job.get("kind") == "scenario":  # (a suite's [[scenarios]]: pinocchio and the robots, loaded here only)
+            from hikbench.bench.scenarios.job import execute_scenario as run
+        _send(channel, run(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE, token)), token)
 
 
 if __name__ == "__main__":

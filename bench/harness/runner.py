@@ -15,6 +15,8 @@ Layout of OUT::
                           reason, kind, kind_reason, certify_budget), by yardstick code
                           version ``code`` (hikbench.bench.harness.cache)
     worker.log            stderr of the isolated worker processes
+    scenarios.csv         one row per run of the suite's [[scenarios]] (hikbench.bench.scenarios.rows)
+    scenarios/<scenario>/ each run's per-step CSV and trajectory, as `hikbench scenario` writes them
     run.lock              held (flock) by the run writing to OUT: a second run on
                           the same OUT is refused; the OS releases it when the
                           run's process ends, however it ends
@@ -65,6 +67,10 @@ class RunSummary:
     written: int = 0
     statuses: dict = field(default_factory=dict)
     skipped_solvers: dict = field(default_factory=dict)
+    scenario_runs: int = 0             # runs of the suite's [[scenarios]]
+    scenario_skipped_finished: int = 0
+    scenario_written: int = 0
+    scenario_statuses: dict = field(default_factory=dict)
 
 
 def _finite(v):
@@ -215,7 +221,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     rows are kept, and results.csv is first backed up without overwriting an older backup (hikbench.bench.harness.results.backup); a
     finished row whose settings' options changed is run again the same way.
     A suite that selects no job raises SuiteError. ``executor`` defaults to a
-    SerialExecutor."""
+    SerialExecutor. The suite's ``[[scenarios]]`` run after the problems
+    (:func:`hikbench.bench.scenarios.suite.run_scenarios`; ``limit`` counts their rows too)."""
     from hikbench.bench.harness.executors import SerialExecutor
 
     out = Path(out)
@@ -232,7 +239,12 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     timeout = float(timeout or suite.timeout)
     rtol, atol = ACCURACY[suite.accuracy]
     tasks, skipped = expand(suite, solvers)  # checks solvers and settings before anything is written
-    summary = RunSummary(total=len(tasks), skipped_solvers=skipped)
+    scenarios = []
+    if suite.scenarios:  # (pinocchio and the robots only for a suite that has scenarios)
+        from hikbench.bench.scenarios.suite import expand_scenarios, run_scenarios
+        scenarios, more = expand_scenarios(suite, solvers)
+        skipped = {**skipped, **more}
+    summary = RunSummary(total=len(tasks), skipped_solvers=skipped, scenario_runs=len(scenarios))
     problems, pcols = {}, {}
     for spec in [t.problem for t in tasks] if tasks else [sp for sp, _ in suite.problems()]:
         if spec.id not in problems:  # every problem is generated (and checked) before anything is written
@@ -272,7 +284,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                    "timeout": timeout}
         # (the solvers this directory's runs selected, skipped ones included: compare expects their cases)
         selected = sorted({t.entry.solver for t in tasks} | set(skipped) | set(meta.get("selected_solvers", [])))
-        meta.update({"suite": suite.to_dict(), "suite_rows": len(tasks), "selected_solvers": selected,
+        meta.update({"suite": suite.to_dict(), "suite_rows": len(tasks), "suite_scenario_runs": len(scenarios),
+                     "selected_solvers": selected,
                      "calibration_kernel": KERNEL, "key": list(KEY), "yardstick_code": yardstick_code(),
                      "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
                      "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
@@ -314,6 +327,11 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                             summary.statuses[row["status"]] = summary.statuses.get(row["status"], 0) + 1
                             progress.advance(tid, label, rounds - rnd)
                         alive = sorted(again)  # (the suite's order, whatever order the executor finished in)
+                if scenarios:
+                    left = None if limit is None else max(int(limit) - summary.written, 0)
+                    (summary.scenario_skipped_finished, summary.scenario_written,
+                     summary.scenario_statuses) = run_scenarios(scenarios, out, executor, suite.first_solve_timeout,
+                                                                rerun=rerun, limit=left, progress=progress)
         finally:
             if own_executor:
                 executor.close()
@@ -322,6 +340,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
             session["finished"] = utc_now()
             session["calibration_end_ns"] = calibrate()
             session["written"] = summary.written
+            if scenarios:
+                session["scenario_written"] = summary.scenario_written
             cal = [s[k] for s in meta["sessions"] for k in ("calibration_start_ns",
                                                             "calibration_end_ns") if k in s]
             meta["calibration_ns"] = int(np.median(cal))

@@ -31,6 +31,15 @@ path. Schema (every key optional except ``problems``)::
     seeds = [0, 1]
     solvers = ["hcod", "nullspace-*", "cascade-osqp"]  # optional: restricts this group
 
+    [[scenarios]]               # closed-loop scenarios, run after the problems (hikbench.bench.scenarios.suite)
+    name = "reach"              # a shipped scenario or a scenario .toml (relative: next to the suite file)
+    robot = "talos"             # optional: a robot name or a .urdf path (default: the scenario's)
+    solvers = ["hcod", "cascade-daqp"]  # optional (default: the suite's); patterns as for problems
+    warm_start = ["time"]       # optional: modes of the solvers with a warm_start option (default: theirs)
+    steps = 700                 # optional: control steps (default: the scenario's)
+    repeat = 5                  # optional: timed calls per step (default 5)
+    timeout = 600.0             # optional: seconds for one (scenario, solver, mode) run, hard
+
 Decisions (docs/suites.md, "The suite file"):
 
 * ``warm`` mode runs only for solvers with ``supports_warm_start`` (for the
@@ -138,6 +147,7 @@ class Suite:
     solvers: tuple[str, ...] = ("*",)
     settings: list = field(default_factory=list)
     groups: list = field(default_factory=list)
+    scenarios: list = field(default_factory=list)  # [[scenarios]] tables, checked (hikbench.bench.scenarios.suite)
     source: str = ""
 
     def problems(self) -> list[tuple[ProblemSpec, tuple[str, ...] | None]]:
@@ -168,7 +178,8 @@ class Suite:
                 "first_solve_timeout": self.first_solve_timeout, "certify_timeout": self.certify_timeout,
                 "calibrate_each_job": self.calibrate_each_job,
                 "modes": list(self.modes), "accuracy": self.accuracy, "export": list(self.export),
-                "solvers": list(self.solvers), "settings": self.settings, "problems": self.groups}
+                "solvers": list(self.solvers), "settings": self.settings, "problems": self.groups,
+                "scenarios": self.scenarios}
 
 
 def builtin_suites() -> dict[str, Path]:
@@ -210,6 +221,16 @@ def _resolve_paths(data: dict, base: Path) -> None:
             g["family"] = fix(g["family"])
         if isinstance(g.get("solvers"), list):
             g["solvers"] = [fix(s) for s in g["solvers"]]
+    entries = data.get("scenarios")
+    for e in entries if isinstance(entries, list) else ():
+        if not isinstance(e, dict):
+            continue
+        if isinstance(e.get("solvers"), list):
+            e["solvers"] = [fix(s) for s in e["solvers"]]
+        for key, suffix in (("name", ".toml"), ("robot", ".urdf")):  # (files next to the suite file)
+            v = e.get(key)
+            if isinstance(v, str) and v.endswith(suffix) and not Path(v).is_absolute():
+                e[key] = str((base / v).resolve())
 
 
 _SECONDS = Number(0, low_open=True, what="a number of seconds > 0")
@@ -224,6 +245,13 @@ _GROUP = Table({
 _SETTINGS = Table({"solver": Str(what="a solver name"), "name": Str(what="a settings name"),
                    "options": Table(values=Any(), what="a table, e.g. options = { accuracy = \"low\" }")},
                   required=("solver", "name"), what="a [[settings]] table")
+_SCENARIO = Table({
+    "name": Str(what="a non-empty string: a shipped scenario (`hikbench scenario --list`) or a scenario .toml"),
+    "robot": Str(what="a non-empty string: a robot name (`hikbench list robots`) or a .urdf path"),
+    "solvers": List(Str(), what=_NAMES),
+    "warm_start": List(Str(), what='a non-empty list of strings, e.g. warm_start = ["none", "time"]'),
+    "steps": Int(1), "repeat": Int(1), "timeout": _SECONDS,
+}, required=("name",), what="a [[scenarios]] table")
 #: the suite file (see the module docstring); solver options are checked against their solvers later
 SCHEMA = Table({
     "description": Str(empty=True), "repeat": Int(1), "samples": Int(1), "sample_time": _SECONDS,
@@ -235,11 +263,12 @@ SCHEMA = Table({
     "solvers": List(Str(), what=_NAMES),
     "settings": List(_SETTINGS, min_len=0, what="[[settings]] tables"),
     "problems": List(_GROUP, what="[[problems]] tables (at least one)"),
+    "scenarios": List(_SCENARIO, min_len=0, what="[[scenarios]] tables"),
 }, required=("problems",), defaults={
     "description": "", "repeat": 5, "sample_time": SAMPLE_TIME, "rounds": 1, "warmup": 1, "timeout": 60.0,
     "first_solve_timeout": 300.0, "certify_timeout": 30.0,
     "calibrate_each_job": False, "modes": ["cold"], "accuracy": "default", "export": ["npz"],
-    "solvers": ["*"], "settings": []})
+    "solvers": ["*"], "settings": [], "scenarios": []})
 
 
 def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
@@ -267,7 +296,7 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
                  certify_timeout=float(d["certify_timeout"]),
                  calibrate_each_job=d["calibrate_each_job"], modes=tuple(d["modes"]), accuracy=d["accuracy"],
                  export=tuple(d["export"]), solvers=tuple(d["solvers"]), settings=d["settings"],
-                 groups=d["problems"], source=source)
+                 groups=d["problems"], scenarios=d["scenarios"], source=source)
 
 
 def _check_grid(g: dict, path: str, at: Where) -> None:
