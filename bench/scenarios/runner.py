@@ -16,7 +16,10 @@ own cost: a pause of the machine, which lengthens one call, is left out).
 ``repeats_agree`` says whether every object returned the first's answer
 (status, iterations, activations, deactivations, x bit for bit): a solver
 whose objects drift apart (a nondeterministic backend) times other work in
-its minimum, and the CLI says how many steps did.
+its minimum, and the CLI says how many steps did. A scenario controller
+(``pink``, bench/scenarios/controllers.py) takes q and the step's targets
+before the timed calls, untimed (:meth:`Controller.prepare`), as the
+hierarchy is built untimed for a solver; its timed call is its ``solve``.
 
 Per-step record (one row per step; :data:`COLUMNS` then one column per task
 and per level):
