@@ -44,8 +44,8 @@ bench: warmup
 # the ICRA 2010 claims: paper suite (~5 min) + reach scenario, report, PASS/FAIL table
 paper: warmup
 	$(VENV)/bin/hikbench run --suite paper --out results/paper
-	$(VENV)/bin/hikbench scenario reach --solver hcod --solver cascade-daqp --warm-start none stage time \
-		--out results/paper/scenarios/reach
+	$(VENV)/bin/hikbench scenario reach --solver hcod --solver cascade-daqp --solver pink --warm-start none stage time \
+		--out results/paper/scenarios/reach --plot
 	$(VENV)/bin/hikbench report results/paper
 	$(VENV)/bin/hikbench claims results/paper
 

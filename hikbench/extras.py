@@ -16,6 +16,7 @@ __all__ = ["EXTRA_OF", "extra_for", "install_hint"]
 EXTRA_OF = {
     "pinocchio": "robots",
     "example_robot_data": "robots",
+    "pink": "robots",
     "cvxpy": "cvxpy",
     "dask": "dask",
     "distributed": "dask",

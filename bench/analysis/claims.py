@@ -186,7 +186,7 @@ def find_scenario_csvs(run_dir, explicit=None) -> list[Path]:
             raise HikbenchError(f"--scenario {p}: no such file or directory; expected a scenario CSV "
                                 "or a directory of them (`hikbench scenario reach` writes them)")
         if p.is_dir():
-            hits = sorted(p.glob("*.csv"))
+            hits = sorted(q for q in p.glob("*.csv") if q.name != "summary.csv")  # (one row per run, no steps)
             if not hits:
                 raise HikbenchError(f"--scenario {p}: no *.csv file in this directory; expected the "
                                     "per-step CSVs of `hikbench scenario reach`")

@@ -4,8 +4,12 @@
 
 Runs a closed-loop robot scenario (``problems/robots/scenarios/NAME.toml`` or a
 TOML path) once per (solver, warm-start mode), writes one per-step CSV per run
-(columns documented in ``bench/scenarios/runner.py``) and, with ``--plot``, the figures
-of ICRA 2010 sec. XII; prints the scenario's checks. Exit code 1 when a check fails.
+(columns documented in ``bench/scenarios/runner.py``), ``summary.csv`` (one row per
+run: cost per step, max and final task errors by level, checks) and, with
+``--plot``, the figures of ICRA 2010 sec. XII; prints the scenario's checks and,
+for several runs, their task errors by level side by side. A solver is a
+registered one, ``module:Class`` / ``file.py:Class``, or a scenario controller
+(``pink``: bench/scenarios/controllers.py). Exit code 1 when a check fails.
 """
 
 from __future__ import annotations
@@ -40,7 +44,8 @@ def add_arguments(p) -> None:
                    help="frame alias of the robot (repeatable), e.g. right_hand=r_wrist_link "
                         "(default: from the files' [frames] tables and the link names)")
     p.add_argument("--solver", action="append", default=None,
-                   help="solver name or module:Class / file.py:Class (repeatable; default: yardstick)")
+                   help="solver name or module:Class / file.py:Class, or the controller pink (weighted IK on the "
+                        "stack's tasks; repeatable; default: yardstick)")
     p.add_argument("--warm-start", nargs="+", default=None, metavar="MODE",
                    help="warm-start modes to run, one run each, for solvers with a warm_start option "
                         "(hcod: none stage time; a module:Class solver: the values its warm_start "
@@ -52,13 +57,16 @@ def add_arguments(p) -> None:
                         "controller sees); x and counts are the first's (default: 5)")
     p.add_argument("--out", default=None, help="output directory (default: results/scenarios/NAME)")
     p.add_argument("--plot", action="store_true", help="write the figures (PNG)")
-    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
-                   help="solver option (repeatable), applied to every solver")
-    p.add_argument("--list", action="store_true", help="list the shipped scenarios and stacks, then exit")
+    p.add_argument("--option", action="append", default=[], metavar="[SOLVER.]KEY=VALUE",
+                   help="solver option (repeatable), applied to every solver, or with SOLVER. to that one only "
+                        "(e.g. pink.level_factor=3)")
+    p.add_argument("--list", action="store_true",
+                   help="list the shipped scenarios, stacks and controllers, then exit")
 
 
 def run(args) -> int:
     from hikbench.bench.cli import solver_calls_killable
+    from hikbench.bench.scenarios.controllers import CONTROLLERS, build_controller, is_controller
     from hikbench.bench.scenarios.rows import run_stem, slug
     from hikbench.bench.scenarios.runner import REPEAT, check_run, run_scenario, warm_start_default
     from hikbench.bench.harness.worker import solver_info
@@ -69,6 +77,7 @@ def run(args) -> int:
     if args.list:
         print("scenarios: " + ", ".join(scenario_names()))
         print("stacks:    " + ", ".join(stack_names()))
+        print("controllers (--solver): " + ", ".join(CONTROLLERS))
         return 0
     if args.name is None:
         raise HikbenchError("give a scenario NAME (reach, step, ...) or the path of a scenario .toml; "
@@ -81,7 +90,7 @@ def run(args) -> int:
     scenario = load_scenario(args.name, robot=_robot(args), frames=_frames(args.frame))
     print(_robot_line(scenario.robot))
     solvers = args.solver or ["yardstick"]
-    options = parse_options(args.option)
+    options, scoped = _split_options(parse_options(args.option), solvers)
     if "warm_start" in options and args.warm_start:
         raise HikbenchError("give the warm-start mode either with --warm-start or --option warm_start=..., "
                             "not both")
@@ -94,15 +103,22 @@ def run(args) -> int:
         raise HikbenchError(f"--out {out}: cannot create the directory: {err.strerror or err}") from err
     plan = []  # (solver, options, mode), each built once here so that a bad mode or option fails before any run
     for solver in solvers:
+        if is_controller(solver):  # pink: built on the scenario's stack (an unsupported task fails here)
+            opts = {**{k: v for k, v in options.items() if k != "warm_start"}, **scoped.get(solver, {})}
+            build_controller(solver, scenario.stack, **opts)
+            plan.append((solver, opts, None))
+            continue
         info = solver_info(solver)
         default = warm_start_default(info)
         has_modes = default is not None  # a warm_start option: hcod's, or a class parameter
-        modes = (args.warm_start or [options.get("warm_start", default)]) if has_modes else [None]
-        opts = {k: v for k, v in options.items() if k != "warm_start" or has_modes}
+        own = scoped.get(solver, {})
+        modes = (args.warm_start or [own.get("warm_start", options.get("warm_start", default))]) if has_modes \
+            else [None]
+        opts = {k: v for k, v in {**options, **own}.items() if k != "warm_start" or has_modes}
         for mode in modes:
             build(info, **{**opts, **({"warm_start": mode} if has_modes else {})})
             plan.append((solver, opts, mode))
-    runs, failed = [], False
+    runs, checks, failed = [], [], False
     for solver, opts, mode in plan:
         with solver_calls_killable():  # a backend looping in C code still ends on SIGTERM / Ctrl-C
             run_ = run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps, repeat=repeat)
@@ -123,11 +139,14 @@ def run(args) -> int:
                   f"first's answer (x, status or counts): their minimum may time other work (repeats_agree)")
         errs = [c for c in df.columns if c.startswith("err_")]
         print("  final errors: " + ", ".join(f"{c[4:]}={df[c].iloc[-1]:.2e}" for c in errs))
-        for check in check_run(run_):
+        checks.append(check_run(run_))
+        for check in checks[-1]:
             failed |= not check.passed
             print(f"  [{'pass' if check.passed else 'FAIL'}] {check.name}: {check.detail}")
     if len(runs) > 1:
-        _print_side_by_side(runs)
+        _print_side_by_side(runs, checks)
+    _summary(runs, checks).to_csv(out / "summary.csv", index=False)
+    print(f"summary (one row per run) -> {out / 'summary.csv'}")
     if args.plot:
         from hikbench.bench.scenarios.plots import plot_runs
 
@@ -169,15 +188,71 @@ def _robot_line(robot) -> str:
             f"frames: {frames or 'none'}")
 
 
-def _print_side_by_side(runs) -> None:
-    """Task errors of every run side by side: max over the run / final value."""
+def _split_options(options: dict, solvers: list[str]) -> tuple[dict, dict]:
+    """``{"a": 1, "pink.level_factor": 3}`` -> ``({"a": 1}, {"pink": {"level_factor": 3}})``: a key
+    ``SOLVER.KEY`` whose SOLVER is one of ``solvers`` applies to that solver only."""
+    common, scoped = {}, {}
+    for key, value in options.items():
+        name, dot, own = key.rpartition(".")
+        if dot and name in solvers and own:
+            scoped.setdefault(name, {})[own] = value
+        elif dot and name and own:
+            raise HikbenchError(f"--option {key}=...: {name!r} is not one of the --solver names "
+                                f"({', '.join(solvers)}); expected SOLVER.KEY=VALUE with SOLVER given to --solver")
+        else:
+            common[key] = value
+    return common, scoped
+
+
+def _task_levels(stack) -> dict[str, int]:
+    """Task name -> its level (0 the highest priority)."""
+    return {t.name: k for k, level in enumerate(stack.levels) for t in level}
+
+
+def _print_side_by_side(runs, checks) -> None:
+    """Task errors of every run side by side, by priority level: max over the run / final
+    value; then the median / worst solver's cost per step and the checks passed."""
+    level = _task_levels(runs[0].scenario.stack)
     cols = [c for c in runs[0].records.columns if c.startswith("err_")]
-    width = max(len(c) for c in cols) - 4
-    print("\ntask errors, max / final over the run:")
-    print(" " * width + "  " + "  ".join(f"{r.label:>21}" for r in runs))
+    names = {c: f"L{level.get(c[4:], '?')} {c[4:]}" for c in cols}
+    width = max(len(n) for n in [*names.values(), "median / max solve"])
+    cell = max(21, *(len(r.label) for r in runs))
+    print("\ntask errors by level (L0 the highest priority), max over the run / final value:")
+    print(" " * width + "  " + "  ".join(f"{r.label:>{cell}}" for r in runs))
     for c in cols:
         cells = [f"{r.records[c].max():.2e} / {r.records[c].iloc[-1]:.2e}" if c in r.records else "-"
                  for r in runs]
-        print(f"{c[4:]:<{width}}  " + "  ".join(f"{cell:>21}" for cell in cells))
-    med = [f"{np.median(r.records['solve_time_min_s']) * 1e3:.3f} ms" for r in runs]
-    print(f"{'median solve':<{width}}  " + "  ".join(f"{m:>21}" for m in med))
+        print(f"{names[c]:<{width}}  " + "  ".join(f"{x:>{cell}}" for x in cells))
+    cost = [r.records["solve_time_min_s"].to_numpy(dtype=float) * 1e3 for r in runs]
+    med = [f"{np.median(t):.3f} / {t.max():.3f} ms" for t in cost]
+    print(f"{'median / max solve':<{width}}  " + "  ".join(f"{m:>{cell}}" for m in med))
+    passed = [f"{sum(c.passed for c in cs)} of {len(cs)}" for cs in checks]
+    print(f"{'checks passed':<{width}}  " + "  ".join(f"{p:>{cell}}" for p in passed))
+
+
+def _summary(runs, checks):
+    """One row per run (``summary.csv``): solver, warm_start, strict, steps, steps whose status is
+    not optimal, the solver's cost per step (median, p99, max of ``solve_time_min_s``, s), per task
+    ``max_err_L<level>_<task>`` and ``final_err_L<level>_<task>``, the checks passed and the names
+    of those failed (``; ``-joined)."""
+    import pandas as pd
+
+    from hikbench.bench.scenarios.plots import run_strict
+
+    level = _task_levels(runs[0].scenario.stack)
+    rows = []
+    for run, cs in zip(runs, checks):
+        df = run.records
+        t = df["solve_time_min_s"].to_numpy(dtype=float)
+        row = {"solver": run.solver, "warm_start": run.warm_start, "strict": run_strict(run), "steps": len(df),
+               "steps_not_optimal": int((df["status"] != "optimal").sum()),
+               "solve_time_median_s": float(np.median(t)), "solve_time_p99_s": float(np.percentile(t, 99)),
+               "solve_time_max_s": float(t.max())}
+        for c in (c for c in df.columns if c.startswith("err_")):
+            key = f"L{level.get(c[4:], '?')}_{c[4:]}"
+            row[f"max_err_{key}"] = float(df[c].max())
+            row[f"final_err_{key}"] = float(df[c].iloc[-1])
+        row["checks_passed"] = sum(c.passed for c in cs)
+        row["checks_failed"] = "; ".join(c.name for c in cs if not c.passed)
+        rows.append(row)
+    return pd.DataFrame(rows)

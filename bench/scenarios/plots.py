@@ -36,7 +36,7 @@ import matplotlib
 import matplotlib.colors
 import numpy as np
 
-__all__ = ["normalised_joints", "plot_runs", "run_styles"]
+__all__ = ["normalised_joints", "plot_runs", "run_strict", "run_styles"]
 
 #: line style and shade (1: the solver's colour, less: mixed with white) of a warm-start mode
 MODE_STYLE = {"time": ("-", 1.0), "stage": ("-.", 0.7), "none": (":", 0.45)}
@@ -78,20 +78,41 @@ def not_optimal(records) -> tuple[np.ndarray, str]:
     return bad, ", ".join(f"{k} {v}" for k, v in counts.sort_index().items())
 
 
+def run_strict(run) -> bool:
+    """The solver's claim (``strict``): the registry's, a ``module:Class``'s attribute
+    (default True), a scenario controller's (pink: False)."""
+    from hikbench.bench.harness.worker import solver_info
+    from hikbench.bench.scenarios.controllers import controller_class, is_controller
+    from hikbench.solvers import registry
+
+    if is_controller(run.solver):
+        return bool(controller_class(run.solver).strict)
+    if run.solver in registry.available():
+        return registry.get(run.solver).strict
+    return bool(getattr(solver_info(run.solver).factory, "strict", True))
+
+
 def run_styles(runs: list) -> dict[str, dict]:
     """{run label: color, marker, linestyle}: the solver's colour and marker of
-    the run report (module docstring), the line style of its warm-start mode."""
+    the run report (module docstring), the line style of its warm-start mode. A
+    scenario controller (pink, not in the run report) takes the next colour
+    after every solver's, dashed when not strict."""
     import pandas as pd
 
-    from hikbench.bench.analysis.plots import solver_styles
-    from hikbench.bench.harness.worker import solver_info
+    from hikbench.bench.analysis.plots import LINESTYLE, MARKERS, PALETTE, solver_styles
+    from hikbench.bench.scenarios.controllers import is_controller
     from hikbench.solvers import registry
 
     strict = {name: info.strict for name, info in registry.available().items()}
     for run in runs:  # (a module:Class solver: its own place after the registry's)
-        strict.setdefault(run.solver, bool(getattr(solver_info(run.solver).factory, "strict", True)))
+        if not is_controller(run.solver):
+            strict.setdefault(run.solver, run_strict(run))
     styles = solver_styles(pd.DataFrame({"solver": list(strict), "settings": "default",
                                          "strict": [str(v) for v in strict.values()]}))
+    for i, run in enumerate(r for r in runs if is_controller(r.solver) and r.solver not in styles):
+        k = len(strict) + i
+        styles[run.solver] = {"color": PALETTE[k % len(PALETTE)], "marker": MARKERS[k % len(MARKERS)],
+                              "linestyle": LINESTYLE[run_strict(run)]}
     out = {}
     for run in runs:
         st = dict(styles[run.solver])

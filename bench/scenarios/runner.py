@@ -16,7 +16,10 @@ own cost: a pause of the machine, which lengthens one call, is left out).
 ``repeats_agree`` says whether every object returned the first's answer
 (status, iterations, activations, deactivations, x bit for bit): a solver
 whose objects drift apart (a nondeterministic backend) times other work in
-its minimum, and the CLI says how many steps did.
+its minimum, and the CLI says how many steps did. A scenario controller
+(``pink``, bench/scenarios/controllers.py) takes q and the step's targets
+before the timed calls, untimed (:meth:`Controller.prepare`), as the
+hierarchy is built untimed for a solver; its timed call is its ``solve``.
 
 Per-step record (one row per step; :data:`COLUMNS` then one column per task
 and per level):
@@ -24,7 +27,8 @@ and per level):
 =========================  ==================================================
 solver                     registry name
 warm_start                 ``none`` / ``stage`` / ``time`` (the solver's ``warm_start``
-                           option), ``n/a`` for a solver without that option
+                           option), ``n/a`` for a solver without that option and a
+                           controller (``pink``)
 step                       k
 time_s                     t_k = k dt (s)
 solve_time_min_s           minimum over the ``repeat`` timed calls of ``solver.solve``
@@ -67,6 +71,7 @@ import pinocchio as pin
 from threadpoolctl import threadpool_limits
 
 from hikbench.bench.harness.worker import solver_info
+from hikbench.bench.scenarios.controllers import Controller, build_controller, is_controller
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.robots.kinematics import KinematicState
 from hikbench.problems.robots.scenarios import Scenario
@@ -139,7 +144,8 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
     ----------
     solver : str
         A registry name or ``module:Class`` / ``file.py:Class``
-        (:func:`hikbench.bench.harness.worker.solver_info`).
+        (:func:`hikbench.bench.harness.worker.solver_info`), or a scenario
+        controller (``pink``, bench/scenarios/controllers.py).
     options : dict
         Solver options (``registry.build(info, **options)``).
     warm_start : str, optional
@@ -151,26 +157,21 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
         Timed calls per step, on as many solver objects (module docstring).
     """
     options = dict(options or {})
-    info = solver_info(solver)
-    default = warm_start_default(info)
-    if default is not None:  # solvers with the HCOD warm-start modes (none / stage / time)
-        if warm_start is not None:
-            options["warm_start"] = warm_start
-        mode = str(options.get("warm_start", default))
-    else:
-        mode = NO_WARM_START
+    make, mode = _maker(scenario, solver, options, warm_start)
     steps = scenario.steps if steps is None else int(steps)
     if steps < 1:
         raise HikbenchError(f"steps must be >= 1; got {steps}")
     if int(repeat) < 1:
         raise HikbenchError(f"repeat must be >= 1; got {repeat}")
-    solvers = [registry.build(info, **options) for _ in range(int(repeat))]  # [0]: the controller's
+    solvers = [make() for _ in range(int(repeat))]  # [0]: the controller's
     robot, stack, dt = scenario.robot, scenario.stack, scenario.dt
     # warm-up (untimed, on a separate solver object): numba compilation, backend caches
     scenario.reset()
     state = KinematicState(robot, scenario.q_init)
     scenario.targets_at(0.0, state)
-    _solve(registry.build(info, **options), stack.hierarchy(scenario.q_init, state))  # (step 0 reports a failure)
+    first = make()
+    _prepare([first], scenario.q_init)
+    _solve(first, stack.hierarchy(scenario.q_init, state))  # (step 0 reports a failure)
     scenario.reset()
     q = scenario.q_init.copy()
     traj, rows, before = [q.copy()], [], None
@@ -180,6 +181,7 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
             state = KinematicState(robot, q)
             scenario.targets_at(t, state)
             h = stack.hierarchy(q, state)
+            _prepare(solvers, q)
             res, times, agree = _timed_calls(solvers, h)
             u = res.x
             now = active_rows(h, u) if u is not None and np.all(np.isfinite(u)) else None
@@ -202,6 +204,28 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
                 break
             traj.append(q.copy())
     return ScenarioRun(scenario, solver, mode, pd.DataFrame(rows), np.array(traj))
+
+
+def _maker(scenario: Scenario, solver: str, options: dict, warm_start: str | None):
+    """``(make, mode)``: a function building one solver object (a registered or
+    ``module:Class`` solver, or a scenario controller on the scenario's stack,
+    bench/scenarios/controllers.py) and the run's warm-start mode."""
+    if is_controller(solver):
+        return (lambda: build_controller(solver, scenario.stack, **options)), NO_WARM_START
+    info = solver_info(solver)
+    default = warm_start_default(info)
+    if default is None:
+        return (lambda: registry.build(info, **options)), NO_WARM_START
+    if warm_start is not None:  # solvers with the HCOD warm-start modes (none / stage / time)
+        options["warm_start"] = warm_start
+    return (lambda: registry.build(info, **options)), str(options.get("warm_start", default))
+
+
+def _prepare(solvers: list, q: np.ndarray) -> None:
+    """Untimed: each scenario controller takes q and the step's targets (solvers: nothing)."""
+    for slv in solvers:
+        if isinstance(slv, Controller):
+            slv.prepare(q)
 
 
 def _timed_calls(solvers: list, h) -> tuple[SolveResult, list[float], bool]:
