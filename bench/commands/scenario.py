@@ -89,6 +89,8 @@ def run(args) -> int:
     repeat = REPEAT if args.repeat is None else args.repeat
     scenario = load_scenario(args.name, robot=_robot(args), frames=_frames(args.frame))
     print(_robot_line(scenario.robot))
+    if scenario.units:
+        print("offsets in the robot's lengths: " + ", ".join(f"{k} = {v:.4f} m" for k, v in scenario.units.items()))
     solvers = args.solver or ["yardstick"]
     options, scoped = _split_options(parse_options(args.option), solvers)
     if "warm_start" in options and args.warm_start:

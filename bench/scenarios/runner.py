@@ -79,7 +79,7 @@ from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult, checked_result
 from hikbench.problems.verify import level_norms
 
-__all__ = ["ACTIVE_RTOL", "COLUMNS", "NO_WARM_START", "REPEAT", "ScenarioRun", "active_rows", "check_run",
+__all__ = ["ACTIVE_RTOL", "BLAME", "COLUMNS", "NO_WARM_START", "REPEAT", "ScenarioRun", "active_rows", "check_run",
            "run_scenario", "warm_start_default"]
 
 COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_min_s", "solve_time_first_s", "repeat",
@@ -275,11 +275,26 @@ def _solve(slv, h) -> SolveResult:
 
 @dataclass(frozen=True)
 class Check:
-    """One verified property of a run."""
+    """One verified property of a run. ``judges`` says what a failure is put down to:
+    ``"solver"`` (the run did not do what the hierarchy asks) or ``"scenario"`` (an
+    assumption of the scenario file, such as an out-of-reach target, does not hold on
+    this robot); a failed check's detail ends with it (:data:`BLAME`)."""
 
     name: str
     passed: bool
     detail: str
+    judges: str = "solver"
+
+    def __post_init__(self):
+        if self.judges not in BLAME:
+            raise ValueError(f"judges must be one of {', '.join(BLAME)}; got {self.judges!r}")
+        if not self.passed:
+            object.__setattr__(self, "detail", f"{self.detail} -> {BLAME[self.judges]}")
+
+
+#: what a failed check is put down to, by ``Check.judges``
+BLAME = {"solver": "the solver failed",
+         "scenario": "the scenario's assumption failed on this robot, not the solver"}
 
 
 #: tolerances of the scenario checks (m, rad, or mixed 6D log units)
@@ -340,10 +355,17 @@ def check_run(run: ScenarioRun) -> list[Check]:
         if phase1.any():
             e1 = e[phase1]
             ended = (~phase1).any() or not cut
-            ok = e1[-1] <= e1.min() * (1 + LOWEST_RTOL) + 1e-6 and e1[-1] > OUT_OF_REACH and e1[-1] < e1[0]
+            low = float(e1.min())
+            # the scenario's assumption: the target stays out of reach (judged on every step run)
+            out.append(Check("out of reach: target unreachable", bool(low > OUT_OF_REACH),
+                             f"lowest error {low:.3e} (expected > {OUT_OF_REACH})" + (
+                                 "" if low > OUT_OF_REACH else ": the target is within this robot's reach; give "
+                                 "the scenario a longer offset (e.g. in arm lengths)"), judges="scenario"))
+            # the solver: the error comes down to its lowest value and stays there
+            ok = e1[-1] <= low * (1 + LOWEST_RTOL) + 1e-6 and e1[-1] < e1[0]
             out.append(Check("out of reach: lowest value", bool(ok or not ended),
-                             f"start {e1[0]:.3e}, end {e1[-1]:.3e}, min {e1.min():.3e}"
-                             + ("" if ended else f"; {why_not}")))
+                             f"start {e1[0]:.3e}, end {e1[-1]:.3e}, min {low:.3e} (end within "
+                             f"{LOWEST_RTOL:.0%} of the min expected)" + ("" if ended else f"; {why_not}")))
         if (~phase1).any():
             e2 = e[~phase1]
             out.append(Check("back in reach: converges to 0", bool(e2[-1] <= REACHED_TOL or cut),

@@ -67,16 +67,20 @@ class JointPositionLimits(_Inequality):
 
 
 class JointVelocityLimits(_Inequality):
-    """|u_i| <= scale * v_max_i on the coordinates with a finite velocity limit
-    (``model.velocityLimit``; the free flyer has none). Not a function of q:
-    ``value`` is empty and the reported error is the total excess (rad/s)."""
+    """|u_i| <= min(scale * v_max_i, cap) on the coordinates with a finite velocity
+    limit (``model.velocityLimit``; the free flyer has none); ``cap`` (rad/s or m/s,
+    default none) bounds every coordinate alike, whatever its URDF limit. Not a
+    function of q: ``value`` is empty and the reported error is the total excess (rad/s)."""
 
-    def __init__(self, robot: Robot, name: str = "velocity_limits", scale: float = 1.0):
+    def __init__(self, robot: Robot, name: str = "velocity_limits", scale: float = 1.0,
+                 cap: float | None = None):
         super().__init__(robot, name, 0.0)
         scale = number(scale, f"task {name!r}: scale", low_open=True)
         vmax = np.asarray(robot.model.velocityLimit, dtype=float)
         self.select = np.isfinite(vmax) & (vmax > 0) & (vmax < 1e10)
         self.vmax = scale * vmax[self.select]
+        if cap is not None:
+            self.vmax = np.minimum(self.vmax, number(cap, f"task {name!r}: cap", low_open=True))
 
     def value(self, state):
         return np.zeros(0)

@@ -20,6 +20,7 @@ TOML format (``problems/robots/scenarios/*.toml``)::
     time = 0.0                   # its nominal value (at q0) + `offset` (m, world)
     task = "right_hand"          # (pose tasks: also `rotate_rpy`, rad, frame axes)
     offset = [0.9, -0.2, 0.3]
+    unit = "arm_length"          # optional: offset and apex in a length of the robot (below)
     [[trajectories]]             # sixth-order polynomial from the target at `start`
     task = "right_foot"          # to that target + `offset` (or to the mean of
     start = 1.0                  # `to_frames` at `start`, + offset), through
@@ -35,6 +36,16 @@ TOML format (``problems/robots/scenarios/*.toml``)::
     joints = ["torso_1_joint"]   # joints of Fig. 3 (default: the 12 that move most)
     [frames]                     # aliases of the scenario's robot: alias = frame name
     right_hand = "gripper_right_base_link"
+
+Units: ``offset`` and ``apex`` are metres, or, with ``unit = "arm_length"`` or
+``"leg_length"``, multiples of that length of the scenario's robot
+(:mod:`hikbench.problems.robots.dimensions`: the summed link lengths of the limb
+of its ``right_hand`` (else ``ee``) or ``right_foot`` frame, e.g. talos 0.776 m and
+0.812 m, g1 0.452 m and 0.698 m), so that one file holds on robots of other sizes::
+
+    offset_m = unit_length(robot) * offset
+
+A unit the robot cannot measure (no such frame) is a ScenarioError naming the key.
 
 Frames: a ``[frames]`` table applies to the robot of its file (the stack's when
 the scenario names none); a robot given to :func:`load_scenario` (``--robot``)
@@ -52,6 +63,7 @@ import numpy as np
 import pinocchio as pin
 
 from hikbench.problems.errors import HikbenchError
+from hikbench.problems.robots.dimensions import LENGTHS, robot_length
 from hikbench.problems.robots.kinematics import KinematicState
 from hikbench.problems.robots.models import FrameTable
 from hikbench.problems.robots.stacks import ROBOT_KEYS, Stack, file_robot, load_stack_spec
@@ -80,9 +92,11 @@ MAX_PERTURBATION = math.pi  #: rad, standard deviation of the initial joint pert
 MAX_OFFSET = 100.0          #: m (and rad for rotate_rpy), per coordinate of a scheduled target change
 
 _NAMES = List(Str(), what="a non-empty list of names")
+UNITS = ("m", *LENGTHS)  #: what ``offset`` and ``apex`` are given in (``unit``)
 _TARGET_CHANGE = {
     "task": Str(what="a task name of the stack"),
     "offset": Vec(3, "m, world", bound=MAX_OFFSET),
+    "unit": Str(UNITS),
     "rotate_rpy": Vec(3, "rad, pose tasks", bound=MAX_OFFSET),
     "to_frames": List(Str(), what="a non-empty list of frame names"),
 }
@@ -155,6 +169,29 @@ def _check_names(d: dict, stack: Stack, at: Where, other_robot: bool) -> None:
         if not other_robot and joint not in plotted:
             at.fail(f"plot.joints[{i}]", joint, f"a bounded 1-DOF joint of {stack.robot.name} "
                                                 f"({', '.join(plotted)})", plotted)
+
+
+def _resolve_units(d: dict, robot, at: Where) -> dict[str, float]:
+    """Turn every ``offset`` and ``apex`` given in a robot length (``unit``) into metres,
+    in place; returns the lengths used (name -> m). A length the robot cannot measure
+    (it lacks the frame) is a ScenarioError naming the key."""
+    used = {}
+    for kind in ("events", "trajectories"):
+        for k, item in enumerate(d.get(kind, [])):
+            unit = item.pop("unit", "m")
+            if unit == "m":
+                continue
+            if unit not in used:
+                length = robot_length(robot, unit)
+                if length is None:
+                    at.fail(f"{kind}[{k}].unit", unit, f"'m' or a length robot {robot.name!r} has: {unit} is "
+                                                       f"measured on the {' or '.join(LENGTHS[unit])} frame, "
+                                                       "which it lacks (set it in [frames], or give metres)")
+                used[unit] = length
+            for key in ("offset", "apex"):
+                if key in item:
+                    item[key] = [used[unit] * float(v) for v in item[key]]
+    return used
 
 
 def _initial_configuration(stack: Stack, scale: float, seed: int) -> np.ndarray:
@@ -247,6 +284,7 @@ class Scenario:
     checks: dict = field(default_factory=dict)
     description: str = ""
     plot_joints: list[str] | None = None
+    units: dict = field(default_factory=dict)  #: length name -> m, for the ``unit`` values the file uses
     _schedule: dict = field(default_factory=dict)
     _nominal: dict = field(default_factory=dict)
 
@@ -279,11 +317,12 @@ class Scenario:
         if "dt" in d:
             stack.dt = float(d["dt"])
         _check_names(d, stack, at, other_robot=robot is not None)
+        units = _resolve_units(d, stack.robot, at)
         init = d.get("initial", {})
         q = _initial_configuration(stack, float(init.get("perturbation", 0.0)), int(init.get("seed", 0)))
         sc = cls(name=d["name"], stack=stack, steps=int(d.get("steps", 100)), q_init=q,
                  checks=dict(d.get("checks", {})), description=d.get("description", ""),
-                 plot_joints=d.get("plot", {}).get("joints"))
+                 plot_joints=d.get("plot", {}).get("joints"), units=units)
         sc._nominal = {t.name: _copy_target(t.target) for t in stack.tasks if hasattr(t, "target")}
         for kind in ("events", "trajectories"):
             for item in d.get(kind, []):

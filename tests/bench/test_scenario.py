@@ -6,12 +6,13 @@ import pytest
 from doubles import WarmReference, spec, still_run
 
 from hikbench.bench.cli import main
-from hikbench.bench.scenarios.runner import COLUMNS, NO_WARM_START, check_run, run_scenario
+from hikbench.bench.scenarios.runner import BLAME, COLUMNS, NO_WARM_START, check_run, run_scenario
+from hikbench.problems.robots.dimensions import robot_length
 from hikbench.problems.robots.scenarios import ScenarioError, load_scenario, scenario_names
 
 
 def test_shipped_scenarios():
-    assert {"reach", "step"} <= set(scenario_names())
+    assert {"arm_reach", "reach", "step"} <= set(scenario_names())
 
 
 def test_reach_runs_a_few_steps_with_the_yardstick():
@@ -44,7 +45,8 @@ def test_step_targets_follow_the_schedule():
     z0 = foot.target.translation[2]
     for t in np.arange(0.0, 2.11, sc.dt):  # targets are fixed at each segment's start, in order
         sc.targets_at(t, state)
-    assert foot.target.translation[2] == pytest.approx(z0 + 0.05, abs=1e-9)  # apex at mid-swing
+    apex = 0.0616 * robot_length(sc.robot, "leg_length")  # (0.0616 leg lengths: 5 cm on talos)
+    assert foot.target.translation[2] == pytest.approx(z0 + apex, abs=1e-9)  # apex at mid-swing
     assert foot.target_velocity is not None
 
 
@@ -132,6 +134,19 @@ def test_step_checks_pass(solver):
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("name, robot", [("reach", "talos"), ("reach", "romeo"), ("reach", "g1"), ("step", "talos"),
+                                         ("step", "romeo"), ("step", "g1"), ("arm_reach", "panda")],
+                         ids=lambda v: v)
+def test_the_shipped_scenarios_hold_on_every_robot_with_hcod(name, robot):
+    """Offsets in the robot's arm and leg lengths: the full schedules pass every check with
+    hcod (time warm start) on three humanoids of 0.45 to 0.78 m arms and on an arm
+    (700, 225 and 300 steps; ~10 s each)."""
+    run = run_scenario(load_scenario(name, robot=robot), "hcod", repeat=1)
+    checks = check_run(run)
+    assert len(checks) >= 4 and all(c.passed for c in checks), [c for c in checks if not c.passed]
+
+
+@pytest.mark.slow
 def test_step_with_dls_liegeois_shows_its_posture_fighting_the_feet():
     """dls-liegeois stacks every level but its box at one weight: the step's posture task (32
     rows) pulls against the feet and the CoM, and the tracking checks fail. (Taking the posture
@@ -192,7 +207,27 @@ def test_a_run_cut_by_steps_is_not_judged_on_final_errors(last_status, passed, f
     reach = checks["out of reach: lowest value"]
     assert reach.passed is passed, reach
     assert reach.detail.endswith("; not judged: the run was cut to 5 of the scenario's 700 steps (--steps)") is passed
+    assert reach.detail.endswith(f" -> {BLAME['solver']}") is not passed
     assert "back in reach: converges to 0" not in checks
+    # an error of 1e-3 from the first step: the target was within reach, whatever the steps run
+    # (the scenario's assumption, not the solver, failed)
+    unreachable = checks["out of reach: target unreachable"]
+    assert not unreachable.passed and unreachable.judges == "scenario", unreachable
+    assert unreachable.detail == ("lowest error 1.000e-03 (expected > 0.01): the target is within this robot's reach; "
+                                  f"give the scenario a longer offset (e.g. in arm lengths) -> {BLAME['scenario']}")
+
+
+def test_a_failed_check_names_what_failed():
+    """A check that fails ends its detail with the solver or the scenario's assumption;
+    one that passes keeps its detail as given."""
+    from hikbench.bench.scenarios.runner import Check
+
+    assert Check("x", False, "d").detail == "d -> the solver failed"
+    assert Check("x", False, "d", judges="scenario").detail == (
+        "d -> the scenario's assumption failed on this robot, not the solver")
+    assert Check("x", True, "d", judges="scenario").detail == "d"
+    with pytest.raises(ValueError, match="judges must be one of solver, scenario; got 'user'"):
+        Check("x", False, "d", judges="user")
 
 
 def test_a_solver_given_as_file_and_class(tmp_path, capsys):

@@ -17,6 +17,21 @@ def test_velocity_limits_skip_the_free_flyer(talos):
     np.testing.assert_array_equal(lo, -up)
 
 
+@pytest.mark.parametrize("cap", [1.25, 0.1, 100.0], ids=["some-joints", "every-joint", "none"])
+def test_a_velocity_cap_bounds_every_joint_alike(talos, cap):
+    """|u_i| <= min(scale v_max_i, cap): the URDF's limit where it is lower, the cap elsewhere."""
+    A, lo, up = JointVelocityLimits(talos, scale=0.25, cap=cap).rows(KinematicState(talos, talos.q0), dt=0.01)
+    vmax = np.asarray(talos.model.velocityLimit)[6:]
+    np.testing.assert_allclose(up, np.minimum(0.25 * vmax, cap), rtol=1e-15)
+    np.testing.assert_array_equal(lo, -up)
+
+
+@pytest.mark.parametrize("cap", [0.0, -1.0, float("nan"), "fast"], ids=["zero", "negative", "nan", "string"])
+def test_a_velocity_cap_must_be_positive(talos, cap):
+    with pytest.raises(TaskError, match=r"task 'velocity_limits': cap must be a finite number > 0"):
+        JointVelocityLimits(talos, cap=cap)
+
+
 def test_distance_bound_keeps_d_min_after_one_step(panda):
     """-lambda (d - d_min) <= J u with lambda = 1/dt: d + J u dt >= d_min to first order."""
     state = KinematicState(panda, panda.q0)
