@@ -74,6 +74,7 @@ from hikbench.bench.harness.worker import solver_info
 from hikbench.bench.scenarios.controllers import Controller, build_controller, is_controller
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.robots.kinematics import KinematicState
+from hikbench.problems.robots.limits import JointVelocityLimits
 from hikbench.problems.robots.scenarios import Scenario
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult, checked_result
@@ -299,11 +300,28 @@ BLAME = {"solver": "the solver failed",
 
 #: tolerances of the scenario checks (m, rad, or mixed 6D log units)
 LIMIT_TOL = 1e-9       #: joint-limit margin allowed below 0
+#: total velocity-limit excess allowed at a step, rad/s (hcod's rows sit within 1e-9 of their bounds)
+VELOCITY_TOL = 1e-6
 REGULATED_ATOL = 2e-3  #: a regulated task's error may exceed its initial value by this much
 REGULATED_FINAL = 1e-5  #: ... and ends below this
 REACHED_TOL = 1e-3     #: reaching error at the end of the in-reach phase
 LOWEST_RTOL = 0.02     #: out-of-reach error at the end of its phase vs its minimum (relative)
 OUT_OF_REACH = 1e-2    #: an out-of-reach target keeps an error above this
+
+
+def _velocity_checks(run: ScenarioRun) -> list[Check]:
+    """A check per velocity-limit task of the stack: the joint velocities u the run
+    commanded stayed within |u_i| <= v_max_i (``err_<task>``: the step's total excess)."""
+    out = []
+    for task in run.scenario.stack.tasks:
+        column = f"err_{task.name}"
+        if not isinstance(task, JointVelocityLimits) or column not in run.records:
+            continue
+        e = run.records[column].to_numpy(dtype=float)
+        worst = int(np.nanargmax(e)) if np.any(np.isfinite(e)) else 0
+        out.append(Check(f"{task.name} held", bool(np.all(np.nan_to_num(e, nan=np.inf) <= VELOCITY_TOL)),
+                         f"max total excess {e[worst]:.3e} rad/s at step {worst} (tol {VELOCITY_TOL:g})"))
+    return out
 
 
 def check_run(run: ScenarioRun) -> list[Check]:
@@ -325,6 +343,7 @@ def check_run(run: ScenarioRun) -> list[Check]:
     if spec.get("limits", False):
         margin = min(float(np.min(robot.limit_margin(q))) for q in run.q)
         out.append(Check("joint limits", margin >= -LIMIT_TOL, f"min margin {margin:.3e}"))
+        out.extend(_velocity_checks(run))
     for name in spec.get("regulated", []):
         # stays regulated: never above its initial error + REGULATED_ATOL; decays to ~0 at the end.
         # The measured decay rate over the first 50 steps is reported next to the commanded

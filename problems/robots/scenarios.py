@@ -28,7 +28,7 @@ TOML format (``problems/robots/scenarios/*.toml``)::
     offset = [0.1, 0.0, 0.0]
     apex = [0.0, 0.0, 0.05]
     [checks]                     # verified by the runner on the per-step record
-    limits = true                # joint limits never violated
+    limits = true                # joint limits never violated, nor the stack's velocity limits
     regulated = ["com"]          # errors decay exponentially and stay regulated
     reach = { task = "right_hand", out_of_reach_until = 1.2 }
     tracked = { right_foot = 0.005 }   # max error along a trajectory

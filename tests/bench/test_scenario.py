@@ -290,3 +290,18 @@ def test_a_plotted_joint_that_the_robot_lacks_is_named(tmp_path):
         load_scenario(f)
     # on another robot (--robot), the shipped scenarios' joints may be missing: the figure falls back
     assert load_scenario("reach", robot="g1").plot_joints
+
+
+def test_velocity_limits_are_checked_with_the_joint_limits():
+    """`limits = true` also judges the stack's velocity limits on the u each step commanded:
+    a run within them passes, a step past them by more than VELOCITY_TOL fails the check and
+    names the step (a solver that ignores a two-sided velocity row must not pass)."""
+    from hikbench.bench.scenarios.runner import VELOCITY_TOL
+
+    run = run_scenario(load_scenario("reach"), "hcod", steps=3, repeat=1)
+    held = {c.name: c for c in check_run(run)}["velocity_limits held"]
+    assert held.passed, held
+    run.records.loc[1, "err_velocity_limits"] = 100 * VELOCITY_TOL
+    held = {c.name: c for c in check_run(run)}["velocity_limits held"]
+    assert not held.passed and held.judges == "solver"
+    assert held.detail.startswith("max total excess 1.000e-04 rad/s at step 1 (tol 1e-06)"), held.detail
