@@ -12,7 +12,8 @@ lighter still; a solver without modes: solid, dashed if non-strict).
 
 * Fig. 1 ``fig1_solve_time.png``: solve time per step (ms) of each run
   (warm_start none / stage / time, or several solvers), and per run the
-  median and the worst step.
+  median and the worst step; below, the solver's own iterations per step,
+  and per run the mean iterations and activations of a step.
 * Fig. 2 ``fig2_time_activations.png``: one panel per run, the solve time
   over the run, and below it a tick at every step where the active set
   changed: rows entering (``rows_entered``) and leaving (``rows_left``),
@@ -167,6 +168,35 @@ def _fit(fig, axes) -> None:
             fit_title(fig, ax)
 
 
+def _counts(ax, axb, runs: list, styles: dict) -> None:
+    """Fig. 1, bottom: the solver's own iterations per step (``iterations``) of each run
+    that reports them, and per run the mean iterations and activations of a step (a
+    solver that reports neither, such as a QP backend through qpsolvers or pink, is
+    named as such)."""
+    silent = []
+    for run in runs:
+        df, st = run.records, styles[run.label]
+        it = df["iterations"].to_numpy(dtype=float) if "iterations" in df else np.zeros(len(df))
+        if not np.any(it > 0):
+            silent.append(_short(run.label))
+            continue
+        ax.plot(df["step"], it, lw=0.9, color=st["color"], ls=st["linestyle"], label=_short(run.label))
+    ax.set_xlabel("control step")
+    ax.set_ylabel("iterations (solver's own count)")
+    ax.set_title("iterations per step" + (f"; not reported by {', '.join(silent)}" if silent else ""),
+                 fontsize=10)
+    if len(silent) < len(runs):
+        ax.legend(fontsize=8)
+    x = np.arange(len(runs))
+    for dx, col, hatch in ((-0.2, "iterations", None), (0.2, "activations", "//")):
+        axb.bar(x + dx, [float(r.records[col].mean()) if col in r.records else np.nan for r in runs], width=0.4,
+                hatch=hatch,
+                color=[styles[r.label]["color"] for r in runs], edgecolor="k", lw=0.5, label=f"mean {col}")
+    axb.set_xticks(x, [textwrap.fill(_short(r.label), 18) for r in runs], rotation=30, ha="right")
+    axb.set_title("mean per step")
+    axb.legend(fontsize=7)
+
+
 def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) -> list[Path]:
     """Write the four figures for ``runs`` (ScenarioRun objects of one scenario); returns paths."""
     plt = _plt()
@@ -176,8 +206,8 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
     name = runs[0].scenario.name
     styles = run_styles(runs)
 
-    # Fig. 1: solve time per step, per run
-    fig, (ax, axb) = plt.subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [3, 1]})
+    # Fig. 1: solve time per step, per run (top); iterations and activations per step (bottom)
+    fig, ((ax, axb), (axi, axc)) = plt.subplots(2, 2, figsize=(11, 8.4), gridspec_kw={"width_ratios": [3, 1]})
     for run in runs:
         df, st = run.records, styles[run.label]
         _cost_lines(ax, df, st, _short(run.label))
@@ -201,7 +231,8 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
     axb.set_yscale("log")
     axb.set_title("median and worst step")
     axb.legend(fontsize=7)
-    _fit(fig, (ax, axb))
+    _counts(axi, axc, runs, styles)
+    _fit(fig, (ax, axb, axi, axc))
     paths.append(out / "fig1_solve_time.png")
     fig.savefig(paths[-1], dpi=110, bbox_inches="tight")
     plt.close(fig)
