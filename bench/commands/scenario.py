@@ -1,6 +1,6 @@
 """``hikbench scenario NAME [--robot R|PATH.urdf [--srdf PATH] [--floating-base] [--reference NAME]]
 [--frame ALIAS=FRAME ...] --solver S [--solver S2 ...] [--warm-start MODE ...]
-[--steps K] [--repeat R] [--out DIR] [--plot] [--option KEY=VALUE ...]``.
+[--steps K] [--repeat R] [--resolve] [--out DIR] [--plot] [--option KEY=VALUE ...]``.
 
 Runs a closed-loop robot scenario (``problems/robots/scenarios/NAME.toml`` or a
 TOML path) once per (solver, warm-start mode), writes one per-step CSV per run
@@ -55,6 +55,10 @@ def add_arguments(p) -> None:
                    help="timed calls per step, on R solver objects fed the same steps (same warm-start "
                         "state): the CSV records their minimum (the solver's cost) and the first (what a "
                         "controller sees); x and counts are the first's (default: 5)")
+    p.add_argument("--resolve", action="store_true",
+                   help="after each step's timed calls, time each solver object solving the same step's problem "
+                        "again (column resolve_time_min_s: the cost of a problem the solver has just solved, "
+                        "hcod time's warm re-solve)")
     p.add_argument("--out", default=None, help="output directory (default: results/scenarios/NAME)")
     p.add_argument("--plot", action="store_true", help="write the figures (PNG)")
     p.add_argument("--option", action="append", default=[], metavar="[SOLVER.]KEY=VALUE",
@@ -123,7 +127,8 @@ def run(args) -> int:
     runs, checks, failed = [], [], False
     for solver, opts, mode in plan:
         with solver_calls_killable():  # a backend looping in C code still ends on SIGTERM / Ctrl-C
-            run_ = run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps, repeat=repeat)
+            run_ = run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps, repeat=repeat,
+                                resolve=args.resolve)
         runs.append(run_)
         stem = run_stem(scenario.name, scenario.robot.name, run_.label)
         csv = out / f"{stem}.csv"
@@ -135,6 +140,9 @@ def run(args) -> int:
               f"{df['solve_time_min_s'].max() * 1e3:.3f} ms; "
               f"first call median {np.median(df['solve_time_first_s']) * 1e3:.3f} ms, max "
               f"{df['solve_time_first_s'].max() * 1e3:.3f} ms -> {csv}")
+        if args.resolve:
+            print(f"  re-solve of each step's problem (min of {repeat} calls) median "
+                  f"{np.median(df['resolve_time_min_s']) * 1e3:.3f} ms")
         apart = int((~df["repeats_agree"].astype(bool)).sum())
         if apart:
             print(f"  note: on {apart} of {len(df)} steps the {repeat} solver objects did not all return the "

@@ -35,6 +35,12 @@ solve_time_min_s           minimum over the ``repeat`` timed calls of ``solver.s
                            (perf_counter_ns, GC off, BLAS threads = 1; one untimed
                            warm-up solve on a separate solver object before the run), s
 solve_time_first_s         the first of them (the controller's call), s
+resolve_time_min_s         with ``resolve=True`` (``hikbench scenario --resolve``): after the
+                           step's timed calls, each of the ``repeat`` objects solves the same
+                           hierarchy once more, timed; the minimum (s). The cost of the step's
+                           problem to a solver that has just solved it (hcod ``time``: its
+                           warm re-solve); the next step sees the state this call leaves.
+                           Empty without it
 repeat                     timed calls of the step
 repeats_agree              every call returned the first's answer (see above)
 iterations                 SolveResult.iterations (the first call's)
@@ -83,9 +89,9 @@ from hikbench.problems.verify import level_norms
 __all__ = ["ACTIVE_RTOL", "BLAME", "COLUMNS", "NO_WARM_START", "REPEAT", "ScenarioRun", "active_rows", "check_run",
            "run_scenario", "warm_start_default"]
 
-COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_min_s", "solve_time_first_s", "repeat",
-           "repeats_agree", "iterations", "activations", "deactivations", "active_rows", "rows_entered",
-           "rows_left", "status", "reason", "min_joint_limit_margin")
+COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_min_s", "solve_time_first_s",
+           "resolve_time_min_s", "repeat", "repeats_agree", "iterations", "activations", "deactivations",
+           "active_rows", "rows_entered", "rows_left", "status", "reason", "min_joint_limit_margin")
 NO_WARM_START = "n/a"
 REPEAT = 5  #: timed calls per step (``hikbench scenario --repeat``)
 #: a row within ACTIVE_RTOL x max(1, |bound|) of its bound is active: the solvers of the reach
@@ -138,7 +144,8 @@ def active_rows(h, u: np.ndarray) -> np.ndarray:
 
 
 def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
-                 warm_start: str | None = None, steps: int | None = None, repeat: int = REPEAT) -> ScenarioRun:
+                 warm_start: str | None = None, steps: int | None = None, repeat: int = REPEAT,
+                 resolve: bool = False) -> ScenarioRun:
     """Run ``scenario`` in closed loop with solver ``solver``.
 
     Parameters
@@ -156,6 +163,9 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
         Number of control steps (default: the scenario's).
     repeat : int
         Timed calls per step, on as many solver objects (module docstring).
+    resolve : bool
+        Also time each object solving the step's hierarchy again
+        (``resolve_time_min_s``, module docstring).
     """
     options = dict(options or {})
     make, mode = _maker(scenario, solver, options, warm_start)
@@ -187,7 +197,8 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
             u = res.x
             now = active_rows(h, u) if u is not None and np.all(np.isfinite(u)) else None
             row = {"solver": solver, "warm_start": mode, "step": k, "time_s": t,
-                   "solve_time_min_s": min(times), "solve_time_first_s": times[0], "repeat": len(times),
+                   "solve_time_min_s": min(times), "solve_time_first_s": times[0],
+                   "resolve_time_min_s": min(_timed_calls(solvers, h)[1]) if resolve else None, "repeat": len(times),
                    "repeats_agree": agree, "iterations": int(res.iterations), "activations": int(res.activations),
                    "deactivations": int(res.deactivations), **_changes(before, now), "status": res.status,
                    "reason": res.reason,

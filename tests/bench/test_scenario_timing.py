@@ -31,6 +31,17 @@ def test_every_timed_call_starts_from_the_controllers_state(reach):
     assert (df["solve_time_min_s"] <= df["solve_time_first_s"]).all() and (df["solve_time_min_s"] > 0).all()
 
 
+def test_resolve_times_each_object_solving_the_steps_problem_again(reach):
+    """--resolve: after the step's timed calls every object solves the same hierarchy once more
+    (a second call per object and step: 2 calls a step, the step's record keeps the first's);
+    without it the column is empty."""
+    df = run_scenario(reach, spec("CountingSolver"), steps=3, repeat=2, resolve=True).records
+    assert df["iterations"].tolist() == [1, 3, 5]
+    assert (df["resolve_time_min_s"] > 0).all()
+    plain = run_scenario(reach, spec("CountingSolver"), steps=1, repeat=2).records
+    assert plain["resolve_time_min_s"].isna().all()
+
+
 def test_objects_that_answer_differently_are_flagged(reach):
     run = run_scenario(reach, spec("SerialSolver"), steps=2, repeat=3)
     assert not run.records["repeats_agree"].any()
