@@ -59,18 +59,23 @@ def _check(args) -> None:
         raise HikbenchError(f"--suite {args.suite}: no such file")
 
 
-def _warm(side) -> None:
+def _start_warm(side):
+    """``hikbench warmup`` of ``side`` started in a child process (its kernels compile there)."""
     import subprocess
 
+    return subprocess.Popen(side.command("warmup", "--quiet"), env=side.env, cwd=side.cwd, stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE)
+
+
+def _end_warm(side, proc) -> None:
+    """Wait for :func:`_start_warm`'s child; a failure is a RevisionError naming its last line."""
     from hikbench.bench.harness.revisions import RevisionError
 
-    done = subprocess.run(side.command("warmup", "--quiet"), env=side.env, cwd=side.cwd, capture_output=True,
-                          check=False)
-    if done.returncode:
-        lines = [ln for ln in done.stderr.decode(errors="replace").splitlines() if ln.strip()]
+    out, err = proc.communicate()
+    if proc.returncode:
+        lines = [ln for ln in err.decode(errors="replace").splitlines() if ln.strip()]
         raise RevisionError(f"`hikbench warmup` failed on {side.label}: {lines[-1].strip() if lines else ''}")
-    print(f"hikbench regress: {side.label}: {done.stdout.decode().strip().removeprefix('hikbench warmup: ')}",
-          flush=True)
+    print(f"hikbench regress: {side.label}: {out.decode().strip().removeprefix('hikbench warmup: ')}", flush=True)
 
 
 def run(args) -> int:
@@ -86,10 +91,19 @@ def run(args) -> int:
     base = install_revision(Path(args.repo).resolve(), args.base, out / "base",
                             progress=lambda m: print(m, flush=True))
     change = working_side(out)
-    for side in (base, change):
-        _warm(side)
+    # each side's full run (statuses, verification, the problem files); the change's runs while the
+    # base's kernels compile, when its hcod sources differ (1-4 min): the two overlap on a 2-core runner
+    warming = _start_warm(base)
     rounds = Rounds(base, change, suite, out, repeat=args.repeat)
-    rounds.run_round()  # (each side's full run: statuses, verification, the problem files)
+    try:
+        _end_warm(change, _start_warm(change))
+        rounds.run_side("change")
+    except BaseException:  # (the gate stops: the base's compile with it)
+        warming.kill()
+        warming.wait()
+        raise
+    _end_warm(base, warming)
+    rounds.run_side("base")
     meta_change = _meta(out / "rounds" / "change-1" / "run.json")
     timer = PairedTimer(base, change, rounds, repeat=args.repeat or 15)
     t_rounds, dec = time.perf_counter(), None

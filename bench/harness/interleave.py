@@ -35,11 +35,15 @@ class Rounds:
     def done(self) -> int:
         return min(len(f) for f in self.frames.values())
 
+    def run_side(self, name: str) -> None:
+        """The next full run of side ``name`` (``base`` or ``change``)."""
+        self.frames[name].append(self._run(name, len(self.frames[name])))
+
     def run_round(self) -> None:
+        """A full run of each side, the order alternating from round to round."""
         r = self.done
-        order = ("base", "change") if r % 2 == 0 else ("change", "base")
-        for name in order:
-            self.frames[name].append(self._run(name, r))
+        for name in (("base", "change") if r % 2 == 0 else ("change", "base")):
+            self.run_side(name)
 
     def _run(self, name: str, r: int) -> pd.DataFrame:
         side = self.sides[name]
