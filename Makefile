@@ -10,9 +10,10 @@ OUT    ?= results/$(SUITE)
 
 # the C++ peers SOTH and LexLS (docs/peers.md): sources from PEERS_SRC (a folder holding their pinned
 # tarballs; default ../shared/third_party when it exists, else a shallow clone at the pinned commits);
-# MARCH_NATIVE=1 adds -march=native (recorded in run.json)
+# MARCH_NATIVE=1 adds -march=native (recorded in run.json); PEERS_JOBS=N compiler processes (default: the cores)
 PEERS_SRC    ?= $(if $(wildcard ../shared/third_party),../shared/third_party,)
 MARCH_NATIVE ?= 0
+PEERS_JOBS   ?=
 PEERS_STAMP  := $(VENV)/.peers-installed
 
 .PHONY: install warmup bench paper peers test test-all clean
@@ -32,7 +33,8 @@ $(PEERS_STAMP): pyproject.toml | $(STAMP)
 	touch $(PEERS_STAMP)
 
 peers: $(PEERS_STAMP)
-	$(PY) peers/build.py $(if $(PEERS_SRC),--src $(PEERS_SRC)) $(if $(filter 1,$(MARCH_NATIVE)),--march-native)
+	$(PY) peers/build.py $(if $(PEERS_SRC),--src $(PEERS_SRC)) $(if $(filter 1,$(MARCH_NATIVE)),--march-native) \
+		$(if $(PEERS_JOBS),--jobs $(PEERS_JOBS))
 
 warmup: install
 	$(VENV)/bin/hikbench warmup
