@@ -76,8 +76,11 @@ def main(argv=None) -> int:
     p.add_argument("--march-native", action="store_true", help="add -march=native (recorded in peers.json)")
     p.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="parallel compiler processes")
     args = p.parse_args(argv)
+    if args.jobs < 1:
+        print(f"make peers: --jobs (PEERS_JOBS) must be at least 1; got {args.jobs}", file=sys.stderr)
+        return 2
     try:
-        info = build(args.src, args.out, args.march_native, max(args.jobs, 1))
+        info = build(args.src, args.out, args.march_native, args.jobs)
     except BuildError as err:
         print(f"make peers: {err}", file=sys.stderr)
         return 2

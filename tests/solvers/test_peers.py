@@ -235,3 +235,11 @@ def test_build_without_compiler_or_source_is_one_line_and_exit_2(tmp_path, env, 
     assert done.returncode == 2 and len(lines) == 1 and lines[0].startswith("make peers: ") and why in lines[0], \
         done.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_build_with_no_compiler_process_is_one_line_and_exit_2(tmp_path):
+    """`make peers PEERS_JOBS=0` is refused, naming the option, before anything is built."""
+    done = _run([str(ROOT / "peers" / "build.py"), "--jobs", "0", "--out", str(tmp_path / "out")])
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.strip() == "make peers: --jobs (PEERS_JOBS) must be at least 1; got 0"
+    assert not (tmp_path / "out").exists()
