@@ -4,10 +4,10 @@ built and installed into a folder of its own (``pip install --target``,
 no dependencies: it runs on the environment's installed ones), and its
 ``hikbench`` commands are run with that folder first on ``PYTHONPATH``.
 
-hcod's numba kernels are cached next to their sources; when the base's hcod
-kernel sources are the working tree's byte for byte, the working tree's cache
-is copied (with the sources' modification times, which numba's index checks),
-so the base compiles nothing.
+hcod's numba kernels are cached next to their sources; the working tree's cache
+is copied into the base's install, with the modification times (which numba's
+index checks) of the hcod files that are the same on both sides, so the base
+compiles only the kernels whose files differ.
 """
 
 from __future__ import annotations
@@ -121,9 +121,10 @@ def install_revision(repo: Path, rev: str, work: Path, progress=print) -> Side:
     if where.returncode or probe.returncode or not probe.stdout.decode().strip().startswith(str(site)):
         raise RevisionError(f"base revision {label} does not run from {site}: "
                             f"{_last_line(where.stderr or probe.stderr) or probe.stdout.decode().strip()}")
-    if share_numba_cache(site):
-        progress(f"hikbench regress: base {label} has the working tree's hcod kernel sources: their compiled "
-                 f"kernels are shared")
+    same = share_numba_cache(site)
+    if same:
+        progress(f"hikbench regress: base {label} has {len(same)} of the working tree's hcod kernel source files "
+                 f"({', '.join(same)}): the kernels compiled from these alone are shared")
     return side
 
 
@@ -131,29 +132,28 @@ def _hcod_dir(root: Path) -> Path:
     return root / "hikbench" / "solvers" / "hcod"
 
 
-def share_numba_cache(site: Path) -> bool:
-    """Copy the working tree's compiled hcod kernels into the base's install when
-    every hcod source file that the kernels are compiled from is the same on both
-    sides; True when copied. That is every file but ``__init__.py``, which defines
-    no kernel: hcod's cache locator (``solvers/hcod/_cache.py``) stamps each
-    cached kernel with a digest of all the others, so a kernel cached from other
-    sources is never loaded, and a change of ``__init__.py`` alone (the Python
-    wrapper) shares the kernels."""
+def share_numba_cache(site: Path) -> list[str]:
+    """Copy the working tree's compiled hcod kernels into the base's install and give
+    the base's hcod source files that are the working tree's byte for byte the
+    working tree's modification times (numba's index checks them); the names of
+    those files. hcod's cache locator (``solvers/hcod/_cache.py``) stamps each
+    cached kernel with a digest of its file and of the files it imports, so the
+    base loads a kernel whose files are all the same on both sides and compiles
+    any other; ``__init__.py`` defines no kernel and does not count."""
     from hikbench.solvers import hcod
 
     mine, theirs = Path(hcod.__file__).parent, _hcod_dir(site)
-    ours = sorted(p.name for p in mine.glob("*.py") if p.name != "__init__.py")
-    if not theirs.is_dir() or ours != sorted(p.name for p in theirs.glob("*.py") if p.name != "__init__.py"):
-        return False
-    if any((mine / f).read_bytes() != (theirs / f).read_bytes() for f in ours):
-        return False
     cache = sorted((mine / "__pycache__").glob("*.nb[ic]"))
-    if not cache:
-        return False
+    if not theirs.is_dir() or not cache:
+        return []
+    same = sorted(p.name for p in mine.glob("*.py") if p.name != "__init__.py"
+                  and (theirs / p.name).is_file() and (theirs / p.name).read_bytes() == p.read_bytes())
+    if not same:
+        return []
     (theirs / "__pycache__").mkdir(exist_ok=True)
     for f in cache:
         shutil.copy2(f, theirs / "__pycache__" / f.name)
-    for f in ours:
+    for f in same:
         st = (mine / f).stat()
         os.utime(theirs / f, ns=(st.st_atime_ns, st.st_mtime_ns))
-    return True
+    return same

@@ -12,9 +12,13 @@ A/B timing of a changed ``_explicit.py`` measured the old code twice).
 :func:`install` puts a cache locator in front of numba's own ones for the
 functions of a package directory: it defers to the locator numba would have
 picked (same cache directory and file names; ``NUMBA_CACHE_DIR`` is honoured)
-and adds to its source stamp a digest of every ``*.py`` file of the
-directory but ``__init__.py`` (:func:`sources_digest`), so that a change in
-any of them compiles all its cached functions again, once.
+and adds to its source stamp a digest of the function's file and of every
+file of the directory it imports, directly or through another
+(:func:`sources_digest`), so that a change in any of them compiles that
+function again, once. A function can only call what its module imports, so
+the digest covers every callee: an edit of ``_kernel.py`` compiles
+``hcod_solve`` again (4 min) and loads ``eq_run`` (20 s to compile), whose
+files ``_equality.py``, ``_linalg.py`` and ``_cache.py`` are unchanged.
 (``NUMBA_CACHE_LOCATOR_CLASSES``, where set, replaces numba's list of
 locators and with it this one.) This module installs it for ``solvers/hcod``
 when imported; each hcod module that defines cached functions imports it.
@@ -37,6 +41,7 @@ Without fastmath LLVM could not change the rounding, but that code took
 
 from __future__ import annotations
 
+import ast
 import functools
 import hashlib
 import os
@@ -68,25 +73,62 @@ def _digest(stats: tuple) -> str:
     return h.hexdigest()
 
 
-def sources_digest(package_dir: Path) -> str:
-    """SHA-256 over the names and contents of the ``*.py`` files of
-    ``package_dir`` but ``__init__.py`` (memoised on their mtimes and sizes).
-    ``__init__.py`` is left out: it defines no compiled function (a test
-    checks it for hcod), and its options and docstrings change more often
-    than the kernels, which then took ~90 s to compile again for nothing."""
-    files = sorted(p for p in Path(package_dir).glob("*.py") if p.name != "__init__.py")
+@functools.lru_cache(maxsize=64)
+def _imports(path: str, _mtime: int, _size: int) -> frozenset[str]:
+    """The module names that ``path`` imports (``import a.b``, ``from a.b import c``:
+    ``a.b`` and ``a.b.c``; ``from .b import c``: ``.b`` and ``.b.c``)."""
+    names = set()
+    for node in ast.walk(ast.parse(Path(path).read_bytes(), path)):
+        if isinstance(node, ast.Import):
+            names.update(a.name for a in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            head = "." * node.level + (node.module or "")
+            names.add(head)
+            names.update(f"{head}.{a.name}" if node.module else f"{head}{a.name}" for a in node.names)
+    return frozenset(names)
+
+
+def _closure(module: Path) -> list[Path]:
+    """``module`` and the ``*.py`` files of its folder (but ``__init__.py``) that it
+    imports, directly or through one another, by ``from .x import``, ``from
+    <package>.x import`` or ``from <package> import x``, whatever ``<package>``."""
+    here = {p.stem: p for p in module.parent.glob("*.py") if p.name != "__init__.py"}
+    found, todo = {module.stem: module}, [module]
+    while todo:
+        st = (p := todo.pop()).stat()
+        for name in _imports(str(p), st.st_mtime_ns, st.st_size):
+            stem = name.rsplit(".", 1)[-1]
+            if stem in here and stem not in found and (name.startswith(".") or "." in name):
+                found[stem] = here[stem]
+                todo.append(here[stem])
+    return sorted(found.values())
+
+
+def sources_digest(package_dir: Path, module: Path | None = None) -> str:
+    """SHA-256 over the names and contents of ``module`` and the files of
+    ``package_dir`` it imports (:func:`_closure`), or with ``module`` None of
+    every ``*.py`` file of ``package_dir`` but ``__init__.py`` (memoised on
+    their mtimes and sizes). ``__init__.py`` is left out: it defines no
+    compiled function (a test checks it for hcod), and its options and
+    docstrings change more often than the kernels, which then took ~90 s to
+    compile again for nothing."""
+    if module is None:
+        files = sorted(p for p in Path(package_dir).glob("*.py") if p.name != "__init__.py")
+    else:
+        files = _closure(Path(package_dir) / Path(module).name)
     return _digest(tuple((str(p), p.stat().st_mtime_ns, p.stat().st_size) for p in files))
 
 
 class PackageSourcesLocator(caching._CacheLocator):
     """The locator numba would pick for a function of an installed package
-    directory, with that directory's :func:`sources_digest` in its stamp."""
+    directory, with the :func:`sources_digest` of its file in its stamp."""
 
     dirs: ClassVar[set[Path]] = set()  #: the package directories installed
 
-    def __init__(self, inner, package_dir: Path):
+    def __init__(self, inner, package_dir: Path, py_file: Path):
         self._inner = inner
         self._dir = package_dir
+        self._file = py_file
 
     def ensure_cache_path(self):
         self._inner.ensure_cache_path()
@@ -95,7 +137,7 @@ class PackageSourcesLocator(caching._CacheLocator):
         return self._inner.get_cache_path()
 
     def get_source_stamp(self):
-        return (self._inner.get_source_stamp(), sources_digest(self._dir))
+        return (self._inner.get_source_stamp(), sources_digest(self._dir, self._file))
 
     def get_disambiguator(self):
         return self._inner.get_disambiguator()
@@ -110,14 +152,14 @@ class PackageSourcesLocator(caching._CacheLocator):
                 continue
             inner = other.from_function(py_func, py_file)
             if inner is not None:
-                return cls(inner, package_dir)
+                return cls(inner, package_dir, Path(py_file).resolve())
         return None
 
 
 def install(package_dir: Path) -> None:
     """Cache stamps of the functions defined in ``package_dir`` from now on
-    cover every ``*.py`` file there (functions decorated before the call are
-    not affected)."""
+    cover their files and the files there that these import (functions
+    decorated before the call are not affected)."""
     PackageSourcesLocator.dirs.add(Path(package_dir).resolve())
     if PackageSourcesLocator not in _IMPL._locator_classes:
         _IMPL._locator_classes.insert(0, PackageSourcesLocator)
