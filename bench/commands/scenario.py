@@ -241,28 +241,24 @@ def _print_side_by_side(runs, checks) -> None:
 
 
 def _summary(runs, checks):
-    """One row per run (``summary.csv``): solver, warm_start, strict, steps, steps whose status is
-    not optimal, the solver's cost per step (median, p99, max of ``solve_time_min_s``, s), per task
-    ``max_err_L<level>_<task>`` and ``final_err_L<level>_<task>``, the checks passed and the names
-    of those failed (``; ``-joined)."""
+    """One row per run (``summary.csv``): solver, warm_start, strict, steps, the cost columns of
+    OUT/scenarios.csv (:func:`.rows.step_costs`: time_median_s ... steps_not_optimal), per task
+    ``max_err_L<level>_<task>`` and ``final_err_L<level>_<task>``, and the checks
+    (:func:`.rows.check_counts`: checks_passed, checks_failed, failed_checks)."""
     import pandas as pd
 
     from hikbench.bench.scenarios.plots import run_strict
+    from hikbench.bench.scenarios.rows import check_counts, step_costs
 
     level = _task_levels(runs[0].scenario.stack)
     rows = []
     for run, cs in zip(runs, checks):
         df = run.records
-        t = df["solve_time_min_s"].to_numpy(dtype=float)
         row = {"solver": run.solver, "warm_start": run.warm_start, "strict": run_strict(run), "steps": len(df),
-               "steps_not_optimal": int((df["status"] != "optimal").sum()),
-               "solve_time_median_s": float(np.median(t)), "solve_time_p99_s": float(np.percentile(t, 99)),
-               "solve_time_max_s": float(t.max())}
+               **step_costs(df)}
         for c in (c for c in df.columns if c.startswith("err_")):
             key = f"L{level.get(c[4:], '?')}_{c[4:]}"
             row[f"max_err_{key}"] = float(df[c].max())
             row[f"final_err_{key}"] = float(df[c].iloc[-1])
-        row["checks_passed"] = sum(c.passed for c in cs)
-        row["checks_failed"] = "; ".join(c.name for c in cs if not c.passed)
-        rows.append(row)
+        rows.append(row | check_counts((c.name, c.passed) for c in cs))
     return pd.DataFrame(rows)

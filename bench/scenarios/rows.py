@@ -21,8 +21,8 @@ import pandas as pd
 
 from hikbench.problems.errors import HikbenchError
 
-__all__ = ["FINISHED", "KEY", "SCENARIOS_CSV", "SCENARIO_COLUMNS", "finished_keys", "markdown", "read_scenario_rows", "run_stem",
-           "slug", "summary_row", "write_scenario_row"]
+__all__ = ["FINISHED", "KEY", "SCENARIOS_CSV", "SCENARIO_COLUMNS", "check_counts", "finished_keys", "markdown",
+           "read_scenario_rows", "run_stem", "slug", "step_costs", "summary_row", "write_scenario_row"]
 
 SCENARIOS_CSV = "scenarios.csv"
 FINISHED = "finished"  #: status of a row whose run ended in the worker (its checks say how it went)
@@ -88,17 +88,29 @@ def summary_row(key: dict, res: dict, csv: str | None) -> dict:
            **{k: res.get(k) for k in ("host", "worker", "wall_s")}}
     df = res.get("records")
     if df is not None:
-        t = df["solve_time_min_s"].to_numpy(dtype=float)
-        checks = res.get("checks") or []
-        failed = [name for name, passed, _ in checks if not passed]
-        row.update(steps_run=len(df), time_median_s=float(np.median(t)), time_p99_s=float(np.percentile(t, 99)),
-                   time_min_s=float(t.min()), time_max_s=float(t.max()),
-                   first_median_s=float(np.median(df["solve_time_first_s"])),
-                   iterations_mean=float(df["iterations"].mean()),
-                   steps_not_optimal=int((df["status"] != "optimal").sum()),
-                   checks_passed=len(checks) - len(failed), checks_failed=len(failed),
-                   failed_checks="; ".join(failed))
+        row.update(steps_run=len(df), **step_costs(df), **check_counts((name, passed) for name, passed, _ in res.get("checks") or []))
     return row
+
+
+def step_costs(df: pd.DataFrame) -> dict:
+    """The cost columns of a run's per-step records ``df``, as in OUT/scenarios.csv
+    (``time_median_s`` ... ``steps_not_optimal``): ``hikbench scenario``'s
+    summary.csv has the same."""
+    t = df["solve_time_min_s"].to_numpy(dtype=float)
+    return {"time_median_s": float(np.median(t)), "time_p99_s": float(np.percentile(t, 99)),
+            "time_min_s": float(t.min()), "time_max_s": float(t.max()),
+            "first_median_s": float(np.median(df["solve_time_first_s"])),
+            "iterations_mean": float(df["iterations"].mean()),
+            "steps_not_optimal": int((df["status"] != "optimal").sum())}
+
+
+def check_counts(pairs) -> dict:
+    """``checks_passed``, ``checks_failed`` (counts) and ``failed_checks`` (names, '; '-joined)
+    of a run's checks, given as (name, passed) pairs."""
+    pairs = list(pairs)
+    failed = [name for name, passed in pairs if not passed]
+    return {"checks_passed": len(pairs) - len(failed), "checks_failed": len(failed),
+            "failed_checks": "; ".join(failed)}
 
 
 def read_scenario_rows(out) -> pd.DataFrame:

@@ -191,7 +191,11 @@ def test_cli_pink_beside_a_solver(tmp_path, capsys):
     summary = pd.read_csv(tmp_path / "summary.csv")
     assert list(summary["solver"]) == ["yardstick", "pink"]
     assert list(summary["strict"]) == [True, False]
-    assert {"final_err_L3_right_hand", "max_err_L1_com", "solve_time_median_s", "checks_failed"} <= set(summary)
+    assert {"final_err_L3_right_hand", "max_err_L1_com", "time_median_s", "checks_failed", "failed_checks"} <= set(summary)
+    pink = summary.set_index("solver").loc["pink"]  # (the columns of a suite's scenarios.csv, computed alike)
+    np.testing.assert_allclose(pink[["time_median_s", "time_max_s", "iterations_mean"]].to_numpy(float),
+                               [np.median(df["solve_time_min_s"]), df["solve_time_min_s"].max(),
+                                df["iterations"].mean()], rtol=1e-12)
     # claims (d)-(e) given the directory read the per-step CSVs, not summary.csv
     from hikbench.bench.analysis.claims import find_scenario_csvs
 
