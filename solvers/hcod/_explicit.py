@@ -346,7 +346,7 @@ def insert_row(A, i, bcol, bval, Wt, qi, R, p, thr, q, sv):
 def insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, rnorm, Qb, bq, cok, sv, sv2):
     """Add the rows ``A[cand[:m]]`` to the working constraints, in order, as m
     calls of :func:`insert_row` would (same rank test, same ``W`` and ``R``),
-    but blocked: ``Q = A_cand W`` at once, the QR of ``Q[:, p:]``
+    but blocked: ``Q = A_cand W`` at once (gathers while W is a permutation), the QR of ``Q[:, p:]``
     (:func:`._linalg.qr_rows`), then the t accepted reflectors applied to
     ``W[:, p:]`` together (:func:`apply_reflectors_to_basis`). ``cok[j]`` = 1 when row j entered.
     Shapes: Qb (>= m, n), bq (>= m), sv, sv2 (n,) scratch. Returns (t, flops)."""
@@ -363,8 +363,8 @@ def insert_rows(A, cand, m, bcol, bval, Wt, qi, R, p, rank_rtol, rnorm, Qb, bq, 
                 cok[j] = _swap_in(Wt, qi, R, i, bcol, bval, p + t, rank_rtol * rnorm[i]) >= 0
                 t += cok[j]
             return t, 0
-    for j in range(m):
-        fl += wt_times_row(A, cand[j], bcol, bval, Wt, Qb[j], Wt.shape[0])
+    for j in range(m):  # (gathers while W is a permutation)
+        fl += head(A, cand[j], bcol, bval, Wt, qi, Wt.shape[0], Qb[j])
     t, f = qr_rows(Qb, cand, m, p, rank_rtol, rnorm, R, bq, cok)
     fl += f
     if t > 0:

@@ -603,7 +603,8 @@ def _warm_shift(k, jrun, jm, jump, rk, s0, n, p, lazy, prob, basis, state, hist,
         ps[:p] = 0.0
         fl += basis_n(lazy, Wt, qv, qi, ps, p, n, sv, sv2)
     tau = 1.0
-    for i in range(s0):
+    # (a zero step, the levels of a jump and its end: every a_i ps is 0, no row to scan)
+    for i in range(s0 if dun != 0.0 else 0):
         if state[i] != INACTIVE or kind[i] != 1 or hist_state[rk, i] == WORK:
             continue
         ap = row_dot(A[i], bcol[i], bval[i], ps)
@@ -730,11 +731,10 @@ def _warm_feasible(s0, prob, state, u, unorm, feas_rtol):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _recorded_objective(k, jump, s0, s1, nO, unorm, dual_rtol, prob, aset, hist, u):
+def _recorded_objective(k, s0, s1, nO, prob, aset, hist):
     """The rows of level k that were in its objective ``J_hat_k`` at the end
     of the last call enter it again (sec. XI), at their recorded side, unless
-    their kind changed since (eq. 45 decides then) or, on a jump, the jump
-    point left them strictly inside their bounds. Returns nO."""
+    their kind changed since (eq. 45 decides then). Returns nO."""
     A, lo, up, bcol, bval, kind, rnorm = prob
     state, side, target, Olist, widx, wside = aset
     hist_state, hist_side, hist_valid, hist_du = hist
@@ -746,14 +746,9 @@ def _recorded_objective(k, jump, s0, s1, nO, unorm, dual_rtol, prob, aset, hist,
             elif (kind[i] == 2 or sd == 0 or (sd > 0 and up[i] == np.inf)
                   or (sd < 0 and lo[i] == -np.inf)):
                 continue  # (the row changed kind since the record: eq. 45 decides)
-            tg = up[i] if sd > 0 else lo[i]
-            if jump and sd * (row_dot(A[i], bcol[i], bval[i], u) - tg) < -_floor(
-                    rnorm[i], unorm, tg, dual_rtol):
-                continue  # (the jump left it strictly inside its bounds: mu = w has the
-                # wrong sign, it would leave the objective at once)
             state[i] = OBJECTIVE
             side[i] = sd
-            target[i] = tg
+            target[i] = up[i] if sd > 0 else lo[i]
             Olist[nO] = i
             nO += 1
     return nO
@@ -808,7 +803,8 @@ def _level_start(k, warm, use_hist, n, D, p, lazy, jrun, jm, starts, tols, prob,
     inserted) and the warm point ``u_hat = u_{k-1} + tau Delta u_k`` (eq. 46)
     corrected onto the working rows; if it violates a row above, the level
     starts cold from ``u_{k-1}``. Then the objective ``J_hat_k``: the rows of
-    the record, and the equality and violated rows (eq. 45).
+    the record (but on a level of a jump), and the equality and violated rows
+    (eq. 45).
 
     Returns (p, nO, jrun, jm, jump, warm: 0 a cold start, 1 a feasible warm
     point, -1 an infeasible one, ||u_hat||, flops)."""
@@ -870,7 +866,11 @@ def _level_start(k, warm, use_hist, n, D, p, lazy, jrun, jm, starts, tols, prob,
                 u[c] = uprev[c]
         else:
             outcome = 1
-        nO = _recorded_objective(k, jump, s0, s1, nO, unorm, dual_rtol, prob, aset, hist, u)
+        if not jump:
+            # (a level of a jump is at a zero objective: its equality rows enter it by eq. 45, its
+            # inequality rows, met at the jump point, stay inactive, kept met by the step lengths
+            # of the levels below; those active at u_jm enter at level jm with its record)
+            nO = _recorded_objective(k, s0, s1, nO, prob, aset, hist)
     nO = _violated_objective(jump, s0, s1, nO, unorm, dual_rtol, prob, aset, u)
     return p, nO, jrun, jm, jump, outcome, unorm, fl
 

@@ -86,6 +86,34 @@ def test_jump_inserts_early_only_bound_rows_met_at_the_jump_point():
     assert fallbacks == [0, 0, 1, 0, 0]
 
 
+@pytest.mark.parametrize("seed", range(5), ids=lambda s: f"seed{s}")
+def test_a_jump_over_levels_met_exactly_keeps_one_lse_per_level_and_its_record(seed):
+    """A re-solve that jumps over a run of levels met exactly (duplicate_rows: its three
+    levels of inequality rows, all met at the min-norm point) does not re-enter their recorded
+    inequality rows: they stay inactive, and those active at the run's last level enter there
+    with its record (docs/hcod.md, "Runs of exactly met levels"). Every re-solve still takes one
+    LSE per level with nothing activated, leaves the record (states, run marks) as it found it,
+    and gives a cold solve's point."""
+    from hikbench.solvers.hcod import _setup
+
+    h = G.degenerate("duplicate_rows", 12, seed)
+    s = HcodSolver(warm_start="time")
+    cold = s.solve(h)
+    s.solve(h)
+    iw = s._ws[1]
+    before = (_setup.iblock(iw, "hist_state").copy(), _setup.iblock(iw, "hist_valid").copy())
+    assert before[1][0] >= 2, before[1]  # (a run from level 0: the re-solves jump)
+    for call in range(3):
+        res = s.solve(h)
+        assert res.status == OPTIMAL, res.reason
+        assert res.iterations_per_level == (1,) * h.depth and res.activations == res.deactivations == 0, (
+            call, res.iterations_per_level, res.activations, res.deactivations)
+        assert "warm_fallback_levels" not in res.info, res.info
+        np.testing.assert_array_equal(_setup.iblock(iw, "hist_state"), before[0], err_msg=f"call {call}")
+        np.testing.assert_array_equal(_setup.iblock(iw, "hist_valid"), before[1], err_msg=f"call {call}")
+        assert verify(h, res.x, cold.x, rtol=RTOL).equal
+
+
 @pytest.mark.parametrize("make, drift",
                          [(lambda: G.random_hierarchy(10, 4, 4, inequality="mixed", box=True, seed=11), 0.01),
                           (lambda: G.ik_like(15, 4), 0.01),
