@@ -54,6 +54,7 @@ _NONE = object()  # (matches no solve() argument, unlike None)
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
 _eq_run = None  # hikbench.solvers.hcod._equality.eq_run, set by warmup() (the first solve calls it)
 _ineq = None  # (._kernel.hcod_solve, ._setup), set with it
+_entry = None  # hcod_solve's compiled entry point for the workspaces' types, found by the first _shape
 
 
 class HcodSolver(Solver):
@@ -152,8 +153,6 @@ class HcodSolver(Solver):
         the problem loaded into them."""
         if _ineq is None:
             warmup()
-        from numba import typeof
-
         hcod_solve, setup = _ineq
         mn = self.min_norm  # (n > 0 here)
         depth = len(st) - 1
@@ -164,9 +163,16 @@ class HcodSolver(Solver):
         ip = (n, mt, D, mmax, cap, WARM_STARTS.index(self.warm_start), 1)  # (slots ._layout.IP_*)
         fw, iw, xv, outv = setup.workspaces(ip, self._prm)
         self._ws = (fw, iw)
-        # the compiled kernel for these two arrays' types (loaded from the cache, or the one already
-        # in this process): a call to it skips the dispatcher's typing of the arguments (~0.1-0.2 us)
-        kernel = hcod_solve.compile((typeof(fw), typeof(iw)))
+        # the compiled kernel for these two arrays' types (1-d contiguous float64 and int64, always:
+        # ._setup.workspaces): a call to it skips the dispatcher's typing of the arguments (~0.1-0.2
+        # us a solve). Looked up once per process: Dispatcher.compile takes ~50 us even when the
+        # kernel is loaded, which a cold solve of 20 us on a fresh solver must not pay
+        global _entry
+        if _entry is None:
+            from numba import typeof
+
+            _entry = hcod_solve.compile((typeof(fw), typeof(iw)))
+        kernel = _entry
         # the factor of the bounds in the workspaces (._setup.load: u = f x), in a list that run
         # shares: run must not hold self (a cycle keeps a dropped solver and its workspaces alive
         # until the collector runs; the benchmark times with it off: cold IK-like n=80 went from
