@@ -52,7 +52,13 @@ class UsageError(HikbenchError):
 
 class _Parser(argparse.ArgumentParser):
     """argparse that raises UsageError instead of printing usage and exiting,
-    so that main() reports it like any user error: one line, exit code 2."""
+    so that main() reports it like any user error: one line, exit code 2.
+    No abbreviations: ``hikbench run --solver a`` read as ``--solvers a``
+    while ``scenario`` has a ``--solver`` of its own; a misspelt option is
+    named, not taken for another."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **{**kwargs, "allow_abbrev": False})
 
     def error(self, message: str):
         raise UsageError(message, self.prog)

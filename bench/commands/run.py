@@ -15,8 +15,9 @@ def add_arguments(p) -> None:
     # builtin_suites(), without importing the solvers on every command's start)
     p.add_argument("--suite", default="quick", help=f"built-in suite name ({', '.join(names)}; "
                    f"`hikbench list suites` says what each holds) or a TOML file (default: quick)")
-    p.add_argument("--solvers", nargs="+", default=None, metavar="SOLVER",
-                   help="replace the suite's solvers: names, glob patterns ('cascade-*'), module:Class, "
+    p.add_argument("--solvers", "--solver", nargs="+", action="extend", default=None, metavar="SOLVER",
+                   help="replace the suite's solvers (repeatable: `--solver a --solver b` takes both): names, "
+                        "glob patterns ('cascade-*'), module:Class, "
                         "or external:NAME=CMD (external:NAME[strict=false]=CMD: a program that does not "
                         "claim the lexicographic optimum)")
     p.add_argument("--out", default=None, help="output directory (default: results/<suite>)")

@@ -46,8 +46,8 @@ def add_arguments(p) -> None:
     p.add_argument("--solver", action="append", default=None,
                    help="solver name or module:Class / file.py:Class, or the controller pink (weighted IK on the "
                         "stack's tasks; repeatable; default: yardstick)")
-    p.add_argument("--warm-start", nargs="+", default=None, metavar="MODE",
-                   help="warm-start modes to run, one run each, for solvers with a warm_start option "
+    p.add_argument("--warm-start", nargs="+", action="extend", default=None, metavar="MODE",
+                   help="warm-start modes to run (repeatable), one run each, for solvers with a warm_start option "
                         "(hcod: none stage time; a module:Class solver: the values its warm_start "
                         "parameter takes; default: the solver's default); ignored for the others")
     p.add_argument("--steps", type=int, default=None, help="control steps (default: the scenario's)")

@@ -10,7 +10,10 @@ Keys: ``rows``, ``solvers`` (their names, ``[settings]`` variants apart),
 kind of solver), ``yardstick`` ({kind: {"problems": P, "rows": R}} for the
 kinds ``certified``, ``reference-only``, ``none`` of results.csv's
 ``yardstick`` column: rows are verified only against a certified one), ``sessions`` and ``wall_time_s`` (the sum over the run's
-sessions of finished - started, from run.json; None while one is unfinished).
+sessions of finished - started, from run.json; None while one is unfinished),
+``scenarios`` (the rows of OUT/scenarios.csv: ``runs``, ``finished`` (runs that
+ended in the worker), ``all_checks_passed`` (finished runs none of whose checks
+failed), ``statuses`` ({status: runs}); zeros for a suite without scenarios).
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import pandas as pd
 from hikbench.bench.harness.environment import read_run_json
 from hikbench.bench.harness.results import read_results
 
-__all__ = ["SUMMARY_FILE", "run_summary", "summary_line", "write_summary", "yardstick_counts"]
+__all__ = ["SUMMARY_FILE", "run_summary", "scenario_counts", "summary_line", "write_summary", "yardstick_counts"]
 
 SUMMARY_FILE = "summary.json"
 
@@ -57,8 +60,19 @@ def wall_time_s(meta: dict) -> float | None:
     return total
 
 
-def run_summary(df: pd.DataFrame, meta: dict) -> dict:
-    """The summary of the rows ``df`` (results.csv) and run.json ``meta``."""
+def scenario_counts(sc: pd.DataFrame) -> dict:
+    """``runs``, ``finished``, ``all_checks_passed`` and ``statuses`` of OUT/scenarios.csv's rows ``sc``."""
+    from hikbench.bench.scenarios.rows import FINISHED
+
+    done = sc["status"].eq(FINISHED)
+    return {"runs": len(sc), "finished": int(done.sum()),
+            "all_checks_passed": int((done & pd.to_numeric(sc["checks_failed"]).eq(0)).sum()),
+            "statuses": {str(k): int(v) for k, v in sorted(sc["status"].value_counts().items())}}
+
+
+def run_summary(df: pd.DataFrame, meta: dict, scenarios: pd.DataFrame | None = None) -> dict:
+    """The summary of the rows ``df`` (results.csv), run.json ``meta`` and the rows
+    ``scenarios`` of OUT/scenarios.csv (None: none)."""
     labels = df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
     strict = df["strict"].astype(str).eq("True")
     return {"suite": (meta.get("suite") or {}).get("name"), "rows": len(df),
@@ -66,7 +80,9 @@ def run_summary(df: pd.DataFrame, meta: dict) -> dict:
             "modes": sorted(df["mode"].unique()), **_counts(df),
             "statuses": {k: int(v) for k, v in sorted(df["status"].value_counts().items())},
             "strict": _counts(df[strict]), "non_strict": _counts(df[~strict]), "yardstick": yardstick_counts(df),
-            "sessions": len(meta.get("sessions") or []), "wall_time_s": wall_time_s(meta)}
+            "sessions": len(meta.get("sessions") or []), "wall_time_s": wall_time_s(meta),
+            "scenarios": scenario_counts(scenarios if scenarios is not None else
+                                         pd.DataFrame(columns=["status", "checks_failed"]))}
 
 
 def summary_line(s: dict) -> str:
@@ -78,12 +94,22 @@ def summary_line(s: dict) -> str:
             f"({', '.join(s['modes'])}); {s['verified']} verified, {s['not_verified']} not verified "
             f"(strict solvers: {s['strict']['not_verified']}), {s['unsupported']} unsupported; "
             + (f"yardstick certified on {y['certified']['problems']} of {s['problems']} problems; " if y else "")
-            + f"{wall}.")
+            + _scenarios_clause(s.get("scenarios") or {}) + f"{wall}.")
+
+
+def _scenarios_clause(sc: dict) -> str:
+    if not sc.get("runs"):
+        return ""
+    return (f"{sc['runs']} scenario run{'s' * (sc['runs'] != 1)}, {sc['finished']} finished, "
+            f"{sc['all_checks_passed']} with every check passed; ")
 
 
 def write_summary(out) -> Path:
     """Write OUT/summary.json from OUT/results.csv and OUT/run.json; its path."""
     out = Path(out)
     path = out / SUMMARY_FILE
-    path.write_text(json.dumps(run_summary(read_results(out), read_run_json(out)), indent=1) + "\n")
+    from hikbench.bench.scenarios.rows import read_scenario_rows
+
+    summary = run_summary(read_results(out), read_run_json(out), read_scenario_rows(out))
+    path.write_text(json.dumps(summary, indent=1) + "\n")
     return path

@@ -241,7 +241,10 @@ def test_list_families_shows_every_family(capsys):
     (["solve", "p.npz", "--repeat", "many"], "argument --repeat: invalid int value: 'many'"),
     (["export", "p.npz", "--format", "csv"], "argument --format: invalid choice: 'csv'"),
     (["list", "planets"], "cannot list 'planets'"),
-], ids=["no command", "unknown command", "missing file", "unknown option", "bad int", "bad choice", "list"])
+    (["run", "--suite", "quick", "--sol", "hcod"], "unrecognized arguments: --sol hcod"),
+    (["solve", "p.npz", "--rep", "3"], "unrecognized arguments: --rep 3"),
+], ids=["no command", "unknown command", "missing file", "unknown option", "bad int", "bad choice", "list",
+        "no abbreviation of --solvers", "no abbreviation of --repeat"])
 def test_usage_errors_exit_2_with_one_line(capsys, argv, fragment):
     """docs/cli.md, "Exit codes": `hikbench COMMAND: error: ...`, pointing at that command's --help."""
     code, _, err = run(capsys, *argv)
@@ -249,6 +252,18 @@ def test_usage_errors_exit_2_with_one_line(capsys, argv, fragment):
     prog = "hikbench" if not argv or argv[0] not in COMMANDS else f"hikbench {argv[0]}"
     assert err.startswith(f"{prog}: error: "), err
     assert "--help" not in err or err.rstrip().endswith(f"(see `{prog} --help`)"), err  # (argparse's)
+
+
+@pytest.mark.parametrize("flags", [["--solvers", "hcod", "yardstick"], ["--solver", "hcod", "--solver", "yardstick"],
+                                   ["--solvers", "hcod", "--solvers", "yardstick"]],
+                         ids=["one-list", "repeated-solver", "repeated-solvers"])
+def test_run_takes_every_solver_of_repeated_flags(flags):
+    """`hikbench run --solver a --solver b` runs both, as `scenario --solver` does (no flag
+    silently replacing the one before)."""
+    from hikbench.bench.cli import build_parser
+
+    args = build_parser().parse_args(["run", "--suite", "quick", *flags])
+    assert args.solvers == ["hcod", "yardstick"]
 
 
 @pytest.mark.parametrize("argv", [["--help"]] + [[c, "--help"] for c in COMMANDS], ids=["main", *COMMANDS])

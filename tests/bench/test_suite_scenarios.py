@@ -134,6 +134,21 @@ def test_a_solver_that_kills_its_worker_costs_its_row_only(scenario_run):
     assert not list((scenario_run / "scenarios" / "reach").glob("reach_talos_abort*"))
 
 
+def test_summary_json_counts_the_scenario_runs(scenario_run):
+    """summary.json's ``scenarios``: every row of scenarios.csv, the crashed one among them, and
+    the report's opening line says so."""
+    from hikbench.bench.harness.summary import summary_line
+
+    summary = json.loads((scenario_run / "summary.json").read_text())
+    rows = read_scenario_rows(scenario_run)
+    finished = rows["status"].eq("finished")
+    assert summary["scenarios"] == {
+        "runs": len(SOLVERS), "finished": len(SOLVERS) - 1,
+        "all_checks_passed": int((finished & rows["checks_failed"].eq(0)).sum()),
+        "statuses": {"crashed": 1, "finished": len(SOLVERS) - 1}}
+    assert f"{len(SOLVERS)} scenario runs, {len(SOLVERS) - 1} finished" in summary_line(summary)
+
+
 @needs_peers
 @pytest.mark.parametrize("peer", PEERS)
 def test_the_peers_run_the_scenario_in_their_time_warm_start(scenario_run, peer):
