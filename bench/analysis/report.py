@@ -31,6 +31,7 @@ from hikbench.bench.analysis.tail import tail_table
 from hikbench.bench.harness.environment import read_run_json
 from hikbench.bench.harness.results import read_results
 from hikbench.bench.harness.summary import run_summary, summary_line
+from hikbench.bench.scenarios.rows import read_scenario_rows
 from hikbench.problems.errors import HikbenchError
 
 __all__ = ["MIN_PROFILE_PROBLEMS", "REPORT_JSON", "solver_label", "write_report"]
@@ -506,7 +507,7 @@ def write_report(run_dir) -> Path:
     plot_dir = run_dir / "plots"
     plot_dir.mkdir(exist_ok=True)
     _clear_old_figures(plot_dir)
-    summary = run_summary(df, meta)
+    summary = run_summary(df, meta, read_scenario_rows(run_dir))  # (the numbers of summary.json)
     df = df.assign(label=solver_label(df))
     df, norm_note = normalise_hosts(df)
     strict = strict_labels(df)

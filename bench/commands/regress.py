@@ -112,7 +112,7 @@ def run(args) -> int:
             started = time.perf_counter()
             timer.run_round()
             lasted = time.perf_counter() - started
-            if timer.done % 5 and timer.done < min(args.min_rounds, args.max_rounds):
+            if timer.done % 5 and timer.done < args.min_rounds:  # (min_rounds <= max_rounds: _check)
                 continue  # (nothing to print or to decide yet)
             dec = decide(timer.frames["base"], timer.frames["change"], args.threshold, args.alpha, meta_change)
             if timer.done % 5 == 0 or timer.done >= args.min_rounds:

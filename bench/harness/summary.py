@@ -70,9 +70,9 @@ def scenario_counts(sc: pd.DataFrame) -> dict:
             "statuses": {str(k): int(v) for k, v in sorted(sc["status"].value_counts().items())}}
 
 
-def run_summary(df: pd.DataFrame, meta: dict, scenarios: pd.DataFrame | None = None) -> dict:
+def run_summary(df: pd.DataFrame, meta: dict, scenarios: pd.DataFrame) -> dict:
     """The summary of the rows ``df`` (results.csv), run.json ``meta`` and the rows
-    ``scenarios`` of OUT/scenarios.csv (None: none)."""
+    ``scenarios`` of OUT/scenarios.csv (hikbench.bench.scenarios.rows.read_scenario_rows)."""
     labels = df["solver"].where(df["settings"] == "default", df["solver"] + " [" + df["settings"] + "]")
     strict = df["strict"].astype(str).eq("True")
     return {"suite": (meta.get("suite") or {}).get("name"), "rows": len(df),
@@ -81,8 +81,7 @@ def run_summary(df: pd.DataFrame, meta: dict, scenarios: pd.DataFrame | None = N
             "statuses": {k: int(v) for k, v in sorted(df["status"].value_counts().items())},
             "strict": _counts(df[strict]), "non_strict": _counts(df[~strict]), "yardstick": yardstick_counts(df),
             "sessions": len(meta.get("sessions") or []), "wall_time_s": wall_time_s(meta),
-            "scenarios": scenario_counts(scenarios if scenarios is not None else
-                                         pd.DataFrame(columns=["status", "checks_failed"]))}
+            "scenarios": scenario_counts(scenarios)}
 
 
 def summary_line(s: dict) -> str:
@@ -105,11 +104,11 @@ def _scenarios_clause(sc: dict) -> str:
 
 
 def write_summary(out) -> Path:
-    """Write OUT/summary.json from OUT/results.csv and OUT/run.json; its path."""
-    out = Path(out)
-    path = out / SUMMARY_FILE
+    """Write OUT/summary.json from OUT/results.csv, OUT/run.json and OUT/scenarios.csv; its path."""
     from hikbench.bench.scenarios.rows import read_scenario_rows
 
+    out = Path(out)
+    path = out / SUMMARY_FILE
     summary = run_summary(read_results(out), read_run_json(out), read_scenario_rows(out))
     path.write_text(json.dumps(summary, indent=1) + "\n")
     return path

@@ -88,7 +88,8 @@ def summary_row(key: dict, res: dict, csv: str | None) -> dict:
            **{k: res.get(k) for k in ("host", "worker", "wall_s")}}
     df = res.get("records")
     if df is not None:
-        row.update(steps_run=len(df), **step_costs(df), **check_counts((name, passed) for name, passed, _ in res.get("checks") or []))
+        checks = res.get("checks") or []
+        row.update(steps_run=len(df), **step_costs(df), **check_counts((name, ok) for name, ok, _ in checks))
     return row
 
 

@@ -98,24 +98,19 @@ def _closure(module: Path) -> list[Path]:
         st = (p := todo.pop()).stat()
         for name in _imports(str(p), st.st_mtime_ns, st.st_size):
             stem = name.rsplit(".", 1)[-1]
-            if stem in here and stem not in found and (name.startswith(".") or "." in name):
+            if stem in here and stem not in found and "." in name:  # (not a top-level module)
                 found[stem] = here[stem]
                 todo.append(here[stem])
     return sorted(found.values())
 
 
-def sources_digest(package_dir: Path, module: Path | None = None) -> str:
+def sources_digest(package_dir: Path, module: Path) -> str:
     """SHA-256 over the names and contents of ``module`` and the files of
-    ``package_dir`` it imports (:func:`_closure`), or with ``module`` None of
-    every ``*.py`` file of ``package_dir`` but ``__init__.py`` (memoised on
-    their mtimes and sizes). ``__init__.py`` is left out: it defines no
-    compiled function (a test checks it for hcod), and its options and
-    docstrings change more often than the kernels, which then took ~90 s to
-    compile again for nothing."""
-    if module is None:
-        files = sorted(p for p in Path(package_dir).glob("*.py") if p.name != "__init__.py")
-    else:
-        files = _closure(Path(package_dir) / Path(module).name)
+    ``package_dir`` it imports (:func:`_closure`; memoised on their mtimes and
+    sizes). ``__init__.py`` is left out: it defines no compiled function (a
+    test checks it for hcod), and its options and docstrings change more often
+    than the kernels, which then took ~90 s to compile again for nothing."""
+    files = _closure(Path(package_dir) / Path(module).name)
     return _digest(tuple((str(p), p.stat().st_mtime_ns, p.stat().st_size) for p in files))
 
 

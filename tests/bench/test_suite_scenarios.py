@@ -199,6 +199,7 @@ def test_the_report_shows_the_scenario_table(scenario_run, tmp_path):
     assert "[Scenarios](#scenarios)" in text and "\n## Scenarios\n" in text
     assert f"| reach | talos | hcod | time | {STEPS} (cut: the scenario has 700) |" in text
     assert "| reach | talos | abort | n/a |" in text and "| crashed: " in text
+    assert f"{len(SOLVERS)} scenario runs, {len(SOLVERS) - 1} finished" in text  # (its opening line)
     data = json.loads((out / "report.json").read_text())
     assert [r["solver"] for r in data["scenarios"]] == read_scenario_rows(out)["solver"].tolist()
     table = next(t for t in data["tables"] if t["key"] == "scenarios")

@@ -65,16 +65,16 @@ def test_the_package_init_defines_no_compiled_function():
 
 
 def test_the_digest_follows_the_content_of_every_file(tmp_path):
-    for name in ("a.py", "b.py"):
-        (tmp_path / name).write_text("x = 1\n")
-    before = sources_digest(tmp_path)
-    assert sources_digest(tmp_path) == before
+    (tmp_path / "a.py").write_text("from .b import x\n")
+    (tmp_path / "b.py").write_text("x = 1\n")
+    before = sources_digest(tmp_path, tmp_path / "a.py")
+    assert sources_digest(tmp_path, tmp_path / "a.py") == before
     (tmp_path / "b.py").write_text("x = 2\n")
-    changed = sources_digest(tmp_path)
+    changed = sources_digest(tmp_path, tmp_path / "a.py")
     assert changed != before
     (tmp_path / "c.txt").write_text("not python")  # only the *.py files count
     (tmp_path / "__init__.py").write_text('"""a docstring"""\n')  # and not __init__.py
-    assert sources_digest(tmp_path) == changed
+    assert sources_digest(tmp_path, tmp_path / "a.py") == changed
 
 
 def test_a_modules_digest_follows_the_files_it_imports_alone(tmp_path):
