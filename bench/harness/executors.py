@@ -150,6 +150,22 @@ def _drop_close_races(record) -> bool:
     return not msg.startswith(_CLOSE_RACES)
 
 
+def _drop_unbound_cancel(record) -> bool:
+    """False for the error that Dask's ``distributed.utils.sync`` logs (through
+    tornado) when Ctrl-C lands before its call has started: its ``cancel``
+    callback reads ``future`` before it is bound (a NameError; there is nothing
+    to cancel). hikbench stops on the interrupt as on any other; the record
+    only put a 10-line traceback before its one line ``interrupted``."""
+    exc = record.exc_info[1] if record.exc_info else None
+    if not isinstance(exc, NameError) or exc.__traceback__ is None:
+        return True
+    tb = exc.__traceback__
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    code = tb.tb_frame.f_code
+    return not (code.co_name == "cancel" and code.co_filename.replace("\\", "/").endswith("distributed/utils.py"))
+
+
 def _check_scheduler_address(address: str) -> tuple[str, int] | None:
     """Reject a malformed --scheduler address (HikbenchError naming the
     option); returns (host, port) for a tcp/tls address, else None."""
@@ -199,8 +215,11 @@ def _probe_scheduler(address: str, host_port: tuple[str, int]) -> None:
 
 class DaskExecutor:
     def __init__(self, workers: int | None = None, scheduler: str | None = None):
+        import logging
+
         from distributed import Client, LocalCluster
 
+        logging.getLogger("tornado.application").addFilter(_drop_unbound_cancel)  # (once: a set)
         self.cluster = None
         # what close undoes, last first: the client, the local cluster, its dask settings (each even
         # when one before it fails to close)
