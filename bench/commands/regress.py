@@ -133,7 +133,8 @@ def run(args) -> int:
             f"cases; {timer.done} paired rounds (each case on base and change back to back), {wall:.0f} s in all")
     text = markdown(dec, head)
     meta = {"base": {"revision": args.base, "label": base.label}, "change": {"label": change.label},
-            "suite": args.suite, "rounds": timer.done, "wall_s": wall, "paired_s": time.perf_counter() - t_rounds,
+            "suite": args.suite, "rounds": timer.done,
+            "worker_processes": {name: len(set(pids)) for name, pids in timer.pids.items()}, "wall_s": wall, "paired_s": time.perf_counter() - t_rounds,
             "run_seconds": rounds.seconds, "exit": 1 if dec.failed else 0}
     (out / "regress.md").write_text(text)
     to_json(dec, meta, out / "regress.json")

@@ -65,6 +65,11 @@ class SerialExecutor:
         for tag, job, timeout in items:
             yield tag, run_job(self.worker, job, timeout)
 
+    def renew(self) -> None:
+        """The next job starts a fresh worker process: a new memory layout (see
+        :func:`hikbench.bench.harness.runner.run_suite`'s rounds)."""
+        self.worker.close()
+
     def close(self) -> None:
         self.worker.close()
 
@@ -273,6 +278,10 @@ class DaskExecutor:
         for tag, job, timeout in again:
             for _, res in self._collect({self._submit(job, timeout): tag}):
                 yield tag, res if isinstance(res, dict) else _died(res)
+
+    def renew(self) -> None:
+        """Each Dask worker's next job starts a fresh isolated process (a new session)."""
+        self.session = uuid.uuid4().hex
 
     def _submit(self, job: dict, timeout: float):
         return self.client.submit(_dask_task, job, timeout, self.session, pure=False)

@@ -85,6 +85,15 @@ class PairedTimer:
     0.2 s apart in one process): measured milliseconds apart, both sides of a pair see
     the same speed, and the ratio of the pair cancels it.
 
+    **Each round starts a fresh worker on each side.** A process's memory layout (ASLR
+    places its stack, heap and thread arenas anew) holds a solve's speed for the life of
+    the process: hcod's median on one n=120 equality problem read 98-213 us in twelve
+    processes of the same code, and one persistent pair of workers put the two sides of
+    an A/A gate 1.5x apart in all 20 rounds. With a fresh pair each round, the layout is
+    one more round-to-round variation, inside the paired rounds' interval. The two
+    workers start and load each solver (hcod's kernels: about 1 s) at the same time,
+    one per core, before the round's timed jobs.
+
     Only registry solvers are timed (a case's ``solver`` column names them); the
     problems are the change's round-1 files (``OUT/rounds/change-1/problems``)."""
 
@@ -99,6 +108,7 @@ class PairedTimer:
         self.verified = {name: frames[0] for name, frames in rounds.frames.items()}
         self.cases, self.skipped = self._cases(rounds.out / "rounds" / "change-1")
         self.frames: dict[str, list[pd.DataFrame]] = {"base": [], "change": []}
+        self.pids: dict[str, list[int]] = {"base": [], "change": []}  # (each round's worker, per side)
         self.done = 0
 
     def _cases(self, run_dir: Path):
@@ -127,20 +137,18 @@ class PairedTimer:
         return cases, skipped
 
     def run_round(self) -> None:
-        """One job per case and side, each case's pair back to back, the order alternating."""
+        """Fresh workers, then one job per case and side, each case's pair back to back,
+        the order alternating."""
         import numpy as np
 
         from hikbench.bench.harness.columns import KEY
 
+        self._fresh_workers()
         rows = {"base": [], "change": []}
         for i, (key, job) in enumerate(self.cases):
             order = ("base", "change") if (i + self.done) % 2 == 0 else ("change", "base")
             for name in order:
-                res = self.workers[name].run(job, self.timeout, first_timeout=max(self.timeout, 300.0))
-                samples = res.get("samples_ns") or []
-                if res.get("status") in ("timeout", "crashed"):
-                    raise RevisionError(f"a timing job of {key[1]} on {key[0]} ({key[3]}) ended {res['status']} on "
-                                        f"{self.labels[name]}: {res.get('reason', '')}")
+                samples = self._samples(name, key, job)
                 rows[name].append(dict(zip(KEY, key), time_median_s=float(np.median(samples)) * 1e-9
                                        if samples else float("nan")))
         for name in rows:  # (the side's round-1 rows, with this round's paired times; NaN where untimed)
@@ -148,6 +156,34 @@ class PairedTimer:
             first = self.verified[name].drop_duplicates(list(KEY)).drop(columns=["time_median_s"])
             self.frames[name].append(first.merge(timed, on=list(KEY), how="left"))
         self.done += 1
+
+    def _fresh_workers(self) -> None:
+        """Both sides' workers restarted at once, each running one untimed solve of every
+        solver of the cases (its first case): the loading is done before the timed jobs."""
+        from concurrent.futures import ThreadPoolExecutor
+
+        firsts = {}
+        for key, job in self.cases:
+            firsts.setdefault(job["solver"], (key, {**job, "repeat": 1, "warmup": 0}))
+
+        def prime(name):
+            for key, job in firsts.values():
+                self._samples(name, key, job)
+
+        for name, worker in self.workers.items():  # (here: a child dies with the thread that started it)
+            worker.start()
+            self.pids[name].append(worker.proc.pid)
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            for done in [pool.submit(prime, name) for name in self.workers]:
+                done.result()
+
+    def _samples(self, name: str, key: tuple, job: dict) -> list:
+        """The samples (ns) of ``job`` on side ``name``; a RevisionError when it times out or crashes."""
+        res = self.workers[name].run(job, self.timeout, first_timeout=max(self.timeout, 300.0))
+        if res.get("status") in ("timeout", "crashed"):
+            raise RevisionError(f"a timing job of {key[1]} on {key[0]} ({key[3]}) ended {res['status']} on "
+                                f"{self.labels[name]}: {res.get('reason', '')}")
+        return res.get("samples_ns") or []
 
     def close(self) -> None:
         for w in self.workers.values():

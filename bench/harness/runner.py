@@ -212,9 +212,12 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     count: no extra ``samples``); ``limit`` stops after
     that many new rows (the run resumes later). With ``rounds`` R > 1 the
     ``repeat`` timed solves of a row are split over R rounds, each round
-    running every job of the run once (:func:`_merge_rounds`): a slow window
-    of the machine then shifts a part of every row's samples, not all the
-    samples of the rows it happens to meet; a row is written after its last
+    running every job of the run once (:func:`_merge_rounds`), each round in
+    fresh worker processes (``executor.renew()``): a slow window of the machine
+    then shifts a part of every row's samples, not all the samples of the rows
+    it happens to meet, and a row's samples come from R process layouts (a
+    process's memory layout holds a solve's speed for its life: hcod read
+    98-213 us on one problem across processes); a row is written after its last
     round (a run stopped in between has not written it: a plain run of the
     same OUT runs it again, unless ``rerun`` left its old row). ``rerun``
     runs finished rows again: each new row replaces its old one, the other
@@ -305,6 +308,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                 alive = list(earlier)  # jobs still to run in the next round
                 with ResultsWriter(out) as writer:
                     for rnd in range(rounds):
+                        if rnd:  # (each round in fresh worker processes: a process's layout holds its speed)
+                            executor.renew()
                         share = (_share(repeat, rounds, rnd), _share(samples, rounds, rnd),
                                  suite.sample_time / rounds)
                         items = ((i, _job(suite, todo[i], problems, *share), timeout) for i in alive)

@@ -240,6 +240,16 @@ class LogSolver(SleepSolver):
         return super().solve(hierarchy)
 
 
+class PidLogSolver(LogSolver):
+    """As LogSolver, each line also naming the process that solved: ``name n pid``."""
+
+    name = "pid-log"
+
+    def _log(self, hierarchy):
+        with open(os.environ["HIKBENCH_TEST_LOG"], "a") as f:
+            f.write(f"{self.name} {hierarchy.n} {os.getpid()}\n")
+
+
 class LogSegfaultSolver(LogSolver):
     """Logs (as LogSolver), then dies with SIGSEGV."""
 

@@ -214,3 +214,38 @@ def test_the_base_shares_the_compiled_kernels_of_the_files_that_are_the_same(tmp
     assert (theirs / "_linalg.py").stat().st_mtime_ns == (mine / "_linalg.py").stat().st_mtime_ns
     if edit == "_kernel.py":
         assert (theirs / "_kernel.py").stat().st_mtime_ns != (mine / "_kernel.py").stat().st_mtime_ns
+
+
+def test_each_paired_round_times_both_sides_in_fresh_worker_processes(tmp_path):
+    """A process's memory layout holds a solve's speed for its whole life (hcod read 98-213
+    us on one problem across processes): every paired round starts a new worker on each
+    side, so two rounds use four processes, and every case gets a time in each round."""
+    from types import SimpleNamespace
+
+    from hikbench.bench.harness.interleave import PairedTimer
+    from hikbench.bench.harness.revisions import working_side
+    from hikbench.bench.suites.problemset import file_stem
+    from hikbench.problems.files import save
+    from hikbench.problems.generators import generate
+
+    problem = "equality/depth=2,n=6,rows=2/seed=0"
+    (tmp_path / "rounds" / "change-1" / "problems").mkdir(parents=True)
+    save(generate("equality", seed=0, depth=2, n=6, rows=2),
+         tmp_path / "rounds" / "change-1" / "problems" / f"{file_stem(problem)}.npz")
+    frame = pd.DataFrame([{"problem": problem, "solver": "nullspace-svd", "settings": "default", "mode": mode,
+                           "options": "{}", "problem_hash": "h", "status": "optimal", "verified": True,
+                           "time_median_s": 1e-5} for mode in ("cold", "warm")])
+    rounds = SimpleNamespace(out=tmp_path, frames={"base": [frame], "change": [frame]})
+    side = working_side(tmp_path)
+    timer = PairedTimer(side, side, rounds, repeat=3)
+    try:
+        timer.run_round()
+        timer.run_round()
+    finally:
+        timer.close()
+    assert timer.done == 2 and len(timer.cases) == 2
+    pids = timer.pids["base"] + timer.pids["change"]
+    assert len(pids) == 4 and len(set(pids)) == 4
+    for name in ("base", "change"):
+        times = pd.concat(timer.frames[name])["time_median_s"]
+        assert len(times) == 4 and (times > 0).all()

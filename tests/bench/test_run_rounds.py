@@ -38,6 +38,22 @@ def test_rounds_interleave_the_jobs_and_pool_their_samples(tmp_path, monkeypatch
     assert session["rounds"] == 2 and session["repeat"] == 5
 
 
+@pytest.mark.parametrize("executor", [[], ["--workers", "1"]], ids=["serial", "dask"])
+def test_each_round_solves_in_fresh_worker_processes(tmp_path, monkeypatch, executor):
+    """A process's memory layout holds a solve's speed for its life: round r of a job runs in
+    another process than round r-1, so a row's samples come from as many layouts as rounds."""
+    log = tmp_path / "solves.log"
+    monkeypatch.setenv("HIKBENCH_TEST_LOG", str(log))
+    suite = write_suite(tmp_path / "s.toml", [spec("PidLogSolver")], grid={"n": [4, 6]}, modes=("cold",), repeat=3)
+    assert _run("--suite", suite, "--out", tmp_path / "out", "--rounds", "3", *executor) == 0
+    lines = [line.split() for line in log.read_text().splitlines()]
+    # per job and round: the first solve, the warm-up and one timed solve; the jobs in suite order
+    pids = [[int(pid) for _, n, pid in lines[r * 6:(r + 1) * 6]] for r in range(3)]
+    assert len(lines) == 3 * 6 and all(len(set(p)) == 1 for p in pids)
+    assert len({p[0] for p in pids}) == 3
+    assert all(row["repeat"] == 3 for _, row in read_results(tmp_path / "out").iterrows())
+
+
 def test_a_crash_ends_the_rounds_of_its_job_only(tmp_path, monkeypatch):
     log = tmp_path / "solves.log"
     monkeypatch.setenv("HIKBENCH_TEST_LOG", str(log))
