@@ -45,7 +45,7 @@ def yardstick_counts(df: pd.DataFrame) -> dict:
     a results.csv without the column)."""
     if "yardstick" not in df.columns:
         return {}
-    kinds = df["yardstick"].fillna("none")
+    kinds = df["yardstick"].astype(object).fillna("none")  # (all empty: read as float NaN)
     return {k: {"problems": int(df.loc[kinds == k, "problem"].nunique()), "rows": int((kinds == k).sum())}
             for k in ("certified", "reference-only", "none")}
 
