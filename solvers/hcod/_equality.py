@@ -44,7 +44,7 @@ from hikbench.solvers.hcod._linalg import (
     reflect_pair,
     reflect_pair4,
     reflect_quad,
-    reflect_quad4,
+    reflect_quad2,
     reflect_rows,
     unowned,
     vdot,
@@ -55,9 +55,9 @@ __all__ = ["eq_solve"]
 
 
 _FM = set(FASTMATH)
-#: the reflectors of a level above are applied four at a time to rows of at least this many
-#: columns (:func:`._linalg.reflect_quad4`: equality n=120 8x12 in `hikbench run`, hcod alone,
-#: alternated with the two-at-a-time loops: 57.4-59.4 -> 47.7-48.8 us), two at a time below:
+#: the reflectors of a level above are applied four at a time (:func:`._linalg.reflect_quad2`) to
+#: rows of at least this many columns (measured on four rows at once: equality n=120 8x12 in
+#: `hikbench run`, hcod alone, alternated with the two-at-a-time loops: 57.4-59.4 -> 47.7-48.8 us), two at a time below:
 #: from 40 columns n=50 5x8 read 12.3-13.3 us against 12.2-12.3, from 16 columns n=36 6x6 7.9
 #: -> 8.9 us in-process (shorter rows lose to the four-way loops' set-up)
 QUAD_MIN = 56
@@ -256,7 +256,7 @@ def eq_solve(A, e, starts, rank_rtol, At, beta, cn, gm, xi, x, lev_p, lev_r, itl
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
 def _apply_quads(At, beta, gm, it0, rj, pj, s0, s1):
     """The reflectors of a level above (rows ``it0:it0+rj`` of At, the first
-    at column pj) applied four at a time (:func:`._linalg.reflect_quad4`) to
+    at column pj) applied four at a time (:func:`._linalg.reflect_quad2`) to
     the rows ``s0:s1`` while at least ``QUAD_MIN`` columns are left. Returns
     (the number applied, multiply-adds). (Not inlined: in eq_solve's body
     these loops cost the short rows of n = 36 7 % whether they ran or not.)"""
@@ -275,10 +275,10 @@ def _apply_quads(At, beta, gm, it0, rj, pj, s0, s1):
         bq = (beta[it], beta[it + 1], beta[it + 2], beta[it + 3])
         gq = (gm[it, 0], gm[it, 1], gm[it, 2], gm[it, 3], gm[it, 4], gm[it, 5])
         i = s0
-        while i + 4 <= s1:
-            reflect_quad4(bq, gq, v1, v2, v3, v4, At[i, c0:], At[i + 1, c0:], At[i + 2, c0:], At[i + 3, c0:])
-            i += 4
-        while i < s1:  # (the rows past a multiple of four: odd level sizes)
+        while i + 2 <= s1:
+            reflect_quad2(bq, gq, v1, v2, v3, v4, At[i, c0:], At[i + 1, c0:])
+            i += 2
+        while i < s1:  # (the last row of an odd level)
             reflect_quad(bq, gq, v1, v2, v3, v4, At[i, c0:])
             i += 1
         fl += 2 * mk * (4 * (n - c0) - 6)

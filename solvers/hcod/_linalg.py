@@ -279,25 +279,22 @@ def reflect_quad(b, g, v1, v2, v3, v4, x):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def reflect_quad4(b, g, v1, v2, v3, v4, x, y, z, w):
-    """:func:`reflect_quad` on four row views together: 16 products per four
-    loads of the reflectors and four of the rows (``reflect_pair4``: 8 per six),
-    and in the update 16 multiply-adds per four stores instead of 8."""
+def reflect_quad2(b, g, v1, v2, v3, v4, x, y):
+    """:func:`reflect_quad` on two row views together: 8 products per four
+    loads of the reflectors and two of the rows, and in the update 8
+    multiply-adds per two stores. (Two rows, not four: four rows' 16 sums,
+    or 16 coefficients, do not fit AVX2's 16 vector registers; LLVM kept 6
+    of them on the stack, a load and a store each per iteration: equality
+    n = 120 8 x 12 took 13 % longer, paired.)"""
     ax1, ax2, ax3 = _quad_head(v1, v2, v3, x)
     ay1, ay2, ay3 = _quad_head(v1, v2, v3, y)
-    az1, az2, az3 = _quad_head(v1, v2, v3, z)
-    aw1, aw2, aw3 = _quad_head(v1, v2, v3, w)
     ax4 = 0.0
     ay4 = 0.0
-    az4 = 0.0
-    aw4 = 0.0
     v1s = v1[3:]
     v2s = v2[2:]
     v3s = v3[1:]
     xs = x[3:]
     ys = y[3:]
-    zs = z[3:]
-    ws = w[3:]
     for c in range(v4.shape[0]):
         e1 = v1s[c]
         e2 = v2s[c]
@@ -305,8 +302,6 @@ def reflect_quad4(b, g, v1, v2, v3, v4, x, y, z, w):
         e4 = v4[c]
         xc = xs[c]
         yc = ys[c]
-        zc = zs[c]
-        wc = ws[c]
         ax1 += e1 * xc
         ax2 += e2 * xc
         ax3 += e3 * xc
@@ -315,22 +310,10 @@ def reflect_quad4(b, g, v1, v2, v3, v4, x, y, z, w):
         ay2 += e2 * yc
         ay3 += e3 * yc
         ay4 += e4 * yc
-        az1 += e1 * zc
-        az2 += e2 * zc
-        az3 += e3 * zc
-        az4 += e4 * zc
-        aw1 += e1 * wc
-        aw2 += e2 * wc
-        aw3 += e3 * wc
-        aw4 += e4 * wc
     sx1, sx2, sx3, sx4 = _quad_coef(b, g, ax1, ax2, ax3, ax4)
     sy1, sy2, sy3, sy4 = _quad_coef(b, g, ay1, ay2, ay3, ay4)
-    sz1, sz2, sz3, sz4 = _quad_coef(b, g, az1, az2, az3, az4)
-    sw1, sw2, sw3, sw4 = _quad_coef(b, g, aw1, aw2, aw3, aw4)
     _quad_tail(v1, v2, v3, x, sx1, sx2, sx3)
     _quad_tail(v1, v2, v3, y, sy1, sy2, sy3)
-    _quad_tail(v1, v2, v3, z, sz1, sz2, sz3)
-    _quad_tail(v1, v2, v3, w, sw1, sw2, sw3)
     for c in range(v4.shape[0]):
         e1 = v1s[c]
         e2 = v2s[c]
@@ -338,8 +321,6 @@ def reflect_quad4(b, g, v1, v2, v3, v4, x, y, z, w):
         e4 = v4[c]
         xs[c] -= sx1 * e1 + sx2 * e2 + sx3 * e3 + sx4 * e4
         ys[c] -= sy1 * e1 + sy2 * e2 + sy3 * e3 + sy4 * e4
-        zs[c] -= sz1 * e1 + sz2 * e2 + sz3 * e3 + sz4 * e4
-        ws[c] -= sw1 * e1 + sw2 * e2 + sw3 * e3 + sw4 * e4
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
@@ -428,7 +409,7 @@ __all__ = [
     "reflect_pair",
     "reflect_pair4",
     "reflect_quad",
-    "reflect_quad4",
+    "reflect_quad2",
     "reflect_rows",
     "row_dot",
     "solve_lower",

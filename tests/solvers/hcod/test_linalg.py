@@ -267,11 +267,11 @@ def _level_reflectors(L: int, seed: int):
 
 
 @pytest.mark.parametrize("L", [4, 5, 11, 40, 97], ids=lambda L: f"L{L}")
-@pytest.mark.parametrize("rows", [1, 4], ids=lambda r: f"{r}-rows")
+@pytest.mark.parametrize("rows", [1, 2], ids=lambda r: f"{r}-rows")
 def test_four_reflectors_at_once_equal_four_in_turn(L, rows):
-    """reflect_quad / reflect_quad4 give H4 H3 H2 H1 x of each row, with the
+    """reflect_quad / reflect_quad2 give H4 H3 H2 H1 x of each row, with the
     coupling products of quad_gram (the products of the reflectors' tails)."""
-    from hikbench.solvers.hcod._linalg import quad_gram, reflect_quad, reflect_quad4
+    from hikbench.solvers.hcod._linalg import quad_gram, reflect_quad, reflect_quad2
 
     V, b = _level_reflectors(L, seed=L * rows)
     X = np.random.default_rng(rows).standard_normal((rows, L))
@@ -283,7 +283,7 @@ def test_four_reflectors_at_once_equal_four_in_turn(L, rows):
     np.testing.assert_allclose(g, [V[1] @ V[0], V[2] @ V[0], V[2] @ V[1], V[3] @ V[0], V[3] @ V[1], V[3] @ V[2]],
                                rtol=1e-13, atol=1e-13)
     Y = X.copy()
-    fn = {1: reflect_quad, 4: reflect_quad4}[rows]
+    fn = {1: reflect_quad, 2: reflect_quad2}[rows]
     fn(tuple(b), g, *views, *Y)
     np.testing.assert_allclose(Y, expected, rtol=0, atol=ATOL)
 
