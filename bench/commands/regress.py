@@ -134,7 +134,8 @@ def run(args) -> int:
     text = markdown(dec, head)
     meta = {"base": {"revision": args.base, "label": base.label}, "change": {"label": change.label},
             "suite": args.suite, "rounds": timer.done,
-            "worker_processes": {name: len(set(pids)) for name, pids in timer.pids.items()}, "wall_s": wall, "paired_s": time.perf_counter() - t_rounds,
+            "worker_processes": {name: len(set(pids)) for name, pids in timer.pids.items()},
+            "cpus": sorted(set(timer.cpus)), "wall_s": wall, "paired_s": time.perf_counter() - t_rounds,
             "run_seconds": rounds.seconds, "exit": 1 if dec.failed else 0}
     (out / "regress.md").write_text(text)
     to_json(dec, meta, out / "regress.json")

@@ -7,11 +7,12 @@
   by the problem's content and the yardstick code's version, so a side whose
   yardstick code differs computes its own): about 10 s less on the ``ci`` suite;
 * :class:`PairedTimer`: every case timed on both sides back to back, job by job,
-  in persistent workers, round after round: the times the decision compares.
+  in fresh workers each round, both on one CPU: the times the decision compares.
 """
 
 from __future__ import annotations
 
+import os
 import shutil
 import subprocess
 import time
@@ -78,21 +79,23 @@ class Rounds:
 
 class PairedTimer:
     """Times every case of a finished round on both sides **alternately, job by job**:
-    one persistent isolated worker per side (the base's runs the base's code: its
+    an isolated worker per side (the base's runs the base's code: its
     install first on PYTHONPATH), and for each case a job on one side then at once
     the same job on the other, the order alternating. The machine's speed drifts
     within a second on a shared VM (hcod's 12 us solve read 5.7-12.8 us in blocks
     0.2 s apart in one process): measured milliseconds apart, both sides of a pair see
     the same speed, and the ratio of the pair cancels it.
 
-    **Each round starts a fresh worker on each side.** A process's memory layout (ASLR
-    places its stack, heap and thread arenas anew) holds a solve's speed for the life of
-    the process: hcod's median on one n=120 equality problem read 98-213 us in twelve
-    processes of the same code, and one persistent pair of workers put the two sides of
-    an A/A gate 1.5x apart in all 20 rounds. With a fresh pair each round, the layout is
-    one more round-to-round variation, inside the paired rounds' interval. The two
-    workers start and load each solver (hcod's kernels: about 1 s) at the same time,
-    one per core, before the round's timed jobs.
+    **Both sides of a pair run on one CPU, and each round starts fresh workers.**
+    On a VM, one vCPU can run 1.5x slower than the other for minutes (its
+    physical core shared with work outside the VM: throughput-bound loops slow
+    down, a latency-bound chain does not): two persistent workers, one per vCPU,
+    once put the sides of an A/A gate 1.5x apart on hcod's n=120 case in all 20
+    rounds. So after the two fresh workers have loaded their solvers at once,
+    one per core, both are pinned to the same CPU for the round's timed jobs,
+    the CPU taking turns from round to round (``cpus``); whatever a process
+    keeps for its life (its memory layout, where its compiled code lies) is a
+    round-to-round variation, inside the paired rounds' interval.
 
     Only registry solvers are timed (a case's ``solver`` column names them); the
     problems are the change's round-1 files (``OUT/rounds/change-1/problems``)."""
@@ -109,6 +112,7 @@ class PairedTimer:
         self.cases, self.skipped = self._cases(rounds.out / "rounds" / "change-1")
         self.frames: dict[str, list[pd.DataFrame]] = {"base": [], "change": []}
         self.pids: dict[str, list[int]] = {"base": [], "change": []}  # (each round's worker, per side)
+        self.cpus: list[int] = []  # (the CPU of each round's timed jobs, both sides)
         self.done = 0
 
     def _cases(self, run_dir: Path):
@@ -158,8 +162,8 @@ class PairedTimer:
         self.done += 1
 
     def _fresh_workers(self) -> None:
-        """Both sides' workers restarted at once, each running one untimed solve of every
-        solver of the cases (its first case): the loading is done before the timed jobs."""
+        """Both sides' workers restarted and loaded at once (one untimed solve of every
+        solver of the cases, its first case), then both pinned to this round's CPU."""
         from concurrent.futures import ThreadPoolExecutor
 
         firsts = {}
@@ -176,6 +180,13 @@ class PairedTimer:
         with ThreadPoolExecutor(max_workers=2) as pool:
             for done in [pool.submit(prime, name) for name in self.workers]:
                 done.result()
+        if not hasattr(os, "sched_setaffinity"):  # (macOS: the scheduler places them; `cpus` stays empty)
+            return
+        allowed = sorted(os.sched_getaffinity(0))
+        cpu = allowed[self.done % len(allowed)]
+        for worker in self.workers.values():
+            os.sched_setaffinity(worker.proc.pid, {cpu})
+        self.cpus.append(cpu)
 
     def _samples(self, name: str, key: tuple, job: dict) -> list:
         """The samples (ns) of ``job`` on side ``name``; a RevisionError when it times out or crashes."""

@@ -215,9 +215,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
     running every job of the run once (:func:`_merge_rounds`), each round in
     fresh worker processes (``executor.renew()``): a slow window of the machine
     then shifts a part of every row's samples, not all the samples of the rows
-    it happens to meet, and a row's samples come from R process layouts (a
-    process's memory layout holds a solve's speed for its life: hcod read
-    98-213 us on one problem across processes); a row is written after its last
+    it happens to meet, and a row's samples come from R processes (whatever a
+    process keeps for its life, such as the vCPU it settled on, varies); a row is written after its last
     round (a run stopped in between has not written it: a plain run of the
     same OUT runs it again, unless ``rerun`` left its old row). ``rerun``
     runs finished rows again: each new row replaces its old one, the other
