@@ -163,16 +163,13 @@ class PairedTimer:
 
     def _fresh_workers(self) -> None:
         """Both sides' workers restarted and loaded at once (one untimed solve of every
-        solver of the cases, its first case), then both pinned to this round's CPU."""
+        case: hcod loads its equality and its inequality kernel), then both pinned to
+        this round's CPU."""
         from concurrent.futures import ThreadPoolExecutor
 
-        firsts = {}
-        for key, job in self.cases:
-            firsts.setdefault(job["solver"], (key, {**job, "repeat": 1, "warmup": 0}))
-
         def prime(name):
-            for key, job in firsts.values():
-                self._samples(name, key, job)
+            for key, job in self.cases:
+                self._samples(name, key, {**job, "repeat": 1, "warmup": 0})
 
         for name, worker in self.workers.items():  # (here: a child dies with the thread that started it)
             worker.start()
