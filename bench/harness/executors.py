@@ -66,7 +66,7 @@ class SerialExecutor:
             yield tag, run_job(self.worker, job, timeout)
 
     def renew(self) -> None:
-        """The next job starts a fresh worker process: a new memory layout (see
+        """The next job starts a fresh worker process (see
         :func:`hikbench.bench.harness.runner.run_suite`'s rounds)."""
         self.worker.close()
 

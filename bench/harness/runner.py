@@ -307,7 +307,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                 alive = list(earlier)  # jobs still to run in the next round
                 with ResultsWriter(out) as writer:
                     for rnd in range(rounds):
-                        if rnd:  # (each round in fresh worker processes: a process's layout holds its speed)
+                        if rnd:  # (each round in fresh worker processes: see the docstring)
                             executor.renew()
                         share = (_share(repeat, rounds, rnd), _share(samples, rounds, rnd),
                                  suite.sample_time / rounds)
