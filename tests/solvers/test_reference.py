@@ -30,6 +30,7 @@
    activity, no polishing; exponential, so only tiny problems (n <= 3).
 """
 
+import re
 from itertools import combinations
 from pathlib import Path
 
@@ -258,15 +259,17 @@ def test_a_stage_no_backend_solves_is_descended_to_from_the_level_above(case, mo
 
 
 def test_a_widened_point_that_fails_the_kkt_check_is_no_reference(monkeypatch):
+    """Every widened QP point refused by the KKT check leaves the stage without a reference. Which
+    backend solves a widened stage first (clarabel, its default tolerances, piqp) depends on the CPU's
+    rounding; the outcome does not: one widened point at least was found and refused."""
     from hikbench.solvers import yardstick
 
     monkeypatch.setattr(yardstick, "_kkt_certified", lambda *args, **kwargs: False)
-    with pytest.raises(yardstick.YardstickError, match=r"^(level [34]|the minimum-norm stage): no QP backend .*; "
-                                                       r"bounds widened by 1e-09: "
-                                                       r"clarabel solved it, but its point could not be polished "
-                                                       r"onto the exact bounds and certified optimal there \(KKT "
-                                                       r"check\); bounds widened by 1e-07: "):
+    with pytest.raises(yardstick.YardstickError,
+                       match=r"^(level [34]|the minimum-norm stage): no QP backend ") as err:
         cascade_yardstick(_no_interior())
+    assert re.search(r"bounds widened by 1e-0[79]: [\w.-]+ solved it, but its point could not be polished onto "
+                     r"the exact bounds and certified optimal there \(KKT check\)", str(err.value)), str(err.value)
 
 
 @pytest.mark.parametrize(("x", "rows", "lo", "up", "optimal"), [
