@@ -28,6 +28,8 @@ options onto each backend's own parameter names through these tables only:
   (quadprog, DAQP need that; it also picks a small-norm x among the optimal
   set); its effect on the optimal slack is of order ``eps * ||x||^2``, below
   the ``high`` tolerance.
+* :data:`DEFAULT_FREEZE` — the default freeze mode of a backend where it is
+  not ``shift`` (daqp, quadprog: ``relaxed``).
 * :data:`INSTALL` — pip hints for backends that are not installed.
 """
 
@@ -93,6 +95,15 @@ SPARSE: dict[str, bool] = {
 }
 
 REGULARIZATION: dict[str, float] = {b: 1e-12 for b in BACKENDS}
+
+#: the freeze mode of the levels above where it is not ``"shift"`` (docs/solvers.md, "Fair settings").
+#: Shifted frozen rows can leave a level a feasible set of zero width: a point where more frozen
+#: rows are active than there are variables (a level's equalities pinned at their achieved value,
+#: met by joint bounds from both sides), which round-off makes empty. Dual active-set methods
+#: (Goldfarb-Idnani: quadprog; DAQP) then find no solution; widened by ``relax_delta`` (the
+#: profile's nominal tolerance) the set keeps an interior. quadprog failed every problem of a
+#: 7-joint arm stack with ``shift`` and ``equality`` and solved all with ``relaxed``.
+DEFAULT_FREEZE: dict[str, str] = {"daqp": "relaxed", "quadprog": "relaxed"}
 
 INSTALL: dict[str, str] = {
     "osqp": "pip install osqp", "proxqp": "pip install proxsuite", "clarabel": "pip install clarabel",
