@@ -30,7 +30,8 @@ its optimum).
 
 Statuses from DAQP's exit flag: 1, 2 (optimal; 2: some soft slack nonzero)
 -> ``optimal``; 3 (a level's LDP failed: x is the point before it) and -1 ->
-``infeasible_level``; -4 -> ``max_iterations``; -8 -> ``unsupported``; the
+``infeasible_level`` (3 with the iterations at ``iter_limit``: ``max_iterations``,
+DAQP's hierarchical loop turns a level's -4 into 3); -4 -> ``max_iterations``; -8 -> ``unsupported``; the
 others (-2 cycling, -3 unbounded, -5 nonconvex, -6 overdetermined initial
 working set, -7 time limit) -> ``numerical_failure``; x None where DAQP
 produced none. ``warm_start="time"`` passes the last call's multipliers
@@ -39,7 +40,8 @@ the rows whose multiplier is nonzero) when the problem has the same shape
 and kinds of rows; ``"none"`` starts every call cold. (Its ``primal_start``,
 the last x, took more iterations than a cold start on 4 of 9 random and
 ik-like problems, ``dual_start`` fewer or as many on all 9.)
-Free rows and rowless levels are not passed (they constrain nothing).
+Free rows, zero rows (DAQP reports ``0 <= -1`` infeasible, exit -1; its
+violation does not depend on x) and rowless levels are not passed.
 """
 
 from __future__ import annotations
@@ -88,6 +90,7 @@ EXIT_STATUS: dict[int, tuple[str, str]] = {
 }
 _EQUALITY, _INEQUALITY = 5, 0  # DAQP's sense: immutable (equality), plain inequality
 _INF = 1e30  # DAQP's infinity
+DAQP_ITER_LIMIT = 10000  # DAQP's default iter_limit
 
 
 class DaqpHqp(Solver):
@@ -138,7 +141,7 @@ class DaqpHqp(Solver):
         self.check_hierarchy(hierarchy)
         h = hierarchy
         t0 = time.perf_counter()
-        keep = ~h.is_free
+        keep = ~h.is_free & np.any(h.A != 0.0, axis=1)  # (a zero row's violation does not depend on x)
         A = np.ascontiguousarray(h.A[keep])
         lower, upper = h.lower[keep], h.upper[keep]
         counts = np.bincount(h.level[keep], minlength=h.depth)
@@ -156,6 +159,9 @@ class DaqpHqp(Solver):
                                           dual_start=start, **self.settings)
         t2 = time.perf_counter()
         status, meaning = EXIT_STATUS.get(int(exitflag), (NUMERICAL_FAILURE, "unknown exit flag"))
+        cap = self.settings.get("iter_limit", DAQP_ITER_LIMIT)
+        if exitflag == 3 and info["iterations"] >= cap:  # (DAQP reports its level's -4 as 3)
+            status, meaning = MAX_ITERATIONS, f"a level stopped at the iteration limit, {cap}"
         usable = status in (OPTIMAL, INFEASIBLE_LEVEL, MAX_ITERATIONS)  # (DAQP wrote x)
         x = np.array(x, dtype=float) if usable else None
         reason = "" if status == OPTIMAL else f"{self.name}: DAQP exit {int(exitflag)} ({meaning})"
