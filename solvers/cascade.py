@@ -8,7 +8,7 @@ x (n,), w_k (m_k,) (one slack per non-free row of level k):
                   frozen rows of the levels j < k            (eq. (35))
 
 ``eps`` is a tiny regularisation (option ``regularization``, default
-:data:`hikbench.solvers._qp_backends.REGULARIZATION`, 1e-12): it makes the Hessian
+:data:`hikbench.solvers._qp_backends.REGULARIZATION`, 1e-12, quadprog 1e-10): it makes the Hessian
 positive definite for backends that need it; its effect on the optimal slack
 is of order ``eps ||x||^2``. It does not make x the minimum-norm solution:
 at 1e-12 it is below the backends' tolerances (measured: verified
@@ -19,8 +19,9 @@ levels leave 19 free directions). The ``x_norm`` column shows it.
 After level k is solved, its achieved slack is recomputed from x,
 ``w_k* = A_k x - clip(A_k x, lower_k, upper_k)`` (so x is feasible for the
 frozen rows by construction), and the level is frozen for the levels below
-by one of three modes (option ``freeze``; default ``"shift"``, ``"relaxed"`` for the
-dual active-set backends daqp and quadprog: :data:`hikbench.solvers._qp_backends.DEFAULT_FREEZE`):
+by one of three modes (option ``freeze``; default ``"shift"``; for the dual active-set
+backends daqp ``"equality"`` and quadprog ``"relaxed"``:
+:data:`hikbench.solvers._qp_backends.DEFAULT_FREEZE`):
 
 * ``"shift"`` (Kanoun): ``lower_k + w_k* <= A_k x <= upper_k + w_k*``;
 * ``"equality"``: rows with ``|w_k*| > slack_tol`` become equalities at their
