@@ -38,7 +38,7 @@ produced none. ``warm_start="time"`` passes the last call's multipliers
 (DAQP's ``info["lam"]``) as its ``dual_start`` (the initial working set:
 the rows whose multiplier is nonzero) when the problem has the same shape
 and kinds of rows; ``"none"`` starts every call cold. (Its ``primal_start``,
-the last x, took more iterations than a cold start on 4 of 9 random and
+the last x, took more iterations than a cold start on 8 of 9 random and
 ik-like problems, ``dual_start`` fewer or as many on all 9.)
 Free rows, zero rows (DAQP reports ``0 <= -1`` infeasible, exit -1; its
 violation does not depend on x) and rowless levels are not passed.
