@@ -48,3 +48,21 @@ def test_the_same_x_claimed_on_the_rows_as_given_is_worse_where_levels_conflict(
     assert row["status"] == "optimal" and row["verified"] == False  # noqa: E712
     assert row["verdict_side"] == "worse" and row["verdict_level"] >= 1
     assert not row["yardstick_reason"].startswith("judged on")
+
+
+@pytest.mark.parametrize("options, judged_on, optimal", [([], "row-normalised", True),
+                                                         (["--option", "normalised=false"], "rows", False)],
+                         ids=["row-normalised", "as-given"])
+def test_solve_certifies_x_on_the_hierarchy_the_solver_claims(tmp_path, capsys, options, judged_on, optimal):
+    from hikbench.problems.files import save_npz
+    from hikbench.problems.hierarchy import Hierarchy, Level
+
+    # level 1: x_1 = 0.5 and 10 x_1 = 0 conflict, their rows' norms 1 and 10
+    h = Hierarchy.from_levels([Level(np.eye(2), -np.ones(2), np.ones(2)),
+                               Level.equality(np.array([[1.0, 0.0], [10.0, 0.0]]), [0.5, 0.0]),
+                               Level.equality(np.eye(2), [0.0, 0.3])])
+    save_npz(h, tmp_path / "c.npz")
+    assert main(["solve", str(tmp_path / "c.npz"), "--solver", "daqp-hqp", "--certify", "--json", *options]) == 0
+    cert = json.loads(capsys.readouterr().out)["certificate"]
+    assert cert["certified"] and cert["judged_on"] == judged_on
+    assert cert["x_is_optimal"] is optimal
