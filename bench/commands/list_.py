@@ -29,10 +29,8 @@ def _solvers():
         # the claim first: strict (the lexicographic optimum, judged by verified) or non-strict,
         # and the hierarchy of a strict claim other than the rows as given (daqp-hqp's)
         judged_on = info.judged_on(info.options) if info.judged_on else "rows"
-        claim = "strict" if info.strict else "non-strict"
-        if judged_on != "rows":
-            claim += f" on {judged_on} levels"
-        caps = ", ".join(c for c, on in ((claim, True),
+        caps = ", ".join(c for c, on in (("strict" if info.strict else "non-strict", True),
+                                          (f"{judged_on} levels", judged_on != "rows"),
                                           ("inequalities", info.supports_inequalities),
                                           ("warm start", info.supports_warm_start)) if on)
         rows.append((name, f"{info.description} [{caps}]"))
