@@ -66,3 +66,20 @@ def test_solve_certifies_x_on_the_hierarchy_the_solver_claims(tmp_path, capsys, 
     cert = json.loads(capsys.readouterr().out)["certificate"]
     assert cert["certified"] and cert["judged_on"] == judged_on
     assert cert["x_is_optimal"] is optimal
+
+
+def test_a_class_claiming_an_unknown_hierarchy_is_refused_naming_it(tmp_path, capsys):
+    (tmp_path / "mine.py").write_text(
+        "import numpy as np\n"
+        "from hikbench.solvers.base import OPTIMAL, Solver, SolveResult\n"
+        "class Mine(Solver):\n"
+        "    name = 'mine'\n"
+        "    judged_on = 'columns'\n"
+        "    def solve(self, h):\n"
+        "        return SolveResult(np.zeros(h.n), OPTIMAL)\n")
+    suite = {"repeat": 1, "modes": ["cold"], "solvers": [f"{tmp_path / 'mine.py'}:Mine"],
+             "problems": [{"family": "random", "params": PARAMS, "seeds": [0]}]}
+    (tmp_path / "s.toml").write_bytes(tomli_w.dumps(suite).encode())
+    assert main(["run", "--quiet", "--suite", str(tmp_path / "s.toml"), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert "judged_on = 'columns': expected 'rows' or 'row-normalised'" in err
