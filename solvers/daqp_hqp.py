@@ -65,7 +65,7 @@ from hikbench.solvers.base import (
 )
 from hikbench.solvers.registry import SolverInfo, check_bool, check_choice, check_int, check_number
 
-__all__ = ["ACCURACY", "EXIT_STATUS", "SOLVERS", "DaqpHqp"]
+__all__ = ["ACCURACY", "EXIT_STATUS", "SOLVERS", "DaqpHqp", "exit_status"]
 
 WARM_STARTS = ("none", "time")
 #: accuracy profile -> DAQP settings; "default" passes DAQP's own (rho_soft = primal_tol = 1e-6)
@@ -91,6 +91,15 @@ EXIT_STATUS: dict[int, tuple[str, str]] = {
 _EQUALITY, _INEQUALITY = 5, 0  # DAQP's sense: immutable (equality), plain inequality
 _INF = 1e30  # DAQP's infinity
 DAQP_ITER_LIMIT = 10000  # DAQP's default iter_limit
+
+
+def exit_status(exitflag: int, iterations: int, iter_limit: int) -> tuple[str, str]:
+    """hikbench's status of DAQP's ``exitflag`` and what it means (:data:`EXIT_STATUS`; an
+    unknown flag is a numerical failure). DAQP's hierarchical loop reports a level stopped
+    by ``iter_limit`` (its -4) as 3: with ``iterations >= iter_limit`` that is ``max_iterations``."""
+    if exitflag == 3 and iterations >= iter_limit:
+        return MAX_ITERATIONS, f"a level stopped at the iteration limit, {iter_limit}"
+    return EXIT_STATUS.get(exitflag, (NUMERICAL_FAILURE, "unknown exit flag"))
 
 
 class DaqpHqp(Solver):
@@ -158,10 +167,8 @@ class DaqpHqp(Solver):
         x, _, exitflag, info = daqp.solve(H, np.zeros(h.n), A, bu, bl, sense, break_points=bp,
                                           dual_start=start, **self.settings)
         t2 = time.perf_counter()
-        status, meaning = EXIT_STATUS.get(int(exitflag), (NUMERICAL_FAILURE, "unknown exit flag"))
-        cap = self.settings.get("iter_limit", DAQP_ITER_LIMIT)
-        if exitflag == 3 and info["iterations"] >= cap:  # (DAQP reports its level's -4 as 3)
-            status, meaning = MAX_ITERATIONS, f"a level stopped at the iteration limit, {cap}"
+        status, meaning = exit_status(int(exitflag), int(info["iterations"]),
+                                      self.settings.get("iter_limit", DAQP_ITER_LIMIT))
         usable = status in (OPTIMAL, INFEASIBLE_LEVEL, MAX_ITERATIONS)  # (DAQP wrote x)
         x = np.array(x, dtype=float) if usable else None
         reason = "" if status == OPTIMAL else f"{self.name}: DAQP exit {int(exitflag)} ({meaning})"
