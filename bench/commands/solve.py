@@ -194,6 +194,12 @@ def run(args) -> int:
     h = load(args.file)
     options = parse_options(args.option)
     info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
+    # the hierarchy the solver claims its levels are (a row-normalised claim: certified on that one)
+    judged_on = (info.judged_on(registry.check_buildable(info, **options)) if info.judged_on
+                 else getattr(info.factory, "judged_on", "rows"))  # (module:Class: its class attribute)
+    if judged_on not in ("rows", "row-normalised"):
+        raise HikbenchError(f"solver {args.solver!r} has judged_on = {judged_on!r}: expected 'rows' or "
+                            f"'row-normalised' (the hierarchy its levels are: hikbench.solvers.base.Solver.judged_on)")
     kind, answer = _contained(lambda: _solve(args, h, info, options))
     if kind != "done":  # the solver raised (error) or its process died (crashed)
         status = ERROR if kind == "error" else CRASHED
@@ -219,8 +225,6 @@ def run(args) -> int:
         "time_s": {"median": timing.median_s, "min": timing.min_s},
     }
     cert = None
-    # the hierarchy the solver claims its levels are (a row-normalised claim: certified on that one)
-    judged_on = info.judged_on(registry.check_buildable(info, **options)) if info.judged_on else "rows"
     hc = row_normalised(h) if judged_on == "row-normalised" else h
     if args.certify and res.x is not None and all(map(math.isfinite, res.x)):
         from hikbench.problems.exact import certify
