@@ -38,6 +38,7 @@ _BUILTIN_MODULES: tuple[str, ...] = (
     "hikbench.solvers.nullspace",
     "hikbench.solvers.damped",
     "hikbench.solvers.peers",
+    "hikbench.solvers.daqp_hqp",
 )
 _OWN_PACKAGES = ("hikbench",)
 #: other names of registered solvers: ``reference`` is the yardstick's earlier name
@@ -62,6 +63,10 @@ class SolverInfo:
         lexicographic optimum); False for weighted / damped IK.
     options : dict
         Default options, shown by ``hikbench list solvers``.
+    judged_on : callable or None
+        ``judged_on(options) -> "rows" | "row-normalised"``: the hierarchy a
+        solver built with ``options`` (defaults included) claims to solve
+        (:attr:`hikbench.solvers.base.Solver.judged_on`); None: ``"rows"``.
     """
 
     name: str
@@ -71,6 +76,7 @@ class SolverInfo:
     supports_warm_start: bool = False
     strict: bool = True
     options: dict = field(default_factory=dict)
+    judged_on: Callable[[dict], str] | None = None
 
 
 _registry: dict[str, SolverInfo] | None = None

@@ -17,6 +17,7 @@ from hikbench.bench.harness.statuses import CRASHED
 from hikbench.bench.harness.worker import solver_info
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import load
+from hikbench.problems.hierarchy import row_normalised
 from hikbench.problems.verify import level_norms, verify
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR
@@ -36,7 +37,8 @@ def add_arguments(p) -> None:
                    help="solver option (repeatable); VALUE is parsed as JSON when it can be")
     p.add_argument("--certify", action="store_true",
                    help="also certify x in 50-digit arithmetic: the exact optimum on the active set read off x, "
-                        "and its level norms (hikbench.problems.exact; ~0.1 s at n = 5, ~3 s at n = 20)")
+                        "and its level norms (hikbench.problems.exact; ~0.1 s at n = 5, ~3 s at n = 20); for a "
+                        "solver claiming row-normalised levels (daqp-hqp), of the row-normalised hierarchy")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -192,6 +194,12 @@ def run(args) -> int:
     h = load(args.file)
     options = parse_options(args.option)
     info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
+    # the hierarchy the solver claims its levels are (a row-normalised claim: certified on that one)
+    judged_on = (info.judged_on(registry.check_buildable(info, **options)) if info.judged_on
+                 else getattr(info.factory, "judged_on", "rows"))  # (module:Class: its class attribute)
+    if judged_on not in ("rows", "row-normalised"):
+        raise HikbenchError(f"solver {args.solver!r} has judged_on = {judged_on!r}: expected 'rows' or "
+                            f"'row-normalised' (the hierarchy its levels are: hikbench.solvers.base.Solver.judged_on)")
     kind, answer = _contained(lambda: _solve(args, h, info, options))
     if kind != "done":  # the solver raised (error) or its process died (crashed)
         status = ERROR if kind == "error" else CRASHED
@@ -217,13 +225,14 @@ def run(args) -> int:
         "time_s": {"median": timing.median_s, "min": timing.min_s},
     }
     cert = None
+    hc = row_normalised(h) if judged_on == "row-normalised" else h
     if args.certify and res.x is not None and all(map(math.isfinite, res.x)):
         from hikbench.problems.exact import certify
 
-        cert = certify(h, res.x)
-    attains = None if cert is None or not cert.certified else verify(h, res.x, cert.x)
+        cert = certify(hc, res.x)
+    attains = None if cert is None or not cert.certified else verify(hc, res.x, cert.x)
     if args.certify:
-        out["certificate"] = None if cert is None else {
+        out["certificate"] = None if cert is None else {"judged_on": judged_on,
             "certified": cert.certified, "reason": cert.reason,
             "level_norms": [_finite_or_none(float(v)) for v in cert.level_norms],
             # whether x itself reaches the certified optimum's level norms (verify, rtol 1e-9): the
@@ -241,7 +250,9 @@ def run(args) -> int:
         print(f"time        median {timing.median_s * 1e6:.1f} us, min {timing.min_s * 1e6:.1f} us "
               f"over {args.repeat} {'warm' if args.warm else 'cold'} solve(s)")
         if args.certify:
-            print("certificate " + ("none: no finite x" if cert is None else
+            print("certificate " + ("" if judged_on == "rows" else f"(of the {judged_on} hierarchy, the solver's "
+                                                                     f"claim) ")
+                  + ("none: no finite x" if cert is None else
                                     f"exact optimum, level norms {cert.level_norms.tolist()}" if cert.certified
                                     else f"refused: {cert.reason}"))
             if attains is not None:

@@ -250,7 +250,6 @@ KNOWN_BIG: dict[tuple[str, str, str], str] = {
     ("cascade-quadprog", "equality", "ik-like-20"): "infeasible_level",
     ("cascade-quadprog", "equality", "ik-like-40"): "infeasible_level",
     ("cascade-quadprog", "equality", "equality-36x8x6"): "infeasible_level",
-    ("cascade-quadprog", "relaxed", "ik-like-20"): "infeasible_level",
     ("cascade-piqp", "relaxed", "ik-like-40"): "max_iterations",
     ("cascade-highs", "equality", "ik-like-40"): "differs",
     ("cascade-highs", "equality", "random-20"): "differs",

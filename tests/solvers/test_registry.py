@@ -103,7 +103,7 @@ def test_x_finite_is_the_callers_word_and_not_a_field():
 # every solver of the project, listed without importing a backend (registry.available() at
 # collection would import them all for any -k run)
 _ALL = ("hcod", "yardstick", "cascade-cvxpy", *(f"cascade-{b}" for b in tables.BACKENDS), "nullspace-svd",
-        "nullspace-cod", "pinv-all", "weighted", "dls", "dls-liegeois")
+        "nullspace-cod", "pinv-all", "weighted", "dls", "dls-liegeois", "daqp-hqp")
 
 
 def test_every_solver_of_the_project_is_installed():
