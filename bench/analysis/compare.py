@@ -63,7 +63,7 @@ from hikbench.bench.harness.results import RESULTS, read_results
 from hikbench.problems.errors import HikbenchError
 
 __all__ = ["FAILING", "Comparison", "NoBaseline", "baseline_for", "compare_runs", "confirmed", "machine_class_of",
-           "normalised_samples"]
+           "normalised_samples", "why_not_verified"]
 
 FAILING = ("SLOWER", "NEWLY FAILING", "MISSING")  #: the verdicts that make compare exit 1
 _COLUMNS = [*KEY, "base_status", "new_status", "base_verified", "new_verified", "base_median_s", "new_median_s",
@@ -132,17 +132,23 @@ def _true(v) -> bool:
     return isinstance(v, (bool, np.bool_)) and bool(v)
 
 
-def _why(row) -> str:
-    """What a failing row of RUN says: its status and reason, or its verdict against the yardstick."""
-    status = row.get("status")
+def why_not_verified(row) -> str:
+    """What a row that is not verified says: its status and reason, or, an ``optimal`` row
+    judged against the yardstick, its verdict with the level and the amount
+    (``verdict_level``, ``verdict_diff``): ``optimal: worse than the yardstick at level 2 by
+    0.0123``. ``row``: a mapping of results.csv's columns (a pandas row or a dict)."""
+    status = str(row.get("status"))
     reason = row.get("reason")
-    reason = reason if isinstance(reason, str) else ""
-    if status != "optimal" or not isinstance(row.get("verdict_side"), str):
-        return f"{status}: {reason}" if reason else str(status)
-    lvl = row.get("verdict_level")
-    lvl = f" at level {int(lvl)}" if pd.notna(lvl) else ""
-    return f"{row['verdict_side']}{lvl} than the reference" if row["verdict_side"] in ("worse", "better") \
-        else str(row["verdict_side"])
+    reason = reason if isinstance(reason, str) and reason else ""
+    side = row.get("verdict_side")
+    if status != "optimal" or not isinstance(side, str) or not side:
+        return f"{status}: {reason}" if reason else status
+    if side in ("worse", "better"):
+        lvl, diff = row.get("verdict_level"), row.get("verdict_diff")
+        side += " than the yardstick"
+        side += f" at level {int(lvl)}" if pd.notna(lvl) else ""
+        side += f" by {abs(float(diff)):.3g}" if diff is not None and pd.notna(diff) else ""
+    return f"{status}: {side}" + (f" ({reason})" if reason else "")
 
 
 def _notes(base_meta: dict, new_meta: dict, new_rows: int, names) -> list[str]:
@@ -200,7 +206,7 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
             why = f"not verified: no certified yardstick ({n.get('yardstick_reason', '')})"
         if _true(b["verified"]) and not _true(n["verified"]) and not unjudged:
             verdict = "NEWLY FAILING"
-            why = _why(n)
+            why = why_not_verified(n)
         elif np.isfinite(ratio) and ratio > threshold and ratio_min > threshold:
             # past the threshold both ways but not significant: too few or too spread samples to
             # tell (docs/ci-timing.md, "What the check can see"); shown, not failed

@@ -96,12 +96,14 @@ def test_solve_soth_file(capsys, problem, tmp_path):
 @pytest.mark.parametrize("argv, fragments", [
     (["solve", "{missing}"], ["hikbench solve: error:", "no such file"]),
     (["solve", "{path}", "--solver", "nope"], ["unknown solver 'nope'", "found solvers:"]),
+    (["solve", "{path}", "--solver", "hcdo"], ["unknown solver 'hcdo'; did you mean 'hcod'? (found solvers:"]),
     (["solve", "{path}", "--option", "tol=1"], ["unknown option(s) 'tol'"]),
     (["solve", "{path}", "--option", "novalue"], ["--option 'novalue': expected KEY=VALUE"]),
     (["solve", "{path}", "--repeat", "0"], ["--repeat must be >= 1; got 0"]),
     (["solve", "{garbage}"], ["g.npz: not a valid .npz file"]),
     (["solve", "{badsoth}"], ["line 1: expected 'size', got 'sizes'"]),
-], ids=["missing file", "unknown solver", "unknown option", "option syntax", "repeat", "bad npz", "bad soth"])
+], ids=["missing file", "unknown solver", "misspelt solver", "unknown option", "option syntax", "repeat", "bad npz",
+        "bad soth"])
 def test_solve_user_errors(capsys, problem, tmp_path, argv, fragments):
     (tmp_path / "g.npz").write_bytes(b"garbage")
     (tmp_path / "b.soth").write_text("variable sizes 2")
