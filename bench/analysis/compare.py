@@ -5,16 +5,29 @@ timing samples are divided by a calibration kernel time (bench/harness/calibrati
 the row's own ``calib_ns`` when the suite timed the kernel around every job
 (``calibrate_each_job``, the ``ci`` suite: tracks load that comes and goes
 during the run), else the median ``calib_ns`` of the rows of the same host.
-So runs of different machines or of a loaded CI runner compare as ratios. A case is a **slowdown** when
+So runs of different machines or of a loaded CI runner compare as ratios.
+
+The calibration is itself a measurement: two runs of the same code on one
+machine read it at 2.78 and 3.55 ms, and at the point estimate every case
+looked 0.78x (one row "faster 0.78 ... 281.8 -> 280.0 us"). So its spread is
+used: the ratio k of the runs' calibrations lies between the lowest and the
+highest ratio of their readings (:func:`calibration_readings`: one per worker
+process, or per job, and run.json's at the start and end of each session;
+:class:`CalibrationBand`), and a verdict must hold at both ends. A case is a
+**slowdown** when, with the new samples divided by the band's upper factor
+(as fast as the calibration's spread allows),
 
 * ratio = median(new normalised samples) / median(base normalised samples)
   exceeds ``threshold`` (default 1.15), and so does the ratio of the minima
   (load from other processes only ever adds time, so a shift of the whole
   distribution, minimum included, is what a real slowdown looks like), and
 * the one-sided Mann-Whitney U test (scipy.stats.mannwhitneyu, new > base) on
-  the normalised samples gives p < ``alpha`` (default 0.01); both ratios past
-  the threshold with p >= alpha is **inconclusive** (shown, not failed: the
-  samples are too few or too spread to tell a slowdown of that size),
+  those samples gives p < ``alpha`` (default 0.01); both ratios past the
+  threshold at the point estimate without that is **inconclusive** (shown,
+  not failed: the samples are too few or too spread, or the calibration too
+  uncertain, to tell a slowdown of that size; with fewer than two readings on
+  a side the spread is unknown and no case is more than inconclusive);
+  **faster** the same way round at the band's lower factor,
 
 **newly failing** when it was verified in BASE and is not verified in RUN
 (but for want of a certified yardstick in RUN: its timing is judged and the
@@ -41,33 +54,35 @@ class, else one recorded before run.json named numba's target on RUN's CPU
 and kernels. Runs of two classes are compared with a note saying so.
 
 The calibration is one number per row (or per host): its own error moves all
-the row's samples together, which the test does not see. Per-row
-calibrations of one ``ci`` run on a loaded 2-core machine spread over 1.75 ..
-2.92 ms, so single runs flag noise now and then; the confirmation runs of
-``.ci/run`` absorb it.
+the row's samples together, which the Mann-Whitney test does not see; the band
+above is where it is used. Per-row calibrations of one ``ci`` run on a loaded
+2-core machine spread over 1.75 .. 2.92 ms: only a change larger than that
+spread can be told from two stored runs; ``hikbench regress`` pairs the
+solves instead and needs no calibration.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.stats import mannwhitneyu
+from scipy.stats import false_discovery_control, mannwhitneyu, norm
 
 from hikbench.bench.harness.columns import KEY
 from hikbench.bench.harness.environment import machine_class, read_run_json
 from hikbench.bench.harness.results import RESULTS, read_results
 from hikbench.problems.errors import HikbenchError
 
-__all__ = ["FAILING", "Comparison", "NoBaseline", "baseline_for", "compare_runs", "confirmed", "machine_class_of",
+__all__ = ["FAILING", "CalibrationBand", "Comparison", "calibration_readings", "NoBaseline", "baseline_for", "compare_runs", "confirmed", "machine_class_of",
            "normalised_samples", "why_not_verified"]
 
 FAILING = ("SLOWER", "NEWLY FAILING", "MISSING")  #: the verdicts that make compare exit 1
 _COLUMNS = [*KEY, "base_status", "new_status", "base_verified", "new_verified", "base_median_s", "new_median_s",
-            "ratio", "ratio_min", "p_value", "verdict", "why"]
+            "ratio", "ratio_min", "p_value", "q_value", "verdict", "why"]
 
 
 @dataclass
@@ -76,6 +91,20 @@ class Comparison:
     only_base: list
     only_new: list
     notes: list = field(default_factory=list)  # why the two runs may not compare (suites, repeat, ...)
+    calibration: "CalibrationBand | None" = None  # the spread of the calibration (None: not compared)
+    sigma: float = float("nan")  # run-to-run spread of one case's log ratio (run_to_run_spread)
+    timed_cases: int = 0
+
+    def spreads(self) -> str:
+        """The two spreads the timing verdicts stand on, in words."""
+        lines = [] if self.calibration is None else [self.calibration.describe()]
+        if math.isnan(self.sigma):
+            lines.append(f"run-to-run spread: unknown ({self.timed_cases} timed cases, {MIN_CASES} needed): "
+                         f"no case is SLOWER or faster")
+        else:
+            lines.append(f"run-to-run spread of a case's ratio: sigma {self.sigma:.2g} in log (x{math.exp(self.sigma):.3g}), "
+                         f"from the {self.timed_cases} timed cases")
+        return "\n".join(lines)
 
     @property
     def slowdowns(self) -> pd.DataFrame:
@@ -107,7 +136,13 @@ def _host_calibration(df: pd.DataFrame, meta: dict) -> dict:
 
 
 def normalised_samples(df: pd.DataFrame, meta: dict, source: str = "results") -> pd.Series:
-    """Samples (ns) divided by a calibration time (see the module docstring): dimensionless.
+    """Samples (ns) divided by a calibration time (see the module docstring): dimensionless."""
+    return _normalised(df, meta, source)[0]
+
+
+def _normalised(df: pd.DataFrame, meta: dict, source: str) -> tuple[pd.Series, pd.Series]:
+    """Each row's samples divided by its calibration time, and that time (ns; NaN for a row
+    without samples).
 
     A row with samples and no calibration (an empty ``calib_ns`` on every row
     of its host and no ``calibration_ns`` in run.json: a hand-made file) is a
@@ -115,7 +150,7 @@ def normalised_samples(df: pd.DataFrame, meta: dict, source: str = "results") ->
     a calibrated run would give ratios of a million."""
     cal = _host_calibration(df, meta)
     per_job = bool(meta.get("suite", {}).get("calibrate_each_job"))
-    out = []
+    out, scales = [], []
     for i, (s, h, c) in enumerate(zip(df["samples_ns"], df["host"].fillna(""), df["calib_ns"])):
         v = np.asarray(json.loads(s), dtype=float) if s else np.zeros(0)
         scale = float(c) if per_job and pd.notna(c) else cal.get(h, cal[""])
@@ -125,7 +160,61 @@ def normalised_samples(df: pd.DataFrame, meta: dict, source: str = "results") ->
                                 f"its host and run.json has no calibration_ns; expected a run written by "
                                 f"`hikbench run`")
         out.append(v / float(scale) if v.size else v)
-    return pd.Series(out, index=df.index)
+        scales.append(float(scale) if v.size else float("nan"))
+    return pd.Series(out, index=df.index), pd.Series(scales, index=df.index, dtype=float)
+
+
+def calibration_readings(df: pd.DataFrame, meta: dict) -> list[float]:
+    """Every reading of the calibration kernel a run holds (ns): each row's ``calib_ns`` when
+    the suite timed the kernel around every job (``calibrate_each_job``), else one per worker
+    process (``worker``, or ``host`` without it: the readings its rows share), and run.json's
+    readings at the start and the end of each session (``calibration_start_ns``, ``_end_ns``)."""
+    cal = df.dropna(subset=["calib_ns"]) if "calib_ns" in df else df.iloc[:0]
+    if bool(meta.get("suite", {}).get("calibrate_each_job")):
+        out = [float(c) for c in cal["calib_ns"]]
+    else:
+        who = "worker" if "worker" in cal and cal["worker"].notna().all() else "host"
+        out = [float(c) for c in cal.groupby(cal[who].fillna(""))["calib_ns"].median()] if len(cal) else []
+    for session in meta.get("sessions") or []:
+        out += [float(session[k]) for k in ("calibration_start_ns", "calibration_end_ns")
+                if isinstance(session.get(k), (int, float)) and session[k] > 0]
+    return [c for c in out if c > 0]
+
+
+@dataclass
+class CalibrationBand:
+    """How well the calibration kernel tells the two runs' machine speeds apart.
+
+    The ratio k = calibration(new) / calibration(base) that divides a case's time ratio is
+    known only within the spread of the runs' readings ``base`` and ``new`` (ns): between
+    ``k_low`` = min(new) / max(base) and ``k_high`` = max(new) / min(base). With fewer than
+    two readings on a side the spread is unknown (``known`` False): no timing verdict."""
+
+    base: list
+    new: list
+
+    @property
+    def known(self) -> bool:
+        return len(self.base) >= 2 and len(self.new) >= 2
+
+    @property
+    def k_low(self) -> float:
+        return float(min(self.new) / max(self.base)) if self.known else float("nan")
+
+    @property
+    def k_high(self) -> float:
+        return float(max(self.new) / min(self.base)) if self.known else float("nan")
+
+    def describe(self) -> str:
+        def side(name, r):
+            if not r:
+                return f"{name} none"
+            return f"{name} {min(r) / 1e6:.3g}-{max(r) / 1e6:.3g} ms ({len(r)} reading{'s' * (len(r) != 1)})"
+        text = f"calibration kernel: {side('base', self.base)}, {side('new', self.new)}"
+        if not self.known:
+            return text + ": its spread is unknown (fewer than 2 readings on a side): no case is SLOWER or faster"
+        return (text + f": new/base between {self.k_low:.3g} and {self.k_high:.3g}; a case is SLOWER or faster "
+                       f"only at both ends")
 
 
 def _true(v) -> bool:
@@ -181,23 +270,122 @@ def _expected(base_meta: dict, new_meta: dict, new_solvers: set) -> dict:
     return {s: "no row" for s in ran} | {s: f"solver skipped: {why}" for s, why in skipped.items()}
 
 
+MIN_CASES = 8  #: timed cases needed to estimate the run-to-run spread of one case's ratio
+
+
+def run_to_run_spread(ratios) -> float:
+    """sigma of one case's log time ratio between two runs, from every timed case's ratio:
+    1.4826 x the median absolute deviation of the log ratios (the standard deviation for
+    normal noise; a minority of real changes barely moves it); NaN under MIN_CASES cases."""
+    d = np.log(np.asarray(ratios, dtype=float))
+    d = d[np.isfinite(d)]
+    return float(1.4826 * np.median(np.abs(d - np.median(d)))) if d.size >= MIN_CASES else float("nan")
+
+
+def _timing_verdicts(timed: list, band: CalibrationBand, sigma: float, threshold: float,
+                     alpha: float) -> list[tuple[str, float, float, str]]:
+    """(verdict, p, q, why) of each timed case ``(bs, ns, k)``: normalised samples of base and
+    new, and the ratio k new / base of the calibrations they were divided by.
+
+    A direction's p is the larger of the one-sided Mann-Whitney test of the samples and the
+    normal test of the case's log ratio against the run-to-run spread ``sigma``, both with
+    the new samples moved to the calibration band's end that favours no change (k_high
+    for a slowdown, k_low for a speed-up); q is p adjusted over the cases (Benjamini-Hochberg).
+    SLOWER: q < alpha and, at that end, the ratios of medians and of minima past the
+    threshold; faster the same way round; inconclusive: both ratios past the threshold
+    at the point estimate without that."""
+    rows, p_up, p_down = [], [], []
+    for bs, ns, k in timed:
+        if band.known:
+            high, low = max(band.k_high / k, 1.0), min(band.k_low / k, 1.0)  # (k within: its scales are readings)
+        else:
+            high = low = float("nan")
+        ends = {}
+        for name, f, alt in (("up", high, "greater"), ("down", low, "less")):
+            moved = ns / f
+            r, rmin = float(np.median(moved) / np.median(bs)), float(np.min(moved) / np.min(bs))
+            within = float(mannwhitneyu(moved, bs, alternative=alt).pvalue) if np.isfinite(f) else float("nan")
+            z = _z(math.log(r), sigma)
+            between = float(norm.sf(z if alt == "greater" else -z)) if not math.isnan(z) else float("nan")
+            ends[name] = (r, rmin, float(np.maximum(within, between)))  # (NaN, unknown, stays NaN)
+        rows.append((float(np.median(ns) / np.median(bs)), float(np.min(ns) / np.min(bs)), ends))
+        p_up.append(ends["up"][2])
+        p_down.append(ends["down"][2])
+    q_up, q_down = _bh(p_up), _bh(p_down)
+    out = []
+    for (ratio, ratio_min, ends), qu, qd in zip(rows, q_up, q_down):
+        (ru, mu, pu), (rd, md, pd_) = ends["up"], ends["down"]
+        if ratio > threshold and ratio_min > threshold:
+            if ru > threshold and mu > threshold and qu < alpha:
+                out.append(("SLOWER", pu, qu, ""))
+                continue
+            # past the threshold at the point estimate, not beyond the spreads: too few or too spread
+            # samples or cases, or a calibration too uncertain, to tell (docs/ci-timing.md,
+            # "Comparing two stored runs"); shown, not failed
+            out.append(("inconclusive", pu, qu, _undecided(band, sigma, ru, mu, threshold)))
+        elif ratio < 1 / threshold and ratio_min < 1 / threshold and rd < 1 / threshold and md < 1 / threshold \
+                and qd < alpha:
+            out.append(("faster", pd_, qd, ""))
+        else:
+            out.append(("ok", pu, qu, ""))
+    return out
+
+
+def _z(d: float, sigma: float) -> float:
+    """d / sigma; NaN for an unknown sigma, +-inf (0 for d = 0) for sigma = 0."""
+    if math.isnan(sigma):
+        return float("nan")
+    if sigma > 0:
+        return d / sigma
+    return math.copysign(math.inf, d) if d else 0.0
+
+
+def _undecided(band: CalibrationBand, sigma: float, r_end: float, rmin_end: float, threshold: float) -> str:
+    if not band.known:
+        return "the calibration's spread is unknown"
+    if math.isnan(sigma):
+        return f"too few timed cases to know the run-to-run spread ({MIN_CASES} needed)"
+    if not (r_end > threshold and rmin_end > threshold):
+        return f"within the calibration's spread ({r_end:.3g} at its end)"
+    return f"not significant against the run-to-run spread (sigma {sigma:.2g} in log)"
+
+
+def _bh(p: list) -> list:
+    """Benjamini-Hochberg adjusted p-values (NaN stays NaN: never below alpha)."""
+    p = np.asarray(p, dtype=float)
+    q = np.full(p.shape, np.nan)
+    ok = np.isfinite(p)
+    if ok.any():
+        q[ok] = false_discovery_control(p[ok])
+    return q.tolist()
+
+
 def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_meta: dict,
                    threshold: float = 1.15, alpha: float = 0.01, names=("base", "new")) -> Comparison:
     new_solvers, new_rows = set(new["solver"]), len(new)
-    base = base.assign(_norm=normalised_samples(base, base_meta, names[0])).set_index(list(KEY))
-    new = new.assign(_norm=normalised_samples(new, new_meta, names[1])).set_index(list(KEY))
+    band = CalibrationBand(calibration_readings(base, base_meta), calibration_readings(new, new_meta))
+    norm, scale = _normalised(base, base_meta, names[0])
+    base = base.assign(_norm=norm, _scale=scale).set_index(list(KEY))
+    norm, scale = _normalised(new, new_meta, names[1])
+    new = new.assign(_norm=norm, _scale=scale).set_index(list(KEY))
     base = base[~base.index.duplicated(keep="last")]
     new = new[~new.index.duplicated(keep="last")]
     common = base.index.intersection(new.index)
+    timed = [key for key in common if len(base.loc[key, "_norm"]) and len(new.loc[key, "_norm"])]
+    sigma = run_to_run_spread([np.median(new.loc[k, "_norm"]) / np.median(base.loc[k, "_norm"]) for k in timed])
+    verdicts = dict(zip(timed, _timing_verdicts(
+        [(base.loc[k, "_norm"], new.loc[k, "_norm"], new.loc[k, "_scale"] / base.loc[k, "_scale"]) for k in timed],
+        band, sigma, threshold, alpha)))
     rows = []
     for key in common:
         b, n = base.loc[key], new.loc[key]
         bs, ns = b["_norm"], n["_norm"]
-        ratio, ratio_min, p = float("nan"), float("nan"), float("nan")
-        if len(bs) and len(ns):
+        ratio, ratio_min, p, q = float("nan"), float("nan"), float("nan"), float("nan")
+        timing, timing_why = "ok", ""
+        if key in verdicts:
             ratio = float(np.median(ns) / np.median(bs))
             ratio_min = float(np.min(ns) / np.min(bs))
-            p = float(mannwhitneyu(ns, bs, alternative="greater").pvalue)
+            timing, p, q, timing_why = verdicts[key]
         why = ""
         # a row not verified for want of a certified yardstick is not the solver's failure: its
         # timing is judged, the reason shown (docs/verification.md, "The yardstick of a run")
@@ -207,20 +395,13 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
         if _true(b["verified"]) and not _true(n["verified"]) and not unjudged:
             verdict = "NEWLY FAILING"
             why = why_not_verified(n)
-        elif np.isfinite(ratio) and ratio > threshold and ratio_min > threshold:
-            # past the threshold both ways but not significant: too few or too spread samples to
-            # tell (docs/ci-timing.md, "What the check can see"); shown, not failed
-            verdict = "SLOWER" if p < alpha else "inconclusive"
-        elif np.isfinite(ratio) and ratio < 1 / threshold and ratio_min < 1 / threshold and \
-                (p_less := float(mannwhitneyu(ns, bs, alternative="less").pvalue)) < alpha:
-            verdict = "faster"
-            p = p_less  # (the p-value shown is that of the verdict's direction)
         else:
-            verdict = "ok"
+            verdict = timing
+            why = "; ".join(w for w in (why, timing_why) if w)
         rows.append(dict(zip(KEY, key), base_status=b["status"], new_status=n["status"],
                          base_verified=b["verified"], new_verified=n["verified"],
                          base_median_s=b["time_median_s"], new_median_s=n["time_median_s"],
-                         ratio=ratio, ratio_min=ratio_min, p_value=p, verdict=verdict, why=why))
+                         ratio=ratio, ratio_min=ratio_min, p_value=p, q_value=q, verdict=verdict, why=why))
     expected = _expected(base_meta, new_meta, new_solvers)
     only_base = []
     for key in base.index.difference(common, sort=False):
@@ -230,12 +411,12 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
             rows.append(dict(zip(KEY, key), base_status=b["status"], new_status="", base_verified=b["verified"],
                              new_verified=float("nan"), base_median_s=b["time_median_s"],
                              new_median_s=float("nan"), ratio=float("nan"), ratio_min=float("nan"),
-                             p_value=float("nan"), verdict="MISSING", why=expected[solver]))
+                             p_value=float("nan"), q_value=float("nan"), verdict="MISSING", why=expected[solver]))
         else:
             only_base.append(key)
     table = pd.DataFrame(rows, columns=_COLUMNS)
     return Comparison(table, only_base, [k for k in new.index if k not in common],
-                      _notes(base_meta, new_meta, new_rows, names))
+                      _notes(base_meta, new_meta, new_rows, names), band, sigma, len(timed))
 
 
 class NoBaseline(HikbenchError):
@@ -313,21 +494,22 @@ def confirmed(comparisons: list[Comparison]) -> Comparison:
         cleared = t["verdict"].isin(FAILING) & v.notna() & ~v.isin(FAILING)
         t.loc[cleared, "verdict"] = t.loc[cleared, "verdict"].str.lower() + ", not reproduced"
     notes = list(dict.fromkeys(n for c in comparisons for n in c.notes))
-    return Comparison(t.reset_index(), first.only_base, first.only_new, notes)
+    return Comparison(t.reset_index(), first.only_base, first.only_new, notes, first.calibration, first.sigma,
+                      first.timed_cases)
 
 
 def format_table(c: Comparison, show_all: bool = False) -> str:
     t = c.table.sort_values("ratio", ascending=False, na_position="last")
     if not show_all:
         t = pd.concat([t[t["verdict"] != "ok"], t[t["verdict"] == "ok"].head(10)])
-    # p: the one-sided Mann-Whitney p-value of the verdict's direction (new slower than base, or
-    # faster for "faster" rows); the verdict column is as wide as its longest entry
+    # q: the adjusted p-value of the verdict's direction (new slower than base, or faster for
+    # "faster" rows: _timing_verdicts); the verdict column is as wide as its longest entry
     w = max([13, *map(len, t["verdict"])])
-    lines = [(f"{'verdict':<{w}} {'ratio':>6} {'min r':>6} {'p':>7} {'base us':>9} {'new us':>9}  "
+    lines = [(f"{'verdict':<{w}} {'ratio':>6} {'min r':>6} {'q':>7} {'base us':>9} {'new us':>9}  "
               "solver / settings / mode / problem")]
     for r in t.itertuples():
         why = f"  ({r.why[:120]})" if isinstance(r.why, str) and r.why else ""
-        lines.append(f"{r.verdict:<{w}} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.p_value:>7.4f} "
+        lines.append(f"{r.verdict:<{w}} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.q_value:>7.4f} "
                      f"{r.base_median_s * 1e6:>9.1f} "
                      f"{r.new_median_s * 1e6:>9.1f}  {r.solver} / {r.settings} / {r.mode} / {r.problem}{why}")
     for what, keys in (("only in base", c.only_base), ("only in new", c.only_new)):  # listed, not judged
