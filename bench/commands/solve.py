@@ -98,13 +98,17 @@ def _solve(args, h, options: dict) -> dict:
     note = threading.Timer(NOTE_AFTER_S, lambda: print(
         f"note: {args.solver}: preparing its first solve in a fresh worker process (hcod compiles its numba "
         f"kernels once, about 70 s, then loads them from numba's cache)...", file=sys.stderr, flush=True))
+    worker = IsolatedWorker()
     try:
-        with IsolatedWorker() as worker:
-            worker.start()  # (the process's own start, about 1 s of imports, is not the solver's)
-            note.start()
-            return worker.run(job, timeout, first_timeout=first, on_first_solve=note.cancel)
+        worker.start()  # (the process's own start, about 1 s of imports, is not the solver's)
+        note.start()
+        return worker.run(job, timeout, first_timeout=first, on_first_solve=note.cancel)
+    except BaseException:  # Ctrl-C, SIGTERM (bench.cli.Terminated): the solve ends at once, not after close()'s 5 s
+        worker.kill()
+        raise
     finally:
         note.cancel()
+        worker.close()
 
 
 def run(args) -> int:
