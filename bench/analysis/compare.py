@@ -7,28 +7,36 @@ the row's own ``calib_ns`` when the suite timed the kernel around every job
 during the run), else the median ``calib_ns`` of the rows of the same host.
 So runs of different machines or of a loaded CI runner compare as ratios.
 
-The calibration is itself a measurement: two runs of the same code on one
-machine read it at 2.78 and 3.55 ms, and at the point estimate every case
-looked 0.78x (one row "faster 0.78 ... 281.8 -> 280.0 us"). So its spread is
-used: the ratio k of the runs' calibrations lies between the lowest and the
-highest ratio of their readings (:func:`calibration_readings`: one per worker
-process, or per job, and run.json's at the start and end of each session;
-:class:`CalibrationBand`), and a verdict must hold at both ends. A case is a
-**slowdown** when, with the new samples divided by the band's upper factor
-(as fast as the calibration's spread allows),
+The timing verdicts (hikbench.bench.analysis.timing_verdicts) stand on two measured
+spreads, because a case's samples are taken in one block of about 0.1 s: they
+tell the noise within that moment, not how far the machine's speed moves
+between two runs (two runs in a row of the same code on a loaded 2-core VM:
+the kernel read 2.28 and 2.29 ms, the cases' medians moved 0.5x-2x; judged on
+the samples alone, 7 SLOWER and 8 faster):
+
+* the calibration's: the ratio k of the runs' kernels lies between the lowest
+  and the highest ratio of their readings (one per worker process, or per
+  job, and run.json's at the start and end of each session), and a verdict
+  must hold at both ends;
+* the cases' run-to-run spread: sigma of the log ratios of medians over the
+  timed cases (1.4826 x their median absolute deviation; 8 cases at least).
+
+A case is a **slowdown** when, with the new samples made as fast as the
+calibration's spread allows,
 
 * ratio = median(new normalised samples) / median(base normalised samples)
   exceeds ``threshold`` (default 1.15), and so does the ratio of the minima
   (load from other processes only ever adds time, so a shift of the whole
   distribution, minimum included, is what a real slowdown looks like), and
-* the one-sided Mann-Whitney U test (scipy.stats.mannwhitneyu, new > base) on
-  those samples gives p < ``alpha`` (default 0.01); both ratios past the
-  threshold at the point estimate without that is **inconclusive** (shown,
-  not failed: the samples are too few or too spread, or the calibration too
-  uncertain, to tell a slowdown of that size; with fewer than two readings on
-  a side the spread is unknown and no case is more than inconclusive);
-  **faster** the same way round at the band's lower factor,
+* q < ``alpha`` (default 0.01): p, the larger of the one-sided Mann-Whitney U
+  test's (new > base) over the samples and the normal test's of the log ratio
+  against sigma, adjusted over the cases by Benjamini-Hochberg;
 
+both ratios past the threshold at the point estimate without that is
+**inconclusive** (shown, not failed: the samples or the cases too spread, or
+the calibration too uncertain, to tell a change of that size; with fewer than
+two readings on a side or 8 timed cases, no case is more than inconclusive);
+**faster** the same way round;
 **newly failing** when it was verified in BASE and is not verified in RUN
 (but for want of a certified yardstick in RUN: its timing is judged and the
 reason shown),
@@ -53,12 +61,9 @@ target). BASE may be a directory of baselines, one subdirectory per class
 class, else one recorded before run.json named numba's target on RUN's CPU
 and kernels. Runs of two classes are compared with a note saying so.
 
-The calibration is one number per row (or per host): its own error moves all
-the row's samples together, which the Mann-Whitney test does not see; the band
-above is where it is used. Per-row calibrations of one ``ci`` run on a loaded
-2-core machine spread over 1.75 .. 2.92 ms: only a change larger than that
-spread can be told from two stored runs; ``hikbench regress`` pairs the
-solves instead and needs no calibration.
+On a loaded machine only large changes can be told from two stored runs
+(docs/ci-timing.md has the figures); ``hikbench regress`` pairs the solves
+milliseconds apart instead and needs no calibration.
 """
 
 from __future__ import annotations

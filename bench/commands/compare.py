@@ -18,7 +18,9 @@ def add_arguments(p) -> None:
                    help="flag a case whose normalised median (and minimum) time grew by more than this "
                         "factor beyond the calibration kernel's spread (default 1.15)")
     p.add_argument("--alpha", type=float, default=0.01,
-                   help="significance level of the one-sided Mann-Whitney test (default 0.01)")
+                   help="significance level of a SLOWER or faster verdict: q, the larger p of the Mann-Whitney "
+                        "test over the samples and of the test against the cases' run-to-run spread, adjusted "
+                        "over the cases (Benjamini-Hochberg; default 0.01)")
     p.add_argument("--all", action="store_true", help="print every compared case")
     p.add_argument("--no-baseline", choices=("error", "skip"), default="error",
                    help="when BASE is a directory of baselines and none is of RUN's machine class: an error "
