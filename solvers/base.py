@@ -42,7 +42,8 @@ class SolveResult:
     Attributes
     ----------
     x : ndarray, shape (n,), or None
-        The solution (None when the solver produced none).
+        The solution (None when the solver produced none; a result built with
+        status ``optimal`` and x None becomes status ``error`` with a reason).
     status : str
         One of :data:`STATUSES`.
     reason : str
@@ -86,6 +87,12 @@ class SolveResult:
     def __post_init__(self, x_finite: bool) -> None:
         if self.status not in STATUSES:
             raise ValueError(f"status {self.status!r} is not one of {STATUSES}")
+        if self.x is None and self.status == OPTIMAL:
+            # an optimal status is a claim about x: without x it is a solver error (its row is not
+            # recorded as optimal), as an external program's `"x": null` with status optimal is
+            self.status = ERROR
+            self.reason = (self.reason + "; " if self.reason else "") + ("status optimal with x None: expected x, "
+                                                                          "shape (n,)")
         if self.x is not None and self.status == OPTIMAL and not x_finite and not np.isfinite(self.x).all():
             # never NaN silently: a non-finite x cannot be called optimal (np.isfinite, not a
             # faster x @ x, which overflows for a finite x with entries above 1e154; the solvers

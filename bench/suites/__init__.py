@@ -436,7 +436,8 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
             skipped[pat] = f"not installed: {missing[pat]}"
         else:
             known = list(avail) + [m for m in missing if m not in avail and "." not in m]
-            raise SolverNotFoundError(f"unknown solver {pat!r} (in {where}); known solvers: {', '.join(known)} "
+            raise SolverNotFoundError(f"unknown solver {pat!r} (in {where}){registry.close_match(pat, known)}; "
+                                      f"known solvers: {', '.join(known)} "
                                       f"(or a glob pattern, module:Class, external:NAME=CMD)")
     for s in settings:
         base = [e for e in entries if e.solver == s.get("solver") and e.settings == "default"]

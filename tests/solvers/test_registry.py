@@ -65,7 +65,9 @@ def test_create_passes_defaults_and_options(fake_registry):
     # a factory taking **options validates names itself
     ("test-kwargs", {"bogus": 1}, TypeError, r"unexpected keyword argument 'bogus'"),
     ("nope", {}, SolverNotFoundError, r"unknown solver 'nope' \(found solvers: .*yardstick"),
-], ids=["unknown option", "no options", "bad value", "constructor bug", "kwargs factory", "unknown solver"])
+    ("test-otp", {}, SolverNotFoundError, r"unknown solver 'test-otp'; did you mean 'test-opt'\? \(found solvers: "),
+], ids=["unknown option", "no options", "bad value", "constructor bug", "kwargs factory", "unknown solver",
+        "misspelt solver"])
 def test_create_errors(fake_registry, name, options, error, message):
     with pytest.raises(error, match=message):
         registry.create(name, **options)
@@ -90,6 +92,14 @@ def test_optimal_result_with_nonfinite_x_becomes_numerical_failure(x, status):
     r = SolveResult(x=x, status="optimal")
     assert r.status == status
     assert ("NaN or inf" in r.reason) == (status == "numerical_failure")
+
+
+@pytest.mark.parametrize("reason", ["", "converged"], ids=["no reason", "a reason"])
+def test_an_optimal_result_without_x_is_a_solver_error(reason):
+    r = SolveResult(x=None, status="optimal", reason=reason)
+    assert r.status == "error" and not r.ok
+    assert r.reason == (f"{reason}; " if reason else "") + "status optimal with x None: expected x, shape (n,)"
+    assert SolveResult(x=None, status="unsupported").status == "unsupported"  # no x is right there
 
 
 def test_x_finite_is_the_callers_word_and_not_a_field():
