@@ -151,8 +151,8 @@ def run(args) -> int:
         print("  final errors: " + ", ".join(f"{c[4:]}={df[c].iloc[-1]:.2e}" for c in errs))
         checks.append(check_run(run_))
         for check in checks[-1]:
-            failed |= not check.passed
-            print(f"  [{'pass' if check.passed else 'FAIL'}] {check.name}: {check.detail}")
+            failed |= check.passed is False
+            print(f"  [{check.verdict}] {check.name}: {check.detail}")
     if len(runs) > 1:
         _print_side_by_side(runs, checks)
     _summary(runs, checks).to_csv(out / "summary.csv", index=False)
@@ -236,7 +236,8 @@ def _print_side_by_side(runs, checks) -> None:
     cost = [r.records["solve_time_min_s"].to_numpy(dtype=float) * 1e3 for r in runs]
     med = [f"{np.median(t):.3f} / {t.max():.3f} ms" for t in cost]
     print(f"{'median / max solve':<{width}}  " + "  ".join(f"{m:>{cell}}" for m in med))
-    passed = [f"{sum(c.passed for c in cs)} of {len(cs)}" for cs in checks]
+    passed = [f"{sum(c.passed is True for c in cs)} of {len(cs)}"
+              + (f" ({n} not judged)" if (n := sum(c.passed is None for c in cs)) else "") for cs in checks]
     print(f"{'checks passed':<{width}}  " + "  ".join(f"{p:>{cell}}" for p in passed))
 
 
@@ -244,7 +245,7 @@ def _summary(runs, checks):
     """One row per run (``summary.csv``): solver, warm_start, strict, steps, the cost columns of
     OUT/scenarios.csv (:func:`.rows.step_costs`: time_median_s ... steps_not_optimal), per task
     ``max_err_L<level>_<task>`` and ``final_err_L<level>_<task>``, and the checks
-    (:func:`.rows.check_counts`: checks_passed, checks_failed, failed_checks)."""
+    (:func:`.rows.check_counts`: checks_passed, checks_failed, checks_not_judged, failed_checks)."""
     import pandas as pd
 
     from hikbench.bench.scenarios.plots import run_strict

@@ -46,7 +46,7 @@ def _first_solve(scenario, spec: str, warm_start: str | None) -> None:
 def execute_scenario(job: dict, notify=None) -> dict:
     """Run a scenario job; never raises (an exception is status ``error`` with its reason).
     Returns ``status`` (``finished``), ``records`` (the per-step DataFrame), ``q``
-    (steps + 1, nq), ``checks`` [(name, passed, detail)], ``warm_start`` and ``label``."""
+    (steps + 1, nq), ``checks`` [(name, passed (True, False or None: not judged), detail)], ``warm_start`` and ``label``."""
     base = {"host": socket.gethostname(), "pid": os.getpid()}
     try:
         scenario = load_scenario(job["scenario"], robot=job.get("robot"))
@@ -55,7 +55,7 @@ def execute_scenario(job: dict, notify=None) -> dict:
             notify()
         run = run_scenario(scenario, job["solver"], warm_start=job.get("warm_start"), steps=job["steps"],
                            repeat=job["repeat"])
-        checks = [(c.name, bool(c.passed), c.detail) for c in check_run(run)]
+        checks = [(c.name, c.passed, c.detail) for c in check_run(run)]
         return {**base, "status": FINISHED, "reason": "", "records": run.records, "q": run.q,
                 "checks": checks, "warm_start": run.warm_start, "label": run.label}
     except Exception as err:  # noqa: BLE001 - a failing job costs its row (status error + reason)
