@@ -22,6 +22,8 @@ import numpy as np
 from hikbench.bench.commands.solve import parse_options
 from hikbench.problems.errors import HikbenchError
 
+#: the solver of a scenario run without --solver: the strict hierarchy solver a controller would run
+DEFAULT_SOLVER = "hcod"
 HELP = "run a closed-loop robot scenario (reach, step, or a TOML file) and write CSV + figures"
 
 
@@ -45,7 +47,7 @@ def add_arguments(p) -> None:
                         "(default: from the files' [frames] tables and the link names)")
     p.add_argument("--solver", action="append", default=None,
                    help="solver name or module:Class / file.py:Class, or the controller pink (weighted IK on the "
-                        "stack's tasks; repeatable; default: yardstick)")
+                        f"stack's tasks; repeatable; default: {DEFAULT_SOLVER})")
     p.add_argument("--warm-start", nargs="+", action="extend", default=None, metavar="MODE",
                    help="warm-start modes to run (repeatable), one run each, for solvers with a warm_start option "
                         "(hcod: none stage time; a module:Class solver: the values its warm_start "
@@ -95,7 +97,7 @@ def run(args) -> int:
     print(_robot_line(scenario.robot))
     if scenario.units:
         print("offsets in the robot's lengths: " + ", ".join(f"{k} = {v:.4f} m" for k, v in scenario.units.items()))
-    solvers = args.solver or ["yardstick"]
+    solvers = args.solver or [DEFAULT_SOLVER]
     options, scoped = _split_options(parse_options(args.option), solvers)
     if "warm_start" in options and args.warm_start:
         raise HikbenchError("give the warm-start mode either with --warm-start or --option warm_start=..., "

@@ -90,6 +90,7 @@ def _vec3(v, what: str) -> np.ndarray:
 MAX_STEPS = 1_000_000       #: control steps of a scenario (a record row each)
 MAX_PERTURBATION = math.pi  #: rad, standard deviation of the initial joint perturbation
 MAX_OFFSET = 100.0          #: m (and rad for rotate_rpy), per coordinate of a scheduled target change
+PLOT_JOINTS_MAX = 80        #: joints of Fig. 3 ([plot] joints): 20 colours x 4 line styles
 
 _NAMES = List(Str(), what="a non-empty list of names")
 UNITS = ("m", *LENGTHS)  #: what ``offset`` and ``apex`` are given in (``unit``)
@@ -164,7 +165,11 @@ def _check_names(d: dict, stack: Stack, at: Where, other_robot: bool) -> None:
     if "reach" in checks:
         task("checks.reach.task", checks["reach"]["task"])
     plotted = stack.robot.bounded_joint_names
-    for i, joint in enumerate(d.get("plot", {}).get("joints", [])):
+    joints = d.get("plot", {}).get("joints", [])
+    if len(joints) > PLOT_JOINTS_MAX:
+        at.say(f"plot.joints: {len(joints)} joints; expected at most {PLOT_JOINTS_MAX} (Fig. 3 gives each its "
+               "own colour and line style)")
+    for i, joint in enumerate(joints):
         # (on another robot, --robot, names it lacks fall back to the joints that move most)
         if not other_robot and joint not in plotted:
             at.fail(f"plot.joints[{i}]", joint, f"a bounded 1-DOF joint of {stack.robot.name} "

@@ -268,6 +268,15 @@ def test_a_failed_check_names_what_failed():
         Check("x", False, "d", judges="user")
 
 
+def test_without_solver_a_scenario_runs_hcod(tmp_path, capsys):
+    """The default is the strict hierarchy solver a controller runs (time warm start), not the
+    yardstick (23 ms a step of g1's step scenario)."""
+    rc = main(["scenario", "reach", "--steps", "2", "--repeat", "1", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert rc == 0 and "\nhcod (time): 2 steps" in out, out
+    assert [p.name for p in tmp_path.glob("*.csv") if p.name != "summary.csv"] == ["reach_talos_hcod_time.csv"]
+
+
 def test_a_solver_given_as_file_and_class(tmp_path, capsys):
     """`scenario --solver file.py:Class` runs like `solve` and `run` take it; a factory with a
     warm_start parameter gets the modes, its default labels the run without --warm-start."""
