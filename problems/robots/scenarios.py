@@ -65,7 +65,7 @@ import pinocchio as pin
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.robots.dimensions import LENGTHS, robot_length
 from hikbench.problems.robots.kinematics import KinematicState
-from hikbench.problems.robots.models import FrameTable
+from hikbench.problems.robots.models import FrameTable, same_robot
 from hikbench.problems.robots.stacks import ROBOT_KEYS, Stack, file_robot, load_stack_spec
 from hikbench.problems.robots.tasks import ComTask, PoseTask, PositionTask, Task
 from hikbench.problems.robots.trajectories import PointSegment, PoseSegment
@@ -314,14 +314,18 @@ class Scenario:
             stack_ref = str(Path(source).parent / stack_ref)
         extra = [frames] if frames is not None else []
         own = file_robot(d, source, ScenarioError)
-        if robot is not None:
-            stack = Stack(load_stack_spec(stack_ref), robot=robot, frames=extra)
+        spec = load_stack_spec(stack_ref)
+        # the files' [frames] tables are written for their robot: given again (the same name or
+        # URDF file) it keeps them; another robot does not
+        other_robot = robot is not None and not same_robot(robot, own if own is not None else spec.robot)
+        if other_robot:
+            stack = Stack(spec, robot=robot, frames=extra)
         else:
-            stack = Stack(load_stack_spec(stack_ref), robot=own,
+            stack = Stack(spec, robot=own if robot is None else robot,
                           frames=[FrameTable(dict(d.get("frames", {})), source), *extra])
         if "dt" in d:
             stack.dt = float(d["dt"])
-        _check_names(d, stack, at, other_robot=robot is not None)
+        _check_names(d, stack, at, other_robot=other_robot)
         units = _resolve_units(d, stack.robot, at)
         init = d.get("initial", {})
         q = _initial_configuration(stack, float(init.get("perturbation", 0.0)), int(init.get("seed", 0)))
