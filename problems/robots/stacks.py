@@ -302,8 +302,10 @@ class Stack:
         return Hierarchy.from_levels(levels, n=self.robot.nv)
 
     def errors(self, q: np.ndarray, u: np.ndarray | None = None,
-               state: KinematicState | None = None) -> dict[str, float]:
-        """Task name -> reported error norm at q (u for velocity-space tasks)."""
+               state: KinematicState | None = None) -> dict[str, float | None]:
+        """Task name -> its error norm (``Task.error_norm``) at q, shape (nq,), and for the tasks
+        of the velocity (``velocity_limits``: total excess over the limits, rad/s; ``velocity``:
+        ||u||) at u, shape (nv,): None for those when u is not given."""
         state = state or KinematicState(self.robot, q)
         return {t.name: t.error_norm(state, u) for t in self.tasks}
 
