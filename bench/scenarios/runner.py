@@ -204,7 +204,8 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
                    "reason": res.reason,
                    "min_joint_limit_margin": float(np.min(robot.limit_margin(q), initial=np.inf))}
             before = now
-            row.update({f"err_{name}": v for name, v in stack.errors(q, u, state).items()})
+            # (a velocity task without u, the solver having returned none: an empty cell)
+            row.update({f"err_{name}": np.nan if v is None else v for name, v in stack.errors(q, u, state).items()})
             norms = level_norms(h, u) if u is not None else np.full(h.depth, np.nan)
             row.update({f"level_norm_{name}": float(v) for name, v in zip(h.names, norms)})
             rows.append(row)

@@ -82,11 +82,11 @@ def test_user_scenario_on_an_arm(tmp_path):
 def test_cli_writes_csv_and_figures(tmp_path, capsys):
     rc = main(["scenario", "step", "--steps", "3", "--out", str(tmp_path), "--plot"])
     out = capsys.readouterr().out
-    assert "yardstick: 3 steps" in out
-    csv = tmp_path / "step_talos_yardstick.csv"
+    assert "hcod (time): 3 steps" in out  # (the default solver)
+    csv = tmp_path / "step_talos_hcod_time.csv"
     df = pd.read_csv(csv)
     assert len(df) == 3 and "err_right_foot" in df
-    for fig in ("fig1_solve_time.png", "fig2_time_activations.png", "fig3_joints_yardstick.png",
+    for fig in ("fig1_solve_time.png", "fig2_time_activations.png", "fig3_joints_hcod_time.png",
                 "fig4_task_errors.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
     assert rc == 0  # (3 steps: not judged on final errors; the checks of these steps hold)
