@@ -74,7 +74,8 @@ def run(args) -> int:
     from hikbench.bench.cli import solver_calls_killable
     from hikbench.bench.scenarios.controllers import CONTROLLERS, build_controller, is_controller
     from hikbench.bench.scenarios.rows import run_stem, slug
-    from hikbench.bench.scenarios.runner import REPEAT, check_run, run_scenario, warm_start_default
+    from hikbench.bench.scenarios.checks import check_run
+    from hikbench.bench.scenarios.runner import REPEAT, run_scenario, warm_start_default
     from hikbench.bench.harness.worker import solver_info
     from hikbench.problems.robots.scenarios import load_scenario, scenario_names
     from hikbench.problems.robots.stacks import stack_names

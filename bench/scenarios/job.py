@@ -21,7 +21,8 @@ import traceback
 
 from hikbench.bench.harness.worker import solver_info
 from hikbench.bench.scenarios.rows import FINISHED
-from hikbench.bench.scenarios.runner import check_run, run_scenario
+from hikbench.bench.scenarios.checks import check_run
+from hikbench.bench.scenarios.runner import run_scenario
 from hikbench.problems.robots.kinematics import KinematicState
 from hikbench.problems.robots.scenarios import load_scenario
 from hikbench.solvers import registry

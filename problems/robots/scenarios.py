@@ -27,7 +27,7 @@ TOML format (``problems/robots/scenarios/*.toml``)::
     duration = 1.0               # start + `apex` at `tau_apex` (pose, position)
     offset = [0.1, 0.0, 0.0]
     apex = [0.0, 0.0, 0.05]
-    [checks]                     # verified by the runner on the per-step record
+    [checks]                     # verified on the per-step record (bench/scenarios/checks.py)
     limits = true                # joint limits never violated, nor the stack's velocity limits
     regulated = ["com"]          # errors decay exponentially and stay regulated
     reach = { task = "right_hand", out_of_reach_until = 1.2 }

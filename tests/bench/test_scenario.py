@@ -6,7 +6,8 @@ import pytest
 from doubles import WarmReference, spec, still_run
 
 from hikbench.bench.cli import main
-from hikbench.bench.scenarios.runner import BLAME, COLUMNS, NO_WARM_START, check_run, run_scenario
+from hikbench.bench.scenarios.checks import BLAME, check_run
+from hikbench.bench.scenarios.runner import COLUMNS, NO_WARM_START, run_scenario
 from hikbench.problems.robots.dimensions import robot_length
 from hikbench.problems.robots.scenarios import ScenarioError, load_scenario, scenario_names
 
@@ -258,7 +259,7 @@ def test_a_check_not_judged_is_counted_apart():
 def test_a_failed_check_names_what_failed():
     """A check that fails ends its detail with the solver or the scenario's assumption;
     one that passes keeps its detail as given."""
-    from hikbench.bench.scenarios.runner import Check
+    from hikbench.bench.scenarios.checks import Check
 
     assert Check("x", False, "d").detail == "d -> the solver failed"
     assert Check("x", False, "d", judges="scenario").detail == (
@@ -343,7 +344,7 @@ def test_velocity_limits_are_checked_with_the_joint_limits():
     """`limits = true` also judges the stack's velocity limits on the u each step commanded:
     a run within them passes, a step past them by more than VELOCITY_TOL fails the check and
     names the step (a solver that ignores a two-sided velocity row must not pass)."""
-    from hikbench.bench.scenarios.runner import VELOCITY_TOL
+    from hikbench.bench.scenarios.checks import VELOCITY_TOL
 
     run = run_scenario(load_scenario("reach"), "hcod", steps=3, repeat=1)
     held = {c.name: c for c in check_run(run)}["velocity_limits held"]

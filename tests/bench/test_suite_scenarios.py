@@ -29,7 +29,8 @@ from hikbench.bench.scenarios.rows import (
     summary_row,
     write_scenario_row,
 )
-from hikbench.bench.scenarios.runner import COLUMNS, ScenarioRun, check_run
+from hikbench.bench.scenarios.checks import check_run
+from hikbench.bench.scenarios.runner import COLUMNS, ScenarioRun
 from hikbench.bench.suites import load_suite
 from hikbench.solvers import registry
 from hikbench.solvers.peers import NOT_BUILT, load_module
