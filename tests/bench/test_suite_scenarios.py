@@ -202,6 +202,10 @@ def test_the_report_shows_the_scenario_table(scenario_run, tmp_path):
     assert "[Scenarios](#scenarios)" in text and "\n## Scenarios\n" in text
     assert f"| reach | talos | hcod | time | {STEPS} (cut: the scenario has 700) |" in text
     assert "| reach | talos | abort | n/a |" in text and "| crashed: " in text
+    hcod = _rows(out).loc["hcod"]  # (a cut run: the checks of its final values are not judged, and it says so)
+    counts = int(hcod["checks_passed"]), int(hcod["checks_failed"]), int(hcod["checks_not_judged"])
+    assert counts[2] > 0, counts
+    assert f"| {counts[0]}/{sum(counts)} passed, {counts[2]} not judged" in text, text
     assert f"{len(SOLVERS)} scenario runs, {len(SOLVERS) - 1} finished" in text  # (its opening line)
     data = json.loads((out / "report.json").read_text())
     assert [r["solver"] for r in data["scenarios"]] == read_scenario_rows(out)["solver"].tolist()
