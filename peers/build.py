@@ -91,9 +91,9 @@ NIPM_FIXES = (
 #: where the patched options.h reads them: a struct of NIPM-HLSP's defaults, defined in nipm_adapter.cpp
 NIPM_SETTINGS = "hik_nipm::settings()"
 #: seconds to compile each unit on a 2-core machine, to start the longest first (make peers prints them)
-COST = {"lexls_adapter.cpp": 71, "Stage.cpp": 58, "lagrangian.cpp": 25, "nipm_adapter.cpp": 20, "HCOD.cpp": 18,
-        "soth_adapter.cpp": 18, "levelShared.cpp": 15, "BaseY.cpp": 10, "newton.cpp": 10, "BasicStage.cpp": 8,
-        "Givens.cpp": 4}
+COST = {"lexls_adapter.cpp": 71, "Stage.cpp": 58, "lagrangian.cpp": 35, "HCOD.cpp": 18, "soth_adapter.cpp": 18,
+        "levelShared.cpp": 15, "nipm_adapter.cpp": 15, "newton.cpp": 13, "BaseY.cpp": 10, "BasicStage.cpp": 8,
+        "Givens.cpp": 4, "nipm_hlsp.cpp": 4}
 FLAGS = ("-O3", "-DNDEBUG", "-std=c++17", "-fPIC", "-fvisibility=hidden", "-w")
 
 
@@ -118,8 +118,8 @@ def main(argv=None) -> int:
         print(f"make peers: {err}", file=sys.stderr)
         return 2
     units = ", ".join(f"{k} {v:.0f} s" for k, v in sorted(info["compile_s"].items(), key=lambda kv: -kv[1]))
-    print(f"make peers: built soth, lexls and nipm-hlsp in {info['build_time_s']:.0f} s ({info['jobs']} jobs; {units}) "
-          f"into {info['dir']}")
+    print(f"make peers: built soth, lexls and nipm-hlsp in {info['build_time_s']:.0f} s ({info['jobs']} jobs; "
+          f"{units}) into {info['dir']}")
     return 0
 
 
@@ -246,11 +246,12 @@ def strip_soth_debug(soth: Path, tmp: Path) -> Path:
 
 
 def patch_nipm(nipm: Path) -> Path:
-    """Apply :data:`NIPM_FIXES` to NIPM-HLSP's extracted copy and make the :data:`NIPM_OPTIONS` of NIPM-HLSP's extracted ``nipm_hlsp/options.h``
+    """Make the :data:`NIPM_OPTIONS` of NIPM-HLSP's extracted ``nipm_hlsp/options.h``
     run-time settings: each ``const T name = default;`` becomes ``const T name =
     hik_nipm::settings().name;``, and a struct ``hik_nipm::Settings`` holding those
     defaults is declared above (the adapter defines ``settings()`` and sets it before
-    each solve). The include folder to compile with (NIPM-HLSP's root)."""
+    each solve); then apply :data:`NIPM_FIXES`. The include folder to compile with
+    (NIPM-HLSP's root)."""
     path = nipm / "nipm_hlsp" / "options.h"
     text = path.read_text()
     found = {m.group(3): (m.group(2), m.group(4).strip()) for m in NIPM_OPTION_LINE.finditer(text)}

@@ -41,7 +41,8 @@ from hikbench.problems.hierarchy import Hierarchy
 from hikbench.solvers.base import ERROR, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
 from hikbench.solvers.registry import SolverInfo, check_choice, check_int, check_number
 
-__all__ = ["MISSING", "SOLVERS", "LexlsSolver", "NipmSolver", "SothSolver", "build_info", "load_module", "peers_dir"]
+__all__ = ["MISSING", "SOLVERS", "LexlsSolver", "NipmSolver", "SothSolver", "build_info", "load_module",
+           "peers_dir"]
 
 NOT_BUILT = "not built: run `make peers` (docs/peers.md)"
 WARM_STARTS = ("none", "time")

@@ -248,6 +248,29 @@ def test_nipm_bounds_keep_their_sides(lower, upper, target):
         np.testing.assert_allclose(res.x, np.clip([target] * n, lower, upper), rtol=0, atol=1e-9)
 
 
+def _nipm_test1_case(n: int, me: list[int], mi: list[int]) -> Hierarchy:
+    """The data of a deterministic case of NIPM-HLSP's tests/test1.cpp (pinned commit) in
+    hikbench's form: level l sets x_i = c_l for i < me[l] and x_i <= d_l for i < mi[l] (its
+    rows -x_i >= -d_l), with (c_l, d_l) = (1, 1), (10, 2), (20, 3)."""
+    levels = []
+    for k, (e, i) in enumerate(zip(me, mi)):
+        c, d = ((1.0, 1.0), (10.0, 2.0), (20.0, 3.0))[k]
+        levels.append(Level(np.eye(n)[list(range(e)) + list(range(i))],
+                            np.r_[np.full(e, c), np.full(i, -np.inf)], np.r_[np.full(e, c), np.full(i, d)]))
+    return Hierarchy.from_levels(levels, n=n)
+
+
+@needs_nipm
+@pytest.mark.parametrize("n, me, mi", [(1, [0], [1]), (1, [1], [1]), (2, [0, 2], [1, 0]), (4, [0, 4], [2, 0]),
+                                       (4, [1, 4], [2, 1]), (6, [1, 3, 6], [2, 4, 6])],
+                         ids=["test2", "test4", "test5", "test6", "test7", "test10"])
+def test_nipm_agrees_with_hcod_on_cases_of_its_own_tests(n, me, mi):
+    h = _nipm_test1_case(n, me, mi)
+    res = registry.create("nipm-hlsp").solve(h)
+    assert res.status == OPTIMAL, res.reason
+    assert verify(h, res.x, _hcod(h), rtol=NIPM_RTOL, atol=NIPM_ATOL).equal
+
+
 @needs_nipm
 @pytest.mark.parametrize("kind", KINDS)
 @pytest.mark.parametrize("box", [False, True], ids=["no-box", "box"])
