@@ -437,6 +437,56 @@ def test_build_without_compiler_or_source_is_one_line_and_exit_2(tmp_path, env, 
     assert not (tmp_path / "out").exists()
 
 
+def _nipm_tree(tmp_path, options: str, driver: str) -> Path:
+    (tmp_path / "nipm_hlsp").mkdir()
+    (tmp_path / "nipm_hlsp" / "options.h").write_text(options)
+    (tmp_path / "nipm_hlsp" / "nipm_hlsp.cpp").write_text(driver)
+    (tmp_path / "nipm_hlsp" / "hlsp.cpp").write_text("make_shared<levelShared>(shared_ptr<hlsp>(this), p, n)")
+    return tmp_path
+
+
+_OPTIONS_H = """#pragma once
+struct options {
+    const int maxIter = 10; // cap
+    const double linearDependency = 1e-12;
+    const double KKT_thres = 1e-12;
+    const double activationThres = 1e-8;
+};
+"""
+
+
+def _build_module():
+    """peers/build.py as a module (by its path: PyPI's `build` may be installed)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("hikbench_peers_build", ROOT / "peers" / "build.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_nipm_patch_reads_the_options_from_the_settings_and_fixes_the_leak(tmp_path):
+    build = _build_module()
+    tree = build.patch_nipm(_nipm_tree(tmp_path, _OPTIONS_H, "int nrIter = nwt->run(opt.maxIter);"))
+    text = (tree / "nipm_hlsp" / "options.h").read_text()
+    assert "struct Settings { int maxIter = 10; double linearDependency = 1e-12; double KKT_thres = 1e-12; " \
+           "double activationThres = 1e-8; };" in text
+    assert "const int maxIter = ::hik_nipm::settings().maxIter; // cap" in text
+    assert "delete nwt;" in (tree / "nipm_hlsp" / "nipm_hlsp.cpp").read_text()
+    assert "shared_ptr<hlsp>(this, [](hlsp*) {})" in (tree / "nipm_hlsp" / "hlsp.cpp").read_text()
+
+
+@pytest.mark.parametrize("options, driver, why", [
+    (_OPTIONS_H.replace("const int maxIter = 10;", "int maxIter = 10;"), "int nrIter = nwt->run(opt.maxIter);",
+     "options.h does not declare each of maxIter"),
+    (_OPTIONS_H, "int iters = nwt->run(opt.maxIter);", "nipm_hlsp.cpp does not hold `int nrIter")],
+    ids=["option-changed", "driver-changed"])
+def test_nipm_patch_refuses_a_changed_source(tmp_path, options, driver, why):
+    build = _build_module()
+    with pytest.raises(build.BuildError, match=why):
+        build.patch_nipm(_nipm_tree(tmp_path, options, driver))
+
+
 def test_build_with_no_compiler_process_is_one_line_and_exit_2(tmp_path):
     """`make peers PEERS_JOBS=0` is refused, naming the option, before anything is built."""
     done = _run([str(ROOT / "peers" / "build.py"), "--jobs", "0", "--out", str(tmp_path / "out")])
