@@ -217,10 +217,11 @@ def test_the_build_is_recorded_for_run_json():
 
 #: verify() tolerances for nipm-hlsp against hcod (docs/peers.md, "Agreement"): an interior-point
 #: method ends each level on a KKT residual below its kkt_tolerance (1e-12) or, at its cap, on
-#: the residual it reached (1e-11..1e-6 on the IK-like problems), not on an exact active set: its
-#: level norms are those of hcod to 1e-9 of the level's scale on the problems it solves, so 1e-6
-#: (verify's own default) holds them with a margin; an absolute 1e-9 for the levels of scale ~0
-#: (all bounds 0 and x = 0) of the hypothesis draws, whose terms are at most 10
+#: the residual it reached (8e-8..2e-6 summed on the IK-like problems), not on an exact active set: its
+#: level norms may be off by the order of that residual, so 1e-6 of the level's scale, not less
+#: (measured: 3e-12 or better where it finds hcod's point, and every miss above 0.08), and an
+#: absolute 1e-9 for the levels of scale ~0 (all bounds 0 and x = 0) of the hypothesis draws, whose
+#: terms are at most 10: the benchmark's `default` accuracy profile (docs/verification.md)
 NIPM_RTOL, NIPM_ATOL = 1e-6, 1e-9
 #: the seeds of 8 per row kind (random_hierarchy(10, 3, [3, 4, 5]) as for soth and lexls above)
 #: on which nipm-hlsp, at its defaults, returns a point above hcod's at some level: 6 of 64
@@ -325,7 +326,7 @@ def test_nipm_agrees_with_hcod_on_benchmark_problems(problem):
         res = registry.create("nipm-hlsp").solve(h)
         if problem.startswith("equality"):
             assert res.status == OPTIMAL, res.reason
-        else:  # (the IK-like levels reach a KKT residual of 1e-11..1e-6 in 20 Newton iterations, most
+        else:  # (the IK-like levels reach a summed KKT residual of 8e-8..2e-6 in 20 Newton iterations, most
             # short of 1e-12: max_iterations, with hcod's answer)
             assert res.status in (OPTIMAL, MAX_ITERATIONS), res.reason
         assert verify(h, res.x, _hcod(h), rtol=NIPM_RTOL).equal, seed
