@@ -68,9 +68,8 @@ def test_a_held_bound_the_minimum_norm_stage_would_leave_is_refused():
 @pytest.mark.parametrize(("x", "kwargs", "match"), [
     ([1.0], {}, "shape"),
     ([np.nan, 0.0], {}, "finite"),
-    ([1.0, 0.0], {"digits": 20}, "digits"),
     ([1.0, 0.0], {"rtol": -1e-8}, "rtol"),
-], ids=["shape", "nan", "digits", "rtol"])
+], ids=["shape", "nan", "rtol"])
 def test_bad_input_is_refused_with_its_name(x, kwargs, match):
     with pytest.raises(HikbenchError, match=match):
         certify(BOX_THEN_SUM, x, **kwargs)
@@ -157,47 +156,58 @@ def test_rows_of_very_different_norms_are_certified():
     np.testing.assert_array_equal(cert.level_norms, [0.0, 0.0])
 
 
-def _exact_of(rows, g):
-    from hikbench.problems.exact import _Exact
+def _data_of(rows):
+    from hikbench.problems.exact import _Data
 
-    E = _Exact(Hierarchy([[1.0, 0.0]], [0.0], [0.0], [0]), 50)
-    mp = E.ctx.mpf
-    return E, [[mp(v) for v in r] for r in rows], [mp(v) for v in g]
+    rows = np.asarray(rows, dtype=float)
+    return _Data(Hierarchy(rows, np.zeros(len(rows)), np.ones(len(rows)), np.zeros(len(rows), dtype=int)))
 
 
-def test_exact_nnls_finds_multipliers_the_minimum_norm_solution_misses():
+def _fmpq(values):
+    from flint import fmpq
+
+    return [fmpq(v) for v in values]
+
+
+def test_exact_nnls_finds_multipliers_the_least_squares_ones_miss():
     """Rows c = (1, 0), (1, 1), (0, 1), all multipliers >= 0, g = (-1, 0): g + C^T lam = 0 has
-    lam = (1, 0, 0). The least-squares lam over all three rows (minimum-norm with each row
-    at norm 1: mu = M^T (M M^T)^-1 (1, 0) = (3/4, 1/(2 sqrt 2), -1/4), lam_1 = mu_1 / sqrt 2) is
-    (3/4, 1/4, -1/4), a wrong sign; Lawson and Hanson's NNLS, in 50 digits, finds (1, 0, 0)."""
-    from hikbench.problems.exact import _lstsq_on, _nnls
+    lam = (1, 0, 0), while the minimum-norm least-squares lam over all three rows is
+    (2/3, 1/3, -1/3) (wrong sign). Lawson and Hanson's NNLS, exact, finds a nonnegative one;
+    with g = (-1, 1) (lam0 + lam1 = 1 and lam1 + lam2 = -1) none exists."""
+    from hikbench.problems.exact import _nnls
 
-    E, C, g = _exact_of([[1, 0], [1, 1], [0, 1]], [-1, 0])
-    lam = _lstsq_on(E, C, g, [0, 1, 2])
-    np.testing.assert_allclose([float(v) for v in lam], [3 / 4, 1 / 4, -1 / 4], rtol=1e-15)
-    lam = _nnls(E, C, g, [False] * 3, E.ctx.mpf(1))
-    np.testing.assert_allclose([float(v) for v in lam], [1.0, 0.0, 0.0], rtol=1e-45, atol=1e-45)
+    D = _data_of([[1, 0], [1, 1], [0, 1]])
+    assert _nnls(D, _fmpq([-1, 0]), [(0, 1), (1, 1), (2, 1)])
+    assert not _nnls(D, _fmpq([-1, 1]), [(0, 1), (1, 1), (2, 1)])
 
 
 @pytest.mark.parametrize(
-    "rows, free, g, expected",
+    "rows, signs, g, expected",
     [
         # g + C^T lam = 0 asks lam0 + lam1 = 1 and lam1 + lam2 = -1: no lam >= 0 does
-        ([[1, 0], [1, 1], [0, 1]], [False] * 3, [-1, 1], False),
+        ([[1, 0], [1, 1], [0, 1]], [1, 1, 1], [-1, 1], False),
         # a free row takes either sign: lam0 = -1 on (1, 0), and lam1 = 2 >= 0 on (0, 1)
-        ([[1, 0], [0, 1]], [True, False], [1, -2], True),
+        ([[1, 0], [0, 1]], [0, 1], [1, -2], True),
         # the same with the second row's multiplier asked the wrong sign
-        ([[1, 0], [0, 1]], [True, False], [1, 2], False),
+        ([[1, 0], [0, 1]], [0, 1], [1, 2], False),
+        # a lower bound: lam <= 0 on its row; g = (1, 0) needs lam0 = -1
+        ([[1, 0], [0, 1]], [-1, 1], [1, 0], True),
+        # two parallel rows at their bounds, one upper one lower (a joint's position and velocity
+        # limits): any sign of the sum is reachable, the multipliers are not unique
+        ([[1, 0], [1, 0], [0, 1]], [1, -1, 0], [5, 3], True),
+        # the same rows both at upper bounds: only lam0 + lam1 >= 0
+        ([[1, 0], [1, 0], [0, 1]], [1, 1, 0], [5, 3], False),
     ],
-    ids=["no-nonnegative-lam", "free-row-any-sign", "signed-row-wrong-sign"],
+    ids=["no-nonnegative-lam", "free-row-any-sign", "signed-row-wrong-sign", "lower-bound-sign",
+         "parallel-rows-opposite-bounds", "parallel-rows-same-bound"],
 )
-def test_multipliers_vanish_only_where_multipliers_of_the_right_sign_exist(rows, free, g, expected):
-    from hikbench.problems.exact import _multipliers_vanish
+def test_multipliers_exist_only_where_multipliers_of_the_right_sign_exist(rows, signs, g, expected):
+    from hikbench.problems.exact import _multipliers_exist, _nnls
 
-    E, _, gm = _exact_of(rows, g)
-    E.A = [[E.ctx.mpf(v) for v in r] for r in rows]  # (held rows indexed into E.A)
-    held = [(j, 0 if f else 1) for j, f in enumerate(free)]
-    assert _multipliers_vanish(E, gm, E.ctx.mpf(1), held, 25) is expected
+    D = _data_of(rows)
+    cands = list(enumerate(signs))
+    assert _multipliers_exist(D, _fmpq(g), cands) is expected
+    assert _nnls(D, _fmpq(g), cands) is expected
 
 
 def _box_then_sum_scaled(a: float, level0: float = 1.0) -> tuple[Hierarchy, float]:
@@ -219,7 +229,7 @@ def test_the_certificate_does_not_depend_on_the_units(a, level0):
     h, f = _box_then_sum_scaled(a, level0)
     cert = certify(h, [1.0 * f, 0.0])
     assert cert.certified, cert.reason
-    np.testing.assert_allclose(cert.x, [f, 0.0], rtol=1e-15, atol=1e-40 * f)  # (50 digits)
+    np.testing.assert_allclose(cert.x, [f, 0.0], rtol=1e-15, atol=0)  # (exact, rounded)
     np.testing.assert_allclose(cert.level_norms, [0.0, 2.0], rtol=1e-15, atol=1e-40)
     assert not certify(h, [1.0 * f, -0.5 * f]).certified
 
