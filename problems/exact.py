@@ -200,11 +200,12 @@ def _solve(K, b):
         return None
 
 
-def _stage(D: _Data, B, hB, T, t):
+def _stage(D: _Data, B, hB, T, t, cache=None):
     """Stage k's exact slacks w on T and multipliers lam on the held rows B (values hB):
-    (w, lam, x_P, P) with ``g + B^T lam = 0`` on every column (checked), x_P the stage's point
-    on the pivot columns P (None where every target is met: w = 0, lam = 0); None where the
-    KKT system is singular (an independence the prime got wrong)."""
+    (w, lam) with ``g + B^T lam = 0`` on every column (checked). lam is None where every
+    target is met (w = 0, g = 0) and where T lies in the span of B (w from any point of the
+    held set, ``cache``: B -> that point; g in the span of B, its multipliers solved only where
+    a sign is asked). None where a system is singular (an independence the prime got wrong)."""
     from flint import fmpq, fmpq_mat
 
     zero = fmpq(0)
@@ -212,6 +213,16 @@ def _stage(D: _Data, B, hB, T, t):
     T1 = [i for i in R if i not in set(B)]
     if len(T1) == len(T):
         return [zero] * len(T), None
+    if not T1:  # (saturated: A_T x is the same at every point of the held set)
+        xh = cache.get(tuple(B)) if cache is not None else None
+        if xh is None:
+            xh = _stage_point(D, B, hB)
+            if xh is None:
+                return None
+            if cache is not None:
+                cache[tuple(B)] = xh
+        r = (D.mat(T) * fmpq_mat(D.n, 1, xh)).entries()
+        return [ri - ti for ri, ti in zip(r, t)], None
     P = D.pivot_columns([*B, *T1])
     r, nt, nb = len(P), len(T), len(B)
     N = r + nt + nb
@@ -508,6 +519,7 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float) -> Cert
     values: list = []  # the value each held row is held at
     stages = []  # per level: (its targets T, their slacks w, rows held above, lam on them or None)
     basis: list[int] = []  # an independent subset of the held rows
+    points: dict = {}  # a point of each independent held set a saturated stage met
     for k in range(h.depth):
         rows = range(h.starts[k], h.starts[k + 1])
         hB = [values[j] for j, (i, _) in enumerate(held) if i in set(basis)]
@@ -516,7 +528,7 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float) -> Cert
         while True:
             T = [i for i in rows if states[i] != INSIDE and i not in let_go]
             t = [D.lo[i] if states[i] in (AT_LOWER, EQUALITY) else D.up[i] for i in T]
-            out = _stage(D, B, hB, T, t) if T else ([], None)
+            out = _stage(D, B, hB, T, t, points) if T else ([], None)
             if out is None:
                 return fail(f"level {k}: the stage's exact KKT system is singular on the rows chosen "
                             f"independent (a choice modulo the prime that exact arithmetic refutes)")
@@ -584,9 +596,15 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float) -> Cert
 
     sign_of = dict(held)
     for k, (T, w, n_above, B, lam) in enumerate(stages):
-        if lam is None or _signs_ok([sign_of[i] for i in B], lam):
+        if all(v == 0 for v in w) or not any(sign_of[i] for i in B):
+            continue  # (g = 0, or multipliers of any sign: the stage's exact solve is its optimum)
+        if lam is not None and _signs_ok([sign_of[i] for i in B], lam):
             continue
-        g = [sum((w_i * D.rows[i][q] for i, w_i in zip(T, w)), w[0] * 0) for q in range(h.n)]
+        from flint import fmpq_mat
+
+        g = (D.mat(T).transpose() * fmpq_mat(len(T), 1, w)).entries()
+        if lam is None and _exact_on_support(D, g, [(i, sign_of[i]) for i in B]):
+            continue
         if not _multipliers_exist(D, g, candidates(int(h.starts[k]))):
             return fail(f"level {k}: the exact x* is not optimal for its stage (no multipliers of the "
                         f"right sign cancel the gradient): the active set read off x is not the optimal one")
