@@ -248,3 +248,83 @@ def test_the_old_yardsticks_point_on_a_rescaled_problem_is_refused(i):
     cert = certify(h, x)
     assert cert.certified, cert.reason
     assert level_norms(h, x_old)[1 if i == 0 else 3] > 10 * cert.level_norms[1 if i == 0 else 3] + 1e-6
+
+
+# n = 2. Level 0: x0 + x1 <= 2, x1 <= 1, x0 <= 1 (three rows through the vertex (1, 1));
+# level 1: x0 = 3; level 2: x1 = 5. x* = (1, 1), slacks -2 and -4: norms (0, 2, 4). At level 1
+# the gradient (-2, 0) is cancelled by x0 <= 1 alone (lam 2); the first two rows, an
+# independent pair, would need lam = (2, -2): multipliers not unique, the greedy pair's wrong.
+DEGENERATE_VERTEX = Hierarchy([[1, 1], [0, 1], [1, 0], [1, 0], [0, 1]], [-INF, -INF, -INF, 3, 5],
+                              [2, 1, 1, 3, 5], [0, 0, 0, 1, 2])
+
+
+def test_a_degenerate_vertex_is_certified_by_the_multipliers_search():
+    cert = certify(DEGENERATE_VERTEX, [1.0, 1.0])
+    assert cert.certified, cert.reason
+    np.testing.assert_array_equal(cert.x, [1.0, 1.0])
+    assert cert.level_norms_sq == (0, 4, 16)
+    np.testing.assert_array_equal(cert.level_norms, [0.0, 2.0, 4.0])
+
+
+def test_parallel_limit_rows_at_one_bound_are_certified():
+    """A joint's position and velocity limit rows (parallel, two-sided) both at the upper bound 1
+    where level 1 asks x0 = 3: held twice, multipliers of the pair not unique (any split of 2)."""
+    h = Hierarchy([[1, 0], [2, 0], [0, 1], [1, 1]], [-1, -2, -1, 3], [1, 2, 1, 3], [0, 0, 0, 1])
+    cert = certify(h, [1.0, 1.0])
+    assert cert.certified, cert.reason
+    assert cert.states[:2] == ["upper", "upper"]
+    assert cert.level_norms_sq == (0, 1)
+
+
+def test_the_exact_level_norms_and_point_are_rationals():
+    """BOX_THEN_SUM's bounds times the double nearest 1/3, t: level 1 asks x0 + x1 = fl(3 t) = 1,
+    so the exact slack is t - 1 (the stored doubles' rationals), not -2/3."""
+    from fractions import Fraction
+
+    third = 1.0 / 3.0
+    h = Hierarchy(BOX_THEN_SUM.A, BOX_THEN_SUM.lower * third, BOX_THEN_SUM.upper * third, BOX_THEN_SUM.level)
+    cert = certify(h, [third, 0.0])
+    assert cert.certified, cert.reason
+    t = Fraction(third)
+    assert cert.x_exact == (t, 0)
+    assert cert.level_norms_sq == (0, (t - Fraction(h.upper[2])) ** 2) and h.upper[2] == 1.0
+
+
+def test_a_rank_deficient_only_to_rounding_robot_column_is_refused_with_its_level():
+    """A Jacobian column of rounding noise (eps = 2.8e-17: a tip on the last joint's axis).
+    Level 0: x0 <= 1, -2 <= x1 <= 2; level 1: x0 + eps x1 = 3 (out of reach); level 2: x1 = -2.
+    A solver that cuts eps as rounding leaves x1 to level 2: (1, -2). In exact arithmetic level 1's
+    gradient (w, w eps), w < 0, pushes x1 up: its lower bound would need a positive multiplier.
+    Refused at level 1; the exact optimum (1, 2) is certified, level 2 at 4."""
+    eps = 2.7755575615628914e-17
+    h = Hierarchy([[1, 0], [0, 1], [1, eps], [0, 1]], [-INF, -2, 3, -2], [1, 2, 3, -2], [0, 0, 1, 2])
+    cert = certify(h, [1.0, -2.0])
+    assert not cert.certified
+    assert cert.reason.startswith("level 1: the exact x* is not optimal"), cert.reason
+    right = certify(h, [1.0, 2.0])
+    assert right.certified, right.reason
+    np.testing.assert_allclose(right.level_norms, [0.0, 2.0, 4.0], rtol=1e-15)
+
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from hik_strategies import hierarchies  # noqa: E402
+
+quarters = st.integers(-8, 8).map(lambda v: v / 4)
+
+
+@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(hierarchies(max_n=5, max_depth=4, max_rows=4, coefficients=quarters, bounds=quarters, names=False,
+                   x0=False, min_n=1))
+def test_hcods_points_on_dyadic_hierarchies_are_certified_and_equal(h):
+    """Quarters (exact doubles): duplicated, dependent and conflicting rows, every row kind. hcod's
+    point is certified and its level norms are the exact ones to 1e-9 of each level's scale."""
+    from hikbench.problems.verify import level_scales
+    from hikbench.solvers.hcod import HcodSolver
+
+    x = HcodSolver().solve(h).x
+    cert = certify(h, x)
+    assert cert.certified, cert.reason
+    tol = 1e-9 * level_scales(h, cert.x) + 1e-12
+    assert np.all(np.abs(level_norms(h, x) - cert.level_norms) <= tol), (level_norms(h, x), cert.level_norms)
