@@ -404,15 +404,17 @@ def _nnls(D: _Data, g, cands) -> bool:
     return False
 
 
-#: seconds of :func:`certify` (one reading) per ``(n + rows)^3``, an upper estimate on an AMD EPYC
-#: core: see :func:`estimated_seconds`
-COST_S = 2e-7
+#: seconds of :func:`certify` (one reading) per ``(n + rows)^3``, on an AMD EPYC core: the shipped
+#: suites' problems took 0.05 to 2 times it (see :func:`estimated_seconds`)
+COST_S = 3e-7
 
 
 def estimated_seconds(h: Hierarchy) -> float:
-    """The time :func:`certify` is expected to take on h when its first reading certifies, an
-    upper estimate (:data:`COST_S` ``(n + rows)^3``: the stages' exact KKT solves): 0.04 s at a
-    robot stack of n = 38 and 117 rows, 2.2 s at IK-like n = 80 (253 rows)."""
+    """The time :func:`certify` is expected to take on h when its first reading certifies, to an
+    order of magnitude (:data:`COST_S` ``(n + rows)^3``: the stages' exact KKT systems and the
+    minimum-norm Gram system): 1.1 s at a robot stack of n = 38 and 117 rows (0.3 s measured),
+    8.5 s at IK-like n = 80 with 225 rows (1-1.5 s), 3 s at equality n = 120 with 96 rows (1.1 s),
+    1 s at equality n = 30 with 20 levels of 6 rows (2 s)."""
     return COST_S * float(h.n + h.rows) ** 3
 
 
