@@ -447,9 +447,11 @@ def certify(h: Hierarchy, x, rtol: float | None = None) -> Certificate:
     if rtol is not None and not (isinstance(rtol, (int, float)) and 0.0 <= rtol < 1.0):
         raise HikbenchError(f"certify: rtol must be in [0, 1); got {rtol!r}")
     D = _Data(h)
-    first = None
+    first, tried = None, set()
     for reading in (READINGS if rtol is None else (float(rtol),)):
-        cert = _certify_reading(h, D, x, reading)
+        cert = _certify_reading(h, D, x, reading, tried)
+        if cert is None:  # (the same active set as a reading before: the same refusal)
+            continue
         if cert.certified:
             return cert
         first = first or cert
@@ -507,11 +509,15 @@ def _violation(D: _Data, i: int, r):
     return r * 0
 
 
-def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float) -> Certificate:
-    """:func:`certify` for one reading tolerance."""
+def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: set) -> Certificate | None:
+    """:func:`certify` for one reading tolerance; None where its active set is one of ``tried``
+    (the active sets read before, to which it is added)."""
     x_q = [_q(v) for v in x.tolist()]
     scale = _row_scales(h, D, x)
     states = _read_states(h, D, D.dots(x_q), rtol, scale)
+    if tuple(states) in tried:
+        return None
+    tried.add(tuple(states))
     nan = np.full(h.depth, np.nan)
 
     def fail(reason: str) -> Certificate:
