@@ -305,8 +305,8 @@ def _multipliers_exist(D: _Data, g, cands) -> bool:
         return False
     from scipy.optimize import linprog
 
-    rows = [i for i, _ in cands]
-    C = np.array([[_to_float(v) for v in D.rows[i]] for i, _ in cands]) * np.array([s or 1 for _, s in cands])[:, None]
+    C = np.array([[_to_float(v) for v in D.rows[i]] for i, _ in cands])
+    C *= np.array([s or 1 for _, s in cands], dtype=float)[:, None]
     with np.errstate(over="ignore", invalid="ignore"):
         m = np.max(np.abs(C), axis=1, keepdims=True)
         C = np.nan_to_num(C / np.where(m > 0, m, 1.0))
@@ -525,7 +525,7 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
 
     held: list[tuple[int, int]] = []  # (row, sign): +1 upper, -1 lower, 0 at a value
     values: list = []  # the value each held row is held at
-    stages = []  # per level: (its targets T, their slacks w, rows held above, lam on them or None)
+    stages = []  # per level: (its targets T, their slacks w, the held rows B it was solved on, lam on B or None)
     basis: list[int] = []  # an independent subset of the held rows
     points: dict = {}  # a point of each independent held set a saturated stage met
     for k in range(h.depth):
@@ -550,7 +550,7 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
                 break
             j = max(inside)[1]
             let_go[j] = D.lo[j] if states[j] == AT_LOWER else D.up[j]
-        stages.append((T, w, len(held), B, lam))
+        stages.append((T, w, B, lam))
         for i, ti, wi, sd in zip(T, t, w, side):
             held.append((i, 0 if wi != 0 or sd == 0 else sd))
             values.append(ti + wi)
@@ -586,7 +586,8 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
             return fail(f"{_where(h, i)}: held at its value by the active set read off x, but the exact "
                         f"x* misses it (its value is not reachable with the rows held with it)")
     for i, s in enumerate(states):
-        if s == INSIDE and ((D.lo[i] is not None and r[i] < D.lo[i]) or (D.up[i] is not None and r[i] > D.up[i])):
+        if s == INSIDE and ((D.lo[i] is not None and r[i] < D.lo[i])
+                            or (D.up[i] is not None and r[i] > D.up[i])):
             return fail(f"{_where(h, i)}: read as inside its bounds, but the exact x* leaves them")
     viol = [_violation(D, i, r[i]) for i in range(D.m)]
 
@@ -603,7 +604,7 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
         return out
 
     sign_of = dict(held)
-    for k, (T, w, n_above, B, lam) in enumerate(stages):
+    for k, (T, w, B, lam) in enumerate(stages):
         if all(v == 0 for v in w) or not any(sign_of[i] for i in B):
             continue  # (g = 0, or multipliers of any sign: the stage's exact solve is its optimum)
         if lam is not None and _signs_ok([sign_of[i] for i in B], lam):
