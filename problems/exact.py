@@ -414,16 +414,16 @@ def _nnls(D: _Data, g, cands) -> bool:
 
 
 #: seconds of :func:`certify` (one reading) per ``(n + rows)^3``, on an AMD EPYC core: the shipped
-#: suites' problems took 0.05 to 2 times it (see :func:`estimated_seconds`)
+#: suites' problems took 0.05 to 1 times it (see :func:`estimated_seconds`)
 COST_S = 3e-7
 
 
 def estimated_seconds(h: Hierarchy) -> float:
     """The time :func:`certify` is expected to take on h when its first reading certifies, to an
     order of magnitude (:data:`COST_S` ``(n + rows)^3``: the stages' exact KKT systems and the
-    minimum-norm Gram system): 1.1 s at a robot stack of n = 38 and 117 rows (0.3 s measured),
-    8.5 s at IK-like n = 80 with 225 rows (1-1.5 s), 3 s at equality n = 120 with 96 rows (1.1 s),
-    1 s at equality n = 30 with 20 levels of 6 rows (2 s)."""
+    minimum-norm system): 1.1 s at a robot stack of n = 38 and 117 rows (0.2-0.4 s measured),
+    8.5 s at IK-like n = 80 with 225 rows (0.5-1.4 s), 3 s at equality n = 120 with 96 rows
+    (0.9-1.7 s), 1 s at equality n = 30 with 20 levels of 6 rows (0.4 s)."""
     return COST_S * float(h.n + h.rows) ** 3
 
 
