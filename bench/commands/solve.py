@@ -45,8 +45,8 @@ def add_arguments(p) -> None:
                         "its kernels once, about 70 s without numba's cache), when larger than --timeout "
                         "(default: the quick suite's, as `run`: 300)")
     p.add_argument("--certify", action="store_true",
-                   help="also certify x in 50-digit arithmetic: the exact optimum on the active set read off x, "
-                        "and its level norms (hikbench.problems.exact; ~0.1 s at n = 5, ~3 s at n = 20); for a "
+                   help="also certify x in exact rational arithmetic: the exact optimum on the active set read off x, "
+                        "and its level norms (hikbench.problems.exact; ~0.05 s at n = 7, ~1 s at n = 80-120); for a "
                         "solver claiming row-normalised levels (daqp-hqp), of the row-normalised hierarchy")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
