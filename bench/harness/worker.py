@@ -1,9 +1,10 @@
 """The worker side of a solve: build the solver, time it, return plain data.
 
-Runs inside the isolated worker process (``python -m hikbench.bench.harness.isolation``) or,
-for external programs, in the caller. A job is a dict::
+Runs inside the isolated worker process (``python -m hikbench.bench.harness.isolation``), for
+external programs too (``"kind": "external"``, with ``"program_timeout"``: the program is started,
+and its answer read and checked, here). A job is a dict::
 
-    {"kind": "solve" | "yardstick" | "candidate" | "certify", "hierarchy": Hierarchy, "solver": spec,
+    {"kind": "solve" | "external" | "yardstick" | "candidate" | "certify", "hierarchy": Hierarchy, "solver": spec,
      "options": {...}, "mode": "cold" | "warm", "repeat": R, "warmup": W,
      "samples": S or None, "sample_time": T}      # (hikbench.bench.harness.timing.time_solves)
 
@@ -114,6 +115,9 @@ def execute(job: dict, notify=None) -> dict:
             return {**base, **candidate_point(h, job["solver"])}
         if job["kind"] == "certify":
             return {**base, **certify_point(h, np.asarray(job["x"], dtype=float))}
+        if job["kind"] == "external":  # (the program's answer is read and checked here, not by the run)
+            from hikbench.bench.harness.external import run_external
+            return {**base, **run_external(job, float(job["program_timeout"]))}
         from hikbench.bench.harness.timing import SAMPLE_TIME, time_solves
         make = solver_factory(job["solver"], job.get("options", {}))
         first = make()
