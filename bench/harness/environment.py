@@ -157,7 +157,21 @@ def read_run_json(run_dir) -> dict:
 
 
 def write_run_json(run_dir, data: dict) -> None:
+    """Write OUT/run.json whole or not at all: through ``run.json.tmp``, fsynced, then
+    renamed over it; a write that fails (a full disk) removes the temporary file and
+    raises HikbenchError naming the cause, the previous run.json left as it was."""
+    from hikbench.problems.errors import HikbenchError
+
     p = Path(run_dir) / RUN_JSON
     tmp = p.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(data, indent=1, default=str) + "\n")
-    os.replace(tmp, p)
+    try:
+        with open(tmp, "w") as f:
+            f.write(json.dumps(data, indent=1, default=str) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except OSError as err:
+        if not tmp.is_dir():  # (a folder in its place is not this function's to remove)
+            tmp.unlink(missing_ok=True)
+        raise HikbenchError(f"{p}: cannot write it ({err.strerror or err}); the previous {RUN_JSON} is left as "
+                            f"it was") from None
