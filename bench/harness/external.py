@@ -64,7 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hikbench.bench.harness.isolation import HeadTail, kill_session
+from hikbench.bench.harness.streams import HeadTail, kill_session
 from hikbench.bench.harness.statuses import TIMEOUT
 from hikbench.solvers.base import ERROR, OPTIMAL, STATUSES, SolveResult
 
