@@ -138,21 +138,43 @@ def machine_class(env: dict) -> str | None:
     return f"{cpu or 'unknown CPU'}, OpenBLAS {arch or 'unknown'}" + (f", numba {target}" if target else "")
 
 
+#: the types of the fields of run.json that runs, reports and compare read (others are kept as they are)
+RUN_JSON_TYPES = {"sessions": list, "selected_solvers": list, "suite": dict, "environment": dict,
+                  "accuracy": dict, "skipped_solvers": dict, "export_skipped": dict, "key": list,
+                  "suite_rows": int, "suite_scenario_runs": int, "calibration_ns": (int, float),
+                  "created": str, "yardstick_code": str, "calibration_kernel": str}
+_RUN_JSON_BYTES = 1 << 28  # a run.json larger than this is refused unread (its sessions are a few hundred bytes)
+
+
 def read_run_json(run_dir) -> dict:
-    """OUT/run.json as a dict ({} when there is none); HikbenchError when it is not a JSON object."""
+    """OUT/run.json as a dict ({} when there is none); HikbenchError when it is no regular file
+    (a FIFO, a folder), not a JSON object, or a field of :data:`RUN_JSON_TYPES` has another type."""
+    from hikbench.bench.harness.regular import read_regular, regular_or_absent
     from hikbench.problems.errors import HikbenchError
 
     p = Path(run_dir) / RUN_JSON
-    if not p.exists():
+    expected = "the run.json written by hikbench run"
+    if not regular_or_absent(p, expected):
         return {}
     try:
-        data = json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise HikbenchError(f"{p}: not valid JSON ({err}); expected the run.json written by hikbench run "
-                            f"(restore it, or write to a new --out directory)") from err
+        data = json.loads(read_regular(p, _RUN_JSON_BYTES, expected).decode("utf-8"))
+    except (RecursionError, ValueError) as err:  # (JSONDecodeError, UnicodeDecodeError, digits past the limit)
+        why = "nested too deep" if isinstance(err, RecursionError) else str(err)
+        raise HikbenchError(f"{p}: not valid JSON ({why}); expected {expected} "
+                            f"(restore it, or write to a new --out directory)") from None
     if not isinstance(data, dict):
         raise HikbenchError(f"{p}: expected a JSON object (the run.json written by hikbench run); "
                             f"got a {type(data).__name__}")
+    for key, types in RUN_JSON_TYPES.items():
+        value = data.get(key)
+        if value is not None and (not isinstance(value, types) or isinstance(value, bool)):
+            want = " or ".join(t.__name__ for t in (types if isinstance(types, tuple) else (types,)))
+            raise HikbenchError(f"{p}: {key} is a {type(value).__name__}: expected a {want} ({expected}; "
+                                f"restore it, or write to a new --out directory)")
+    bad = next((i for i, s in enumerate(data.get("sessions") or []) if not isinstance(s, dict)), None)
+    if bad is not None:
+        raise HikbenchError(f"{p}: sessions[{bad}] is a {type(data['sessions'][bad]).__name__}: expected an "
+                            f"object ({expected}; restore it, or write to a new --out directory)")
     return data
 
 

@@ -32,7 +32,7 @@ from pathlib import Path
 import pandas as pd
 
 from hikbench.bench.harness.columns import JSON_COLUMNS, KEY, NUMBER_COLUMNS, names
-from hikbench.bench.harness.regular import read_regular, regular_or_absent
+from hikbench.bench.harness.regular import check_run_folder, read_regular, regular_or_absent
 from hikbench.problems.errors import HikbenchError
 
 __all__ = ["RESULTS", "ResultsWriter", "backup", "compact", "finished_keys", "finished_rows", "one_line",
@@ -330,6 +330,7 @@ def read_results(run_dir) -> pd.DataFrame:
     if Path(run_dir).is_file():
         raise HikbenchError(f"{run_dir}: is a file; expected a run directory (the --out of `hikbench run`, "
                             f"which holds {RESULTS})")
+    check_run_folder(run_dir)  # (report writes report.md and plots/, compare reads run.json: none of them a FIFO)
     if not regular_or_absent(path, _EXPECTED):
         raise HikbenchError(f"{run_dir}: no {RESULTS} (run `hikbench run --out {run_dir}` first)")
     parsed = _checked(_Csv(path))

@@ -48,6 +48,7 @@ from hikbench.bench.harness.calibration import KERNEL, calibrate
 from hikbench.bench.harness.columns import KEY
 from hikbench.bench.harness.environment import environment, read_run_json, utc_now, write_run_json
 from hikbench.bench.suites.problemset import generate, problem_columns, save_problems
+from hikbench.bench.harness.regular import check_run_folder
 from hikbench.bench.harness.results import ResultsWriter, backup, compact, finished_rows, one_line
 from hikbench.bench.harness.summary import write_summary
 from hikbench.bench.harness.timing import tail_columns
@@ -256,6 +257,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise HikbenchError(f"--out {out}: cannot create the output directory: {err.strerror or err}") from err
+    check_run_folder(out)  # (an entry of the wrong kind, a FIFO at run.lock or worker.log, is one line, not a hang)
     lock = out_lock(out)  # released on return or raise, and by the OS when the process dies
     try:
         export, export_skipped = _export_formats(suite.export)
