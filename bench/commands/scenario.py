@@ -21,6 +21,7 @@ import numpy as np
 
 from hikbench.bench.commands.solve import parse_options
 from hikbench.problems.errors import HikbenchError
+from hikbench.problems.schema import MAX_COUNT, check_at_most
 
 HELP = "run a closed-loop robot scenario (reach, step, or a TOML file) and write CSV + figures"
 
@@ -90,6 +91,8 @@ def run(args) -> int:
         raise HikbenchError(f"--steps must be >= 1; got {args.steps}")
     if args.repeat is not None and args.repeat < 1:
         raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
+    check_at_most("--steps", args.steps, MAX_COUNT, "control steps")
+    check_at_most("--repeat", args.repeat, MAX_COUNT, "timed calls per step")
     repeat = REPEAT if args.repeat is None else args.repeat
     scenario = load_scenario(args.name, robot=_robot(args), frames=_frames(args.frame))
     print(_robot_line(scenario.robot))

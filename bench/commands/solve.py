@@ -17,6 +17,7 @@ from hikbench.bench.harness.statuses import CRASHED
 from hikbench.bench.harness.worker import solver_info
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import load
+from hikbench.problems.schema import MAX_COUNT, check_at_most
 from hikbench.problems.verify import level_norms, verify
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR
@@ -189,6 +190,7 @@ def _child(work, f, parent: int) -> None:
 def run(args) -> int:
     if args.repeat < 1:
         raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
+    check_at_most("--repeat", args.repeat, MAX_COUNT, "timed solves")
     h = load(args.file)
     options = parse_options(args.option)
     info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
