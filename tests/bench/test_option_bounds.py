@@ -83,3 +83,22 @@ def test_a_generator_refuses_sizes_beyond_memory_before_making_a_level(make):
 def test_a_deep_hierarchy_within_memory_is_made():
     h = random_hierarchy(8, 300, 2, seed=0)
     assert h.A.shape == (600, 8) and np.isfinite(h.A).all()
+
+
+def test_a_large_soth_file_refused_at_its_third_token_takes_no_memory_for_its_tokens(tmp_path, capsys):
+    """A 40 MB SOTH file refused at its third token first listed every token (1.64 GB)."""
+    import tracemalloc
+
+    from hikbench.problems.errors import ProblemFileError
+    from hikbench.problems.soth import from_soth_text
+
+    text = "variable size many\n" + "1.0 " * 10_000_000
+    tracemalloc.start()
+    try:
+        with pytest.raises(ProblemFileError, match=r"<soth text>: line 1: expected the number of variables n "
+                                                   r"\(a nonnegative integer\), got 'many'"):
+            from_soth_text(text)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 10e6, peak
