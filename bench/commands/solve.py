@@ -14,7 +14,7 @@ from types import SimpleNamespace
 
 from hikbench.bench.harness.isolation import describe_exit, die_with_parent
 from hikbench.bench.harness.statuses import CRASHED
-from hikbench.bench.harness.worker import solver_info
+from hikbench.bench.harness.worker import exception_text, solver_info
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import load
 from hikbench.problems.schema import MAX_COUNT, check_at_most
@@ -98,7 +98,7 @@ def _solve(args, h, info, options) -> tuple:
     except HikbenchError:
         raise
     except Exception as err:  # noqa: BLE001 - the solver's exception (a user's file.py:Class), not hikbench's
-        return "error", f"{type(err).__name__}: {err}"
+        return "error", exception_text(err)
     res = timing.result
     return "done", {"status": res.status, "reason": res.reason, "x": res.x, "iterations": res.iterations,
                     "median_s": timing.median_s, "min_s": timing.min_s}

@@ -30,7 +30,7 @@ import numpy as np
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult
 
-__all__ = ["candidate_point", "certify_point", "execute", "solver_factory", "solver_info"]
+__all__ = ["candidate_point", "certify_point", "exception_text", "execute", "solver_factory", "solver_info"]
 
 _frozen: set[str] = set()  # solvers whose first solve in this process is behind gc.freeze()
 
@@ -146,8 +146,20 @@ def execute(job: dict, notify=None) -> dict:
         if calib:
             out["calib_ns"] = min(calib[0], calibrate(reps=3))  # around the timed solves
         return out
-    except Exception as err:  # noqa: BLE001 - a failing job costs its row (status error + reason)
+    except (Exception, KeyboardInterrupt) as err:  # noqa: BLE001 - a failing job costs its row (status error + reason)
+        # (KeyboardInterrupt too: this process has a session of its own, no terminal's Ctrl-C reaches
+        # it; one raised here is the solver's own, and would end the worker with a traceback)
         tb = traceback.extract_tb(err.__traceback__)
         where = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
-        return {**base, "status": ERROR, "reason": f"{type(err).__name__}: {err}{where}", "x": None,
+        return {**base, "status": ERROR, "reason": f"{exception_text(err)}{where}", "x": None,
                 "samples_ns": []}
+
+
+def exception_text(err: BaseException) -> str:
+    """``TypeName: message`` of a solver's exception, on one line; an exception whose ``str``
+    itself raises is named with that failure instead of its message."""
+    try:
+        message = str(err)
+    except Exception as inner:  # noqa: BLE001 - the solver's __str__ raises what it raises
+        message = f"(its message cannot be shown: str() raised {type(inner).__name__})"
+    return " ".join(f"{type(err).__name__}: {message}".split()) if message else type(err).__name__
