@@ -6,6 +6,7 @@ import json
 import math
 import os
 import pickle
+import signal
 import sys
 import tempfile
 import threading
@@ -14,6 +15,7 @@ from types import SimpleNamespace
 
 from hikbench.bench.harness.isolation import describe_exit, die_with_parent
 from hikbench.bench.harness.statuses import CRASHED
+from hikbench.bench.harness.streams import become_subreaper, children, kill_descendants
 from hikbench.bench.harness.worker import exception_text, solver_info
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import load
@@ -120,6 +122,8 @@ def _contained(work) -> tuple:
         return work()
     sys.stdout.flush()
     sys.stderr.flush()
+    become_subreaper()  # (Linux: a process the solver left outside its session comes back here, to be ended)
+    before = set(children(os.getpid()))  # (this process's own, when main() is called from Python: not ended)
     with tempfile.TemporaryFile() as f:
         parent = os.getpid()
         pid = os.fork()
@@ -128,6 +132,10 @@ def _contained(work) -> tuple:
         with solver_calls_killable():  # ended by SIGTERM / Ctrl-C as the child is (which dies with it)
             _, status = os.waitpid(pid, 0)
         code = os.waitstatus_to_exitcode(status)
+        for left in set(children(os.getpid())) - before:  # what the solver left running (a setsid grandchild)
+            kill_descendants(left)
+            os.kill(left, signal.SIGKILL)
+            os.waitpid(left, 0)
         f.seek(0)
         data = f.read()
     if code != 0 or not data:

@@ -46,7 +46,7 @@ import threading
 import time
 import zlib
 
-from hikbench.bench.harness.streams import HeadTail, kill_session
+from hikbench.bench.harness.streams import HeadTail, become_subreaper, kill_descendants, kill_session, reap_children
 from hikbench.problems.errors import HikbenchError
 from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
 from hikbench.solvers.base import ERROR
@@ -315,6 +315,7 @@ class IsolatedWorker:
         """End the worker and every process a solver started in its session (a helper
         left running would burn CPU through the timings of every later job)."""
         if self.proc is not None:
+            kill_descendants(self.proc.pid)  # (those that left its session too: the worker is their subreaper)
             kill_session(self.proc.pid)
             self.proc.wait()
             if self._log_pump is not None:
@@ -392,6 +393,10 @@ def _send(channel, result: dict, token: bytes) -> None:
 
 def _child_main() -> None:
     die_with_parent()
+    why = become_subreaper()  # (a solver's grandchild that called setsid comes back here: ended after its job)
+    if why:
+        print(f"hikbench worker: a process a solver started outside its session may outlive its job ({why})",
+              file=sys.stderr)
     # the channel and the jobs on close-on-exec descriptors >= _CHANNEL_FD_MIN; fd 1 goes to stderr (what a
     # solver prints), fd 0 to /dev/null (a solver reading stdin reads nothing: not the job channel)
     channel = os.fdopen(_high_fd(1), "wb")
@@ -421,6 +426,8 @@ def _child_main() -> None:
         if job.get("kind") == "scenario":  # (a suite's [[scenarios]]: pinocchio and the robots, loaded here only)
             from hikbench.bench.scenarios.job import execute_scenario as run
         _send(channel, run(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE, token)), token)
+        kill_descendants(os.getpid())  # every process the job left (a solver's helper would burn CPU through
+        reap_children()  # the timings of every later job), then their exit statuses
 
 
 if __name__ == "__main__":

@@ -6,6 +6,7 @@ an x holding inf is judged without a RuntimeWarning."""
 import os
 import subprocess
 import sys
+import time
 import warnings
 
 import numpy as np
@@ -27,6 +28,20 @@ class Interrupting(Solver):
 
     def solve(self, hierarchy):
         raise KeyboardInterrupt
+
+
+class Lingering(Solver):
+    """Correct (null-space recursion), after leaving a `sleep 60` in a session of its own, orphaned
+    (its parent shell exits at once), its pid appended to $HIKBENCH_TEST_LOG."""
+    name = "lingering"
+
+    def solve(self, hierarchy):
+        import os, subprocess
+        from hikbench.solvers.base import OPTIMAL, SolveResult
+        from hikbench.solvers.yardstick import nullspace_yardstick
+        subprocess.run(["sh", "-c", f"setsid sleep 60 > /dev/null 2>&1 & echo $! >> {os.environ['HIKBENCH_TEST_LOG']}"],
+                       check=True)
+        return SolveResult(nullspace_yardstick(hierarchy), OPTIMAL)
 
 
 class _Unprintable(Exception):
@@ -103,3 +118,35 @@ def test_an_x_holding_inf_is_judged_without_a_warning():
         warnings.simplefilter("error")
         norms = level_norms(h, np.array([np.inf, 0.0]))
     assert not np.isfinite(norms).all()  # (a wrong result looks wrong: NaN or inf, never a small number)
+
+
+def _gone(pid: int, within: float = 3.0) -> bool:
+    """Whether process ``pid`` no longer exists (not even as a zombie) within ``within`` s."""
+    deadline = time.monotonic() + within
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.02)
+    return False
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="a subreaper is Linux's")
+def test_a_setsid_grandchild_of_a_python_solver_ends_with_its_job(solvers_file, tmp_path, capsys, monkeypatch):
+    log = tmp_path / "pids"
+    monkeypatch.setenv("HIKBENCH_TEST_LOG", str(log))
+    suite = write_suite(tmp_path / "s.toml", [f"{solvers_file}:Lingering"], grid={"n": [4], "depth": [1]},
+                        repeat=1, modes=("cold",))
+    code, _, err = run(capsys, "run", "--quiet", "--suite", suite, "--out", tmp_path / "o")
+    assert code == 0, err
+    pids = [int(p) for p in log.read_text().split()]
+    assert pids and all(_gone(p) for p in pids)
+    log.unlink()
+    save_npz(Hierarchy.from_levels([Level.equality(np.eye(2), [1.0, 2.0], "t")]), tmp_path / "p.npz")
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    p = subprocess.run([sys.executable, "-m", "hikbench", "solve", str(tmp_path / "p.npz"), "--solver",
+                        f"{solvers_file}:Lingering"], capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 0, p.stderr
+    pids = [int(p) for p in log.read_text().split()]
+    assert pids and all(_gone(p) for p in pids)
