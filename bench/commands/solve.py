@@ -94,9 +94,12 @@ def _solve(args, h, info, options) -> tuple:
             print(f"note: {args.solver} has no warm start: --warm times re-solves that redo a cold solve's "
                   f"work", file=sys.stderr)
         with solver_calls_killable():  # a backend looping in C code still ends on SIGTERM / Ctrl-C
-            _warm_up(solver, args.solver)
-            timing = time_solves(lambda: registry.build(info, **options), h, repeat=args.repeat,
-                                 mode="warm" if args.warm else "cold")
+            try:
+                _warm_up(solver, args.solver)
+                timing = time_solves(lambda: registry.build(info, **options), h, repeat=args.repeat,
+                                     mode="warm" if args.warm else "cold")
+            except KeyboardInterrupt as err:  # (Ctrl-C takes its default action in this block: the solver's own)
+                return "error", exception_text(err)
     except HikbenchError:
         raise
     except Exception as err:  # noqa: BLE001 - the solver's exception (a user's file.py:Class), not hikbench's

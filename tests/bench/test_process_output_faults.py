@@ -81,11 +81,18 @@ def test_a_solver_raising_keyboard_interrupt_or_an_unprintable_exception_costs_i
     assert "Traceback" not in (out / "worker.log").read_text()
 
 
-def test_solve_names_an_exception_whose_str_raises(solvers_file, tmp_path, capsys):
+@pytest.mark.parametrize("solver, says", [
+    ("Unprintable", "_Unprintable: (its message cannot be shown: str() raised ValueError)"),
+    ("Interrupting", "KeyboardInterrupt"),
+], ids=["unprintable", "keyboard interrupt"])
+def test_solve_names_a_solver_s_keyboard_interrupt_or_unprintable_exception(solvers_file, tmp_path, solver, says):
+    """As a process (its solve runs in a forked child, which printed the traceback)."""
     save_npz(Hierarchy.from_levels([Level.equality(np.eye(2), [1.0, 2.0], "t")]), tmp_path / "p.npz")
-    code, out, err = run(capsys, "solve", tmp_path / "p.npz", "--solver", f"{solvers_file}:Unprintable")
-    assert code == 1 and "Traceback" not in err, err
-    assert "_Unprintable: (its message cannot be shown: str() raised ValueError)" in out + err
+    env = {**os.environ, "PYTHONPATH": str(ROOT)}
+    p = subprocess.run([sys.executable, "-m", "hikbench", "solve", str(tmp_path / "p.npz"), "--solver",
+                        f"{solvers_file}:{solver}"], capture_output=True, text=True, env=env, timeout=120)
+    assert p.returncode == 1 and "Traceback" not in p.stderr, p.stderr
+    assert says in p.stdout + p.stderr, p.stdout + p.stderr
 
 
 @pytest.mark.skipif(not os.path.exists("/dev/full"), reason="needs /dev/full")
