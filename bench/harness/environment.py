@@ -67,7 +67,9 @@ def _git() -> dict:
     root = Path(__file__).resolve().parents[2]  # the checkout (bench/harness/../..)
     def git(*args):  # its output, None when git failed (no repository, no git, timeout)
         try:
-            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True,
+            # (--no-optional-locks: `status` would refresh the index under index.lock, and a git killed
+            # at the timeout, or stopped by a full disk, would leave that lock to block the user's next commit)
+            done = subprocess.run(["git", "--no-optional-locks", "-C", str(root), *args], capture_output=True, text=True,
                                   timeout=10, check=False)  # (the return code is read below)
         except (OSError, subprocess.TimeoutExpired):
             return None
