@@ -204,3 +204,24 @@ def test_a_run_that_runs_out_of_space_stops_with_one_line_and_resumes(tmp_path):
     assert p.returncode == 0, p.stderr
     df = read_results(out)
     assert len(df) == 16 and len(df.drop_duplicates(list(KEY))) == 16
+
+
+def test_a_scenario_row_that_finds_the_disk_full_leaves_scenarios_csv_whole(tmp_path, monkeypatch):
+    import pandas as pd
+
+    from hikbench.bench.scenarios import rows as scenario_rows
+
+    row = {k: f"v{i}" for i, k in enumerate(scenario_rows.names())}
+    scenario_rows.write_scenario_row(tmp_path, row)
+    before = (tmp_path / "scenarios.csv").read_bytes()
+
+    def full(self, path, **kw):
+        with open(path, "w") as f:
+            f.write("partial,")
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+
+    monkeypatch.setattr(pd.DataFrame, "to_csv", full)
+    with pytest.raises(HikbenchError, match=r"scenarios.csv: cannot write a row \(No space left on device\)"):
+        scenario_rows.write_scenario_row(tmp_path, {**row, scenario_rows.KEY[0]: "other"})
+    assert (tmp_path / "scenarios.csv").read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["scenarios.csv"]
