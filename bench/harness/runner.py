@@ -248,11 +248,15 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         scenarios, more = expand_scenarios(suite, solvers)
         skipped = {**skipped, **more}
     summary = RunSummary(total=len(tasks), skipped_solvers=skipped, scenario_runs=len(scenarios))
-    problems, pcols = {}, {}
-    for spec in [t.problem for t in tasks] if tasks else [sp for sp, _ in suite.problems()]:
-        if spec.id not in problems:  # every problem is generated (and checked) before anything is written
-            problems[spec.id] = _generate(suite, spec)
-            pcols[spec.id] = problem_columns(spec, problems[spec.id])
+    problems, pcols, families = {}, {}, {}
+    try:
+        for spec in [t.problem for t in tasks] if tasks else [sp for sp, _ in suite.problems()]:
+            if spec.id not in problems:  # every problem is generated (and checked) before anything is written
+                problems[spec.id] = _generate(suite, spec, families)
+                pcols[spec.id] = problem_columns(spec, problems[spec.id])
+    finally:
+        if "worker" in families:
+            families["worker"].close()
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
@@ -431,12 +435,30 @@ def _merge_rounds(earlier: list[dict], res: dict, rounds: int) -> dict:
     return out
 
 
-def _generate(suite: Suite, spec):
-    """generate(spec), a bad family or parameter reported with the suite file and the problem."""
-    try:
-        return generate(spec)
-    except HikbenchError as err:
-        raise SuiteError(f"suite {suite.source or suite.name}: problem {spec.id}: {err}") from err
+def _generate(suite: Suite, spec, families: dict):
+    """generate(spec), a bad family or parameter reported with the suite file and the problem. A
+    user's ``module:function`` family runs in an isolated worker (``families["worker"]``, started
+    for the first one), under the suite's ``first_solve_timeout``: one that hangs or crashes is the
+    run's one-line error, not a hang of this process."""
+    where = f"suite {suite.source or suite.name}: problem {spec.id}"
+    if ":" not in spec.family:
+        try:
+            return generate(spec)
+        except HikbenchError as err:
+            raise SuiteError(f"{where}: {err}") from err
+    from hikbench.bench.harness.isolation import IsolatedWorker
+
+    worker = families.get("worker") or families.setdefault("worker", IsolatedWorker())
+    res = worker.run({"kind": "generate", "spec": spec, "hierarchy": None}, suite.first_solve_timeout)
+    if res.get("status") == "optimal":
+        return res["hierarchy"]
+    if res.get("user_error"):
+        raise SuiteError(f"{where}: {res['reason']}")
+    if res.get("status") == TIMEOUT:
+        raise SuiteError(f"{where}: family {spec.family!r}, seed {spec.seed} gave no problem within the "
+                         f"suite's first_solve_timeout of {suite.first_solve_timeout:g} s (does it hang?)")
+    raise SuiteError(f"{where}: family {spec.family!r}, seed {spec.seed}: {res.get('status')}: "
+                     f"{res.get('reason')}")
 
 
 def _export_formats(formats) -> tuple[tuple, dict]:

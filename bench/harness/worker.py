@@ -4,11 +4,12 @@ Runs inside the isolated worker process (``python -m hikbench.bench.harness.isol
 external programs too (``"kind": "external"``, with ``"program_timeout"``: the program is started,
 and its answer read and checked, here). A job is a dict::
 
-    {"kind": "solve" | "external" | "yardstick" | "candidate" | "certify", "hierarchy": Hierarchy, "solver": spec,
+    {"kind": "solve" | "external" | "generate" | "yardstick" | "candidate" | "certify", "hierarchy": Hierarchy, "solver": spec,
      "options": {...}, "mode": "cold" | "warm", "repeat": R, "warmup": W,
      "samples": S or None, "sample_time": T}      # (hikbench.bench.harness.timing.time_solves)
 
-A ``yardstick`` job returns the independent yardstick's point, a ``candidate`` job (with
+A ``generate`` job (with ``"spec"``, a ProblemSpec of a user's ``module:function`` family) returns
+its ``hierarchy``. A ``yardstick`` job returns the independent yardstick's point, a ``candidate`` job (with
 ``"solver"``) one cold solve's point of a registry solver (:func:`candidate_point`: ``hcod``'s, the
 yardstick's other candidate), a ``certify`` job (with ``"x"``) the exact certificate of x
 (:func:`certify_point`).
@@ -115,6 +116,13 @@ def execute(job: dict, notify=None) -> dict:
             return {**base, **candidate_point(h, job["solver"])}
         if job["kind"] == "certify":
             return {**base, **certify_point(h, np.asarray(job["x"], dtype=float))}
+        if job["kind"] == "generate":  # (a user's module:function family, here: one that hangs is killed)
+            from hikbench.bench.suites.problemset import generate
+            from hikbench.problems.errors import HikbenchError
+            try:
+                return {**base, "status": "optimal", "reason": "", "x": None, "hierarchy": generate(job["spec"])}
+            except HikbenchError as err:  # (the family's own fault, named: the run's one-line error)
+                return {**base, "status": ERROR, "reason": str(err), "x": None, "user_error": True}
         if job["kind"] == "external":  # (the program's answer is read and checked here, not by the run)
             from hikbench.bench.harness.external import run_external
             return {**base, **run_external(job, float(job["program_timeout"]))}

@@ -157,3 +157,20 @@ def test_a_setsid_grandchild_of_a_python_solver_ends_with_its_job(solvers_file, 
     assert p.returncode == 0, p.stderr
     pids = [int(p) for p in log.read_text().split()]
     assert pids and all(_gone(p) for p in pids)
+
+
+def test_a_user_family_that_hangs_is_one_line_at_the_first_solve_timeout(tmp_path, capsys):
+    """The family ran in the run's own process: a hanging one blocked it for good."""
+    (tmp_path / "fam.py").write_text("import time\n\ndef hangs(seed=0, **params):\n    time.sleep(3600)\n")
+    suite = tmp_path / "s.toml"
+    import tomli_w
+    suite.write_text(tomli_w.dumps({"repeat": 1, "modes": ["cold"], "solvers": ["yardstick"],
+                                    "first_solve_timeout": 2.0,
+                                    "problems": [{"family": f"{tmp_path / 'fam.py'}:hangs", "seeds": [0]}]}))
+    t0 = time.monotonic()
+    code, _, err = run(capsys, "run", "--quiet", "--suite", suite, "--out", tmp_path / "o")
+    assert time.monotonic() - t0 < 60
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "Traceback" not in err, err
+    assert "problem fam.py:hangs/seed=0: family" in err and ("gave no problem within the suite's "
+                                                             "first_solve_timeout of 2 s (does it hang?)") in err, err
+    assert not (tmp_path / "o" / "results.csv").exists()
