@@ -22,6 +22,7 @@ import numpy as np
 
 from hikbench.bench.commands.solve import parse_options
 from hikbench.problems.errors import HikbenchError
+from hikbench.problems.schema import MAX_COUNT, check_at_most
 
 #: the solver of a scenario run without --solver: the strict hierarchy solver a controller would run
 DEFAULT_SOLVER = "hcod"
@@ -99,6 +100,8 @@ def run(args) -> int:
         raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
     if args.certify is not None and args.certify < 1:
         raise HikbenchError(f"--certify must be >= 1 worker process; got {args.certify}")
+    check_at_most("--steps", args.steps, MAX_COUNT, "control steps")
+    check_at_most("--repeat", args.repeat, MAX_COUNT, "timed calls per step")
     repeat = REPEAT if args.repeat is None else args.repeat
     scenario = load_scenario(args.name, robot=_robot(args), frames=_frames(args.frame))
     print(_robot_line(scenario.robot))

@@ -20,6 +20,7 @@ from hikbench.bench.harness.worker import solver_info
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import load
 from hikbench.problems.hierarchy import row_normalised
+from hikbench.problems.schema import MAX_COUNT, check_at_most
 from hikbench.problems.verify import level_norms, verify
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR
@@ -117,6 +118,7 @@ def run(args) -> int:
     if args.repeat < 1:
         raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
     _timeouts(args)  # (a bad value: exit 2 before the problem is read)
+    check_at_most("--repeat", args.repeat, MAX_COUNT, "timed solves")
     h = load(args.file)
     options = parse_options(args.option)
     info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
