@@ -182,28 +182,37 @@ def _limited(limit: int):
 
 @pytest.mark.skipif(not hasattr(signal, "SIGXFSZ"), reason="needs RLIMIT_FSIZE (POSIX)")
 def test_a_run_that_runs_out_of_space_stops_with_one_line_and_resumes(tmp_path):
-    """The run's files may not grow past 6 kB (its results.csv needs 8): the row that finds
-    no room is the run's one error line, nothing is left half-written, and the same command
-    then finishes the rest."""
-    suite = write_suite(tmp_path / "s.toml", [SLEEP], grid={"n": [4, 6], "depth": [1, 2]}, seeds=(0, 1),
-                        repeat=1)
-    out = tmp_path / "o"
-    argv = [sys.executable, "-m", "hikbench", "run", "--quiet", "--suite", str(suite), "--out", str(out)]
+    """The run's files may not grow past a size between its run.json's and its whole
+    results.csv's (both measured on a run of the same suite without a limit: run.json records
+    this machine's environment): the row that finds no room is the run's one error line,
+    nothing is left half-written, and the same command then finishes the rest."""
+    suite = write_suite(tmp_path / "s.toml", [SLEEP], grid={"n": [4, 6, 8], "depth": [1, 2, 3]},
+                        seeds=(0, 1, 2), repeat=1)
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(ROOT), os.path.dirname(__file__)])}
-    p = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300,
-                       preexec_fn=_limited(6000))
+
+    def argv(out):
+        return [sys.executable, "-m", "hikbench", "run", "--quiet", "--suite", str(suite), "--out", str(out)]
+
+    probe = tmp_path / "p"  # (a name as long as the limited run's: run.json records the paths)
+    assert subprocess.run(argv(probe), env=env, cwd=tmp_path, capture_output=True, timeout=300).returncode == 0
+    run_json, csv = (probe / "run.json").stat().st_size, (probe / "results.csv").stat().st_size
+    assert run_json + 2000 < csv, (run_json, csv)
+    limit, rows = (run_json + csv) // 2, len(read_results(probe))
+    out = tmp_path / "o"
+    p = subprocess.run(argv(out), env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                       preexec_fn=_limited(limit))
     assert p.returncode == 2, p.stderr
     assert p.stderr.strip().splitlines() == [p.stderr.strip()], p.stderr
     assert "results.csv: cannot write a row (File too large); the rows finished before it are kept" in p.stderr
     data = (out / "results.csv").read_bytes()
-    assert data.endswith(b"\n") and len(data) <= 6000
+    assert data.endswith(b"\n") and len(data) <= limit
     kept = len(read_results(out))
-    assert 0 < kept < 16
+    assert 0 < kept < rows
     assert not (out / "run.json.tmp").exists() and environment.read_run_json(out)["sessions"]
-    p = subprocess.run(argv, env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300)
+    p = subprocess.run(argv(out), env=env, cwd=tmp_path, capture_output=True, text=True, timeout=300)
     assert p.returncode == 0, p.stderr
     df = read_results(out)
-    assert len(df) == 16 and len(df.drop_duplicates(list(KEY))) == 16
+    assert len(df) == rows and len(df.drop_duplicates(list(KEY))) == rows
 
 
 def test_a_scenario_row_that_finds_the_disk_full_leaves_scenarios_csv_whole(tmp_path, monkeypatch):
