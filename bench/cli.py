@@ -38,6 +38,7 @@ COMMANDS: dict[str, str] = {
     "columns": "columns",
     "scenario": "scenario",
     "warmup": "warmup",
+    "testset": "testset",
 }
 
 

@@ -71,6 +71,7 @@ class RunSummary:
     scenario_skipped_finished: int = 0
     scenario_written: int = 0
     scenario_statuses: dict = field(default_factory=dict)
+    sequence_written: int = 0          # rows of the suite's sequences (hikbench.bench.testset.sequences)
 
 
 def _finite(v):
@@ -336,6 +337,12 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                     (summary.scenario_skipped_finished, summary.scenario_written,
                      summary.scenario_statuses) = run_scenarios(scenarios, out, executor, suite.first_solve_timeout,
                                                                 rerun=rerun, limit=left, progress=progress)
+                if suite.sequences:
+                    from hikbench.bench.testset.sequences import run_sequences, sequence_tasks
+                    entries = list({(t.entry.solver, t.entry.settings): t.entry for t in tasks}.values())
+                    summary.sequence_written = run_sequences(
+                        sequence_tasks(suite.sequences, entries), out, executor, suite.first_solve_timeout, rtol,
+                        atol, rerun=rerun, progress=progress)
         finally:
             if own_executor:
                 executor.close()
@@ -477,13 +484,20 @@ def _yardsticks(todo, problems, pcols, out: Path, executor, timeout, certify_tim
        (:func:`_lowest`), certified in turn where the independent one was refused or missing
        (a certificate stopped by its budget is not tried again on the other point).
 
-    Problems of the same content share one. A cached file of other yardstick code
+    A problem of a test set (family ``testset``, docs/testset.md) has its stored certified optimum
+    as its yardstick, computed by none of these. Problems of the same content share one. A cached file of other yardstick code
     (:func:`hikbench.bench.harness.cache.yardstick_code`) is computed again, which one line on
     stderr says. A yardstick whose step a killed or lost worker ended is not cached: the next
     run tries again."""
     code = yardstick_code()
     refs, need, recertify, first_of, twins, stale = {}, [], [], {}, {}, 0
+    specs = {t.problem.id: t.problem for t in todo}
     for pid in dict.fromkeys(t.problem.id for t in todo):
+        if specs[pid].family == "testset":  # a test set's problem: its stored certified optimum
+            from hikbench.problems.testset import stored_optimum
+            x, note = stored_optimum(specs[pid].params.get("set", "hlsp-1"), specs[pid].params["problem"])
+            refs[pid] = (x, "optimal", note, CERTIFIED, note, 0.0)
+            continue
         phash = pcols[pid]["problem_hash"]
         if phash in first_of:
             twins[pid] = first_of[phash]
