@@ -198,7 +198,7 @@ def _read_cache(path: Path | None) -> dict:
     return out
 
 
-def certify_candidates(cands: list[Candidate], workers: int = 2, budget: float = 60.0, log=sys.stderr,
+def certify_candidates(cands: list[Candidate], workers: int = 2, budget: float = 60.0, log="stderr",
                        cache: Path | None = None) -> list:
     """``[(candidate, outcome)]`` in order, each certified in one of ``workers`` processes.
     ``cache``: a JSON-lines file of earlier outcomes (key :func:`_key`), read and appended to, so
@@ -206,6 +206,7 @@ def certify_candidates(cands: list[Candidate], workers: int = 2, budget: float =
     its budget is not cached."""
     from hikbench.bench.harness.cache import yardstick_code
 
+    log = sys.stderr if log == "stderr" else log  # (the stream of the call, not of the import)
     t0, code = time.perf_counter(), yardstick_code()
     known = _read_cache(cache)
     keys = [_key(c, code) for c in cands]

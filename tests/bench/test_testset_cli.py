@@ -1,0 +1,74 @@
+"""`hikbench testset check|add` and `hikbench run` on a test set (docs/testset.md): the hash
+check's exit codes, candidates certified from a user's file, a suite judged against the stored
+optima, and a sequence solved in order on one object."""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+import tomli_w
+from clitools import assert_user_error, run
+
+from hikbench.problems.testset import TestSet, set_folder
+from hikbench.solvers.yardstick import yardstick_solution
+from hikbench.problems.verify import level_norms
+
+
+def test_check_passes_on_the_shipped_set(capsys):
+    code, out, err = run(capsys, "testset", "check")
+    n = len(TestSet.read("hlsp-1"))
+    assert code == 0 and f"hlsp-1: {n} problems, {n} files match the manifest's SHA-256" in out, out + err
+
+
+def test_check_fails_on_a_changed_file(tmp_path, capsys):
+    folder = tmp_path / "set"
+    shutil.copytree(set_folder("hlsp-1"), folder)
+    first = TestSet.read(folder).entries[0]
+    data = bytearray((folder / first.file).read_bytes())
+    data[-1] ^= 1
+    (folder / first.file).write_bytes(bytes(data))
+    code, out, err = run(capsys, "testset", "check", folder)
+    assert code == 1 and first.id in err and "1 file(s) disagree" in out, out + err
+
+
+def test_add_certifies_a_users_problem_file(tmp_path, capsys, problem):
+    h, path = problem
+    code, out, err = run(capsys, "testset", "add", path, "--out", tmp_path / "cand", "--workers", "1")
+    assert code == 0 and "1 of 1 candidates certified" in out, out + err
+    ts = TestSet.read(tmp_path / "cand")
+    (e,) = ts.entries
+    assert e.provenance["source"] == path and ts.check_hashes() == []
+    np.testing.assert_allclose(e.level_norms, level_norms(h, yardstick_solution(h)), rtol=1e-12, atol=1e-12)
+
+
+def test_add_names_a_missing_file(tmp_path, capsys):
+    code, out, err = run(capsys, "testset", "add", tmp_path / "none.npz", "--out", tmp_path / "cand")
+    assert_user_error(code, err, "none.npz: no such file")
+
+
+def test_a_suite_on_the_set_is_judged_against_the_stored_optima(tmp_path, capsys):
+    """Two problems of hlsp-1 and its first sequence, hcod only: every row's yardstick is the
+    stored certified optimum, and hcod (time) meets the optimum at every step of the sequence."""
+    ts = TestSet.read("hlsp-1")
+    ids = [ts.entries[0].id, next(e.id for e in ts.entries if e.family.startswith("robot:"))]
+    suite = tmp_path / "s.toml"
+    suite.write_text(tomli_w.dumps({"repeat": 1, "modes": ["cold"], "solvers": ["hcod"], "sequences": ["hlsp-1"],
+                                    "problems": [{"family": "testset", "params": {"set": "hlsp-1"},
+                                                  "grid": {"problem": ids}}]}))
+    code, out, err = run(capsys, "run", "--quiet", "--suite", suite, "--out", tmp_path / "out")
+    assert code == 0, out + err
+    df = pd.read_csv(tmp_path / "out" / "results.csv")
+    assert len(df) == 2 and (df["yardstick"] == "certified").all() and df["verified"].all(), df.to_string()
+    assert df["yardstick_reason"].str.contains("stored in test set hlsp-1").all()
+    seq = pd.read_csv(tmp_path / "out" / "sequences.csv")
+    assert len(seq) == len(ts.sequences) and (seq["status"] == "finished").all() and set(seq["warm_start"]) == {"time"}
+    assert (seq["verified_steps"] == seq["steps"]).all(), seq.to_string()
+
+
+@pytest.mark.parametrize("spec", ["arm_reach", "arm_reach:"], ids=["no-colon", "no-robot"])
+def test_a_bad_run_spec_is_one_line(capsys, spec):
+    code, out, err = run(capsys, "testset", "build", "--parts", "robots", "--runs", spec, "--out", "/nonexistent")
+    assert_user_error(code, err, f"--runs {spec!r}: expected SCENARIO:ROBOT")
