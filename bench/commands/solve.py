@@ -35,8 +35,8 @@ def add_arguments(p) -> None:
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="solver option (repeatable); VALUE is parsed as JSON when it can be")
     p.add_argument("--certify", action="store_true",
-                   help="also certify x in 50-digit arithmetic: the exact optimum on the active set read off x, "
-                        "and its level norms (hikbench.problems.exact; ~0.1 s at n = 5, ~3 s at n = 20)")
+                   help="also certify x in exact rational arithmetic: the exact optimum on the active set read off x, "
+                        "and its level norms (hikbench.problems.exact; ~0.05 s at n = 7, ~1 s at n = 80-120)")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
