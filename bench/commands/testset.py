@@ -10,9 +10,13 @@ from hikbench.problems.errors import HikbenchError
 
 HELP = "build, check (hashes, re-certification) or grow a test set of certified problems (docs/testset.md)"
 
-#: the closed-loop runs of hlsp-1: (scenario, robot name or a .urdf path relative to the robots package)
-ROBOT_RUNS = (("arm_reach", "panda"), ("arm_reach", "arm7.urdf"), ("reach", "talos"), ("step", "talos"),
-              ("reach", "romeo"), ("reach", "g1"), ("step", "g1"))
+#: the closed-loop runs of hlsp-1: (scenario, robot name or a .urdf path relative to the robots package,
+#: every k-th step, at most this many active-set-change steps (None: all), sequence length). The humanoid
+#: runs are sampled more thinly: 700 steps of 117 rows and more each
+ARM, HUMANOID = (5, None, 50), (50, 12, 25)
+ROBOT_RUNS = (("arm_reach", "panda", *ARM), ("arm_reach", "arm7.urdf", *ARM), ("reach", "talos", *HUMANOID),
+              ("step", "talos", *HUMANOID), ("reach", "romeo", *HUMANOID), ("reach", "g1", *HUMANOID),
+              ("step", "g1", *HUMANOID))
 PARTS = ("hard", "sweeps", "peers", "robots")
 
 
@@ -26,10 +30,14 @@ def add_arguments(p) -> None:
                    "join the set (without it they do not)")
     b.add_argument("--parts", nargs="+", choices=PARTS, default=list(PARTS), help="which parts (default all)")
     b.add_argument("--runs", nargs="+", default=None, metavar="SCENARIO:ROBOT",
-                   help="closed-loop runs (default: " + " ".join(f"{s}:{r}" for s, r in ROBOT_RUNS) + ")")
+                   help="closed-loop runs (default: " + " ".join(f"{r[0]}:{r[1]}" for r in ROBOT_RUNS) + ")")
     b.add_argument("--steps", type=int, default=None, help="control steps of each run (default: the scenario's)")
-    b.add_argument("--every", type=int, default=5, help="every k-th control step (default 5)")
-    b.add_argument("--sequence", type=int, default=50, help="consecutive steps kept as a sequence (default 50)")
+    b.add_argument("--every", type=int, default=None, help="every k-th control step (default: 5 on the arms, "
+                   "50 on the humanoids)")
+    b.add_argument("--max-changes", type=int, default=None, help="at most this many active-set-change steps "
+                   "per run (default: all on the arms, 12 on the humanoids)")
+    b.add_argument("--sequence", type=int, default=None, help="consecutive steps kept as a sequence (default: "
+                   "50 on the arms, 25 on the humanoids)")
     b.add_argument("--budget", type=float, default=60.0, help="leave out a problem whose certificate is "
                    "estimated to take longer (s, default 60)")
     b.add_argument("--workers", type=int, default=2, help="certificate processes (default 2)")
@@ -65,16 +73,17 @@ def _robot_path(robot: str) -> str:
     return robot
 
 
-def _runs(specs) -> list[tuple[str, str]]:
-    if specs is None:
-        return list(ROBOT_RUNS)
-    out = []
-    for s in specs:
+def _runs(specs, every=None, max_changes=None, sequence=None) -> list[tuple]:
+    """(scenario, robot, every, max_changes, sequence) of each run; the options given replace
+    the runs' own (a run of ``--runs`` takes the arms' defaults)."""
+    runs = list(ROBOT_RUNS) if specs is None else []
+    for s in specs or ():
         scen, sep, robot = s.partition(":")
         if not sep or not scen or not robot:
             raise HikbenchError(f"--runs {s!r}: expected SCENARIO:ROBOT (arm_reach:panda)")
-        out.append((scen, robot))
-    return out
+        runs.append((scen, robot, *ARM))
+    return [(sc, rb, every or e, m if max_changes is None else max_changes, s if sequence is None else sequence)
+            for sc, rb, e, m, s in runs]
 
 
 def _positive(v, name: str) -> None:
@@ -83,19 +92,19 @@ def _positive(v, name: str) -> None:
 
 
 def run(args) -> int:
-    for name in ("workers", "steps", "every"):
+    for name in ("workers", "steps", "every", "sequence"):
         _positive(getattr(args, name, None), f"--{name}")
     return {"build": _build, "check": _check, "add": _add}[args.action](args)
 
 
-def _robot_cands(runs, steps, every, sequence, budget, excluded) -> list:
+def _robot_cands(runs, steps, budget, excluded) -> list:
     from hikbench.bench.testset.build import robot_candidates
     from hikbench.problems.exact import estimated_seconds
 
     cands = []
-    for scen, robot in runs:
+    for scen, robot, every, max_changes, sequence in runs:
         got = robot_candidates(scen, _robot_path(robot), label=Path(robot).stem, steps=steps, every=every,
-                               sequence=sequence)
+                               sequence=sequence, max_changes=max_changes)
         est = max((estimated_seconds(c.hierarchy) for c in got), default=0.0)
         print(f"hikbench testset: {scen} on {robot}: {len(got)} steps selected (certificate estimated up to "
               f"{est:.1f} s each)", file=sys.stderr, flush=True)
@@ -121,7 +130,8 @@ def _build(args) -> int:
     if "peers" in args.parts and args.nipm is not None:
         cands += B.nipm_candidates(args.nipm)
     if "robots" in args.parts:
-        cands += _robot_cands(_runs(args.runs), args.steps, args.every, args.sequence, args.budget, excluded)
+        cands += _robot_cands(_runs(args.runs, args.every, args.max_changes, args.sequence), args.steps, args.budget,
+                              excluded)
     cache = None if args.no_cache else (args.cache or B.default_cache())
     outcomes = B.certify_candidates(cands, workers=args.workers, budget=args.budget, cache=cache)
     ts = B.write_set(out, "hlsp-1", outcomes, description=(

@@ -494,7 +494,7 @@ def _yardsticks(todo, problems, pcols, out: Path, executor, timeout, certify_tim
     specs = {t.problem.id: t.problem for t in todo}
     for pid in dict.fromkeys(t.problem.id for t in todo):
         if specs[pid].family == "testset":  # a test set's problem: its stored certified optimum
-            from hikbench.problems.testset import stored_optimum
+            from hikbench.problems.testset import stored_optimum  # (read once: cached_set)
             x, note = stored_optimum(specs[pid].params.get("set", "hlsp-1"), specs[pid].params["problem"])
             refs[pid] = (x, "optimal", note, CERTIFIED, note, 0.0)
             continue

@@ -91,14 +91,15 @@ def nipm_candidates(source_folder) -> list[Candidate]:
 
 
 def robot_candidates(scenario: str, robot: str, label: str | None = None, steps: int | None = None,
-                     every: int = 10, sequence: int = 50) -> list[Candidate]:
-    """The selected control steps of one closed-loop run (bench/testset/record.py): each a
-    candidate with the controller's u as its first point; the sequence's steps in order."""
+                     every: int = 10, sequence: int = 50, max_changes: int | None = None) -> list[Candidate]:
+    """The selected control steps of one closed-loop run (bench/testset/record.py,
+    :func:`~hikbench.bench.testset.record.select_steps`): each a candidate with the controller's
+    u as its first point; the sequence's steps in order."""
     from hikbench.bench.testset.record import record_steps, select_steps
 
     label = label or Path(robot).stem
     recorded, sc = record_steps(scenario, robot=robot, steps=steps)
-    single, run = select_steps(recorded, every, sequence)
+    single, run = select_steps(recorded, every, sequence, max_changes=max_changes)
     seq_id = f"robot/{scenario}/{label}/steps{run[0].step}-{run[-1].step}" if run else None
     out = []
     for s in sorted(single + run, key=lambda s: s.step):
@@ -294,7 +295,8 @@ def write_set(folder, name: str, outcomes: list, description: str = "", extra_ex
             excluded.append({"id": c.id, "family": c.family, "reason": res["reason"], "provenance": c.provenance})
             continue
         h, fname = c.hierarchy, f"{_stem(c.id)}.npz"
-        save_npz(Hierarchy(h.A, h.lower, h.upper, h.level, n=h.n, names=list(h.names)), folder / fname)
+        save_npz(Hierarchy(h.A, h.lower, h.upper, h.level, n=h.n, names=list(h.names)), folder / fname,
+                 compressed=True)
         entries.append(Entry(c.id, fname, file_sha256(folder / fname), c.family, int(h.n), int(h.rows), int(h.depth),
                              [int(v) for v in h.rows_per_level], row_kinds(h),
                              {"level_norms": [float(v) for v in res["level_norms"]],

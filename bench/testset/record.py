@@ -52,10 +52,10 @@ def record_steps(scenario: str, robot: str | None = None, steps: int | None = No
     return recorded, sc
 
 
-def select_steps(recorded: list[Step], every: int, sequence: int, sequence_start: int | None = None) \
-        -> tuple[list[Step], list[Step]]:
+def select_steps(recorded: list[Step], every: int, sequence: int, sequence_start: int | None = None,
+                 max_changes: int | None = None) -> tuple[list[Step], list[Step]]:
     """``(single, run)``: the steps k with ``k % every == 0`` or an active-set change (outside the
-    sequence), and ``sequence`` consecutive steps from ``sequence_start`` (default: a fifth of
+    sequence; ``max_changes``: at most that many of the change steps, evenly spread over them), and ``sequence`` consecutive steps from ``sequence_start`` (default: a fifth of
     them before the first active-set change at or after the middle of the run, else before the
     first change: the run crosses activations)."""
     if every < 1 or sequence < 0:
@@ -67,5 +67,10 @@ def select_steps(recorded: list[Step], every: int, sequence: int, sequence_start
         sequence_start = max(0, min(first - sequence // 5, len(recorded) - sequence))
     run = [s for s in recorded if sequence_start <= s.step < sequence_start + sequence]
     in_run = {s.step for s in run}
-    single = [s for s in recorded if s.step not in in_run and (s.step % every == 0 or s.changed)]
+    changes = [s.step for s in recorded if s.step not in in_run and s.changed and s.step % every]
+    if max_changes is not None and len(changes) > max_changes:
+        changes = [changes[i] for i in np.linspace(0, len(changes) - 1, max_changes).round().astype(int)] \
+            if max_changes > 0 else []
+    keep = set(changes)
+    single = [s for s in recorded if s.step not in in_run and (s.step % every == 0 or s.step in keep)]
     return single, run

@@ -15,6 +15,7 @@ The shipped sets are package data of this package (``hikbench.problems.testset``
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import os
@@ -26,8 +27,9 @@ import numpy as np
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.hierarchy import Hierarchy
 
-__all__ = ["FORMAT", "MANIFEST", "SETS_DIR", "Entry", "TestSet", "TestSetError", "file_sha256", "row_kinds",
-           "set_folder", "shipped_sets"]
+__all__ = ["FORMAT", "MANIFEST", "SETS_DIR", "Entry", "TestSet", "TestSetError", "cached_set", "entry_family",
+           "file_sha256", "row_kinds", "set_folder", "shipped_sets", "stored_optimum", "testset_families",
+           "testset_problem"]
 
 #: the manifest's ``format`` value; a reader refuses another
 FORMAT = "hikbench-testset-1"
@@ -155,10 +157,11 @@ class TestSet:
         return len(self.entries)
 
     def entry(self, problem_id: str) -> Entry:
-        for e in self.entries:
-            if e.id == problem_id:
-                return e
-        raise TestSetError(f"test set {self.name}: no problem {problem_id!r}")
+        if not hasattr(self, "_by_id"):
+            self._by_id = {e.id: e for e in self.entries}
+        if problem_id not in self._by_id:
+            raise TestSetError(f"test set {self.name}: no problem {problem_id!r}")
+        return self._by_id[problem_id]
 
     def load(self, entry: Entry) -> Hierarchy:
         """The problem of ``entry`` (:func:`hikbench.problems.files.load_npz`)."""
@@ -182,17 +185,34 @@ class TestSet:
         return bad
 
 
+@functools.lru_cache(maxsize=8)
+def _read(folder: str, mtime_ns: int) -> TestSet:
+    return TestSet.read(folder)
+
+
+def cached_set(name_or_path) -> TestSet:
+    """:meth:`TestSet.read`, kept while the manifest is unchanged (a suite reads it per problem)."""
+    folder = set_folder(name_or_path)
+    return _read(str(folder), (folder / MANIFEST).stat().st_mtime_ns)
+
+
 def testset_problem(seed: int = 0, set: str = "hlsp-1", problem: str = "") -> Hierarchy:  # noqa: A002
     """The problem ``problem`` (its id) of the test set ``set`` (a shipped name or a folder); the
     family ``testset`` of suites (``seed`` is not used: a set's problems are fixed data)."""
-    ts = TestSet.read(set)
+    ts = cached_set(set)
     return ts.load(ts.entry(problem))
 
 
 def stored_optimum(set: str, problem: str) -> tuple[np.ndarray, str]:  # noqa: A002
     """The certified x* of a set's problem and a note naming the set and its certificate."""
-    ts = TestSet.read(set)
+    ts = cached_set(set)
     return ts.entry(problem).x, f"the certified optimum stored in test set {ts.name} ({ts.header.get('certificate', '')})"
+
+
+def entry_family(set: str, problem: str) -> str:  # noqa: A002
+    """``<set>:<family>`` of a set's problem (``hlsp-1:robot:reach``): results.csv's family column."""
+    ts = cached_set(set)
+    return f"{ts.name}:{ts.entry(problem).family}"
 
 
 def testset_families() -> dict:

@@ -72,3 +72,18 @@ def test_a_suite_on_the_set_is_judged_against_the_stored_optima(tmp_path, capsys
 def test_a_bad_run_spec_is_one_line(capsys, spec):
     code, out, err = run(capsys, "testset", "build", "--parts", "robots", "--runs", spec, "--out", "/nonexistent")
     assert_user_error(code, err, f"--runs {spec!r}: expected SCENARIO:ROBOT")
+
+
+def test_the_selected_steps_are_every_kth_the_changes_and_one_sequence():
+    """60 steps, changes at 7, 8, 31, 33, 35, 41, 47: every 10th, the changes (at most 3 of
+    those outside the sequence, spread evenly), and 10 consecutive steps from a fifth of them
+    before the first change in the second half (31: from 29)."""
+    from hikbench.bench.testset.record import Step, select_steps
+
+    changed = {7, 8, 31, 33, 35, 41, 47}
+    rec = [Step(k, None, None, k in changed) for k in range(60)]
+    single, run = select_steps(rec, every=10, sequence=10)
+    assert [s.step for s in run] == list(range(29, 39))
+    assert [s.step for s in single] == [0, 7, 8, 10, 20, 40, 41, 47, 50]
+    single, run = select_steps(rec, every=10, sequence=10, max_changes=3)
+    assert [s.step for s in single] == [0, 7, 10, 20, 40, 41, 47, 50]
