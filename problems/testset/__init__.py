@@ -222,7 +222,7 @@ def testset_families() -> dict:
     from hikbench.problems.testset.cases import CASES, hard_case
 
     return {"testset": Family("testset", "a problem of a test set (docs/testset.md): params set, problem (its id)",
-                              testset_problem, {"set": "hlsp-1", "problem": ""}),
+                              testset_problem, {"set": "hlsp-1", "problem": "hard/rank_deficient/n=3/seed=0"}),
             "hard": Family("hard", "hard cases on exact (dyadic) data: " + ", ".join(CASES),
                            lambda seed=0, case="rank_deficient", n=6: hard_case(case, n, seed),
                            {"case": "rank_deficient", "n": 6}, sweep={"case": list(CASES)})}
