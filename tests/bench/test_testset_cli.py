@@ -87,3 +87,17 @@ def test_the_selected_steps_are_every_kth_the_changes_and_one_sequence():
     assert [s.step for s in single] == [0, 7, 8, 10, 20, 40, 41, 47, 50]
     single, run = select_steps(rec, every=10, sequence=10, max_changes=3)
     assert [s.step for s in single] == [0, 7, 10, 20, 40, 41, 47, 50]
+
+
+def test_add_reads_a_lexls_file_and_tries_its_solution_first(tmp_path, capsys):
+    """x_0 + x_1 = 2 above x_0 = 3 (LexLS layout, #HierType 100): the file's #Solution (3, -1)
+    is the optimum, certified from the given point."""
+    p = tmp_path / "two.dat"
+    p.write_text("#nVar\n2\n#nObj\n2\n#nCtr\n1 1\n#HierType\n100\n#ObjType\n200 200\n"
+                 "#OBJECTIVE\n1 1 2\n#OBJECTIVE\n1 0 3\n#Solution\n3 -1\n")
+    code, out, err = run(capsys, "testset", "add", p, "--out", tmp_path / "cand", "--workers", "1")
+    assert code == 0 and "1 of 1 candidates certified" in out, out + err
+    (e,) = TestSet.read(tmp_path / "cand").entries
+    assert e.optimum["certified_from"] == "given" and e.provenance["format"] == "LexLS hierarchy text"
+    np.testing.assert_array_equal(e.x, [3.0, -1.0])
+    np.testing.assert_array_equal(e.level_norms, [0.0, 0.0])

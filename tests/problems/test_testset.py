@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from hik_strategies import hierarchies
+from hypothesis import HealthCheck, assume, given, settings
 
 from hikbench.problems.errors import ProblemFileError
 from hikbench.problems.exact import estimated_seconds
@@ -229,3 +231,30 @@ def test_nipm_hlsps_cases_are_read_from_its_source(nipm_source):
     np.testing.assert_array_equal(h8.lower, [1, 10, 10, 20, 20, 20])
     assert all("BSD-3-Clause" in prov["licence"] for _, prov in cases.values())
     assert "redrawn" in cases[0][1]["rows"] and "as test1.cpp" in cases[2][1]["rows"]
+
+
+def _lexls_text(h) -> str:
+    """h in LexLS's hierarchy text layout (#HierType 200: every row ``a_1 .. a_n lo up``, general
+    objectives), numbers as Python's round-trip repr."""
+    lines = ["#nVar", str(h.n), "#nObj", str(h.depth), "#nCtr", " ".join(map(str, h.rows_per_level)),
+             "#HierType", "200", "#ObjType", " ".join(["200"] * h.depth)]
+    for k in range(h.depth):
+        lines.append(f"#OBJECTIVE {k}")
+        s = h.level_rows(k)
+        lines += [" ".join(map(repr, [*map(float, a), float(lo), float(up)]))
+                  for a, lo, up in zip(h.A[s], h.lower[s], h.upper[s])]
+    return "\n".join(lines) + "\n"
+
+
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(h=hierarchies(min_n=1, names=False, x0=False))
+def test_read_lexls_reads_back_any_hierarchy_exactly(tmp_path, h):
+    assume(h.depth > 0)  # (the format has at least one objective)
+    p = tmp_path / "h.dat"
+    p.write_text(_lexls_text(h))
+    got, sol = read_lexls(p)
+    assert sol is None and got.depth == h.depth
+    np.testing.assert_array_equal(got.A, h.A)
+    np.testing.assert_array_equal(got.lower, h.lower)
+    np.testing.assert_array_equal(got.upper, h.upper)
+    np.testing.assert_array_equal(got.level, h.level)
