@@ -181,3 +181,43 @@ def run_sequences(tasks: list[SequenceTask], out: Path, executor, first_timeout:
         if tid is not None:
             progress.advance(tid, f"sequences: {t.solver}")
     return written
+
+
+TITLE = "Sequences"  #: report.md's section (bench/analysis/report.py)
+
+
+def sequence_rows(run_dir: Path) -> list[dict]:
+    """The rows of ``RUN/sequences.csv`` (empty when the run has none)."""
+    import pandas as pd
+
+    p = _path(run_dir)
+    if not p.is_file():
+        return []
+    df = pd.read_csv(p)
+    return [{k: (None if isinstance(v, float) and v != v else v) for k, v in r.items()} for r in df.to_dict("records")]
+
+
+def sequence_section(doc, run_dir: Path) -> list[dict]:
+    """Write the section into ``doc`` (report.py's _Doc) when the run has sequence rows; returns them."""
+    rows = sequence_rows(run_dir)
+    if not rows:
+        return rows
+
+    def us(v) -> str:
+        return "-" if v is None else f"{float(v) * 1e6:.1f}"
+
+    doc.section(TITLE)
+    doc.text("Each sequence of consecutive control steps of the test set solved in order on one solver object, "
+             "as a controller's would be (sequences.csv; docs/testset.md, \"Ranking on it\"): one timed call per "
+             "step, each x judged against the step's stored certified optimum (verified: not lexicographically "
+             "worse). The first step's call, on a fresh object, is in the times (p99 of 25-50 steps is their "
+             "maximum).")
+    doc.table("sequences", "Sequences (steps verified of the sequence's; times over its steps)",
+              ["sequence", "solver", "warm start", "verified", "median [us]", "p99 [us]", "min [us]",
+               "mean iterations", "status"],
+              [[r["sequence"], r["solver"], r["warm_start"],
+                "-" if r.get("verified_steps") is None else f"{int(r['verified_steps'])}/{int(r['steps'])}",
+                us(r.get("time_median_s")), us(r.get("time_p99_s")), us(r.get("time_min_s")),
+                "-" if r.get("iterations_mean") is None else f"{float(r['iterations_mean']):.2f}",
+                r["status"] + (f": {r['reason']}" if r.get("reason") else "")] for r in rows])
+    return rows

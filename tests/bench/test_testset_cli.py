@@ -66,6 +66,11 @@ def test_a_suite_on_the_set_is_judged_against_the_stored_optima(tmp_path, capsys
     seq = pd.read_csv(tmp_path / "out" / "sequences.csv")
     assert len(seq) == len(ts.sequences) and (seq["status"] == "finished").all() and set(seq["warm_start"]) == {"time"}
     assert (seq["verified_steps"] == seq["steps"]).all(), seq.to_string()
+    code, out, err = run(capsys, "report", tmp_path / "out")
+    report = (tmp_path / "out" / "report.md").read_text()
+    assert code == 0 and "## Sequences" in report, out + err
+    for sid, ids in ts.sequences.items():
+        assert f"| {sid} | hcod | time | {len(ids)}/{len(ids)} |" in report, sid
 
 
 @pytest.mark.parametrize("spec", ["arm_reach", "arm_reach:"], ids=["no-colon", "no-robot"])
