@@ -106,3 +106,18 @@ def test_add_reads_a_lexls_file_and_tries_its_solution_first(tmp_path, capsys):
     assert e.optimum["certified_from"] == "given" and e.provenance["format"] == "LexLS hierarchy text"
     np.testing.assert_array_equal(e.x, [3.0, -1.0])
     np.testing.assert_array_equal(e.level_norms, [0.0, 0.0])
+
+
+def test_add_records_a_scenarios_steps_as_certified_candidates(tmp_path, capsys):
+    """12 steps of arm_reach on panda: every 5th step, the active-set changes and a sequence of 4,
+    each certified (from the controller's u or another point), the sequence's steps in order."""
+    pytest.importorskip("pinocchio")
+    code, out, err = run(capsys, "testset", "add", "--scenario", "arm_reach", "--robot", "panda", "--steps", "12",
+                         "--every", "5", "--sequence", "4", "--out", tmp_path / "cand", "--workers", "1")
+    assert code == 0, out + err
+    ts = TestSet.read(tmp_path / "cand")
+    assert len(ts) >= 6 and ts.check_hashes() == [] and all(e.family == "robot:arm_reach" for e in ts.entries)
+    ((sid, ids),) = ts.sequences.items()
+    steps = [ts.entry(pid).provenance["step"] for pid in ids]
+    assert len(steps) == 4 and steps == list(range(steps[0], steps[0] + 4))
+    assert {0, 5, 10} <= {e.provenance["step"] for e in ts.entries} | set(range(steps[0], steps[0] + 4))
