@@ -28,6 +28,8 @@ def add_arguments(p) -> None:
                    "problems/testset/hlsp-1)")
     b.add_argument("--nipm", type=Path, default=None, help="NIPM-HLSP's source folder: its tests/test1.cpp cases "
                    "join the set (without it they do not)")
+    b.add_argument("--lexls", type=Path, default=None, help="LexLS's source folder: its tests/*.dat problems join "
+                   "the set (a clone of jrl-umi3218/lexls; the release snapshot leaves them out)")
     b.add_argument("--parts", nargs="+", choices=PARTS, default=list(PARTS), help="which parts (default all)")
     b.add_argument("--runs", nargs="+", default=None, metavar="SCENARIO:ROBOT",
                    help="closed-loop runs (default: " + " ".join(f"{r[0]}:{r[1]}" for r in ROBOT_RUNS) + ")")
@@ -129,6 +131,8 @@ def _build(args) -> int:
         cands += B.sweep_candidates()
     if "peers" in args.parts and args.nipm is not None:
         cands += B.nipm_candidates(args.nipm)
+    if "peers" in args.parts and args.lexls is not None:
+        cands += B.lexls_candidates(args.lexls)
     if "robots" in args.parts:
         cands += _robot_cands(_runs(args.runs, args.every, args.max_changes, args.sequence), args.steps, args.budget,
                               excluded)

@@ -90,6 +90,17 @@ def nipm_candidates(source_folder) -> list[Candidate]:
             for num, h, prov in nipm_cases(source_folder)]
 
 
+def lexls_candidates(source_folder) -> list[Candidate]:
+    """LexLS's test problems read from its source folder (:func:`hikbench.problems.testset.peers.lexls_cases`),
+    the file's #Solution tried first."""
+    from hikbench.problems.testset.peers import lexls_cases
+
+    return [Candidate(f"peer/lexls/{name}", "peer:lexls", h,
+                      _prov(generator="hikbench.problems.testset.peers.lexls_cases", **prov),
+                      [sol] if sol is not None else [])
+            for name, h, sol, prov in lexls_cases(source_folder)]
+
+
 def robot_candidates(scenario: str, robot: str, label: str | None = None, steps: int | None = None,
                      every: int = 10, sequence: int = 50, max_changes: int | None = None) -> list[Candidate]:
     """The selected control steps of one closed-loop run (bench/testset/record.py,

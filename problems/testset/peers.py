@@ -5,8 +5,9 @@
   fields ``#nVar`` (n), ``#nObj`` (levels), ``#nCtr`` (rows per level, on the next line),
   ``#HierType`` (100: equalities, each row ``a_1 .. a_n b``; 200: inequalities, each row
   ``a_1 .. a_n lo up``; 210: the same and an activation code per row), ``#ObjType`` (per level
-  200 general, 100 simple bounds: each row ``j lo up`` bounds ``x_j``, j from 0, first level
-  only), then one ``#OBJECTIVE`` line before each level's rows, and optionally ``#SolGuess`` /
+  200 general, 100 simple bounds: each row ``j lo up`` bounds ``x_j``, j from 1 as LexLS's
+  interfaces/matlab-octave/tests/implementation/export_hierarchy.m writes Matlab's indices
+  (tests/test_01.dat: 1 .. 88 for 88 variables), first level only), then one ``#OBJECTIVE`` line before each level's rows, and optionally ``#SolGuess`` /
   ``#Solution`` followed by n numbers. :func:`read_lexls` returns the hierarchy and the
   file's solution (or None).
 * **NIPM-HLSP** (pfeiffer-kai/NIPM-HLSP, BSD-3-Clause, Copyright (c) 2022 Kai Pfeiffer): the 17
@@ -31,7 +32,7 @@ import numpy as np
 from hikbench.problems.errors import ProblemFileError
 from hikbench.problems.hierarchy import Hierarchy, Level
 
-__all__ = ["LEXLS_LICENCE", "NIPM_LICENCE", "nipm_cases", "read_lexls"]
+__all__ = ["LEXLS_LICENCE", "NIPM_LICENCE", "lexls_cases", "nipm_cases", "read_lexls"]
 
 LEXLS_LICENCE = "BSD-2-Clause (LexLS, jrl-umi3218/lexls, Copyright 2013-2021 INRIA)"
 NIPM_LICENCE = "BSD-3-Clause (NIPM-HLSP, pfeiffer-kai/NIPM-HLSP, Copyright (c) 2022, Kai Pfeiffer)"
@@ -99,9 +100,9 @@ def read_lexls(path: str | os.PathLike) -> tuple[Hierarchy, np.ndarray | None]:
         if types[k] == 100:
             A = np.zeros((rows[k], n))
             for r, j in enumerate(data[:, 0]):
-                if j != int(j) or not 0 <= j < n:
-                    fail(i + r, f"simple bound on variable {j:g}: expected an index in 0 .. {n - 1}")
-                A[r, int(j)] = 1.0
+                if j != int(j) or not 1 <= j <= n:
+                    fail(i + r, f"simple bound on variable {j:g}: expected an index in 1 .. {n}")
+                A[r, int(j) - 1] = 1.0
         else:
             A = data[:, :n]
         lo, up = (data[:, -1], data[:, -1]) if bounds == 1 else (data[:, -2], data[:, -1])
@@ -177,4 +178,21 @@ def nipm_cases(source_folder: str | os.PathLike) -> list[tuple[int, Hierarchy, d
                 "rows": ("A redrawn: multiples of 1/8 in [-1, 1], numpy.random.default_rng(case) (test1.cpp "
                          "draws Eigen's MatrixXd::Random)") if s["random"] else "as test1.cpp builds them"}
         out.append((num, Hierarchy.from_levels(levels, n=n), prov))
+    return out
+
+
+def lexls_cases(source_folder: str | os.PathLike) -> list[tuple[str, Hierarchy, np.ndarray | None, dict]]:
+    """LexLS's test problems from its source folder (tests/*.dat, :func:`read_lexls`):
+    ``[(name, Hierarchy, the file's #Solution or None, provenance)]``; ProblemFileError when the
+    folder holds none (the release snapshots leave them out: a clone of the repository has them)."""
+    folder = Path(source_folder) / "tests"
+    files = sorted(folder.glob("*.dat"))
+    if not files:
+        raise ProblemFileError(f"{folder}: no LexLS hierarchy file (*.dat); expected LexLS's source folder, "
+                               f"as a clone of jrl-umi3218/lexls has them")
+    out = []
+    for f in files:
+        h, sol = read_lexls(f)
+        out.append((f.stem, h, sol, {"source": f"LexLS tests/{f.name}", "licence": LEXLS_LICENCE,
+                                      "rows": "as the file holds them"}))
     return out

@@ -170,8 +170,8 @@ LEXLS_FILE = """#nVar
 #ObjType
 100 200
 #OBJECTIVE
-0 -1 1
-2 -0.5 0.5
+1 -1 1
+3 -0.5 0.5
 #OBJECTIVE
 1 1 0 2 2
 0 1 1 -1e10 1
@@ -182,7 +182,7 @@ LEXLS_FILE = """#nVar
 
 def test_a_lexls_hierarchy_file_is_read_as_lexls_reads_it(tmp_path):
     """A file in the layout LexLS's HierarchyFileProcessor reads (include/lexls/tools.h): simple
-    bounds on x_0 and x_2 in the first objective, general rows in the second."""
+    bounds on x_0 and x_2 (Matlab's indices 1 and 3) in the first objective, general rows in the second."""
     p = tmp_path / "h.dat"
     p.write_text(LEXLS_FILE)
     h, sol = read_lexls(p)
@@ -196,7 +196,7 @@ def test_a_lexls_hierarchy_file_is_read_as_lexls_reads_it(tmp_path):
 @pytest.mark.parametrize("text, match", [
     (LEXLS_FILE.replace("#nVar\n3\n", ""), r"header field\(s\) \['#nVar'\] missing"),
     (LEXLS_FILE.replace("1 1 0 2 2", "1 1 zero 2 2"), "line 15: expected numbers"),
-    (LEXLS_FILE.replace("2 -0.5 0.5", "5 -0.5 0.5"), "line 13: simple bound on variable 5"),
+    (LEXLS_FILE.replace("3 -0.5 0.5", "4 -0.5 0.5"), r"line 13: simple bound on variable 4: expected an index in 1 \.\. 3"),
 ], ids=["no-nvar", "not-a-number", "bad-index"])
 def test_a_bad_lexls_file_names_the_line(tmp_path, text, match):
     p = tmp_path / "h.dat"
