@@ -272,3 +272,15 @@ def test_the_hard_cases_rebuild_bit_for_bit(hlsp1, tmp_path):
         p = e.provenance["params"]
         save_npz(hard_case(p["case"], p["n"], e.provenance["seed"]), tmp_path / "h.npz", compressed=True)
         assert file_sha256(tmp_path / "h.npz") == e.sha256, e.id
+
+
+def test_lexls_cases_reads_a_source_folders_tests(tmp_path):
+    from hikbench.problems.testset.peers import lexls_cases
+
+    with pytest.raises(ProblemFileError, match=r"tests: no LexLS hierarchy file \(\*\.dat\)"):
+        lexls_cases(tmp_path)
+    (tmp_path / "tests").mkdir()
+    (tmp_path / "tests" / "t.dat").write_text(LEXLS_FILE)
+    ((name, h, sol, prov),) = lexls_cases(tmp_path)
+    assert name == "t" and h.rows == 4 and prov["source"] == "LexLS tests/t.dat" and "BSD-2-Clause" in prov["licence"]
+    np.testing.assert_array_equal(sol, [1, 0, 0.5])
