@@ -15,7 +15,8 @@ HELP = "build, check (hashes, re-certification) or grow a test set of certified 
 #: runs are sampled more thinly: 700 steps of 117 rows and more each
 ARM, HUMANOID = (5, None, 50), (50, 12, 25)
 ROBOT_RUNS = (("arm_reach", "panda", *ARM), ("arm_reach", "arm7.urdf", *ARM), ("reach", "talos", *HUMANOID),
-              ("step", "talos", *HUMANOID), ("reach", "romeo", *HUMANOID), ("reach", "g1", *HUMANOID),
+              ("step", "talos", *HUMANOID), ("reach", "romeo", *HUMANOID), ("step", "romeo", *HUMANOID),
+              ("reach", "g1", *HUMANOID),
               ("step", "g1", *HUMANOID))
 PARTS = ("hard", "sweeps", "peers", "robots")
 
