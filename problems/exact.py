@@ -265,15 +265,24 @@ def _stage_point(D: _Data, held_rows, values):
     return x
 
 
-def _min_norm(D: _Data, rows, values):
+def _min_norm(D: _Data, rows, values, need_z: bool = True):
     """The minimum-norm x of ``A_rows x = values`` (rows independent): ``x = B^T z``,
-    ``B B^T z = v``; returns (x, z) or None where singular."""
+    ``B B^T z = v``; returns (x, z) or None where singular. Where the rows fix every direction
+    (B square) x solves ``B x = v`` and z ``B^T z = x`` (entries of the data's size, not the Gram
+    matrix's: ~5x faster), z only where ``need_z``."""
     from flint import fmpq, fmpq_mat
 
     if not rows:
         return [fmpq(0)] * D.n, []
     Bm = D.mat(rows)
-    z = _solve(Bm * Bm.transpose(), fmpq_mat(len(values), 1, list(values)))
+    v = fmpq_mat(len(values), 1, list(values))
+    if len(rows) == D.n:
+        x = _solve(Bm, v)
+        if x is None:
+            return None
+        z = _solve(Bm.transpose(), fmpq_mat(D.n, 1, x)) if need_z else None
+        return (None if need_z and z is None else (x, z))
+    z = _solve(Bm * Bm.transpose(), v)
     if z is None:
         return None
     return (Bm.transpose() * fmpq_mat(len(z), 1, z)).entries(), z
@@ -305,8 +314,8 @@ def _multipliers_exist(D: _Data, g, cands) -> bool:
         return False
     from scipy.optimize import linprog
 
-    rows = [i for i, _ in cands]
-    C = np.array([[_to_float(v) for v in D.rows[i]] for i, _ in cands]) * np.array([s or 1 for _, s in cands])[:, None]
+    C = np.array([[_to_float(v) for v in D.rows[i]] for i, _ in cands])
+    C *= np.array([s or 1 for _, s in cands], dtype=float)[:, None]
     with np.errstate(over="ignore", invalid="ignore"):
         m = np.max(np.abs(C), axis=1, keepdims=True)
         C = np.nan_to_num(C / np.where(m > 0, m, 1.0))
@@ -405,16 +414,16 @@ def _nnls(D: _Data, g, cands) -> bool:
 
 
 #: seconds of :func:`certify` (one reading) per ``(n + rows)^3``, on an AMD EPYC core: the shipped
-#: suites' problems took 0.05 to 2 times it (see :func:`estimated_seconds`)
+#: suites' problems took 0.05 to 1 times it (see :func:`estimated_seconds`)
 COST_S = 3e-7
 
 
 def estimated_seconds(h: Hierarchy) -> float:
     """The time :func:`certify` is expected to take on h when its first reading certifies, to an
     order of magnitude (:data:`COST_S` ``(n + rows)^3``: the stages' exact KKT systems and the
-    minimum-norm Gram system): 1.1 s at a robot stack of n = 38 and 117 rows (0.3 s measured),
-    8.5 s at IK-like n = 80 with 225 rows (1-1.5 s), 3 s at equality n = 120 with 96 rows (1.1 s),
-    1 s at equality n = 30 with 20 levels of 6 rows (2 s)."""
+    minimum-norm system): 1.1 s at a robot stack of n = 38 and 117 rows (0.2-0.4 s measured),
+    8.5 s at IK-like n = 80 with 225 rows (0.5-1.4 s), 3 s at equality n = 120 with 96 rows
+    (0.9-1.7 s), 1 s at equality n = 30 with 20 levels of 6 rows (0.4 s)."""
     return COST_S * float(h.n + h.rows) ** 3
 
 
@@ -525,7 +534,7 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
 
     held: list[tuple[int, int]] = []  # (row, sign): +1 upper, -1 lower, 0 at a value
     values: list = []  # the value each held row is held at
-    stages = []  # per level: (its targets T, their slacks w, rows held above, lam on them or None)
+    stages = []  # per level: (its targets T, their slacks w, the held rows B it was solved on, lam on B or None)
     basis: list[int] = []  # an independent subset of the held rows
     points: dict = {}  # a point of each independent held set a saturated stage met
     for k in range(h.depth):
@@ -550,7 +559,7 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
                 break
             j = max(inside)[1]
             let_go[j] = D.lo[j] if states[j] == AT_LOWER else D.up[j]
-        stages.append((T, w, len(held), B, lam))
+        stages.append((T, w, B, lam))
         for i, ti, wi, sd in zip(T, t, w, side):
             held.append((i, 0 if wi != 0 or sd == 0 else sd))
             values.append(ti + wi)
@@ -573,7 +582,11 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
                     states[i] = INSIDE
     held_vals = dict(zip((i for i, _ in held), values))
     basis = D.independent([i for i, _ in held])
-    sol = _min_norm(D, basis, [held_vals[i] for i in basis])
+    sign_of = dict(held)
+    # (z's signs matter where a held row is signed, unless the free held rows span every direction:
+    # then they alone cancel any gradient)
+    need_z = any(sign_of[i] for i in basis) and len(D.independent([i for i, s in held if not s])) < D.n
+    sol = _min_norm(D, basis, [held_vals[i] for i in basis], need_z=need_z)
     if sol is None:
         return fail("the held rows chosen independent are singular (a choice modulo the prime that "
                     "exact arithmetic refutes)")
@@ -586,7 +599,8 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
             return fail(f"{_where(h, i)}: held at its value by the active set read off x, but the exact "
                         f"x* misses it (its value is not reachable with the rows held with it)")
     for i, s in enumerate(states):
-        if s == INSIDE and ((D.lo[i] is not None and r[i] < D.lo[i]) or (D.up[i] is not None and r[i] > D.up[i])):
+        if s == INSIDE and ((D.lo[i] is not None and r[i] < D.lo[i])
+                            or (D.up[i] is not None and r[i] > D.up[i])):
             return fail(f"{_where(h, i)}: read as inside its bounds, but the exact x* leaves them")
     viol = [_violation(D, i, r[i]) for i in range(D.m)]
 
@@ -602,8 +616,7 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
                 out.append((i, -1))
         return out
 
-    sign_of = dict(held)
-    for k, (T, w, n_above, B, lam) in enumerate(stages):
+    for k, (T, w, B, lam) in enumerate(stages):
         if all(v == 0 for v in w) or not any(sign_of[i] for i in B):
             continue  # (g = 0, or multipliers of any sign: the stage's exact solve is its optimum)
         if lam is not None and _signs_ok([sign_of[i] for i in B], lam):
@@ -617,7 +630,7 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
             return fail(f"level {k}: the exact x* is not optimal for its stage (no multipliers of the "
                         f"right sign cancel the gradient): the active set read off x is not the optimal one")
     # the minimum-norm stage: x* + B^T lam = 0 with lam = -z
-    if not _signs_ok([sign_of[i] for i in basis], [-v for v in z]) and not _multipliers_exist(
+    if need_z and not _signs_ok([sign_of[i] for i in basis], [-v for v in z]) and not _multipliers_exist(
             D, xs, candidates(D.m)):
         return fail("the minimum-norm stage: the exact x* is not the minimum-norm point of the optimal set")
     sq = []

@@ -328,3 +328,54 @@ def test_hcods_points_on_dyadic_hierarchies_are_certified_and_equal(h):
     assert cert.certified, cert.reason
     tol = 1e-9 * level_scales(h, cert.x) + 1e-12
     assert np.all(np.abs(level_norms(h, x) - cert.level_norms) <= tol), (level_norms(h, x), cert.level_norms)
+
+
+ARM_STACK = """name = "user_arm"
+robot = "arm.urdf"
+dt = 0.02
+
+[[levels]]
+tasks = [{ type = "joint_limits" }, { type = "velocity_limits", scale = 0.5 }]
+
+[[levels]]
+tasks = [{ type = "position", frame = "ee", gain = 5.0, name = "tip position" }]
+
+[[levels]]
+tasks = [{ type = "orientation", frame = "ee", gain = 5.0, name = "tip orientation" }]
+
+[[levels]]
+tasks = [{ type = "posture", gain = 1.0 }]
+"""
+
+
+@pytest.fixture(scope="module")
+def user_arm_stack(tmp_path_factory):
+    """A user's 7-joint arm (tests/urdf_robots.py, its flange moved 5 cm off the last joint's
+    axis) with joint and velocity limits (x 0.5) > tip position > tip orientation > posture:
+    each joint's position and velocity limit rows are parallel two-sided rows at level 0."""
+    from urdf_robots import arm_urdf
+
+    d = tmp_path_factory.mktemp("user_arm")
+    urdf = arm_urdf()
+    on_axis = '<child link="arm_flange"/><origin xyz="0 0 0.05"'
+    assert on_axis in urdf
+    (d / "arm.urdf").write_text(urdf.replace(on_axis, on_axis.replace("0 0 0.05", "0.05 0 0.05")))
+    (d / "user_arm.toml").write_text(ARM_STACK)
+    return d / "user_arm.toml"
+
+
+@pytest.mark.parametrize("seed", [3, 5])
+def test_hcods_point_on_a_user_arm_stack_is_certified(user_arm_stack, seed):
+    """n = 7, 27 rows; velocity limits held at level 0 on several joints. hcod's point is
+    certified and attains the exact optimum (its level norms to 1e-9 of each level's scale)."""
+    from hikbench.problems.robots.testsets import stack_problem
+    from hikbench.problems.verify import verify
+    from hikbench.solvers.hcod import HcodSolver
+
+    h = stack_problem(str(user_arm_stack), seed)
+    assert (h.n, h.rows) == (7, 27)
+    x = HcodSolver().solve(h).x
+    cert = certify(h, x)
+    assert cert.certified, cert.reason
+    assert verify(h, x, cert.x).equal
+    assert any(s in ("lower", "upper") for s in cert.states[:14])
