@@ -39,6 +39,7 @@ COMMANDS: dict[str, str] = {
     "columns": "columns",
     "scenario": "scenario",
     "warmup": "warmup",
+    "testset": "testset",
 }
 
 

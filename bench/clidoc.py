@@ -26,7 +26,7 @@ _EXIT_CODES = """\
 | code | meaning |
 |---|---|
 | 0 | success |
-| 1 | a command's verdict: `solve` (the solver ended in status `error`, `crashed` or `timeout`), `compare` (a case SLOWER, NEWLY FAILING or MISSING), `claims` (a claim FAIL, or MISSING without `--allow-missing`) |
+| 1 | a command's verdict: `solve` (the solver ended in status `error`, `crashed` or `timeout`), `compare` (a case SLOWER, NEWLY FAILING or MISSING), `claims` (a claim FAIL, or MISSING without `--allow-missing`), `testset check` (a file's SHA-256 differs, or a re-certified optimum) |
 | 2 | a user error: one line on stderr, `hikbench COMMAND: error: ...`, no traceback (a bad command line, a missing or malformed file, an unknown solver, family, option or parameter, a missing optional dependency: the line names the extra to install, a size beyond the machine's memory) |
 | 130 | `run` interrupted (Ctrl-C); the rows written so far are kept; `solve` interrupted, its worker process killed |
 | 143 | `run` terminated (SIGTERM); the rows written so far are kept; `solve` terminated, its worker process killed |
@@ -104,6 +104,10 @@ def markdown() -> str:
     for name, help_text, sub in subs:
         out += ["", f"## hikbench {name}", "", _cell(sub.description or help_text), "", f"    {_usage(sub)}", ""]
         out += _arguments(sub)
+        for action_name, action_help, action in _subcommands(sub):  # (hikbench testset build|check|add)
+            out += ["", f"### hikbench {name} {action_name}", "", _cell(action.description or action_help), "",
+                    f"    {_usage(action)}", ""]
+            out += _arguments(action)
     out += ["", _EXIT_CODES]
     return "\n".join(out) + "\n"
 

@@ -328,10 +328,12 @@ def all_families() -> dict[str, Family]:
     """The named families: :data:`FAMILIES` and the robot stacks'
     (``hikbench.problems.robots.testsets.ROBOT_FAMILIES``: ``robot-stack``, params
     ``stack``, ``robot`` (a name or a .urdf path), ``srdf``, ``floating_base``, ``reference``;
-    pinocchio is imported on its first problem)."""
+    pinocchio is imported on its first problem), and the test sets' ``testset`` and ``hard``
+    (:func:`hikbench.problems.testset.testset_families`)."""
     from hikbench.problems.robots.testsets import ROBOT_FAMILIES  # (it imports Family from here)
+    from hikbench.problems.testset import testset_families
 
-    return {**FAMILIES, **ROBOT_FAMILIES}
+    return {**FAMILIES, **ROBOT_FAMILIES, **testset_families()}
 
 
 def generate(family: str, seed: int = 0, **params) -> Hierarchy:

@@ -75,6 +75,12 @@ def test_the_wheel_holds_only_the_hikbench_namespace(tmp_path):
     modules = [n for n in names if n.endswith(".py")]
     assert modules and all(n.startswith("hikbench/") for n in modules)
     assert "hikbench/bench/suites/quick.toml" in names and "hikbench/problems/robots/stacks/arm_reach.toml" in names
+    # the test set and its URDF arm (docs/testset.md): hikbench run --suite hlsp-1 from a wheel
+    assert "hikbench/problems/testset/hlsp-1/manifest.json" in names and "hikbench/problems/robots/arm7.urdf" in names
+    from hikbench.problems.testset import TestSet
+
+    npz = [n for n in names if n.startswith("hikbench/problems/testset/hlsp-1/") and n.endswith(".npz")]
+    assert len(npz) == len(TestSet.read("hlsp-1"))
 
 
 @pytest.mark.parametrize("module, extra", sorted(EXTRA_OF.items()), ids=sorted(EXTRA_OF))

@@ -32,6 +32,7 @@ from hikbench.bench.harness.environment import read_run_json
 from hikbench.bench.harness.results import read_results
 from hikbench.bench.harness.summary import run_summary, summary_line
 from hikbench.bench.scenarios.rows import read_scenario_rows
+from hikbench.bench.testset.sequences import sequence_rows, sequence_section
 from hikbench.problems.errors import HikbenchError
 
 __all__ = ["MIN_PROFILE_PROBLEMS", "REPORT_JSON", "solver_label", "write_report"]
@@ -169,7 +170,7 @@ class _Doc:
 
 #: report.md's sections, in order: (title, what decides whether it is written)
 SECTIONS = ("Ranking", "Each solver on its own problems", "Tail latency", "Non-strict solvers", "Success per family",
-            "Speed per problem", "Scenarios", "Statuses and unverified rows", "Claims of the paper", "Figures", "Environment")
+            "Speed per problem", "Scenarios", "Sequences", "Statuses and unverified rows", "Claims of the paper", "Figures", "Environment")
 
 
 def _anchor(title: str) -> str:
@@ -523,9 +524,10 @@ def write_report(run_dir) -> Path:
     slopes = _Doc()  # (the slope tables come with the figures, and are printed after the speed tables)
     figures = _draw_figures(df, plot_dir, slopes, _uncertified_problems(df))
     has_scenarios = bool(scenario_rows(run_dir))
+    has_sequences = bool(sequence_rows(run_dir))
     titles = [t for t in SECTIONS if (t != "Non-strict solvers" or has_ns) and (t != "Claims of the paper"
                                                                                   or with_claims)
-              and (t != "Scenarios" or has_scenarios)]
+              and (t != "Scenarios" or has_scenarios) and (t != "Sequences" or has_sequences)]
     doc.lines += [f"# hikbench report: suite {summary['suite'] or '?'}", ""]
     if isinstance(meta.get("suite_rows"), int) and len(df) < meta["suite_rows"]:
         doc.text(f"**Incomplete run: {_rows_note(len(df), meta['suite_rows'])}.** Every table and figure below "
@@ -542,6 +544,7 @@ def write_report(run_dir) -> Path:
     doc.lines += slopes.lines
     doc.tables += slopes.tables
     scenarios = scenario_section(doc, run_dir, meta)
+    sequences = sequence_section(doc, run_dir)
     _status_section(doc, df)
     claims = _claims_section(doc, run_dir) if with_claims else None
     _figures_section(doc, figures, run_dir)
@@ -549,12 +552,12 @@ def write_report(run_dir) -> Path:
     out = run_dir / "report.md"
     out.write_text("\n".join(doc.lines).rstrip() + "\n")
     _write_json(run_dir, summary, rankings, own, ns, claims, figures, _calibration_ms(df), doc, meta, tail,
-                scenarios)
+                scenarios, sequences)
     return out
 
 
 def _write_json(run_dir: Path, summary, rankings, own, ns, claims, figures, calibration, doc: _Doc,
-                meta: dict, tail: dict, scenarios: list[dict]) -> Path:
+                meta: dict, tail: dict, scenarios: list[dict], sequences: list[dict] = ()) -> Path:
     """RUN/report.json: the numbers of report.md (docs/reports.md, "report.json")."""
     data = {
         "summary": summary,
@@ -568,6 +571,7 @@ def _write_json(run_dir: Path, summary, rankings, own, ns, claims, figures, cali
         "non_strict": ns,
         "claims": claims,
         "scenarios": scenarios,
+        "sequences": list(sequences),
         "figures": [{"title": f["title"], "path": None if f["path"] is None else str(f["path"].relative_to(run_dir)),
                      "why": f.get("why")} for f in figures],
         "calibration_ms": calibration,

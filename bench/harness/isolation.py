@@ -428,6 +428,8 @@ def _child_main() -> None:
         run = execute
         if job.get("kind") == "scenario":  # (a suite's [[scenarios]]: pinocchio and the robots, loaded here only)
             from hikbench.bench.scenarios.job import execute_scenario as run
+        elif job.get("kind") == "sequence":  # (a suite's sequences: a test set's steps in order)
+            from hikbench.bench.testset.sequences import execute_sequence as run
         _send(channel, run(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE, token)), token)
         kill_descendants(os.getpid())  # every process the job left (a solver's helper would burn CPU through
         reap_children()  # the timings of every later job), then their exit statuses

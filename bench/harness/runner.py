@@ -74,6 +74,7 @@ class RunSummary:
     scenario_skipped_finished: int = 0
     scenario_written: int = 0
     scenario_statuses: dict = field(default_factory=dict)
+    sequence_written: int = 0          # rows of the suite's sequences (hikbench.bench.testset.sequences)
 
 
 def _finite(v):
@@ -316,7 +317,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         try:
             with _Progress(quiet) as progress:
                 judged, jcols = _judged_problems(todo, problems, pcols)
-                refs = _yardsticks([_judged_id(t) for t in todo], judged, jcols, out, executor,
+                refs = _yardsticks([_judged_id(t) for t in todo], todo, judged, jcols, out, executor,
                                    max(timeout, suite.first_solve_timeout), suite.certify_timeout, progress)
                 tid = progress.add("solves", len(todo) * rounds)
                 earlier = {i: [] for i in range(len(todo))}  # results of the rounds before, per job
@@ -352,6 +353,12 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                     (summary.scenario_skipped_finished, summary.scenario_written,
                      summary.scenario_statuses) = run_scenarios(scenarios, out, executor, suite.first_solve_timeout,
                                                                 rerun=rerun, limit=left, progress=progress)
+                if suite.sequences:
+                    from hikbench.bench.testset.sequences import run_sequences, sequence_tasks
+                    entries = list({(t.entry.solver, t.entry.settings): t.entry for t in tasks}.values())
+                    summary.sequence_written = run_sequences(
+                        sequence_tasks(suite.sequences, entries), out, executor, suite.first_solve_timeout, rtol,
+                        atol, rerun=rerun, progress=progress)
         except BaseException as err:
             failure = err
             raise
@@ -538,7 +545,7 @@ def _judged_problems(todo, problems: dict, pcols: dict) -> tuple[dict, dict]:
     return judged, jcols
 
 
-def _yardsticks(pids, problems, pcols, out: Path, executor, timeout, certify_timeout, progress) -> dict:
+def _yardsticks(pids, todo, problems, pcols, out: Path, executor, timeout, certify_timeout, progress) -> dict:
     """The yardstick of each problem id of ``pids``, (x, status, reason, kind, kind_reason, certify_budget),
     from ``OUT/yardstick/<problem_hash>.npz`` or computed through the executor (isolated), each
     step its own job with its own timeout (one that fails costs its step, never a point already
@@ -550,13 +557,20 @@ def _yardsticks(pids, problems, pcols, out: Path, executor, timeout, certify_tim
        (:func:`_lowest`), certified in turn where the independent one was refused or missing
        (a certificate stopped by its budget is not tried again on the other point).
 
-    Problems of the same content share one. A cached file of other yardstick code
+    A problem of a test set (family ``testset``, docs/testset.md) has its stored certified optimum
+    as its yardstick, computed by none of these. Problems of the same content share one. A cached file of other yardstick code
     (:func:`hikbench.bench.harness.cache.yardstick_code`) is computed again, which one line on
     stderr says. A yardstick whose step a killed or lost worker ended is not cached: the next
     run tries again."""
     code = yardstick_code()
     refs, need, recertify, first_of, twins, stale = {}, [], [], {}, {}, 0
+    specs = {t.problem.id: t.problem for t in todo}  # (a row-normalised hierarchy's id is none of these)
     for pid in dict.fromkeys(pids):
+        if pid in specs and specs[pid].family == "testset":  # a test set's problem: its stored certified optimum
+            from hikbench.problems.testset import stored_optimum  # (read once: cached_set)
+            x, note = stored_optimum(specs[pid].params.get("set", "hlsp-1"), specs[pid].params["problem"])
+            refs[pid] = (x, "optimal", note, CERTIFIED, note, 0.0)
+            continue
         phash = pcols[pid]["problem_hash"]
         if phash in first_of:
             twins[pid] = first_of[phash]

@@ -156,7 +156,7 @@ def active_rows(h, u: np.ndarray) -> np.ndarray:
 
 def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
                  warm_start: str | None = None, steps: int | None = None, repeat: int = REPEAT,
-                 resolve: bool = False, certify: int = 0) -> ScenarioRun:
+                 resolve: bool = False, certify: int = 0, on_step=None) -> ScenarioRun:
     """Run ``scenario`` in closed loop with solver ``solver``.
 
     Parameters
@@ -180,6 +180,9 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
     certify : int
         With ``certify`` >= 1 worker processes, certify every step's u exactly after the run
         (columns ``certified``, ``certify_reason``, ``x_attains``; module docstring).
+    on_step : callable, optional
+        ``on_step(k, h, result)`` after each step's timed calls: the step's hierarchy and the
+        controller's SolveResult (``hikbench testset``'s recorder, bench/testset/record.py).
     """
     options = dict(options or {})
     make, mode = _maker(scenario, solver, options, warm_start)
@@ -208,6 +211,8 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
             h = stack.hierarchy(q, state)
             _prepare(solvers, q)
             res, times, agree = _timed_calls(solvers, h)
+            if on_step is not None:
+                on_step(k, h, res)
             u = res.x
             now = active_rows(h, u) if u is not None and np.all(np.isfinite(u)) else None
             row = {"solver": solver, "warm_start": mode, "step": k, "time_s": t,

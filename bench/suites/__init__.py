@@ -60,7 +60,10 @@ Decisions (docs/suites.md, "The suite file"):
   p99 is measured; hikbench.bench.harness.timing); a suite that sets
   ``repeat`` alone gets exactly that many (the ``ci`` suite: its baselines
   hold 9), and ``samples`` with it raises the count again.
-* ``grid = { case = "*" }`` expands to every ``hikbench.problems.generators.DEGENERATE_CASES``.
+* ``grid = { case = "*" }`` expands to every ``hikbench.problems.generators.DEGENERATE_CASES``
+  (family ``hard``: every ``hikbench.problems.testset.cases.CASES``).
+* ``grid = { problem = "*" }`` of family ``testset`` expands to every problem id of the set
+  ``params.set`` (docs/testset.md).
 """
 
 from __future__ import annotations
@@ -150,6 +153,7 @@ class Suite:
     settings: list = field(default_factory=list)
     groups: list = field(default_factory=list)
     scenarios: list = field(default_factory=list)  # [[scenarios]] tables, checked (hikbench.bench.scenarios.suite)
+    sequences: tuple[str, ...] = ()  # test sets whose sequences run in order (hikbench.bench.testset.sequences)
     source: str = ""
 
     def problems(self) -> list[tuple[ProblemSpec, tuple[str, ...] | None]]:
@@ -158,9 +162,15 @@ class Suite:
         for g in self.groups:
             grid = dict(g.get("grid", {}))
             for k, v in grid.items():
-                if v == "*" and k == "case":
+                if v == "*" and k == "case" and g["family"] == "hard":
+                    from hikbench.problems.testset.cases import CASES
+                    grid[k] = list(CASES)
+                elif v == "*" and k == "case":
                     from hikbench.problems.generators import DEGENERATE_CASES
                     grid[k] = list(DEGENERATE_CASES)
+                elif v == "*" and k == "problem" and g["family"] == "testset":
+                    from hikbench.problems.testset import TestSet
+                    grid[k] = [e.id for e in TestSet.read(g.get("params", {}).get("set", "hlsp-1")).entries]
                 elif not isinstance(v, list):
                     grid[k] = [v]
             keys = sorted(grid)
@@ -181,7 +191,7 @@ class Suite:
                 "calibrate_each_job": self.calibrate_each_job,
                 "modes": list(self.modes), "accuracy": self.accuracy, "export": list(self.export),
                 "solvers": list(self.solvers), "settings": self.settings, "problems": self.groups,
-                "scenarios": self.scenarios}
+                "scenarios": self.scenarios, "sequences": list(self.sequences)}
 
 
 def builtin_suites() -> dict[str, Path]:
@@ -267,11 +277,12 @@ SCHEMA = Table({
     "settings": List(_SETTINGS, min_len=0, what="[[settings]] tables"),
     "problems": List(_GROUP, what="[[problems]] tables (at least one)"),
     "scenarios": List(_SCENARIO, min_len=0, what="[[scenarios]] tables"),
+    "sequences": List(Str(), min_len=0, what='a list of test set names, e.g. sequences = ["hlsp-1"]'),
 }, required=("problems",), defaults={
     "description": "", "repeat": 5, "sample_time": SAMPLE_TIME, "rounds": 1, "warmup": 1, "timeout": 60.0,
     "first_solve_timeout": 300.0, "certify_timeout": 30.0,
     "calibrate_each_job": False, "modes": ["cold"], "accuracy": "default", "export": ["npz"],
-    "solvers": ["*"], "settings": [], "scenarios": []})
+    "solvers": ["*"], "settings": [], "scenarios": [], "sequences": []})
 
 
 def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
@@ -299,7 +310,7 @@ def suite_from_dict(data: dict, name: str, source: str = "") -> Suite:
                  certify_timeout=float(d["certify_timeout"]),
                  calibrate_each_job=d["calibrate_each_job"], modes=tuple(d["modes"]), accuracy=d["accuracy"],
                  export=tuple(d["export"]), solvers=tuple(d["solvers"]), settings=d["settings"],
-                 groups=d["problems"], scenarios=d["scenarios"], source=source)
+                 groups=d["problems"], scenarios=d["scenarios"], sequences=tuple(d["sequences"]), source=source)
 
 
 def _check_grid(g: dict, path: str, at: Where) -> None:

@@ -161,6 +161,15 @@ def _user_family(spec: ProblemSpec) -> Hierarchy:
     return h
 
 
+def _family(spec: ProblemSpec) -> str:
+    """The family column: the family's name; for a test set's problem, ``<set>:<its family>``
+    (``hlsp-1:robot:reach``), so that a report ranks per family of the set."""
+    if spec.family == "testset":
+        from hikbench.problems.testset import entry_family
+        return entry_family(spec.params.get("set", "hlsp-1"), spec.params.get("problem", ""))
+    return spec.family_name
+
+
 def problem_columns(spec: ProblemSpec, h: Hierarchy) -> dict:
     """The problem's descriptive columns of results.csv (see hikbench.bench.harness.columns)."""
     rows_per_level = np.diff(h.starts).tolist()
@@ -173,7 +182,7 @@ def problem_columns(spec: ProblemSpec, h: Hierarchy) -> dict:
     return {
         "problem": spec.id,
         "problem_hash": problem_hash(h),
-        "family": spec.family_name,
+        "family": _family(spec),
         "params": spec.params_json(),
         "seed": spec.seed,
         "n": h.n,

@@ -231,7 +231,8 @@ def test_list(capsys, what, expected):
 
 def test_list_families_shows_every_family(capsys):
     _, out, _ = run(capsys, "list", "families")
-    assert [line.split()[0] for line in out.splitlines()] == [*FAMILIES, "robot-stack"] == list(all_families())
+    assert [line.split()[0] for line in out.splitlines()] == [*FAMILIES, "robot-stack", "testset", "hard"] \
+        == list(all_families())
 
 
 # ------------------------------------------------------------ usage errors
