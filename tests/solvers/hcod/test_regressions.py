@@ -11,6 +11,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from hcod_checks import DATA, RTOL, RTOL_ILL, check, drifting
+from judges import judge as make_judge
 
 from hikbench.problems import generators as G
 from hikbench.problems.files import load_npz
@@ -62,7 +63,7 @@ def _every_mode_equals_judge(h, judge: str, level: int, level_rtol: float, rtol:
     """Every mode of hcod (:func:`_every_mode`) on h against the solver ``judge`` (or the
     independent reference, ``"yardstick"``): level ``level``'s norm within ``level_rtol`` of the
     judge's, every level equal by verify at ``rtol``."""
-    xj = yardstick_solution(h) if judge == "yardstick" else registry.create(judge).solve(h).x
+    xj = yardstick_solution(h) if judge == "yardstick" else make_judge(judge).solve(h).x
     for warm_start, min_norm, res in _every_mode(h):
         np.testing.assert_allclose(level_norms(h, res.x)[level], level_norms(h, xj)[level], rtol=level_rtol)
         verdict = verify(h, res.x, xj, rtol=rtol)
@@ -87,7 +88,7 @@ def test_met_rows_pass_on_the_force_of_a_levels_small_rows(seed, rtol, judge):
     cascades (dual active sets, their status flags aside); on seed 137 they are 7e-9 above the optimum of level 2 (the
     yardstick agrees with ``hcod`` there), hence 1e-8."""
     h = G.degenerate("badly_scaled", 5, seed)
-    other = registry.create(judge).solve(h)
+    other = make_judge(judge).solve(h)
     for warm_start, min_norm, res in _every_mode(h):
         verdict = verify(h, res.x, other.x, rtol=rtol)
         assert verdict.equal, (warm_start, min_norm, verdict, level_norms(h, res.x), level_norms(h, other.x))
