@@ -17,7 +17,6 @@ from hikbench.problems import generators as G
 from hikbench.problems.files import load_npz
 from hikbench.problems.hierarchy import Hierarchy, Level
 from hikbench.problems.verify import level_norms, verify
-from hikbench.solvers import registry
 from hikbench.solvers.base import OPTIMAL
 from hikbench.solvers.hcod import WARM_STARTS, HcodSolver
 from hikbench.solvers.yardstick import yardstick_solution
