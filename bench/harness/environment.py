@@ -23,7 +23,7 @@ RUN_JSON = "run.json"
 
 
 def utc_now() -> str:
-    return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
+    return _dt.datetime.now(_dt.UTC).isoformat(timespec="milliseconds")  # (a run of under a second has a wall time)
 
 
 def _versions() -> dict:
