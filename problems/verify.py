@@ -46,8 +46,8 @@ class Profile:
 #: the accuracy profiles, tightest first: a row verified at one is verified at every later one
 PROFILES: dict[str, Profile] = {p.name: p for p in (
     Profile("high", 1e-9, "each level within 1e-9 of its terms of the certified optimum: what double precision "
-                          "and a backward-stable method reach (hcod, the null-space recursions and the polished "
-                          "cascades are within 3e-11 on the quick suite)"),
+                          "and a backward-stable method reach (docs/verification.md: what hcod, the null-space "
+                          "recursions and the cascades reach on the quick suite)"),
     Profile("default", 1e-8, "within 1e-8: QP cascades at their tight tolerances; the optimum perturbed by 1e-6 "
                              "relative (its largest level gap 1.5e-7 to 5e-7 of the terms on equality, IK-like "
                              "and random problems) is refused"),
