@@ -8,7 +8,7 @@ STAMP  := $(VENV)/.installed
 SUITE  ?= quick
 OUT    ?= results/$(SUITE)
 
-# the C++ peers SOTH and LexLS (docs/peers.md): sources from PEERS_SRC (a folder holding their pinned
+# the C++ peers SOTH, LexLS and NIPM-HLSP (docs/peers.md): sources from PEERS_SRC (a folder holding their pinned
 # tarballs; default ../shared/third_party when it exists, else a shallow clone at the pinned commits);
 # MARCH_NATIVE=1 adds -march=native (recorded in run.json); PEERS_JOBS=N compiler processes (default: the cores)
 PEERS_SRC    ?= $(if $(wildcard ../shared/third_party),../shared/third_party,)

@@ -143,11 +143,11 @@ def _sigterm_as_interrupt():
 @contextlib.contextmanager
 def solver_calls_killable():
     """SIGTERM and SIGINT take the kernel's default action (end the process)
-    inside the block: around a command's in-process solver calls (``solve``,
-    ``scenario``). Python runs its own handlers only between bytecodes, so a
-    backend looping in C or numba code, which never returns to the
-    interpreter, could not be stopped by ``kill`` or Ctrl-C. ``run`` does not need it: its solves run in the isolated
-    worker. A signal ignored by the parent (``nohup``, a background job) stays
+    inside the block: around a command's in-process solver calls (``scenario``).
+    Python runs its own handlers only between bytecodes, so a backend looping in
+    C or numba code, which never returns to the interpreter, could not be
+    stopped by ``kill`` or Ctrl-C. ``run`` and ``solve`` do not need it: their
+    solves run in the isolated worker. A signal ignored by the parent (``nohup``, a background job) stays
     ignored. Elsewhere than in the main thread nothing changes."""
     if threading.current_thread() is not threading.main_thread():
         yield

@@ -26,10 +26,10 @@ _EXIT_CODES = """\
 | code | meaning |
 |---|---|
 | 0 | success |
-| 1 | a command's verdict: `solve` (the solver ended in status `error`), `compare` (a case SLOWER, NEWLY FAILING or MISSING), `claims` (a claim FAIL, or MISSING without `--allow-missing`) |
+| 1 | a command's verdict: `solve` (the solver ended in status `error`, `crashed` or `timeout`), `compare` (a case SLOWER, NEWLY FAILING or MISSING), `claims` (a claim FAIL, or MISSING without `--allow-missing`) |
 | 2 | a user error: one line on stderr, `hikbench COMMAND: error: ...`, no traceback (a bad command line, a missing or malformed file, an unknown solver, family, option or parameter, a missing optional dependency: the line names the extra to install, a size beyond the machine's memory) |
-| 130 | `run` interrupted (Ctrl-C); the rows written so far are kept |
-| 143 | `run` terminated (SIGTERM); the rows written so far are kept |
+| 130 | `run` interrupted (Ctrl-C); the rows written so far are kept; `solve` interrupted, its worker process killed |
+| 143 | `run` terminated (SIGTERM); the rows written so far are kept; `solve` terminated, its worker process killed |
 
 Any other code, or a traceback, is a bug in hikbench."""
 

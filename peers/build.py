@@ -1,14 +1,15 @@
-"""Build the C++ peers SOTH and LexLS and hikbench's adapters to them (``make peers``).
+"""Build the C++ peers SOTH, LexLS and NIPM-HLSP and hikbench's adapters to them (``make peers``).
 
     python peers/build.py [--src DIR] [--out DIR] [--march-native] [--jobs N]
 
 Sources: ``--src`` (``make peers PEERS_SRC=DIR``), a folder holding the pinned
-tarballs ``soth-d2485f4.tar.gz`` and ``lexls-f13b6b6.tar.gz``; without it, a
-shallow clone of the public repositories at the pinned commits (needs git and
-the network). Headers: Eigen (cmeel-eigen), Boost (cmeel-boost) and pybind11
-from PyPI (``pip install 'hikbench[peers]'``); the system C++ compiler (``$CXX``,
-else ``c++``). Output: two Python extension modules, ``_hik_soth`` and
-``_hik_lexls``, and ``peers.json`` (commits, compiler, flags, build time) in
+tarballs ``soth-d2485f4.tar.gz``, ``lexls-f13b6b6.tar.gz`` and
+``nipm-hlsp-05d618d.tar.gz``; without it, a shallow clone of the public
+repositories at the pinned commits (needs git and the network). Headers: Eigen
+(cmeel-eigen), Boost (cmeel-boost) and pybind11 from PyPI (``pip install
+'hikbench[peers]'``); the system C++ compiler (``$CXX``, else ``c++``). Output:
+three Python extension modules, ``_hik_soth``, ``_hik_lexls`` and ``_hik_nipm``,
+and ``peers.json`` (commits, compiler, flags, build time) in
 ``--out``, by default the folder :func:`hikbench.solvers.peers.peers_dir` reads
 (``<environment>/lib/hikbench-peers``, or ``$HIKBENCH_PEERS_DIR``).
 
@@ -23,6 +24,16 @@ How each peer is built (docs/peers.md):
   ``NDEBUG`` missing). ``Random.cpp`` (its unit tests' generator) is not built.
 * LexLS: header-only; its cap on factorizations is a run-time parameter, which
   the adapter raises (``max_factorizations``, default 1000 where LexLS says 200).
+* NIPM-HLSP: the sources ``nipm_hlsp/*.cpp`` compiled directly (its CMake only
+  globs them). Its options are ``const`` members with in-class defaults in
+  ``nipm_hlsp/options.h``; the extracted copy's initialisers of the four the
+  adapter exposes (:data:`NIPM_OPTIONS`) are made to read a settings struct
+  (:data:`NIPM_SETTINGS`, holding NIPM-HLSP's own defaults, parsed from that
+  file) that the adapter sets before each solve. Two fixes of its memory
+  handling are applied to the extracted copy (:data:`NIPM_FIXES`; its
+  arithmetic is not touched): left as they are, every solve leaks its whole
+  problem and workspace (3 to 7 MB on the peers suite's problems). The build
+  stops if any of these lines is not found exactly once.
 
 A missing compiler, source folder or header package is one line saying what to
 do, exit status 2.
@@ -46,21 +57,43 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-# name -> (public repository, pinned commit, tarball in PEERS_SRC)
+# name -> (public repository, pinned commit, tarball in PEERS_SRC, its top folder)
 PINNED = {
     "soth": ("https://github.com/stack-of-tasks/soth", "d2485f4a29d2af65e4badd72b5a2fe7ae30792fc",
-             "soth-d2485f4.tar.gz"),
+             "soth-d2485f4.tar.gz", "soth"),
     "lexls": ("https://github.com/jrl-umi3218/lexls", "f13b6b668146aabbf838b1e2fc3fe9b65d752db5",
-              "lexls-f13b6b6.tar.gz"),
+              "lexls-f13b6b6.tar.gz", "lexls"),
+    "nipm-hlsp": ("https://github.com/pfeiffer-kai/NIPM-HLSP", "05d618d478662939c143ee453eaabd6d562bffcc",
+                  "nipm-hlsp-05d618d.tar.gz", "nipm-hlsp-05d618d"),
 }
 #: SOTH's library sources (its src/CMakeLists.txt), Random.cpp (unit tests only) left out
 SOTH_SOURCES = ("Allocator.cpp", "Algebra.cpp", "Bound.cpp", "BaseY.cpp", "HCOD.cpp", "Givens.cpp", "debug.cpp",
                 "Stage.cpp", "BasicStage.cpp")
 #: the lines switching SOTH's debug/trace mode on, at the top of HCOD.cpp, Stage.cpp, BasicStage.cpp, Random.cpp
 SOTH_DEBUG_LINE = re.compile(r"^[ \t]*#[ \t]*define[ \t]+SOTH_DEBUG(_MODE)?\b.*$", re.M)
+#: NIPM-HLSP's library sources (what its CMakeLists globs, nipm_hlsp/*.cpp)
+NIPM_SOURCES = ("data.cpp", "hlsp.cpp", "lagrangian.cpp", "level.cpp", "levelShared.cpp", "newton.cpp",
+                "nipm_hlsp.cpp")
+#: the NIPM-HLSP options (members of its ``options`` struct, nipm_hlsp/options.h) the adapter sets at run time
+NIPM_OPTIONS = ("maxIter", "KKT_thres", "linearDependency", "activationThres")
+NIPM_OPTION_LINE = re.compile(r"^([ \t]*)const (int|double) (" + "|".join(NIPM_OPTIONS) + r") = ([^;]+);", re.M)
+#: (file, line as pinned, line as built, why): the fixes of NIPM-HLSP's memory handling (docs/peers.md)
+NIPM_FIXES = (
+    ("nipm_hlsp.cpp", "int nrIter = nwt->run(opt.maxIter);",
+     "int nrIter = nwt->run(opt.maxIter); delete nwt;",
+     "each level's Newton object is made with new and never deleted; it owns the level's Lagrangian, which "
+     "owns the whole problem: every solve leaked it all"),
+    ("hlsp.cpp", "make_shared<levelShared>(shared_ptr<hlsp>(this), p, n)",
+     "make_shared<levelShared>(shared_ptr<hlsp>(this, [](hlsp*) {}), p, n)",
+     "a second owner of the hlsp made from its this pointer: once the leak above is gone, it deletes the hlsp "
+     "twice; the levelShared it owns now refers to it without owning it"),
+)
+#: where the patched options.h reads them: a struct of NIPM-HLSP's defaults, defined in nipm_adapter.cpp
+NIPM_SETTINGS = "hik_nipm::settings()"
 #: seconds to compile each unit on a 2-core machine, to start the longest first (make peers prints them)
-COST = {"lexls_adapter.cpp": 71, "Stage.cpp": 58, "HCOD.cpp": 18, "soth_adapter.cpp": 18, "BaseY.cpp": 10,
-        "BasicStage.cpp": 8, "Givens.cpp": 4}
+COST = {"lexls_adapter.cpp": 71, "Stage.cpp": 58, "lagrangian.cpp": 35, "HCOD.cpp": 18, "soth_adapter.cpp": 18,
+        "levelShared.cpp": 15, "nipm_adapter.cpp": 15, "newton.cpp": 13, "BaseY.cpp": 10, "BasicStage.cpp": 8,
+        "Givens.cpp": 4, "nipm_hlsp.cpp": 4}
 FLAGS = ("-O3", "-DNDEBUG", "-std=c++17", "-fPIC", "-fvisibility=hidden", "-w")
 
 
@@ -85,15 +118,15 @@ def main(argv=None) -> int:
         print(f"make peers: {err}", file=sys.stderr)
         return 2
     units = ", ".join(f"{k} {v:.0f} s" for k, v in sorted(info["compile_s"].items(), key=lambda kv: -kv[1]))
-    print(f"make peers: built soth and lexls in {info['build_time_s']:.0f} s ({info['jobs']} jobs; {units}) "
-          f"into {info['dir']}")
+    print(f"make peers: built soth, lexls and nipm-hlsp in {info['build_time_s']:.0f} s ({info['jobs']} jobs; "
+          f"{units}) into {info['dir']}")
     return 0
 
 
 def build(src: str | None, out: str | None, march_native: bool, jobs: int) -> dict:
     t0 = time.perf_counter()
     cxx = find_compiler()
-    for name in ("soth", "lexls") if src is not None else ():  # (what to fix first: the sources, then headers)
+    for name in PINNED if src is not None else ():  # (what to fix first: the sources, then headers)
         check_tarball(src, PINNED[name][2])
     inc = header_dirs()
     if out is None:
@@ -103,7 +136,7 @@ def build(src: str | None, out: str | None, march_native: bool, jobs: int) -> di
     flags = [*FLAGS, *(["-march=native"] if march_native else [])]
     with tempfile.TemporaryDirectory(prefix="hikbench-peers-") as tmp:
         tmp = Path(tmp)
-        soth, lexls = (fetch_source(name, src, tmp) for name in ("soth", "lexls"))
+        soth, lexls, nipm = (fetch_source(name, src, tmp) for name in PINNED)
         soth_inc = strip_soth_debug(soth, tmp)
         includes = [f"-I{d}" for d in (*inc.values(), sysconfig.get_paths()["include"])]
         soth_flags = [*flags, *includes, f"-I{soth_inc}"]
@@ -113,15 +146,19 @@ def build(src: str | None, out: str | None, march_native: bool, jobs: int) -> di
         objects.append((cxx, soth_flags, HERE / "soth_adapter.cpp", tmp / "soth_adapter.o"))
         lexls_flags = [*flags, *includes, f"-I{lexls / 'include'}"]
         objects.append((cxx, lexls_flags, HERE / "lexls_adapter.cpp", tmp / "lexls_adapter.o"))
+        nipm_flags = [*flags, *includes, f"-I{patch_nipm(nipm)}"]
+        objects += [(cxx, nipm_flags, nipm / "nipm_hlsp" / s, tmp / f"nipm_{Path(s).stem}.o") for s in NIPM_SOURCES]
+        objects.append((cxx, nipm_flags, HERE / "nipm_adapter.cpp", tmp / "nipm_adapter.o"))
         objects.sort(key=lambda o: -COST.get(o[2].name, 1))  # longest first: the two cores end together
         with ThreadPoolExecutor(jobs) as pool:
             unit_s = dict(zip((o[2].name for o in objects), pool.map(lambda o: compile_one(*o), objects)))
         out.mkdir(parents=True, exist_ok=True)
         link(cxx, flags, [o[3] for o in objects if o[3].name.startswith("soth")], out / f"_hik_soth{suffix}")
         link(cxx, flags, [tmp / "lexls_adapter.o"], out / f"_hik_lexls{suffix}")
+        link(cxx, flags, [o[3] for o in objects if o[3].name.startswith("nipm")], out / f"_hik_nipm{suffix}")
     info = {"dir": str(out), "compiler": compiler_version(cxx), "flags": flags, "march_native": march_native,
             "jobs": jobs, "machine": platform.machine(),
-            "peers": {name: {"repository": repo, "commit": commit} for name, (repo, commit, _) in PINNED.items()},
+            "peers": {name: {"repository": repo, "commit": commit} for name, (repo, commit, *_) in PINNED.items()},
             "source": str(Path(src).resolve()) if src else "git clone",
             "eigen": inc["eigen"], "boost": inc["boost"],
             "build_time_s": round(time.perf_counter() - t0, 2),
@@ -164,24 +201,25 @@ def check_tarball(src: str, tarball: str) -> Path:
     """``src/tarball``, or a BuildError saying what PEERS_SRC must hold."""
     path = Path(src) / tarball
     if not path.is_file():
-        raise BuildError(f"{path} not found: PEERS_SRC must be a folder holding {PINNED['soth'][2]} and "
-                         f"{PINNED['lexls'][2]} (e.g. ../shared/third_party), or leave it unset to clone "
+        names = [t for _, _, t, _ in PINNED.values()]
+        raise BuildError(f"{path} not found: PEERS_SRC must be a folder holding {', '.join(names[:-1])} and "
+                         f"{names[-1]} (e.g. ../shared/third_party), or leave it unset to clone "
                          f"the public repositories")
     return path
 
 
 def fetch_source(name: str, src: str | None, tmp: Path) -> Path:
     """The peer's source tree, extracted from its tarball in ``src`` or cloned at its pinned commit."""
-    repo, commit, tarball = PINNED[name]
+    repo, commit, tarball, top = PINNED[name]
     if src is not None:
         path = check_tarball(src, tarball)
         with tarfile.open(path) as tar:
             tar.extractall(tmp, filter="data")
-        tree = tmp / name
+        tree = tmp / top
         if not tree.is_dir():
-            raise BuildError(f"{path} does not hold a top folder {name}/: expected the pinned snapshot")
+            raise BuildError(f"{path} does not hold a top folder {top}/: expected the pinned snapshot")
         return tree
-    tree = tmp / name
+    tree = tmp / top
     if shutil.which("git") is None:
         raise BuildError("no PEERS_SRC and no git to clone the peers: install git, or pass "
                          "PEERS_SRC=folder-with-the-tarballs")
@@ -205,6 +243,37 @@ def strip_soth_debug(soth: Path, tmp: Path) -> Path:
         if stripped != text:
             f.write_text(stripped)
     return inc
+
+
+def patch_nipm(nipm: Path) -> Path:
+    """Make the :data:`NIPM_OPTIONS` of NIPM-HLSP's extracted ``nipm_hlsp/options.h``
+    run-time settings: each ``const T name = default;`` becomes ``const T name =
+    hik_nipm::settings().name;``, and a struct ``hik_nipm::Settings`` holding those
+    defaults is declared above (the adapter defines ``settings()`` and sets it before
+    each solve); then apply :data:`NIPM_FIXES`. The include folder to compile with
+    (NIPM-HLSP's root)."""
+    path = nipm / "nipm_hlsp" / "options.h"
+    text = path.read_text()
+    found = {m.group(3): (m.group(2), m.group(4).strip()) for m in NIPM_OPTION_LINE.finditer(text)}
+    if sorted(found) != sorted(NIPM_OPTIONS) or len(NIPM_OPTION_LINE.findall(text)) != len(NIPM_OPTIONS) \
+            or "#pragma once" not in text:
+        raise BuildError(f"NIPM-HLSP's nipm_hlsp/options.h does not declare each of {', '.join(NIPM_OPTIONS)} "
+                         f"once as `const int|double NAME = VALUE;` (found {sorted(found)}): the pinned source "
+                         f"changed; update peers/build.py")
+    fields = " ".join(f"{t} {name} = {value};" for name, (t, value) in found.items())
+    settings = (f"namespace hik_nipm {{  // (added by hikbench's peers/build.py: the adapter sets these)\n"
+                f"struct Settings {{ {fields} }};\nSettings& settings();\n}}\n")
+    text = NIPM_OPTION_LINE.sub(lambda m: f"{m.group(1)}const {m.group(2)} {m.group(3)} = "
+                                          f"::{NIPM_SETTINGS}.{m.group(3)};", text)
+    path.write_text(text.replace("#pragma once", "#pragma once\n" + settings, 1))
+    for name, pinned, built, _why in NIPM_FIXES:
+        path = nipm / "nipm_hlsp" / name
+        text = path.read_text()
+        if text.count(pinned) != 1:
+            raise BuildError(f"NIPM-HLSP's nipm_hlsp/{name} does not hold `{pinned}` once: the pinned source "
+                             f"changed; update NIPM_FIXES in peers/build.py")
+        path.write_text(text.replace(pinned, built))
+    return nipm
 
 
 def check_soth_defines(cxx: str, flags: list[str], src: Path) -> None:

@@ -27,7 +27,7 @@ import psutil
 
 from hikbench.problems.errors import InvalidHierarchyError, ProblemTooLargeError
 
-__all__ = ["MEMORY_BYTES", "Hierarchy", "Level", "check_fits_in_memory"]
+__all__ = ["MEMORY_BYTES", "Hierarchy", "Level", "check_fits_in_memory", "row_normalised"]
 
 #: bytes of this machine's memory; a problem whose one n x n matrix of doubles
 #: needs more is refused (:func:`check_fits_in_memory`)
@@ -426,6 +426,19 @@ class Hierarchy:
                 and same_x0)
 
     __hash__ = None  # arrays: equality by value, not hashable
+
+
+def row_normalised(h: Hierarchy) -> Hierarchy:
+    """h with each row and its bounds divided by the row's 2-norm:
+    ``lower_i / ||a_i|| <= a_i^T x / ||a_i|| <= upper_i / ||a_i||`` (a zero row
+    kept as it is). The feasible set of every row is the same, so the
+    minimisers agree wherever every level can be met; a level whose rows
+    conflict weighs each row's violation by ``1 / ||a_i||``, what a solver
+    that scales its rows minimises (DAQP's hierarchical QP). Names and x0 are kept."""
+    norms = np.linalg.norm(h.A, axis=1)
+    norms[norms == 0.0] = 1.0
+    return Hierarchy(h.A / norms[:, None], h.lower / norms, h.upper / norms, h.level, n=h.n, depth=h.depth,
+                     names=h.names, x0=h.x0)
 
 
 def _as_int(v, label: str) -> int:

@@ -27,7 +27,10 @@ options onto each backend's own parameter names through these tables only:
   added to each level's cost. 1e-12 keeps the Hessian positive definite
   (quadprog, DAQP need that; it also picks a small-norm x among the optimal
   set); its effect on the optimal slack is of order ``eps * ||x||^2``, below
-  the ``high`` tolerance.
+  the ``high`` tolerance (quadprog: 1e-10, docs/solvers.md "Fair settings").
+* :data:`DEFAULT_FREEZE` — the default freeze mode of a backend where it is
+  not ``shift`` (daqp: ``equality``, quadprog: ``relaxed``), from the sweep of
+  docs/solvers.md ("Fair settings"), like quadprog's regularisation 1e-10.
 * :data:`INSTALL` — pip hints for backends that are not installed.
 """
 
@@ -92,7 +95,16 @@ SPARSE: dict[str, bool] = {
     "piqp": False, "highs": True,
 }
 
-REGULARIZATION: dict[str, float] = {b: 1e-12 for b in BACKENDS}
+REGULARIZATION: dict[str, float] = {**{b: 1e-12 for b in BACKENDS}, "quadprog": 1e-10}
+
+#: the freeze mode of the levels above where it is not ``"shift"``, chosen by the sweep of
+#: docs/solvers.md ("Fair settings"). Shifted frozen rows can leave a level a feasible set of
+#: zero width: more frozen rows active than variables (a level's rows pinned at their achieved
+#: value, met by joint bounds from both sides), which round-off empties; the dual active-set
+#: backends then find no solution of a feasible QP. quadprog failed every problem of the panda
+#: arm_reach stack with ``shift`` and ``equality`` and solved all with ``relaxed`` (the shifted
+#: bounds widened by the profile's tolerance); DAQP solved the most with ``equality``.
+DEFAULT_FREEZE: dict[str, str] = {"daqp": "equality", "quadprog": "relaxed"}
 
 INSTALL: dict[str, str] = {
     "osqp": "pip install osqp", "proxqp": "pip install proxsuite", "clarabel": "pip install clarabel",

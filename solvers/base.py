@@ -18,8 +18,8 @@ import numpy as np
 
 from hikbench.problems.hierarchy import Hierarchy, check_fits_in_memory
 
-__all__ = ["ERROR", "INFEASIBLE_LEVEL", "MAX_ITERATIONS", "NUMERICAL_FAILURE", "OPTIMAL",
-           "STATUSES", "UNSUPPORTED", "SolveResult", "Solver", "checked_result"]
+__all__ = ["ERROR", "INFEASIBLE_LEVEL", "JUDGED_ON", "MAX_ITERATIONS", "NUMERICAL_FAILURE", "OPTIMAL",
+           "ROWS", "ROW_NORMALISED", "STATUSES", "UNSUPPORTED", "SolveResult", "Solver", "checked_result"]
 
 OPTIMAL = "optimal"                      #: every level solved to the solver's accuracy
 MAX_ITERATIONS = "max_iterations"        #: an iteration cap was hit; x is the last iterate
@@ -27,6 +27,10 @@ INFEASIBLE_LEVEL = "infeasible_level"    #: a level could not be solved after fr
 NUMERICAL_FAILURE = "numerical_failure"  #: NaN / breakdown inside the solver
 UNSUPPORTED = "unsupported"              #: the solver cannot handle this problem (e.g. inequalities)
 ERROR = "error"                          #: an exception escaped from a backend
+
+ROWS = "rows"                      #: a strict solver's levels are the rows as given
+ROW_NORMALISED = "row-normalised"  #: ... the rows divided by their norms (problems.hierarchy.row_normalised)
+JUDGED_ON = (ROWS, ROW_NORMALISED)
 
 STATUSES = (OPTIMAL, MAX_ITERATIONS, INFEASIBLE_LEVEL, NUMERICAL_FAILURE, UNSUPPORTED, ERROR)
 
@@ -38,7 +42,8 @@ class SolveResult:
     Attributes
     ----------
     x : ndarray, shape (n,), or None
-        The solution (None when the solver produced none).
+        The solution (None when the solver produced none; a result built with
+        status ``optimal`` and x None becomes status ``error`` with a reason).
     status : str
         One of :data:`STATUSES`.
     reason : str
@@ -82,6 +87,12 @@ class SolveResult:
     def __post_init__(self, x_finite: bool) -> None:
         if self.status not in STATUSES:
             raise ValueError(f"status {self.status!r} is not one of {STATUSES}")
+        if self.x is None and self.status == OPTIMAL:
+            # an optimal status is a claim about x: without x it is a solver error (its row is not
+            # recorded as optimal), as an external program's `"x": null` with status optimal is
+            self.status = ERROR
+            self.reason = (self.reason + "; " if self.reason else "") + ("status optimal with x None: expected x, "
+                                                                          "shape (n,)")
         if self.x is not None and self.status == OPTIMAL and not x_finite and not np.isfinite(self.x).all():
             # never NaN silently: a non-finite x cannot be called optimal (np.isfinite, not a
             # faster x @ x, which overflows for a finite x with entries above 1e154; the solvers
@@ -107,6 +118,12 @@ class Solver(abc.ABC):
     optimum (the strict hierarchy: judged against the yardstick); False, it
     solves another problem (weighted, damped, stacked least squares) and is
     reported by its real times and its per-level gap to the yardstick.
+
+    ``judged_on`` says which hierarchy a strict solver's levels are:
+    ``"rows"`` (the rows as given) or ``"row-normalised"`` (each row and its
+    bounds divided by the row's norm, the same minimisers wherever no level
+    conflicts; DAQP's hierarchical QP): its x is judged against the
+    yardstick of that hierarchy.
     """
 
     name: ClassVar[str] = ""
@@ -114,6 +131,7 @@ class Solver(abc.ABC):
     supports_inequalities: ClassVar[bool] = False
     supports_warm_start: ClassVar[bool] = False
     strict: ClassVar[bool] = True
+    judged_on: str = ROWS
 
     @abc.abstractmethod
     def solve(self, hierarchy: Hierarchy) -> SolveResult:

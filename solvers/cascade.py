@@ -8,7 +8,7 @@ x (n,), w_k (m_k,) (one slack per non-free row of level k):
                   frozen rows of the levels j < k            (eq. (35))
 
 ``eps`` is a tiny regularisation (option ``regularization``, default
-:data:`hikbench.solvers._qp_backends.REGULARIZATION`, 1e-12): it makes the Hessian
+:data:`hikbench.solvers._qp_backends.REGULARIZATION`, 1e-12, quadprog 1e-10): it makes the Hessian
 positive definite for backends that need it; its effect on the optimal slack
 is of order ``eps ||x||^2``. It does not make x the minimum-norm solution:
 at 1e-12 it is below the backends' tolerances (measured: verified
@@ -19,7 +19,9 @@ levels leave 19 free directions). The ``x_norm`` column shows it.
 After level k is solved, its achieved slack is recomputed from x,
 ``w_k* = A_k x - clip(A_k x, lower_k, upper_k)`` (so x is feasible for the
 frozen rows by construction), and the level is frozen for the levels below
-by one of three modes (option ``freeze``):
+by one of three modes (option ``freeze``; default ``"shift"``; for the dual active-set
+backends daqp ``"equality"`` and quadprog ``"relaxed"``:
+:data:`hikbench.solvers._qp_backends.DEFAULT_FREEZE`):
 
 * ``"shift"`` (Kanoun): ``lower_k + w_k* <= A_k x <= upper_k + w_k*``;
 * ``"equality"``: rows with ``|w_k*| > slack_tol`` become equalities at their
@@ -155,10 +157,11 @@ class CascadeBase(Solver):
     supports_inequalities = True
     backend: ClassVar[str] = ""
 
-    def __init__(self, freeze: str = "shift", accuracy: str = "high", regularization: float | None = None,
+    def __init__(self, freeze: str | None = None, accuracy: str = "high", regularization: float | None = None,
                  max_iter: int | None = None, relax_delta: float | None = None,
                  slack_tol: float | None = None):
-        freeze = check_choice(self.name, "freeze", freeze, FREEZE_MODES)
+        freeze = check_choice(self.name, "freeze", tables.DEFAULT_FREEZE.get(self.backend, "shift")
+                              if freeze is None else freeze, FREEZE_MODES)
         accuracy = check_choice(self.name, "accuracy", accuracy, tables.PROFILES)
         regularization, relax_delta, slack_tol = (
             check_number(self.name, opt, val, low=0, none_ok=True)
@@ -314,7 +317,7 @@ _DEFAULTS = {"freeze": "shift", "accuracy": "high", "regularization": None, "max
              "relax_delta": None, "slack_tol": None}
 SOLVERS = [SolverInfo(CLASSES[b].name, CLASSES[b].description, CLASSES[b], supports_inequalities=True,
                       supports_warm_start=CLASSES[b].supports_warm_start, strict=True,
-                      options=dict(_DEFAULTS))
+                      options={**_DEFAULTS, "freeze": tables.DEFAULT_FREEZE.get(b, "shift")})
            for b in _installed()]
 MISSING = {f"cascade-{b}": f"qpsolvers backend {b!r} is not installed; install it with: {tables.INSTALL[b]}"
            for b in tables.BACKENDS if b not in _installed()}

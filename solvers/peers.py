@@ -1,10 +1,14 @@
-"""The C++ peers SOTH and LexLS, registered as ``soth`` and ``lexls`` once built (``make peers``).
+"""The C++ peers SOTH, LexLS and NIPM-HLSP, registered as ``soth``, ``lexls`` and
+``nipm-hlsp`` once built (``make peers``).
 
-Both solve the same sequence of LSIs as hcod (ICRA 2010, eqs. 33-36) on a
+They solve the same sequence of LSIs as hcod (ICRA 2010, eqs. 33-36) on a
 hierarchy ``lower_k <= A_k x <= upper_k``, in-process through hikbench's own
-pybind11 adapters (``peers/soth_adapter.cpp``, ``peers/lexls_adapter.cpp``),
-built from the peers' pinned sources by ``peers/build.py`` into
-:func:`peers_dir`. Each solver object keeps its peer's state between calls:
+pybind11 adapters (``peers/soth_adapter.cpp``, ``peers/lexls_adapter.cpp``,
+``peers/nipm_adapter.cpp``), built from the peers' pinned sources by
+``peers/build.py`` into :func:`peers_dir`. SOTH and LexLS are active-set
+methods; NIPM-HLSP (Pfeiffer, Escande et al., arXiv 2106.13602) is a primal-dual
+interior-point method with no warm start: each of its solves is cold. Each
+solver object of the first two keeps its peer's state between calls:
 
 * ``soth``: one ``soth::HCOD``; a re-solve starts from the active set the last
   call left in its stages (SOTH's warm start).
@@ -16,7 +20,9 @@ same (option ``warm_start="time"``, the default); ``"none"`` starts every solve
 from the equalities alone. Free rows and empty levels are not passed to the
 peers (they constrain nothing). SOTH's cap (``throw 666`` after 1000
 active-set iterations), LexLS's cap on factorizations and any exception come
-back as statuses with reasons. Tolerances and build flags: docs/peers.md.
+back as statuses with reasons; so does a NIPM-HLSP level stopped at its cap of
+Newton iterations, read from its summed KKT residual. Tolerances and build
+flags: docs/peers.md.
 """
 
 from __future__ import annotations
@@ -35,7 +41,8 @@ from hikbench.problems.hierarchy import Hierarchy
 from hikbench.solvers.base import ERROR, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
 from hikbench.solvers.registry import SolverInfo, check_choice, check_int, check_number
 
-__all__ = ["MISSING", "SOLVERS", "LexlsSolver", "SothSolver", "build_info", "load_module", "peers_dir"]
+__all__ = ["MISSING", "SOLVERS", "LexlsSolver", "NipmSolver", "SothSolver", "build_info", "load_module",
+           "peers_dir"]
 
 NOT_BUILT = "not built: run `make peers` (docs/peers.md)"
 WARM_STARTS = ("none", "time")
@@ -56,7 +63,7 @@ def _module_path(name: str) -> Path:
 
 
 def load_module(name: str):
-    """The built adapter module ``_hik_<name>`` (``soth`` or ``lexls``), or None when not built."""
+    """The built adapter module ``_hik_<name>`` (``soth``, ``lexls`` or ``nipm``), or None when not built."""
     key = f"hikbench_peers._hik_{name}"
     if key in sys.modules:
         return sys.modules[key]
@@ -195,14 +202,79 @@ class LexlsSolver(_PeerSolver):
         return self._result(x, code, act, deact, facts, {"cycling_counter": cycling} if cycling else {}, msg)
 
 
+class NipmSolver(_PeerSolver):
+    """NIPM-HLSP (Pfeiffer, Escande et al., arXiv 2106.13602; pfeiffer-kai/NIPM-HLSP), in C++.
+
+    A primal-dual interior-point method (Newton's method with Mehrotra's predictor-corrector)
+    run on each level in turn, the constraints it finds active on a level kept as equalities
+    below. No warm start: every solve builds a new NIPM-HLSP object (cold), so the benchmark
+    times it in ``cold`` mode only.
+
+    Parameters
+    ----------
+    max_iterations : int
+        NIPM-HLSP's ``maxIter``: its cap on Newton iterations per level; default 20
+        (NIPM-HLSP's own 10 stops some random inequality stacks that 20 solves,
+        docs/peers.md). A level stopping at it gives ``max_iterations`` (x kept).
+    kkt_tolerance : float or None
+        ``KKT_thres``: a level has converged when the norm of its KKT residual is below it.
+        None: NIPM-HLSP's default, 1e-12.
+    linear_dependence : float or None
+        ``linearDependency``: at the pinned commit the floor below which an inequality's
+        scaling term ``1 + omega / (w - omega)`` counts as 0 (its QR decompositions use
+        Eigen's default rank threshold). None: NIPM-HLSP's default, 1e-12.
+    activation_threshold : float or None
+        ``activationThres``: the slack / multiplier threshold at which an inequality is
+        kept active, as an equality, for the levels below. None: NIPM-HLSP's default, 1e-8.
+    """
+
+    name = "nipm-hlsp"
+    description = "NIPM-HLSP, the interior-point HLSP solver of Pfeiffer-Escande (pfeiffer-kai/NIPM-HLSP), " \
+                  "built by `make peers`"
+    supports_warm_start = False
+    _module = "nipm"
+
+    def __init__(self, max_iterations: int = 20, kkt_tolerance: float | None = None,
+                 linear_dependence: float | None = None, activation_threshold: float | None = None):
+        self.max_iterations = check_int("nipm-hlsp", "max_iterations", max_iterations)
+        self.kkt_tolerance, self.linear_dependence, self.activation_threshold = (
+            check_number("nipm-hlsp", key, value, low=0, high=1, low_open=True, high_open=True, none_ok=True)
+            for key, value in (("kkt_tolerance", kkt_tolerance), ("linear_dependence", linear_dependence),
+                               ("activation_threshold", activation_threshold)))
+        super().__init__("none")
+
+    def _make(self, mod):
+        def pick(value, key):
+            return getattr(mod, "default_" + key) if value is None else value
+        return mod.Peer(self.max_iterations, pick(self.kkt_tolerance, "kkt_tolerance"),
+                        pick(self.linear_dependence, "linear_dependence"),
+                        pick(self.activation_threshold, "activation_threshold"))
+
+    def reset(self) -> None:
+        """Nothing to forget: every solve is cold."""
+
+    def solve(self, hierarchy: Hierarchy) -> SolveResult:
+        if hierarchy is not self._h:
+            self.check_hierarchy(hierarchy)
+            self._peer.load(hierarchy.A, hierarchy.lower, hierarchy.upper, hierarchy.starts)
+            self._h = hierarchy
+        x, code, iters, kkt, msg = self._peer.solve()
+        status = _STATUS[code]
+        # (max_iterations keeps x, NIPM-HLSP's last iterate, finite: tested by the adapter)
+        return SolveResult(x if status in (OPTIMAL, MAX_ITERATIONS) else None, status, msg, iters, (), 0, 0, None,
+                           _NAN, _NAN, {"kkt_residual": kkt}, True)
+
+
 def _registered() -> tuple[list[SolverInfo], dict[str, str]]:
     solvers, missing = [], {}
     for cls, options in ((SothSolver, {"warm_start": "time", "epsilon": None}),
                          (LexlsSolver, {"warm_start": "time", "tol_linear_dependence": None,
-                                        "max_factorizations": 1000})):
+                                        "max_factorizations": 1000}),
+                         (NipmSolver, {"max_iterations": 20, "kkt_tolerance": None, "linear_dependence": None,
+                                       "activation_threshold": None})):
         if _module_path(cls._module).is_file():
             solvers.append(SolverInfo(cls.name, cls.description, cls, supports_inequalities=True,
-                                      supports_warm_start=True, options=options))
+                                      supports_warm_start=cls.supports_warm_start, options=options))
         else:
             missing[cls.name] = NOT_BUILT
     return solvers, missing

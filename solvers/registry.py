@@ -13,6 +13,7 @@ Importing this module imports no solver (nothing compiles at import time).
 
 from __future__ import annotations
 
+import difflib
 import importlib
 import inspect
 import math
@@ -28,7 +29,7 @@ from hikbench.solvers.base import Solver
 from hikbench.solvers.errors import SolverNotFoundError, SolverOptionError
 
 __all__ = ["SolverInfo", "available", "build", "check_bool", "check_buildable", "check_choice", "check_int",
-           "check_number", "check_numbers", "create", "get", "missing", "option_names"]
+           "check_number", "check_numbers", "close_match", "create", "get", "missing", "option_names"]
 
 _BUILTIN_MODULES: tuple[str, ...] = (
     "hikbench.solvers.yardstick",
@@ -38,6 +39,7 @@ _BUILTIN_MODULES: tuple[str, ...] = (
     "hikbench.solvers.nullspace",
     "hikbench.solvers.damped",
     "hikbench.solvers.peers",
+    "hikbench.solvers.daqp_hqp",
 )
 _OWN_PACKAGES = ("hikbench",)
 #: other names of registered solvers: ``reference`` is the yardstick's earlier name
@@ -62,6 +64,10 @@ class SolverInfo:
         lexicographic optimum); False for weighted / damped IK.
     options : dict
         Default options, shown by ``hikbench list solvers``.
+    judged_on : callable or None
+        ``judged_on(options) -> "rows" | "row-normalised"``: the hierarchy a
+        solver built with ``options`` (defaults included) claims to solve
+        (:attr:`hikbench.solvers.base.Solver.judged_on`); None: ``"rows"``.
     """
 
     name: str
@@ -71,6 +77,7 @@ class SolverInfo:
     supports_warm_start: bool = False
     strict: bool = True
     options: dict = field(default_factory=dict)
+    judged_on: Callable[[dict], str] | None = None
 
 
 _registry: dict[str, SolverInfo] | None = None
@@ -135,7 +142,15 @@ def get(name: str) -> SolverInfo:
     found = ", ".join(reg)
     if hint:
         raise SolverNotFoundError(f"solver {name!r} is not available: {hint} (found solvers: {found})")
-    raise SolverNotFoundError(f"unknown solver {name!r} (found solvers: {found})")
+    near = close_match(name, [*reg, *(m for m in _missing if "." not in m)])  # (not backend modules)
+    raise SolverNotFoundError(f"unknown solver {name!r}{near} (found solvers: {found})")
+
+
+def close_match(name: str, known) -> str:
+    """``"; did you mean 'hcod'?"`` for a misspelt solver name ``name`` (the closest of
+    ``known`` by :func:`difflib.get_close_matches`, ratio >= 0.6), ``""`` when none is close."""
+    best = difflib.get_close_matches(name, list(dict.fromkeys(known)), n=1)
+    return f"; did you mean {best[0]!r}?" if best else ""
 
 
 def option_names(info: SolverInfo) -> tuple[str, ...] | None:

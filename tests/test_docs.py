@@ -160,3 +160,20 @@ def test_no_page_reads_as_a_work_log(page):
     """No session counts, audit or finding numbers, dates of work or commit hashes."""
     hits = [m.group(0) for m in _LOG.finditer(page.read_text())]
     assert not hits, f"{_rel(page)}: {hits}"
+
+
+def test_the_quick_suites_duration_is_one_number():
+    """README, docs/suites.md and the suite's own description (``hikbench list suites``) say the
+    same time for a run of the quick suite (a new --out: its certificates computed, kernels cached)."""
+    import tomllib
+
+    description = tomllib.loads((ROOT / "bench" / "suites" / "quick.toml").read_text())["description"]
+    quick_row = next(line for line in (DOCS / "suites.md").read_text().splitlines() if line.startswith("| `quick` |"))
+    said = {"README.md": re.search(r"the quick suite then takes about (\d+) s\b",
+                                   " ".join((ROOT / "README.md").read_text().split())),
+            "docs/suites.md": re.search(r"about (\d+) s\b", quick_row),
+            "bench/suites/quick.toml": re.search(r"about (\d+) s\b", description)}
+    missing = [where for where, m in said.items() if m is None]
+    assert not missing, f"no 'about N s' for the quick suite in {missing}"
+    seconds = {where: int(m.group(1)) for where, m in said.items()}
+    assert len(set(seconds.values())) == 1, seconds

@@ -5,17 +5,38 @@ timing samples are divided by a calibration kernel time (bench/harness/calibrati
 the row's own ``calib_ns`` when the suite timed the kernel around every job
 (``calibrate_each_job``, the ``ci`` suite: tracks load that comes and goes
 during the run), else the median ``calib_ns`` of the rows of the same host.
-So runs of different machines or of a loaded CI runner compare as ratios. A case is a **slowdown** when
+So runs of different machines or of a loaded CI runner compare as ratios.
+
+The timing verdicts (hikbench.bench.analysis.timing_verdicts) stand on two measured
+spreads, because a case's samples are taken in one block of about 0.1 s: they
+tell the noise within that moment, not how far the machine's speed moves
+between two runs (two runs in a row of the same code on a loaded 2-core VM:
+the kernel read 2.28 and 2.29 ms, the cases' medians moved 0.5x-2x; judged on
+the samples alone, 7 SLOWER and 8 faster):
+
+* the calibration's: the ratio k of the runs' kernels lies between the lowest
+  and the highest ratio of their readings (one per worker process, or per
+  job, and run.json's at the start and end of each session), and a verdict
+  must hold at both ends;
+* the cases' run-to-run spread: sigma of the log ratios of medians over the
+  timed cases (1.4826 x their median absolute deviation; 8 cases at least).
+
+A case is a **slowdown** when, with the new samples made as fast as the
+calibration's spread allows,
 
 * ratio = median(new normalised samples) / median(base normalised samples)
   exceeds ``threshold`` (default 1.15), and so does the ratio of the minima
   (load from other processes only ever adds time, so a shift of the whole
   distribution, minimum included, is what a real slowdown looks like), and
-* the one-sided Mann-Whitney U test (scipy.stats.mannwhitneyu, new > base) on
-  the normalised samples gives p < ``alpha`` (default 0.01); both ratios past
-  the threshold with p >= alpha is **inconclusive** (shown, not failed: the
-  samples are too few or too spread to tell a slowdown of that size),
+* q < ``alpha`` (default 0.01): p, the larger of the one-sided Mann-Whitney U
+  test's (new > base) over the samples and the normal test's of the log ratio
+  against sigma, adjusted over the cases by Benjamini-Hochberg;
 
+both ratios past the threshold at the point estimate without that is
+**inconclusive** (shown, not failed: the samples or the cases too spread, or
+the calibration too uncertain, to tell a change of that size; with fewer than
+two readings on a side or 8 timed cases, no case is more than inconclusive);
+**faster** the same way round;
 **newly failing** when it was verified in BASE and is not verified in RUN
 (but for want of a certified yardstick in RUN: its timing is judged and the
 reason shown),
@@ -40,34 +61,39 @@ target). BASE may be a directory of baselines, one subdirectory per class
 class, else one recorded before run.json named numba's target on RUN's CPU
 and kernels. Runs of two classes are compared with a note saying so.
 
-The calibration is one number per row (or per host): its own error moves all
-the row's samples together, which the test does not see. Per-row
-calibrations of one ``ci`` run on a loaded 2-core machine spread over 1.75 ..
-2.92 ms, so single runs flag noise now and then; the confirmation runs of
-``.ci/run`` absorb it.
+On a loaded machine only large changes can be told from two stored runs
+(docs/ci-timing.md has the figures); ``hikbench regress`` pairs the solves
+milliseconds apart instead and needs no calibration.
 """
 
 from __future__ import annotations
 
 import json
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from scipy.stats import mannwhitneyu
 
+from hikbench.bench.analysis.timing_verdicts import (
+    MIN_CASES,
+    CalibrationBand,
+    calibration_readings,
+    run_to_run_spread,
+    timing_verdicts,
+)
 from hikbench.bench.harness.columns import KEY
 from hikbench.bench.harness.environment import machine_class, read_run_json
 from hikbench.bench.harness.results import RESULTS, read_results
 from hikbench.problems.errors import HikbenchError
 
 __all__ = ["FAILING", "Comparison", "NoBaseline", "baseline_for", "compare_runs", "confirmed", "machine_class_of",
-           "normalised_samples"]
+           "normalised_samples", "why_not_verified"]
 
 FAILING = ("SLOWER", "NEWLY FAILING", "MISSING")  #: the verdicts that make compare exit 1
 _COLUMNS = [*KEY, "base_status", "new_status", "base_verified", "new_verified", "base_median_s", "new_median_s",
-            "ratio", "ratio_min", "p_value", "verdict", "why"]
+            "ratio", "ratio_min", "p_value", "q_value", "verdict", "why"]
 
 
 @dataclass
@@ -76,6 +102,20 @@ class Comparison:
     only_base: list
     only_new: list
     notes: list = field(default_factory=list)  # why the two runs may not compare (suites, repeat, ...)
+    calibration: "CalibrationBand | None" = None  # the spread of the calibration (None: not compared)
+    sigma: float = float("nan")  # run-to-run spread of one case's log ratio (run_to_run_spread)
+    timed_cases: int = 0
+
+    def spreads(self) -> str:
+        """The two spreads the timing verdicts stand on, in words."""
+        lines = [] if self.calibration is None else [self.calibration.describe()]
+        if math.isnan(self.sigma):
+            lines.append(f"run-to-run spread: unknown ({self.timed_cases} timed cases, {MIN_CASES} needed): "
+                         f"no case is SLOWER or faster")
+        else:
+            lines.append(f"run-to-run spread of a case's ratio: sigma {self.sigma:.2g} in log (x{math.exp(self.sigma):.3g}), "
+                         f"from the {self.timed_cases} timed cases")
+        return "\n".join(lines)
 
     @property
     def slowdowns(self) -> pd.DataFrame:
@@ -107,7 +147,13 @@ def _host_calibration(df: pd.DataFrame, meta: dict) -> dict:
 
 
 def normalised_samples(df: pd.DataFrame, meta: dict, source: str = "results") -> pd.Series:
-    """Samples (ns) divided by a calibration time (see the module docstring): dimensionless.
+    """Samples (ns) divided by a calibration time (see the module docstring): dimensionless."""
+    return _normalised(df, meta, source)[0]
+
+
+def _normalised(df: pd.DataFrame, meta: dict, source: str) -> tuple[pd.Series, pd.Series]:
+    """Each row's samples divided by its calibration time, and that time (ns; NaN for a row
+    without samples).
 
     A row with samples and no calibration (an empty ``calib_ns`` on every row
     of its host and no ``calibration_ns`` in run.json: a hand-made file) is a
@@ -115,7 +161,7 @@ def normalised_samples(df: pd.DataFrame, meta: dict, source: str = "results") ->
     a calibrated run would give ratios of a million."""
     cal = _host_calibration(df, meta)
     per_job = bool(meta.get("suite", {}).get("calibrate_each_job"))
-    out = []
+    out, scales = [], []
     for i, (s, h, c) in enumerate(zip(df["samples_ns"], df["host"].fillna(""), df["calib_ns"])):
         v = np.asarray(json.loads(s), dtype=float) if s else np.zeros(0)
         scale = float(c) if per_job and pd.notna(c) else cal.get(h, cal[""])
@@ -125,24 +171,31 @@ def normalised_samples(df: pd.DataFrame, meta: dict, source: str = "results") ->
                                 f"its host and run.json has no calibration_ns; expected a run written by "
                                 f"`hikbench run`")
         out.append(v / float(scale) if v.size else v)
-    return pd.Series(out, index=df.index)
+        scales.append(float(scale) if v.size else float("nan"))
+    return pd.Series(out, index=df.index), pd.Series(scales, index=df.index, dtype=float)
 
 
 def _true(v) -> bool:
     return isinstance(v, (bool, np.bool_)) and bool(v)
 
 
-def _why(row) -> str:
-    """What a failing row of RUN says: its status and reason, or its verdict against the yardstick."""
-    status = row.get("status")
+def why_not_verified(row) -> str:
+    """What a row that is not verified says: its status and reason, or, an ``optimal`` row
+    judged against the yardstick, its verdict with the level and the amount
+    (``verdict_level``, ``verdict_diff``): ``optimal: worse than the yardstick at level 2 by
+    0.0123``. ``row``: a mapping of results.csv's columns (a pandas row or a dict)."""
+    status = str(row.get("status"))
     reason = row.get("reason")
-    reason = reason if isinstance(reason, str) else ""
-    if status != "optimal" or not isinstance(row.get("verdict_side"), str):
-        return f"{status}: {reason}" if reason else str(status)
-    lvl = row.get("verdict_level")
-    lvl = f" at level {int(lvl)}" if pd.notna(lvl) else ""
-    return f"{row['verdict_side']}{lvl} than the reference" if row["verdict_side"] in ("worse", "better") \
-        else str(row["verdict_side"])
+    reason = reason if isinstance(reason, str) and reason else ""
+    side = row.get("verdict_side")
+    if status != "optimal" or not isinstance(side, str) or not side:
+        return f"{status}: {reason}" if reason else status
+    if side in ("worse", "better"):
+        lvl, diff = row.get("verdict_level"), row.get("verdict_diff")
+        side += " than the yardstick"
+        side += f" at level {int(lvl)}" if pd.notna(lvl) else ""
+        side += f" by {abs(float(diff)):.3g}" if diff is not None and pd.notna(diff) else ""
+    return f"{status}: {side}" + (f" ({reason})" if reason else "")
 
 
 def _notes(base_meta: dict, new_meta: dict, new_rows: int, names) -> list[str]:
@@ -178,20 +231,29 @@ def _expected(base_meta: dict, new_meta: dict, new_solvers: set) -> dict:
 def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_meta: dict,
                    threshold: float = 1.15, alpha: float = 0.01, names=("base", "new")) -> Comparison:
     new_solvers, new_rows = set(new["solver"]), len(new)
-    base = base.assign(_norm=normalised_samples(base, base_meta, names[0])).set_index(list(KEY))
-    new = new.assign(_norm=normalised_samples(new, new_meta, names[1])).set_index(list(KEY))
+    band = CalibrationBand(calibration_readings(base, base_meta), calibration_readings(new, new_meta))
+    normed, scale = _normalised(base, base_meta, names[0])
+    base = base.assign(_norm=normed, _scale=scale).set_index(list(KEY))
+    normed, scale = _normalised(new, new_meta, names[1])
+    new = new.assign(_norm=normed, _scale=scale).set_index(list(KEY))
     base = base[~base.index.duplicated(keep="last")]
     new = new[~new.index.duplicated(keep="last")]
     common = base.index.intersection(new.index)
+    timed = [key for key in common if len(base.loc[key, "_norm"]) and len(new.loc[key, "_norm"])]
+    sigma = run_to_run_spread([np.median(new.loc[k, "_norm"]) / np.median(base.loc[k, "_norm"]) for k in timed])
+    verdicts = dict(zip(timed, timing_verdicts(
+        [(base.loc[k, "_norm"], new.loc[k, "_norm"], new.loc[k, "_scale"] / base.loc[k, "_scale"]) for k in timed],
+        band, sigma, threshold, alpha)))
     rows = []
     for key in common:
         b, n = base.loc[key], new.loc[key]
         bs, ns = b["_norm"], n["_norm"]
-        ratio, ratio_min, p = float("nan"), float("nan"), float("nan")
-        if len(bs) and len(ns):
+        ratio, ratio_min, p, q = float("nan"), float("nan"), float("nan"), float("nan")
+        timing, timing_why = "ok", ""
+        if key in verdicts:
             ratio = float(np.median(ns) / np.median(bs))
             ratio_min = float(np.min(ns) / np.min(bs))
-            p = float(mannwhitneyu(ns, bs, alternative="greater").pvalue)
+            timing, p, q, timing_why = verdicts[key]
         why = ""
         # a row not verified for want of a certified yardstick is not the solver's failure: its
         # timing is judged, the reason shown (docs/verification.md, "The yardstick of a run")
@@ -200,21 +262,14 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
             why = f"not verified: no certified yardstick ({n.get('yardstick_reason', '')})"
         if _true(b["verified"]) and not _true(n["verified"]) and not unjudged:
             verdict = "NEWLY FAILING"
-            why = _why(n)
-        elif np.isfinite(ratio) and ratio > threshold and ratio_min > threshold:
-            # past the threshold both ways but not significant: too few or too spread samples to
-            # tell (docs/ci-timing.md, "What the check can see"); shown, not failed
-            verdict = "SLOWER" if p < alpha else "inconclusive"
-        elif np.isfinite(ratio) and ratio < 1 / threshold and ratio_min < 1 / threshold and \
-                (p_less := float(mannwhitneyu(ns, bs, alternative="less").pvalue)) < alpha:
-            verdict = "faster"
-            p = p_less  # (the p-value shown is that of the verdict's direction)
+            why = why_not_verified(n)
         else:
-            verdict = "ok"
+            verdict = timing
+            why = "; ".join(w for w in (why, timing_why) if w)
         rows.append(dict(zip(KEY, key), base_status=b["status"], new_status=n["status"],
                          base_verified=b["verified"], new_verified=n["verified"],
                          base_median_s=b["time_median_s"], new_median_s=n["time_median_s"],
-                         ratio=ratio, ratio_min=ratio_min, p_value=p, verdict=verdict, why=why))
+                         ratio=ratio, ratio_min=ratio_min, p_value=p, q_value=q, verdict=verdict, why=why))
     expected = _expected(base_meta, new_meta, new_solvers)
     only_base = []
     for key in base.index.difference(common, sort=False):
@@ -224,12 +279,12 @@ def compare_frames(base: pd.DataFrame, new: pd.DataFrame, base_meta: dict, new_m
             rows.append(dict(zip(KEY, key), base_status=b["status"], new_status="", base_verified=b["verified"],
                              new_verified=float("nan"), base_median_s=b["time_median_s"],
                              new_median_s=float("nan"), ratio=float("nan"), ratio_min=float("nan"),
-                             p_value=float("nan"), verdict="MISSING", why=expected[solver]))
+                             p_value=float("nan"), q_value=float("nan"), verdict="MISSING", why=expected[solver]))
         else:
             only_base.append(key)
     table = pd.DataFrame(rows, columns=_COLUMNS)
     return Comparison(table, only_base, [k for k in new.index if k not in common],
-                      _notes(base_meta, new_meta, new_rows, names))
+                      _notes(base_meta, new_meta, new_rows, names), band, sigma, len(timed))
 
 
 class NoBaseline(HikbenchError):
@@ -307,21 +362,22 @@ def confirmed(comparisons: list[Comparison]) -> Comparison:
         cleared = t["verdict"].isin(FAILING) & v.notna() & ~v.isin(FAILING)
         t.loc[cleared, "verdict"] = t.loc[cleared, "verdict"].str.lower() + ", not reproduced"
     notes = list(dict.fromkeys(n for c in comparisons for n in c.notes))
-    return Comparison(t.reset_index(), first.only_base, first.only_new, notes)
+    return Comparison(t.reset_index(), first.only_base, first.only_new, notes, first.calibration, first.sigma,
+                      first.timed_cases)
 
 
 def format_table(c: Comparison, show_all: bool = False) -> str:
     t = c.table.sort_values("ratio", ascending=False, na_position="last")
     if not show_all:
         t = pd.concat([t[t["verdict"] != "ok"], t[t["verdict"] == "ok"].head(10)])
-    # p: the one-sided Mann-Whitney p-value of the verdict's direction (new slower than base, or
-    # faster for "faster" rows); the verdict column is as wide as its longest entry
+    # q: the adjusted p-value of the verdict's direction (new slower than base, or faster for
+    # "faster" rows: timing_verdicts); the verdict column is as wide as its longest entry
     w = max([13, *map(len, t["verdict"])])
-    lines = [(f"{'verdict':<{w}} {'ratio':>6} {'min r':>6} {'p':>7} {'base us':>9} {'new us':>9}  "
+    lines = [(f"{'verdict':<{w}} {'ratio':>6} {'min r':>6} {'q':>7} {'base us':>9} {'new us':>9}  "
               "solver / settings / mode / problem")]
     for r in t.itertuples():
         why = f"  ({r.why[:120]})" if isinstance(r.why, str) and r.why else ""
-        lines.append(f"{r.verdict:<{w}} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.p_value:>7.4f} "
+        lines.append(f"{r.verdict:<{w}} {r.ratio:>6.2f} {r.ratio_min:>6.2f} {r.q_value:>7.4f} "
                      f"{r.base_median_s * 1e6:>9.1f} "
                      f"{r.new_median_s * 1e6:>9.1f}  {r.solver} / {r.settings} / {r.mode} / {r.problem}{why}")
     for what, keys in (("only in base", c.only_base), ("only in new", c.only_new)):  # listed, not judged

@@ -8,8 +8,11 @@ mode), the paired rounds' log time ratios ``d_r = log(change_r / base_r)``
   (``scipy.stats.false_discovery_control``);
 - SLOWER: q < alpha and ratio > threshold (1.15); FASTER the same the other way
   (ratio < 1 / threshold); inconclusive: ratio > threshold, q >= alpha; NEWLY FAILING: verified in
-  every base round and not in most change rounds; MISSING: verified in every
-  base round, its solver still selected by the change's runs, no change row.
+  every base round and not in most change rounds (the line names the status and
+  reason, or the level and the amount it is worse by); MISSING: verified in every
+  base round, its solver still selected by the change's runs, no change row;
+  not timed: a case one side's solver declines (status ``unsupported``: not a
+  timing case), or timed in fewer than 2 paired rounds.
 
 A case is *borderline* (worth another round) when it is inconclusive, or
 significantly slower with the threshold inside its interval.
@@ -26,7 +29,9 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from hikbench.bench.analysis.compare import why_not_verified
 from hikbench.bench.harness.columns import KEY
+from hikbench.solvers.base import UNSUPPORTED
 
 __all__ = ["Decision", "FAILING", "decide", "markdown", "to_json"]
 
@@ -94,13 +99,17 @@ def _verified(frames: list[dict], key) -> list[bool]:
 
 
 def _why(frames: list[dict], key) -> str:
+    """Why the first round of a side that did not verify the case did not (its status and
+    reason, or its verdict's level and amount: :func:`~hikbench.bench.analysis.compare.why_not_verified`)."""
     for f in frames:
         if key in f and not _true(f[key].get("verified")):
-            row = f[key]
-            reason = row.get("reason")
-            reason = reason if isinstance(reason, str) and reason else str(row.get("verdict_side", ""))
-            return f"{row['status']}: {reason}" if reason and reason != "nan" else str(row["status"])
+            return why_not_verified(f[key])
     return ""
+
+
+def _declined(frames: list[dict], key) -> bool:
+    """Whether a round of the side has the case's solver declining it (status ``unsupported``)."""
+    return any(key in f and f[key].get("status") == UNSUPPORTED for f in frames)
 
 
 def _paired(base: list[dict], change: list[dict], key) -> np.ndarray:
@@ -164,6 +173,10 @@ def decide(base_frames: list[pd.DataFrame], change_frames: list[pd.DataFrame], t
             case.verdict, case.why = NEWLY_FAILING, _why(change, key)
         elif not in_base:
             case.verdict, case.why = UNTIMED, "only in the change's suite"
+        elif sides := [n for n, frames in (("base", base), ("change", change)) if _declined(frames, key)]:
+            # a decline (a solver saying it does not solve such problems) is not a timing case
+            case.verdict, case.why = UNTIMED, f"declined ({UNSUPPORTED}) on {' and '.join(sides)}"
+            d, case.rounds = d[:0], 0
         if d.size:
             case.base_s = float(np.median([f[key]["time_median_s"] for f in base if key in f]))
             case.change_s = float(np.median([f[key]["time_median_s"] for f in change if key in f]))

@@ -35,8 +35,8 @@ def scenario_rows(run_dir) -> list[dict]:
 def _checks(r: dict) -> str:
     if r["checks_passed"] is None:
         return "-"
-    passed, failed = int(r["checks_passed"]), int(r["checks_failed"])
-    cell = f"{passed}/{passed + failed} passed"
+    passed, failed, unjudged = int(r["checks_passed"]), int(r["checks_failed"]), int(r["checks_not_judged"])
+    cell = f"{passed}/{passed + failed + unjudged} passed" + (f", {unjudged} not judged" if unjudged else "")
     if failed:
         names = str(r["failed_checks"]).split("; ")
         more = f" and {len(names) - FAILED_SHOWN} more" if len(names) > FAILED_SHOWN else ""

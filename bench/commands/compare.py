@@ -16,9 +16,11 @@ def add_arguments(p) -> None:
                                          "in every one (confirmation re-runs in CI)")
     p.add_argument("--threshold", type=float, default=1.15,
                    help="flag a case whose normalised median (and minimum) time grew by more than this "
-                        "factor (default 1.15)")
+                        "factor beyond the calibration kernel's spread (default 1.15)")
     p.add_argument("--alpha", type=float, default=0.01,
-                   help="significance level of the one-sided Mann-Whitney test (default 0.01)")
+                   help="significance level of a SLOWER or faster verdict: q, the larger p of the Mann-Whitney "
+                        "test over the samples and of the test against the cases' run-to-run spread, adjusted "
+                        "over the cases (Benjamini-Hochberg; default 0.01)")
     p.add_argument("--all", action="store_true", help="print every compared case")
     p.add_argument("--no-baseline", choices=("error", "skip"), default="error",
                    help="when BASE is a directory of baselines and none is of RUN's machine class: an error "
@@ -53,11 +55,12 @@ def run(args) -> int:
     c = confirmed([compare_runs(base, r, threshold=args.threshold, alpha=args.alpha) for r in args.run])
     print(format_table(c, show_all=args.all))
     print(f"\ncompared {len(c.table) - len(c.missing)} cases (times normalised by the calibration kernel): "
-          f"{len(c.slowdowns)} slower (> {args.threshold:g}x, p < {args.alpha:g}), "
+          f"{len(c.slowdowns)} slower (> {args.threshold:g}x beyond the calibration's spread, q < {args.alpha:g}), "
           f"{len(c.new_failures)} newly failing, {len(c.missing)} missing, "
-          f"{len(c.inconclusive)} inconclusive (past the threshold, p >= {args.alpha:g}), "
+          f"{len(c.inconclusive)} inconclusive (past the threshold, not beyond the spreads), "
           f"{int((c.table['verdict'] == 'faster').sum())} faster; "
           f"{len(c.only_base)} only in base, {len(c.only_new)} only in the new run")
+    print(c.spreads())
     for note in c.notes:
         print(f"note: {note}")
     return 1 if c.failed else 0

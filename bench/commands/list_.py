@@ -26,8 +26,11 @@ def _solvers():
 
     rows = []
     for name, info in registry.available().items():
-        # the claim first: strict (the lexicographic optimum, judged by verified) or non-strict
+        # the claim first: strict (the lexicographic optimum, judged by verified) or non-strict,
+        # and the hierarchy of a strict claim other than the rows as given (daqp-hqp's)
+        judged_on = info.judged_on(info.options) if info.judged_on else "rows"
         caps = ", ".join(c for c, on in (("strict" if info.strict else "non-strict", True),
+                                          (f"{judged_on} levels", judged_on != "rows"),
                                           ("inequalities", info.supports_inequalities),
                                           ("warm start", info.supports_warm_start)) if on)
         rows.append((name, f"{info.description} [{caps}]"))

@@ -22,6 +22,8 @@ import numpy as np
 from hikbench.bench.commands.solve import parse_options
 from hikbench.problems.errors import HikbenchError
 
+#: the solver of a scenario run without --solver: the strict hierarchy solver a controller would run
+DEFAULT_SOLVER = "hcod"
 HELP = "run a closed-loop robot scenario (reach, step, or a TOML file) and write CSV + figures"
 
 
@@ -45,7 +47,7 @@ def add_arguments(p) -> None:
                         "(default: from the files' [frames] tables and the link names)")
     p.add_argument("--solver", action="append", default=None,
                    help="solver name or module:Class / file.py:Class, or the controller pink (weighted IK on the "
-                        "stack's tasks; repeatable; default: yardstick)")
+                        f"stack's tasks; repeatable; default: {DEFAULT_SOLVER})")
     p.add_argument("--warm-start", nargs="+", action="extend", default=None, metavar="MODE",
                    help="warm-start modes to run (repeatable), one run each, for solvers with a warm_start option "
                         "(hcod: none stage time; a module:Class solver: the values its warm_start "
@@ -72,7 +74,8 @@ def run(args) -> int:
     from hikbench.bench.cli import solver_calls_killable
     from hikbench.bench.scenarios.controllers import CONTROLLERS, build_controller, is_controller
     from hikbench.bench.scenarios.rows import run_stem, slug
-    from hikbench.bench.scenarios.runner import REPEAT, check_run, run_scenario, warm_start_default
+    from hikbench.bench.scenarios.checks import check_run
+    from hikbench.bench.scenarios.runner import REPEAT, run_scenario, warm_start_default
     from hikbench.bench.harness.worker import solver_info
     from hikbench.problems.robots.scenarios import load_scenario, scenario_names
     from hikbench.problems.robots.stacks import stack_names
@@ -95,7 +98,7 @@ def run(args) -> int:
     print(_robot_line(scenario.robot))
     if scenario.units:
         print("offsets in the robot's lengths: " + ", ".join(f"{k} = {v:.4f} m" for k, v in scenario.units.items()))
-    solvers = args.solver or ["yardstick"]
+    solvers = args.solver or [DEFAULT_SOLVER]
     options, scoped = _split_options(parse_options(args.option), solvers)
     if "warm_start" in options and args.warm_start:
         raise HikbenchError("give the warm-start mode either with --warm-start or --option warm_start=..., "
@@ -151,8 +154,8 @@ def run(args) -> int:
         print("  final errors: " + ", ".join(f"{c[4:]}={df[c].iloc[-1]:.2e}" for c in errs))
         checks.append(check_run(run_))
         for check in checks[-1]:
-            failed |= not check.passed
-            print(f"  [{'pass' if check.passed else 'FAIL'}] {check.name}: {check.detail}")
+            failed |= check.passed is False
+            print(f"  [{check.verdict}] {check.name}: {check.detail}")
     if len(runs) > 1:
         _print_side_by_side(runs, checks)
     _summary(runs, checks).to_csv(out / "summary.csv", index=False)
@@ -236,7 +239,8 @@ def _print_side_by_side(runs, checks) -> None:
     cost = [r.records["solve_time_min_s"].to_numpy(dtype=float) * 1e3 for r in runs]
     med = [f"{np.median(t):.3f} / {t.max():.3f} ms" for t in cost]
     print(f"{'median / max solve':<{width}}  " + "  ".join(f"{m:>{cell}}" for m in med))
-    passed = [f"{sum(c.passed for c in cs)} of {len(cs)}" for cs in checks]
+    passed = [f"{sum(c.passed is True for c in cs)} of {len(cs)}"
+              + (f" ({n} not judged)" if (n := sum(c.passed is None for c in cs)) else "") for cs in checks]
     print(f"{'checks passed':<{width}}  " + "  ".join(f"{p:>{cell}}" for p in passed))
 
 
@@ -244,7 +248,7 @@ def _summary(runs, checks):
     """One row per run (``summary.csv``): solver, warm_start, strict, steps, the cost columns of
     OUT/scenarios.csv (:func:`.rows.step_costs`: time_median_s ... steps_not_optimal), per task
     ``max_err_L<level>_<task>`` and ``final_err_L<level>_<task>``, and the checks
-    (:func:`.rows.check_counts`: checks_passed, checks_failed, failed_checks)."""
+    (:func:`.rows.check_counts`: checks_passed, checks_failed, checks_not_judged, failed_checks)."""
     import pandas as pd
 
     from hikbench.bench.scenarios.plots import run_strict

@@ -1,26 +1,29 @@
-"""``hikbench solve FILE --solver NAME|module:Class [--repeat R] [--warm] [--certify [--accuracy PROFILE]] [--json]``.
+"""``hikbench solve FILE --solver NAME|module:Class [--repeat R] [--warm] [--timeout S] [--first-solve-timeout S]
+[--certify [--accuracy PROFILE]] [--json]``.
 
-Exit status: 0, 1 when the solver failed (error, crashed) or, with ``--certify``, when the
-certified optimum is below x at some level beyond the ``--accuracy`` profile's tolerance (x is
-not optimal), 2 for bad input."""
+The solve runs as one job of ``hikbench run`` does: in an isolated worker process
+(hikbench.bench.harness.isolation) under a hard timeout, so a solver that hangs, segfaults or
+exits costs a one-line ``timeout`` or ``crashed`` result (exit 1), not the command.
+
+Exit status: 0; 1 when the solver failed (error, crashed, timeout) or, with ``--certify``, when
+the certified optimum is below x at some level beyond the ``--accuracy`` profile's tolerance (x
+is not optimal); 2 for bad input."""
 
 from __future__ import annotations
 
 import json
 import math
-import os
-import pickle
 import sys
-import tempfile
 import threading
-import traceback
 from types import SimpleNamespace
 
-from hikbench.bench.harness.isolation import describe_exit, die_with_parent
-from hikbench.bench.harness.statuses import CRASHED
+import numpy as np
+
+from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
 from hikbench.bench.harness.worker import solver_info
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import load
+from hikbench.problems.hierarchy import row_normalised
 from hikbench.problems.verify import PROFILES, judge, level_gaps, level_norms
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR
@@ -38,9 +41,17 @@ def add_arguments(p) -> None:
                    help="time re-solves on one solver object that already solved the problem once")
     p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
                    help="solver option (repeatable); VALUE is parsed as JSON when it can be")
+    p.add_argument("--timeout", type=float, default=None, metavar="S",
+                   help="hard limit in seconds on the timed solves, as `run --timeout` (default: the quick "
+                        "suite's, as `run`: 10); a solver that does not answer is killed: status timeout, exit 1")
+    p.add_argument("--first-solve-timeout", type=float, default=None, metavar="S",
+                   help="allowance in seconds for the solver's warm-up and first, untimed solve (hcod compiles "
+                        "its kernels once, about 70 s without numba's cache), when larger than --timeout "
+                        "(default: the quick suite's, as `run`: 300)")
     p.add_argument("--certify", action="store_true",
                    help="also certify x in 50-digit arithmetic: the exact optimum on the active set read off x, "
-                        "and its level norms (hikbench.problems.exact; ~0.1 s at n = 5, ~3 s at n = 20)")
+                        "and its level norms (hikbench.problems.exact; ~0.1 s at n = 5, ~3 s at n = 20); for a "
+                        "solver claiming row-normalised levels (daqp-hqp), of the row-normalised hierarchy")
     p.add_argument("--accuracy", default="default", choices=tuple(PROFILES),
                    help="with --certify: the profile whose verdict decides the exit status (1: x is not optimal; "
                         "default: default); the verdicts at every profile are printed")
@@ -65,150 +76,84 @@ def _finite_or_none(v: float):
     return v if math.isfinite(v) else None
 
 
-NOTE_AFTER_S = 3.0  # a warm-up still running then gets a note on stderr
+NOTE_AFTER_S = 3.0  # a first solve still running then gets a note on stderr
 
 
-def _warm_up(solver, name: str) -> None:
-    """The solver's ``warmup()`` (hcod: compile its kernels, ~70 s without numba's
-    cache), untimed, with a note on stderr when it takes longer than NOTE_AFTER_S."""
-    if not callable(getattr(solver, "warmup", None)):
-        return
+def _timeouts(args) -> tuple[float, float]:
+    """--timeout and --first-solve-timeout, the quick suite's where not given (as ``run``'s
+    default suite); one-line HikbenchError for a value that is not seconds > 0."""
+    from hikbench.bench.suites import load_suite
+
+    for flag, value in (("--timeout", args.timeout), ("--first-solve-timeout", args.first_solve_timeout)):
+        if value is not None and not (math.isfinite(value) and value > 0):
+            raise HikbenchError(f"{flag} must be a number of seconds > 0; got {value}")
+    if args.timeout is not None and args.first_solve_timeout is not None:
+        return args.timeout, args.first_solve_timeout
+    quick = load_suite("quick")
+    return (quick.timeout if args.timeout is None else args.timeout,
+            quick.first_solve_timeout if args.first_solve_timeout is None else args.first_solve_timeout)
+
+
+def _solve(args, h, options: dict) -> dict:
+    """One ``solve`` job (hikbench.bench.harness.worker.execute: the solver's warmup(), an
+    untimed first solve, then ``--repeat`` timed ones) in an isolated worker process: its
+    result dict, or status ``timeout`` / ``crashed`` with the reason. A note goes to stderr
+    when the first solve takes longer than NOTE_AFTER_S."""
+    from hikbench.bench.harness.isolation import IsolatedWorker
+
+    timeout, first = _timeouts(args)
+    job = {"kind": "solve", "hierarchy": h, "solver": args.solver, "options": options,
+           "mode": "warm" if args.warm else "cold", "repeat": args.repeat, "warmup": 1, "samples": None}
     note = threading.Timer(NOTE_AFTER_S, lambda: print(
-        f"note: {name}: preparing its first solve in this process (hcod compiles its numba kernels once, "
-        f"about 70 s, then loads them from numba's cache)...", file=sys.stderr, flush=True))
-    note.start()
+        f"note: {args.solver}: preparing its first solve in a fresh worker process (hcod compiles its numba "
+        f"kernels once, about 70 s, then loads them from numba's cache)...", file=sys.stderr, flush=True))
+    worker = IsolatedWorker()
     try:
-        solver.warmup()
+        worker.start()  # (the process's own start, about 1 s of imports, is not the solver's)
+        note.start()
+        return worker.run(job, timeout, first_timeout=first, on_first_solve=note.cancel)
+    except BaseException:  # Ctrl-C, SIGTERM (bench.cli.Terminated): the solve ends at once, not after close()'s 5 s
+        worker.kill()
+        raise
     finally:
         note.cancel()
-
-
-def _solve(args, h, info, options) -> tuple:
-    """Build, warm up and time the solver (in the child of :func:`_contained`):
-    ``("done", fields)``, or ``("error", reason)`` when the solver's constructor or
-    solve raised (a user's file.py:Class); a HikbenchError (a wrong option) is raised."""
-    from hikbench.bench.cli import solver_calls_killable
-    from hikbench.bench.harness.timing import time_solves
-
-    try:
-        # names and options are checked here, before timing (a HikbenchError: exit 2); an exception
-        # of the solver's own constructor or solve (a user's file.py:Class) is its answer: status error
-        solver = registry.build(info, **options)
-        if args.warm and not getattr(solver, "supports_warm_start", False):
-            print(f"note: {args.solver} has no warm start: --warm times re-solves that redo a cold solve's "
-                  f"work", file=sys.stderr)
-        with solver_calls_killable():  # a backend looping in C code still ends on SIGTERM / Ctrl-C
-            _warm_up(solver, args.solver)
-            timing = time_solves(lambda: registry.build(info, **options), h, repeat=args.repeat,
-                                 mode="warm" if args.warm else "cold")
-    except HikbenchError:
-        raise
-    except Exception as err:  # noqa: BLE001 - the solver's exception (a user's file.py:Class), not hikbench's
-        return "error", f"{type(err).__name__}: {err}"
-    res = timing.result
-    return "done", {"status": res.status, "reason": res.reason, "x": res.x, "iterations": res.iterations,
-                    "median_s": timing.median_s, "min_s": timing.min_s}
-
-
-def _contained(work) -> tuple:
-    """``work()`` in a forked child process (POSIX): a solver that segfaults, aborts
-    or calls sys.exit still lets this process report it, as ``("crashed", how it
-    ended)``. The child keeps everything imported and loaded here (no start-up
-    cost) and sends its answer back pickled in a temporary file; a HikbenchError it
-    raises is raised here. On Linux the child dies with this process
-    (PR_SET_PDEATHSIG). Without os.fork, or when sys.stdout or sys.stderr is
-    not a file descriptor the child would write to (main() called from Python
-    with its output captured: the child's notes would be lost), work() runs in
-    this process."""
-    from hikbench.bench.cli import solver_calls_killable
-
-    if not hasattr(os, "fork") or not _streams_are_fds():
-        return work()
-    sys.stdout.flush()
-    sys.stderr.flush()
-    with tempfile.TemporaryFile() as f:
-        parent = os.getpid()
-        pid = os.fork()
-        if pid == 0:
-            _child(work, f, parent)
-        with solver_calls_killable():  # ended by SIGTERM / Ctrl-C as the child is (which dies with it)
-            _, status = os.waitpid(pid, 0)
-        code = os.waitstatus_to_exitcode(status)
-        f.seek(0)
-        data = f.read()
-    if code != 0 or not data:
-        return "crashed", describe_exit(code, "solver process") + ("" if code else " before it answered")
-    kind, payload = pickle.loads(data)
-    if kind == "user_error":
-        raise payload
-    return kind, payload
-
-
-def _streams_are_fds() -> bool:
-    """Whether sys.stdout and sys.stderr write to file descriptors (a forked child's
-    writes then reach the same place)."""
-    try:
-        sys.stdout.fileno()
-        sys.stderr.fileno()
-    except (AttributeError, OSError, ValueError):  # (io.UnsupportedOperation: an in-memory stream)
-        return False
-    return True
-
-
-def _answer_of(work) -> tuple:
-    """work()'s answer, a HikbenchError it raises as ``("user_error", err)``."""
-    try:
-        return work()
-    except HikbenchError as err:
-        return "user_error", err
-
-
-def _child(work, f, parent: int) -> None:
-    """The forked child of :func:`_contained`: runs work(), writes its answer
-    pickled to ``f`` and exits with os._exit (never returns into the CLI); a
-    SystemExit of the solver exits with its code, unanswered."""
-    code = 1
-    try:
-        die_with_parent()
-        if os.getppid() != parent:  # the parent ended before the child was set to die with it
-            return
-        answer = _answer_of(work)
-        try:
-            data = pickle.dumps(answer)
-        except (pickle.PicklingError, TypeError, AttributeError):  # an exception that does not pickle
-            data = pickle.dumps(("user_error", HikbenchError(str(answer[1]))))
-        f.write(data)
-        f.flush()
-        code = 0
-    except SystemExit as stop:  # the solver's sys.exit(k): the child ends with k, as a worker would
-        code = stop.code if isinstance(stop.code, int) else 1
-    except BaseException:  # noqa: BLE001 - a bug: its traceback on stderr; the parent reports the exit code
-        traceback.print_exc()
-    finally:
-        for stream in (sys.stdout, sys.stderr):
-            try:
-                stream.flush()
-            except (OSError, ValueError):  # a closed or broken stream: its output is lost, the exit code stays
-                continue
-        os._exit(code)
+        worker.close()
 
 
 def run(args) -> int:
     if args.repeat < 1:
         raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
+    _timeouts(args)  # (a bad value: exit 2 before the problem is read)
     h = load(args.file)
     options = parse_options(args.option)
     info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it
-    kind, answer = _contained(lambda: _solve(args, h, info, options))
-    if kind != "done":  # the solver raised (error) or its process died (crashed)
-        status = ERROR if kind == "error" else CRASHED
+    # names and options checked here, before any solve (a SolverOptionError: exit 2); an exception of
+    # the solver's own constructor or solve (a user's file.py:Class) is its answer: status error
+    checked = registry.check_buildable(info, **options)
+    # the hierarchy the solver claims its levels are (a row-normalised claim: certified on that one)
+    judged_on = (info.judged_on(checked) if info.judged_on
+                 else getattr(info.factory, "judged_on", "rows"))  # (module:Class: its class attribute)
+    if judged_on not in ("rows", "row-normalised"):
+        raise HikbenchError(f"solver {args.solver!r} has judged_on = {judged_on!r}: expected 'rows' or "
+                            f"'row-normalised' (the hierarchy its levels are: hikbench.solvers.base.Solver.judged_on)")
+    if args.warm and not getattr(info.factory, "supports_warm_start", info.supports_warm_start):
+        print(f"note: {args.solver} has no warm start: --warm times re-solves that redo a cold solve's "
+              f"work", file=sys.stderr)
+    answer = _solve(args, h, options)
+    if answer.get("user_error"):  # a HikbenchError of the worker's build or solve (an option's value)
+        raise HikbenchError(answer["user_error"])
+    if answer["status"] in (ERROR, CRASHED, TIMEOUT) and answer.get("x") is None:
+        # the solver raised (error), its process died (crashed) or it did not answer (timeout)
+        status, reason = answer["status"], answer.get("reason", "")
         if args.json:
-            print(json.dumps({"solver": args.solver, "status": status, "reason": answer, "x": None,
+            print(json.dumps({"solver": args.solver, "status": status, "reason": reason, "x": None,
                               "level_norms": None, "iterations": None, "time_s": None}
                              | ({"certificate": None} if args.certify else {})))
         else:
-            print(f"solver      {args.solver}\nstatus      {status} ({answer})")
+            print(f"solver      {args.solver}\nstatus      {status} ({reason})")
         return 1
+    samples = np.asarray(answer["samples_ns"], dtype=float)
+    answer |= {"median_s": float(np.median(samples)) * 1e-9, "min_s": float(np.min(samples)) * 1e-9}
     res = SimpleNamespace(**answer)
     timing = SimpleNamespace(median_s=answer["median_s"], min_s=answer["min_s"])
     norms = level_norms(h, res.x).tolist() if res.x is not None else None
@@ -224,26 +169,27 @@ def run(args) -> int:
         "time_s": {"median": timing.median_s, "min": timing.min_s},
     }
     cert = None
+    hc = row_normalised(h) if judged_on == "row-normalised" else h
     if args.certify and res.x is not None and all(map(math.isfinite, res.x)):
         from hikbench.problems.exact import certify
 
-        cert = certify(h, res.x)
+        cert = certify(hc, res.x)
     # whether x itself reaches the certified optimum's level norms (judge, at each profile): the
     # certificate is of the optimum on the active set read off x, which any x has
     verdicts = None if cert is None or not cert.certified else {
-        p: judge(h, res.x, cert.x, prof.rtol) for p, prof in PROFILES.items()}
+        p: judge(hc, res.x, cert.x, prof.rtol) for p, prof in PROFILES.items()}
     attains = None if verdicts is None else verdicts[args.accuracy]
     optimal = None if attains is None else attains.lower != "b"
     if args.certify:
         above = attains is not None and attains.lower == "b"
-        out["certificate"] = None if cert is None else {
+        out["certificate"] = None if cert is None else {"judged_on": judged_on,
             "certified": cert.certified, "reason": cert.reason,
             "level_norms": [_finite_or_none(float(v)) for v in cert.level_norms],
             "accuracy": args.accuracy,
             "x_is_optimal": optimal,
             "verified": None if verdicts is None else {p: v.lower != "b" for p, v in verdicts.items()},
             "level_gaps": None if verdicts is None else [
-                _finite_or_none(float(g)) for g in level_gaps(h, res.x, cert.x)],
+                _finite_or_none(float(g)) for g in level_gaps(hc, res.x, cert.x)],
             "x_above_at_level": attains.level if above else None,
             "x_above_by": attains.difference if above else None}
     if args.json:
@@ -256,14 +202,16 @@ def run(args) -> int:
         print(f"time        median {timing.median_s * 1e6:.1f} us, min {timing.min_s * 1e6:.1f} us "
               f"over {args.repeat} {'warm' if args.warm else 'cold'} solve(s)")
         if args.certify:
-            print("certificate " + ("none: no finite x" if cert is None else
+            print("certificate " + ("" if judged_on == "rows" else f"(of the {judged_on} hierarchy, the solver's "
+                                                                     f"claim) ")
+                  + ("none: no finite x" if cert is None else
                                     f"exact optimum, level norms {cert.level_norms.tolist()}" if cert.certified
                                     else f"refused: {cert.reason}"))
             if attains is not None:
                 print("x           " + _attains_line(attains, verdicts, args.accuracy))
     # (an exception in the solver, or an answer off the contract; with --certify, an x the certified
     # optimum is below at the profile's tolerance)
-    return 1 if res.status == ERROR or optimal is False else 0
+    return 1 if res.status in (ERROR, CRASHED, TIMEOUT) or optimal is False else 0
 
 
 def _attains_line(v, verdicts: dict, accuracy: str) -> str:

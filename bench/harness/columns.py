@@ -78,7 +78,11 @@ COLUMNS: tuple[tuple[str, str], ...] = (
                    "or did not reach within the suite's certify_timeout: rows are not verified against "
                    "it), 'none' (no candidate gave a point)")),
     ("yardstick_reason", ("which candidate the yardstick is (the independent yardstick's point or "
-                          "hcod's) and, when not certified, why")),
+                          "hcod's) and, when not certified, why; for a solver whose levels are row-normalised "
+                          "(Solver.judged_on, DAQP's hierarchical QP) it starts with 'judged on the "
+                          "row-normalised hierarchy (the solver's claim):': the row's verdict and norms are "
+                          "then those of hikbench.problems.hierarchy.row_normalised(problem), against its own "
+                          "yardstick")),
     ("level_norms", "JSON list: ||v_k(x)||_2 per level, recomputed from x (hikbench.problems.verify.level_norms)"),
     ("ref_level_norms", "JSON list: the same for the yardstick's solution (hikbench.solvers.yardstick)"),
     ("level_gaps", ("JSON list: per level, (||v_k(x)|| - ||v_k(x_ref)||) / t_k, x's level norm above the "

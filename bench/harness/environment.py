@@ -102,7 +102,7 @@ def environment() -> dict:
 
 
 def _peers() -> dict | None:
-    """How the C++ peers soth and lexls were built (``make peers``: commits,
+    """How the C++ peers soth, lexls and nipm-hlsp were built (``make peers``: commits,
     compiler, flags, ``march_native``), None when they are not built."""
     from hikbench.solvers.peers import build_info
 

@@ -21,6 +21,7 @@ from pathlib import Path
 import pandas as pd
 
 from hikbench.bench.harness.revisions import RevisionError, Side
+from hikbench.solvers.base import UNSUPPORTED
 
 __all__ = ["Rounds"]
 
@@ -97,7 +98,8 @@ class PairedTimer:
     keeps for its life (its memory layout, where its compiled code lies) is a
     round-to-round variation, inside the paired rounds' interval.
 
-    Only registry solvers are timed (a case's ``solver`` column names them); the
+    Only registry solvers are timed (a case's ``solver`` column names them), and not a
+    case that a side's solver declines (status ``unsupported``); the
     problems are the change's round-1 files (``OUT/rounds/change-1/problems``)."""
 
     def __init__(self, base: Side, change: Side, rounds: Rounds, repeat: int = 15, timeout: float = 60.0):
@@ -134,6 +136,8 @@ class PairedTimer:
             if str(base_rows.loc[key].get("problem_hash")) != str(getattr(row, "problem_hash", None)):
                 skipped.append(key)
                 continue
+            if UNSUPPORTED in (row.status, base_rows.loc[key].get("status")):
+                continue  # a decline is not a timing case (the decision says so: "not timed")
             h = load(run_dir / "problems" / f"{file_stem(row.problem)}.npz")
             cases.append((key, {"kind": "solve", "hierarchy": h, "solver": row.solver,
                                 "options": json.loads(row.options) if isinstance(row.options, str) else {},

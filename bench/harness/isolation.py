@@ -293,11 +293,12 @@ class IsolatedWorker:
     def alive(self) -> bool:
         return self.proc is not None and self.proc.poll() is None
 
-    def run(self, job: dict, timeout: float, first_timeout: float | None = None) -> dict:
+    def run(self, job: dict, timeout: float, first_timeout: float | None = None, on_first_solve=None) -> dict:
         """Run ``job`` (see hikbench.bench.harness.worker); returns its result dict, or a
         ``timeout`` / ``crashed`` result. Adds ``calib_ns``, ``host``, ``pid``.
         ``first_timeout``: allowance for the first solve of a solver new to
-        this process (see the module docstring)."""
+        this process (see the module docstring); ``on_first_solve()``, if given, is
+        called when the job's untimed first solve is done."""
         if not self.alive:
             if self.proc is not None:
                 self.restarts += 1
@@ -316,6 +317,8 @@ class IsolatedWorker:
                 out = self._reader.frame(deadline)
                 if not (isinstance(out, str) and out == _FIRST_SOLVE_DONE):
                     break
+                if on_first_solve is not None:
+                    on_first_solve()
                 if spec not in self._warmed:
                     self._warmed.add(spec)
                     self._first_s[spec] = max(self._first_s.get(spec, 0.0), time.monotonic() - t0)

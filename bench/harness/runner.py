@@ -40,6 +40,7 @@ from hikbench.bench.harness.cache import (
     NO_YARDSTICK,
     REFERENCE_ONLY,
     load_yardstick,
+    problem_hash,
     save_yardstick,
     yardstick_code,
     yardstick_path,
@@ -53,6 +54,7 @@ from hikbench.bench.harness.summary import write_summary
 from hikbench.bench.harness.timing import tail_columns
 from hikbench.bench.suites import Suite, SuiteError, Task, expand
 from hikbench.problems.errors import HikbenchError
+from hikbench.problems.hierarchy import row_normalised
 from hikbench.problems.verify import PROFILES, judge, level_gaps, level_norms, verify
 from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
 from hikbench.solvers.base import ERROR
@@ -94,7 +96,11 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, accuracy: str = "defaul
     against a certified yardstick: against a reference-only one ``verified`` is empty and
     ``verdict_side`` says ``no certified yardstick`` when x is not above its point at any
     level, with ``; worse than its point`` or ``; better than its point`` (and
-    ``verdict_level``) when it is."""
+    ``verdict_level``) when it is. ``h`` and ``ref``
+    are those of the hierarchy the solver's levels are (``task.entry.judged_on``: for
+    ``row-normalised``, :func:`hikbench.problems.hierarchy.row_normalised` of the problem and
+    its own yardstick), and so are the row's norms; ``yardstick_reason`` then starts with
+    ``judged on the row-normalised hierarchy (the solver's claim):``."""
     x_ref, ref_status, ref_reason, kind, kind_reason = ref[:5]
     x = res.get("x")
     has_x = x is not None and np.shape(x) == (h.n,)
@@ -112,6 +118,8 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, accuracy: str = "defaul
         row["ref_level_norms"] = _json_floats(level_norms(h, x_ref))
         if has_x:
             row["level_gaps"] = _json_floats(level_gaps(h, x, x_ref))
+    if e.judged_on != "rows":
+        kind_reason = f"judged on the {e.judged_on} hierarchy (the solver's claim): {kind_reason}"
     row.update(yardstick=kind, yardstick_reason=kind_reason)
     rtol = PROFILES[accuracy].rtol
     if x_ref is None:
@@ -320,8 +328,9 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         session["executor"] = getattr(executor, "name", type(executor).__name__)
         try:
             with _Progress(quiet) as progress:
-                refs = _yardsticks(todo, problems, pcols, out, executor, max(timeout, suite.first_solve_timeout),
-                                   suite.certify_timeout, progress)
+                judged, jcols = _judged_problems(todo, problems, pcols)
+                refs = _yardsticks([_judged_id(t) for t in todo], judged, jcols, out, executor,
+                                   max(timeout, suite.first_solve_timeout), suite.certify_timeout, progress)
                 tid = progress.add("solves", len(todo) * rounds)
                 earlier = {i: [] for i in range(len(todo))}  # results of the rounds before, per job
                 alive = list(earlier)  # jobs still to run in the next round
@@ -344,8 +353,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                                 progress.advance(tid, label)
                                 continue
                             res = _merge_rounds(earlier.pop(i), res, rounds)
-                            pid = t.problem.id
-                            row = make_row(t, pcols[pid], problems[pid], refs[pid], res, accuracy)
+                            pid, jid = t.problem.id, _judged_id(t)
+                            row = make_row(t, pcols[pid], judged[jid], refs[jid], res, accuracy)
                             writer.write(row)
                             summary.written += 1
                             summary.statuses[row["status"]] = summary.statuses.get(row["status"], 0) + 1
@@ -485,8 +494,27 @@ def _todo(tasks: list[Task], done: dict, pcols: dict) -> list[Task]:
     return todo
 
 
-def _yardsticks(todo, problems, pcols, out: Path, executor, timeout, certify_timeout, progress) -> dict:
-    """The yardstick of each problem id, (x, status, reason, kind, kind_reason, certify_budget),
+def _judged_id(t: Task) -> str:
+    """The id of the hierarchy task t's x is judged on: its problem's, or for a solver whose
+    levels are row-normalised (``judged_on``), that of the problem's row-normalised hierarchy."""
+    return t.problem.id if t.entry.judged_on == "rows" else f"{t.problem.id} ({t.entry.judged_on})"
+
+
+def _judged_problems(todo, problems: dict, pcols: dict) -> tuple[dict, dict]:
+    """``problems`` and ``pcols`` with the row-normalised hierarchy of each problem a task of
+    ``todo`` is judged on (:func:`_judged_id`), its ``problem_hash`` its own (its yardstick is
+    cached apart)."""
+    judged, jcols = dict(problems), dict(pcols)
+    for t in todo:
+        jid = _judged_id(t)
+        if jid not in judged:
+            judged[jid] = row_normalised(problems[t.problem.id])
+            jcols[jid] = {**pcols[t.problem.id], "problem_hash": problem_hash(judged[jid])}
+    return judged, jcols
+
+
+def _yardsticks(pids, problems, pcols, out: Path, executor, timeout, certify_timeout, progress) -> dict:
+    """The yardstick of each problem id of ``pids``, (x, status, reason, kind, kind_reason, certify_budget),
     from ``OUT/yardstick/<problem_hash>.npz`` or computed through the executor (isolated), each
     step its own job with its own timeout (one that fails costs its step, never a point already
     found nor the run; ``timeout``: the larger of the job timeout and the first-solve allowance):
@@ -503,7 +531,7 @@ def _yardsticks(todo, problems, pcols, out: Path, executor, timeout, certify_tim
     run tries again."""
     code = yardstick_code()
     refs, need, recertify, first_of, twins, stale = {}, [], [], {}, {}, 0
-    for pid in dict.fromkeys(t.problem.id for t in todo):
+    for pid in dict.fromkeys(pids):
         phash = pcols[pid]["problem_hash"]
         if phash in first_of:
             twins[pid] = first_of[phash]

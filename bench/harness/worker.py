@@ -26,6 +26,7 @@ import traceback
 
 import numpy as np
 
+from hikbench.problems.errors import HikbenchError
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult
 
@@ -39,7 +40,6 @@ def solver_info(spec: str, name: str = "") -> registry.SolverInfo:
     for a ``module:Class`` spec (its factory the object, no default options)."""
     if ":" in spec:
         from hikbench.bench.suites.problemset import load_object
-        from hikbench.problems.errors import HikbenchError
 
         obj = load_object(spec)
         if not callable(obj) or (isinstance(obj, type) and not callable(getattr(obj, "solve", None))):
@@ -148,5 +148,8 @@ def execute(job: dict, notify=None) -> dict:
     except Exception as err:  # noqa: BLE001 - a failing job costs its row (status error + reason)
         tb = traceback.extract_tb(err.__traceback__)
         where = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
-        return {**base, "status": ERROR, "reason": f"{type(err).__name__}: {err}{where}", "x": None,
-                "samples_ns": []}
+        out = {**base, "status": ERROR, "reason": f"{type(err).__name__}: {err}{where}", "x": None,
+               "samples_ns": []}
+        if isinstance(err, HikbenchError):  # (a wrong option value: `solve` makes it its one-line user error)
+            out["user_error"] = str(err)
+        return out

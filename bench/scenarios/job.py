@@ -21,7 +21,8 @@ import traceback
 
 from hikbench.bench.harness.worker import solver_info
 from hikbench.bench.scenarios.rows import FINISHED
-from hikbench.bench.scenarios.runner import check_run, run_scenario
+from hikbench.bench.scenarios.checks import check_run
+from hikbench.bench.scenarios.runner import run_scenario
 from hikbench.problems.robots.kinematics import KinematicState
 from hikbench.problems.robots.scenarios import load_scenario
 from hikbench.solvers import registry
@@ -46,7 +47,7 @@ def _first_solve(scenario, spec: str, warm_start: str | None) -> None:
 def execute_scenario(job: dict, notify=None) -> dict:
     """Run a scenario job; never raises (an exception is status ``error`` with its reason).
     Returns ``status`` (``finished``), ``records`` (the per-step DataFrame), ``q``
-    (steps + 1, nq), ``checks`` [(name, passed, detail)], ``warm_start`` and ``label``."""
+    (steps + 1, nq), ``checks`` [(name, passed (True, False or None: not judged), detail)], ``warm_start`` and ``label``."""
     base = {"host": socket.gethostname(), "pid": os.getpid()}
     try:
         scenario = load_scenario(job["scenario"], robot=job.get("robot"))
@@ -55,7 +56,7 @@ def execute_scenario(job: dict, notify=None) -> dict:
             notify()
         run = run_scenario(scenario, job["solver"], warm_start=job.get("warm_start"), steps=job["steps"],
                            repeat=job["repeat"])
-        checks = [(c.name, bool(c.passed), c.detail) for c in check_run(run)]
+        checks = [(c.name, c.passed, c.detail) for c in check_run(run)]
         return {**base, "status": FINISHED, "reason": "", "records": run.records, "q": run.q,
                 "checks": checks, "warm_start": run.warm_start, "label": run.label}
     except Exception as err:  # noqa: BLE001 - a failing job costs its row (status error + reason)

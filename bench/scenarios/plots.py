@@ -22,7 +22,8 @@ lighter still; a solver without modes: solid, dashed if non-strict).
   starts cold, hcod with warm_start none or stage, counts every active row
   at every step, and every step was marked.)
 * Fig. 3 ``fig3_joints_<run>.png``: joint trajectories normalised to their
-  limits, 2 (q - q_l) / (q_u - q_l) - 1 (so -1 and 1 are the two limits).
+  limits, 2 (q - q_l) / (q_u - q_l) - 1 (so -1 and 1 are the two limits), each
+  joint its own colour and line style (:func:`joint_styles`).
 * Fig. 4 ``fig4_task_errors.png``: task error norms (log scale), one panel per
   task, one line per run (the styles of Figs. 1-2).
 """
@@ -42,6 +43,20 @@ __all__ = ["normalised_joints", "plot_runs", "run_strict", "run_styles"]
 #: line style and shade (1: the solver's colour, less: mixed with white) of a warm-start mode
 MODE_STYLE = {"time": ("-", 1.0), "stage": ("-.", 0.7), "none": (":", 0.45)}
 FAINT = 0.3  #: alpha of the first-call times behind the solver's cost
+#: Fig. 3's joint styles: the 20 colours of tab20, then again with each further line style
+JOINT_LINESTYLES = ("-", "--", "-.", ":")
+
+
+def joint_styles(count: int) -> list[dict]:
+    """``count`` distinct (colour, line style) pairs for Fig. 3's joints: the 20 colours of
+    matplotlib's ``tab20`` (the default cycle has 10, so 12 joints repeated two), then
+    again with the next line style (at most 80: ``PLOT_JOINTS_MAX`` of a scenario file)."""
+    colours = matplotlib.colormaps["tab20"].colors
+    if count > len(colours) * len(JOINT_LINESTYLES):  # (a scenario file's [plot] joints are checked on loading)
+        raise ValueError(f"{count} joints: Fig. 3 draws at most {len(colours) * len(JOINT_LINESTYLES)} "
+                         "distinguishable lines")
+    return [{"color": matplotlib.colors.to_hex(colours[k % len(colours)]),
+             "linestyle": JOINT_LINESTYLES[k // len(colours)]} for k in range(count)]
 
 
 def _plt():
@@ -274,8 +289,8 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
             idx = list(np.argsort(-(z.max(axis=0) - z.min(axis=0)))[:12])
         t = np.arange(len(z)) * run.scenario.dt
         fig, ax = plt.subplots(figsize=(10, 4.5))
-        for i in idx:
-            ax.plot(t, z[:, i], lw=1.0, label=names[i])
+        for i, style in zip(idx, joint_styles(len(idx))):
+            ax.plot(t, z[:, i], lw=1.0, label=names[i], **style)
         ax.axhline(1.0, color="k", ls="--", lw=0.8)
         ax.axhline(-1.0, color="k", ls="--", lw=0.8)
         for te in _events_within(run.scenario, t[-1]):

@@ -50,6 +50,8 @@ SCENARIO_COLUMNS: tuple[tuple[str, str], ...] = (
     ("steps_not_optimal", "steps whose status is not optimal"),
     ("checks_passed", "checks of the scenario's [checks] passed (check_run)"),
     ("checks_failed", "checks failed"),
+    ("checks_not_judged", "checks the run could not judge (a run cut by --steps, a scenario assumption that "
+                          "failed): neither passed nor failed"),
     ("failed_checks", "names of the failed checks, separated by '; '"),
     ("csv", "the per-step CSV, relative to OUT (beside it, <stem>_q.npy: the joint trajectory)"),
     ("host", "host name of the worker"),
@@ -106,12 +108,13 @@ def step_costs(df: pd.DataFrame) -> dict:
 
 
 def check_counts(pairs) -> dict:
-    """``checks_passed``, ``checks_failed`` (counts) and ``failed_checks`` (names, '; '-joined)
-    of a run's checks, given as (name, passed) pairs."""
+    """``checks_passed``, ``checks_failed``, ``checks_not_judged`` (counts) and ``failed_checks``
+    (names, '; '-joined) of a run's checks, given as (name, passed) pairs, passed True, False
+    or None (not judged)."""
     pairs = list(pairs)
-    failed = [name for name, passed in pairs if not passed]
-    return {"checks_passed": len(pairs) - len(failed), "checks_failed": len(failed),
-            "failed_checks": "; ".join(failed)}
+    failed = [name for name, passed in pairs if passed is False]
+    return {"checks_passed": sum(passed is True for _, passed in pairs), "checks_failed": len(failed),
+            "checks_not_judged": sum(passed is None for _, passed in pairs), "failed_checks": "; ".join(failed)}
 
 
 def read_scenario_rows(out) -> pd.DataFrame:

@@ -80,14 +80,13 @@ from hikbench.bench.harness.worker import solver_info
 from hikbench.bench.scenarios.controllers import Controller, build_controller, is_controller
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.robots.kinematics import KinematicState
-from hikbench.problems.robots.limits import JointVelocityLimits
 from hikbench.problems.robots.scenarios import Scenario
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult, checked_result
 from hikbench.problems.verify import level_norms
 
-__all__ = ["ACTIVE_RTOL", "BLAME", "COLUMNS", "NO_WARM_START", "REPEAT", "ScenarioRun", "active_rows", "check_run",
-           "run_scenario", "warm_start_default"]
+__all__ = ["ACTIVE_RTOL", "COLUMNS", "NO_WARM_START", "REPEAT", "ScenarioRun", "active_rows", "run_scenario",
+           "warm_start_default"]
 
 COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_min_s", "solve_time_first_s",
            "resolve_time_min_s", "repeat", "repeats_agree", "iterations", "activations", "deactivations",
@@ -204,7 +203,8 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
                    "reason": res.reason,
                    "min_joint_limit_margin": float(np.min(robot.limit_margin(q), initial=np.inf))}
             before = now
-            row.update({f"err_{name}": v for name, v in stack.errors(q, u, state).items()})
+            # (a velocity task without u, the solver having returned none: an empty cell)
+            row.update({f"err_{name}": np.nan if v is None else v for name, v in stack.errors(q, u, state).items()})
             norms = level_norms(h, u) if u is not None else np.full(h.depth, np.nan)
             row.update({f"level_norm_{name}": float(v) for name, v in zip(h.names, norms)})
             rows.append(row)
@@ -283,122 +283,3 @@ def _solve(slv, h) -> SolveResult:
         return checked_result(slv.solve(h), h, slv)
     except Exception as err:  # noqa: BLE001 - a crashing solver ends its run with a status row
         return SolveResult(None, ERROR, reason=f"{type(err).__name__}: {err}")
-
-
-@dataclass(frozen=True)
-class Check:
-    """One verified property of a run. ``judges`` says what a failure is put down to:
-    ``"solver"`` (the run did not do what the hierarchy asks) or ``"scenario"`` (an
-    assumption of the scenario file, such as an out-of-reach target, does not hold on
-    this robot); a failed check's detail ends with it (:data:`BLAME`)."""
-
-    name: str
-    passed: bool
-    detail: str
-    judges: str = "solver"
-
-    def __post_init__(self):
-        if self.judges not in BLAME:
-            raise ValueError(f"judges must be one of {', '.join(BLAME)}; got {self.judges!r}")
-        if not self.passed:
-            object.__setattr__(self, "detail", f"{self.detail} -> {BLAME[self.judges]}")
-
-
-#: what a failed check is put down to, by ``Check.judges``
-BLAME = {"solver": "the solver failed",
-         "scenario": "the scenario's assumption failed on this robot, not the solver"}
-
-
-#: tolerances of the scenario checks (m, rad, or mixed 6D log units)
-LIMIT_TOL = 1e-9       #: joint-limit margin allowed below 0
-#: total velocity-limit excess allowed at a step, rad/s (hcod's rows sit within 1e-9 of their bounds)
-VELOCITY_TOL = 1e-6
-REGULATED_ATOL = 2e-3  #: a regulated task's error may exceed its initial value by this much
-REGULATED_FINAL = 1e-5  #: ... and ends below this
-REACHED_TOL = 1e-3     #: reaching error at the end of the in-reach phase
-LOWEST_RTOL = 0.02     #: out-of-reach error at the end of its phase vs its minimum (relative)
-OUT_OF_REACH = 1e-2    #: an out-of-reach target keeps an error above this
-
-
-def _velocity_checks(run: ScenarioRun) -> list[Check]:
-    """A check per velocity-limit task of the stack: the joint velocities u the run
-    commanded stayed within |u_i| <= v_max_i (``err_<task>``: the step's total excess)."""
-    out = []
-    for task in run.scenario.stack.tasks:
-        column = f"err_{task.name}"
-        if not isinstance(task, JointVelocityLimits) or column not in run.records:
-            continue
-        e = run.records[column].to_numpy(dtype=float)
-        worst = int(np.nanargmax(e)) if np.any(np.isfinite(e)) else 0
-        out.append(Check(f"{task.name} held", bool(np.all(np.nan_to_num(e, nan=np.inf) <= VELOCITY_TOL)),
-                         f"max total excess {e[worst]:.3e} rad/s at step {worst} (tol {VELOCITY_TOL:g})"))
-    return out
-
-
-def check_run(run: ScenarioRun) -> list[Check]:
-    """Verify the scenario's ``[checks]`` on a run (see problems/robots/scenarios.py)."""
-    spec, df, out = run.scenario.checks, run.records, []
-    robot = run.scenario.robot
-    steps_run = len(df)
-    stopped = steps_run and (df["status"].iloc[-1] == "diverged" or not np.all(np.isfinite(run.q[-1]))
-                             or len(run.q) < steps_run + 1)
-    # a run cut short by --steps (not stopped by a failure): final values are not judged
-    cut = not stopped and steps_run < run.scenario.steps
-    not_optimal = df[df["status"] != "optimal"] if steps_run else df
-    detail = f"{steps_run} steps; {len(not_optimal)} with a status other than optimal"
-    if len(not_optimal):
-        first = not_optimal.iloc[0]
-        detail += f" (first: step {int(first['step'])}, {first['status']}: {first['reason']})"
-    # judged on completion, not on the solver's own status (level norms are in the CSV)
-    out.append(Check("run completed", not stopped, detail))
-    if spec.get("limits", False):
-        margin = min(float(np.min(robot.limit_margin(q))) for q in run.q)
-        out.append(Check("joint limits", margin >= -LIMIT_TOL, f"min margin {margin:.3e}"))
-        out.extend(_velocity_checks(run))
-    for name in spec.get("regulated", []):
-        # stays regulated: never above its initial error + REGULATED_ATOL; decays to ~0 at the end.
-        # The measured decay rate over the first 50 steps is reported next to the commanded
-        # 1 - lambda dt (second-order drift from the other tasks' motion slows it down).
-        task = run.scenario.stack.task(name)
-        e = df[f"err_{name}"].to_numpy()
-        worst = int(np.argmax(e))
-        k = min(50, len(e) - 1)
-        rate = (e[k] / e[0]) ** (1.0 / k) if k > 0 and e[0] > 1e-9 and e[k] > 0 else float("nan")
-        bounded = bool(np.all(e <= e[0] + REGULATED_ATOL))
-        final = (f"final {e[-1]:.2e} not judged: the run was cut to {steps_run} of the scenario's "
-                 f"{run.scenario.steps} steps (--steps)" if cut else f"final {e[-1]:.2e} (tol {REGULATED_FINAL})")
-        out.append(Check(f"{name} regulated", bool(bounded and (cut or e[-1] <= REGULATED_FINAL)),
-                         f"e0 {e[0]:.2e}, max {e[worst]:.2e} at step {worst}, {final}; decay per step "
-                         f"{rate:.4f} vs commanded {1 - task.gain * run.scenario.dt:.4f}"))
-    for name, tol in spec.get("tracked", {}).items():
-        e = df[f"err_{name}"].to_numpy()
-        worst = int(np.argmax(e))
-        out.append(Check(f"{name} tracked", bool(e[worst] <= tol),
-                         f"max error {e[worst]:.2e} at step {worst} (tol {tol}); final {e[-1]:.2e}"))
-    reach = spec.get("reach")
-    if reach:
-        e = df[f"err_{reach['task']}"].to_numpy()
-        tsw = float(reach["out_of_reach_until"])
-        phase1 = df["time_s"].to_numpy() < tsw - 1e-9
-        # a phase that a run cut by --steps did not finish is not judged (its last value is not its end)
-        why_not = f"not judged: the run was cut to {steps_run} of the scenario's {run.scenario.steps} steps (--steps)"
-        if phase1.any():
-            e1 = e[phase1]
-            ended = (~phase1).any() or not cut
-            low = float(e1.min())
-            # the scenario's assumption: the target stays out of reach (judged on every step run)
-            out.append(Check("out of reach: target unreachable", bool(low > OUT_OF_REACH),
-                             f"lowest error {low:.3e} (expected > {OUT_OF_REACH})" + (
-                                 "" if low > OUT_OF_REACH else ": the target is within this robot's reach; give "
-                                 "the scenario a longer offset (e.g. in arm lengths)"), judges="scenario"))
-            # the solver: the error comes down to its lowest value and stays there
-            ok = e1[-1] <= low * (1 + LOWEST_RTOL) + 1e-6 and e1[-1] < e1[0]
-            out.append(Check("out of reach: lowest value", bool(ok or not ended),
-                             f"start {e1[0]:.3e}, end {e1[-1]:.3e}, min {low:.3e} (end within "
-                             f"{LOWEST_RTOL:.0%} of the min expected)" + ("" if ended else f"; {why_not}")))
-        if (~phase1).any():
-            e2 = e[~phase1]
-            out.append(Check("back in reach: converges to 0", bool(e2[-1] <= REACHED_TOL or cut),
-                             f"start {e2[0]:.3e}, end {e2[-1]:.3e} (tol {REACHED_TOL})"
-                             + (f"; {why_not}" if cut else "")))
-    return out

@@ -107,6 +107,7 @@ class SolverEntry:
     options: dict = field(default_factory=dict)
     strict: bool = True
     warm: bool = False          # supports_warm_start
+    judged_on: str = "rows"     # the hierarchy its x is judged on: "rows" or "row-normalised"
 
     def options_json(self) -> str:
         return json.dumps(self.options, sort_keys=True)
@@ -331,7 +332,20 @@ def _entry_for_object(spec: str, where: str) -> SolverEntry:
     if not isinstance(strict, bool):  # (its claim decides how every row of it is judged: no guessing)
         raise SuiteError(f"{where}: solver {spec!r} has strict = {strict!r}: expected True or False (True: it "
                          f"returns the lexicographic optimum; False: weighted, damped, not strict)")
-    return SolverEntry(solver=name, spec=spec, strict=strict, warm=bool(getattr(obj, "supports_warm_start", False)))
+    judged_on = getattr(obj, "judged_on", "rows")
+    if judged_on not in ("rows", "row-normalised"):
+        raise SuiteError(f"{where}: solver {spec!r} has judged_on = {judged_on!r}: expected 'rows' or "
+                         f"'row-normalised' (the hierarchy its levels are: hikbench.solvers.base.Solver.judged_on)")
+    return SolverEntry(solver=name, spec=spec, strict=strict, warm=bool(getattr(obj, "supports_warm_start", False)),
+                       judged_on=judged_on)
+
+
+def _judged_on(info, options: dict) -> str:
+    """What a registry solver built with ``options`` claims its levels are
+    (:attr:`hikbench.solvers.registry.SolverInfo.judged_on`): ``"rows"`` or ``"row-normalised"``."""
+    from hikbench.solvers import registry
+
+    return info.judged_on(registry.check_buildable(info, **options)) if info.judged_on else "rows"
 
 
 def _check_options(entry: SolverEntry, settings_name: str, options: dict, suite_file: str) -> None:
@@ -409,23 +423,27 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
                 skipped[pat] = "pattern matches no installed solver"
             for n in matched:
                 info = avail[n]
-                add(SolverEntry(n, n, strict=info.strict, warm=info.supports_warm_start))
+                add(SolverEntry(n, n, strict=info.strict, warm=info.supports_warm_start,
+                                judged_on=_judged_on(info, {})))
         elif pat in avail:
             info = avail[pat]
-            add(SolverEntry(pat, pat, strict=info.strict, warm=info.supports_warm_start))
+            add(SolverEntry(pat, pat, strict=info.strict, warm=info.supports_warm_start,
+                            judged_on=_judged_on(info, {})))
         elif pat in missing:
             skipped[pat] = f"not installed: {missing[pat]}"
         else:
             known = list(avail) + [m for m in missing if m not in avail and "." not in m]
-            raise SolverNotFoundError(f"unknown solver {pat!r} (in {where}); known solvers: {', '.join(known)} "
+            raise SolverNotFoundError(f"unknown solver {pat!r} (in {where}){registry.close_match(pat, known)}; "
+                                      f"known solvers: {', '.join(known)} "
                                       f"(or a glob pattern, module:Class, external:NAME=CMD)")
     for s in settings:
         base = [e for e in entries if e.solver == s.get("solver") and e.settings == "default"]
         for e in base:
             options = dict(s.get("options", {}))
             _check_options(e, str(s["name"]), options, suite_file or where)
+            judged_on = e.judged_on if ":" in e.spec else _judged_on(avail[e.spec], options)
             add(SolverEntry(e.solver, e.spec, settings=str(s["name"]), options=options,
-                            strict=e.strict, warm=e.warm))
+                            strict=e.strict, warm=e.warm, judged_on=judged_on))
     return entries, skipped
 
 

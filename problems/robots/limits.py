@@ -70,7 +70,8 @@ class JointVelocityLimits(_Inequality):
     """|u_i| <= min(scale * v_max_i, cap) on the coordinates with a finite velocity
     limit (``model.velocityLimit``; the free flyer has none); ``cap`` (rad/s or m/s,
     default none) bounds every coordinate alike, whatever its URDF limit. Not a
-    function of q: ``value`` is empty and the reported error is the total excess (rad/s)."""
+    function of q: ``value`` is empty and the reported error is the total excess (rad/s) of the
+    velocity u; None without u (an error of u, not of q)."""
 
     def __init__(self, robot: Robot, name: str = "velocity_limits", scale: float = 1.0,
                  cap: float | None = None):
@@ -93,7 +94,7 @@ class JointVelocityLimits(_Inequality):
 
     def error_norm(self, state, u=None):
         if u is None:
-            return float("nan")
+            return None
         return float(np.sum(np.maximum(np.abs(np.asarray(u)[self.select]) - self.vmax, 0.0)))
 
 

@@ -44,6 +44,7 @@ __all__ = [
     "load_robot",
     "robot_source",
     "robot_names",
+    "same_robot",
     "robot_rows",
 ]
 
@@ -304,6 +305,19 @@ def robot_source(ref, srdf=None, floating_base: bool | None = None, reference: s
     return UrdfSource(urdf=(here / Path(ref)).resolve(),
                       srdf=None if srdf is None else (here / Path(srdf)).resolve(),
                       floating_base=floating_base, reference=reference)
+
+
+def same_robot(a, b) -> bool:
+    """Whether two robot references (names, URDF paths or UrdfSources, as
+    :func:`robot_source` takes them) load their model from the same place: the same
+    robot name, or the same URDF file (its SRDF and root joint aside: the frames, which
+    a ``[frames]`` table names, are the URDF's links)."""
+    if a is None or b is None:
+        return False
+    a, b = robot_source(a), robot_source(b)
+    if isinstance(a, UrdfSource) and isinstance(b, UrdfSource):
+        return a.urdf.resolve() == b.urdf.resolve()
+    return not isinstance(a, UrdfSource) and not isinstance(b, UrdfSource) and a == b
 
 
 def load_robot(ref) -> Robot:

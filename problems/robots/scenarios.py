@@ -27,7 +27,7 @@ TOML format (``problems/robots/scenarios/*.toml``)::
     duration = 1.0               # start + `apex` at `tau_apex` (pose, position)
     offset = [0.1, 0.0, 0.0]
     apex = [0.0, 0.0, 0.05]
-    [checks]                     # verified by the runner on the per-step record
+    [checks]                     # verified on the per-step record (bench/scenarios/checks.py)
     limits = true                # joint limits never violated, nor the stack's velocity limits
     regulated = ["com"]          # errors decay exponentially and stay regulated
     reach = { task = "right_hand", out_of_reach_until = 1.2 }
@@ -65,7 +65,7 @@ import pinocchio as pin
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.robots.dimensions import LENGTHS, robot_length
 from hikbench.problems.robots.kinematics import KinematicState
-from hikbench.problems.robots.models import FrameTable
+from hikbench.problems.robots.models import FrameTable, same_robot
 from hikbench.problems.robots.stacks import ROBOT_KEYS, Stack, file_robot, load_stack_spec
 from hikbench.problems.robots.tasks import ComTask, PoseTask, PositionTask, Task
 from hikbench.problems.robots.trajectories import PointSegment, PoseSegment
@@ -90,6 +90,7 @@ def _vec3(v, what: str) -> np.ndarray:
 MAX_STEPS = 1_000_000       #: control steps of a scenario (a record row each)
 MAX_PERTURBATION = math.pi  #: rad, standard deviation of the initial joint perturbation
 MAX_OFFSET = 100.0          #: m (and rad for rotate_rpy), per coordinate of a scheduled target change
+PLOT_JOINTS_MAX = 80        #: joints of Fig. 3 ([plot] joints): 20 colours x 4 line styles
 
 _NAMES = List(Str(), what="a non-empty list of names")
 UNITS = ("m", *LENGTHS)  #: what ``offset`` and ``apex`` are given in (``unit``)
@@ -164,7 +165,11 @@ def _check_names(d: dict, stack: Stack, at: Where, other_robot: bool) -> None:
     if "reach" in checks:
         task("checks.reach.task", checks["reach"]["task"])
     plotted = stack.robot.bounded_joint_names
-    for i, joint in enumerate(d.get("plot", {}).get("joints", [])):
+    joints = d.get("plot", {}).get("joints", [])
+    if len(joints) > PLOT_JOINTS_MAX:
+        at.say(f"plot.joints: {len(joints)} joints; expected at most {PLOT_JOINTS_MAX} (Fig. 3 gives each its "
+               "own colour and line style)")
+    for i, joint in enumerate(joints):
         # (on another robot, --robot, names it lacks fall back to the joints that move most)
         if not other_robot and joint not in plotted:
             at.fail(f"plot.joints[{i}]", joint, f"a bounded 1-DOF joint of {stack.robot.name} "
@@ -309,14 +314,18 @@ class Scenario:
             stack_ref = str(Path(source).parent / stack_ref)
         extra = [frames] if frames is not None else []
         own = file_robot(d, source, ScenarioError)
-        if robot is not None:
-            stack = Stack(load_stack_spec(stack_ref), robot=robot, frames=extra)
+        spec = load_stack_spec(stack_ref)
+        # the files' [frames] tables are written for their robot: given again (the same name or
+        # URDF file) it keeps them; another robot does not
+        other_robot = robot is not None and not same_robot(robot, own if own is not None else spec.robot)
+        if other_robot:
+            stack = Stack(spec, robot=robot, frames=extra)
         else:
-            stack = Stack(load_stack_spec(stack_ref), robot=own,
+            stack = Stack(spec, robot=own if robot is None else robot,
                           frames=[FrameTable(dict(d.get("frames", {})), source), *extra])
         if "dt" in d:
             stack.dt = float(d["dt"])
-        _check_names(d, stack, at, other_robot=robot is not None)
+        _check_names(d, stack, at, other_robot=other_robot)
         units = _resolve_units(d, stack.robot, at)
         init = d.get("initial", {})
         q = _initial_configuration(stack, float(init.get("perturbation", 0.0)), int(init.get("seed", 0)))

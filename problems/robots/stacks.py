@@ -31,7 +31,9 @@ order, level 0 first.
 A frame a task names (``frame``, ``frame_a``, ``frame_b``) must be an alias of
 the robot or one of its frame names: a StackError names the file, the key
 (``levels[3].tasks[0].frame``) and the close matches. The ``[frames]`` table
-applies to the robot the file names, not to a robot that replaces it.
+applies to the robot the file names, also when it is given again (the same robot
+name or URDF file), not to another robot that replaces it: a frame the table
+would have named is then an error that says so.
 """
 
 from __future__ import annotations
@@ -49,7 +51,7 @@ from hikbench.problems.hierarchy import Hierarchy, Level
 from hikbench.problems.robots.kinematics import KinematicState
 from hikbench.problems.robots.limits import FrameDistance, JointPositionLimits, JointVelocityLimits
 from hikbench.problems.robots.models import FrameTable, Robot, RobotFileError, RobotNotFoundError, load_robot, \
-    robot_source
+    robot_source, same_robot
 from hikbench.problems.robots.tasks import (
     AlignmentTask,
     ComTask,
@@ -218,14 +220,17 @@ class Stack:
     ----------
     spec : StackSpec
     robot : str or UrdfSource, optional
-        Overrides ``spec.robot`` (and drops the spec's ``[frames]``, written for its robot).
+        Overrides ``spec.robot``; the spec's ``[frames]``, written for its robot, applies
+        when ``robot`` is the same robot name or URDF file (:func:`same_robot`), else not.
     frames : sequence of FrameTable
         Aliases added after the spec's (a scenario file's ``[frames]``, ``--frame``).
     """
 
     def __init__(self, spec: StackSpec, robot=None, frames=()):
         self.spec = spec
-        self.robot = _robot(spec, robot, frames)
+        #: the spec's [frames] table applies (its own robot), or was left out (another robot)
+        self.file_frames_applied = robot is None or same_robot(robot, spec.robot)
+        self.robot = _robot(spec, robot, frames, self.file_frames_applied)
         self.dt = spec.dt
         self.levels: list[list[Task]] = []
         for k, lv in enumerate(spec.levels):
@@ -255,7 +260,16 @@ class Stack:
             frame = task.get(key)
             if isinstance(frame, str) and not self.robot.has_frame(frame):
                 raise StackError(f"{self.spec.source}: levels[{k}].tasks[{i}].{key} = {frame!r}: expected "
-                                 f"{self.robot.frame_choices(frame)}")
+                                 f"{self.robot.frame_choices(frame)}{self._frames_left_out(frame)}")
+
+    def _frames_left_out(self, alias: str) -> str:
+        """Why the file's [frames] entry for ``alias``, if any, does not apply (another robot)."""
+        if self.file_frames_applied or alias not in self.spec.frames:
+            return ""
+        return (f"; the file's frames.{alias} = {self.spec.frames[alias]!r} is written for its robot "
+                f"{robot_label(self.spec.robot)!r} and is not applied to robot {self.robot.name!r}: name the "
+                f"frame for this robot where the robot is given (a scenario file's [frames] table, --frame "
+                f"{alias}=FRAME), or give the stack's own robot")
 
     @property
     def tasks(self) -> list[Task]:
@@ -288,18 +302,27 @@ class Stack:
         return Hierarchy.from_levels(levels, n=self.robot.nv)
 
     def errors(self, q: np.ndarray, u: np.ndarray | None = None,
-               state: KinematicState | None = None) -> dict[str, float]:
-        """Task name -> reported error norm at q (u for velocity-space tasks)."""
+               state: KinematicState | None = None) -> dict[str, float | None]:
+        """Task name -> its error norm (``Task.error_norm``) at q, shape (nq,), and for the tasks
+        of the velocity (``velocity_limits``: total excess over the limits, rad/s; ``velocity``:
+        ||u||) at u, shape (nv,): None for those when u is not given."""
         state = state or KinematicState(self.robot, q)
         return {t.name: t.error_norm(state, u) for t in self.tasks}
 
 
-def _robot(spec: StackSpec, robot, frames) -> Robot:
-    """The robot of a stack: ``robot`` if given (with ``frames``), else the spec's
-    (with its [frames] table, then ``frames``). A robot the spec names that cannot
-    be loaded is a StackError naming the stack file."""
+def robot_label(ref) -> str:
+    """The name a robot reference loads as (a URDF file's stem), without loading it."""
+    ref = robot_source(ref)
+    return ref if isinstance(ref, str) else ref.name
+
+
+def _robot(spec: StackSpec, robot, frames, file_frames: bool) -> Robot:
+    """The robot of a stack: ``robot`` if given, else the spec's; with the spec's [frames]
+    table when ``file_frames``, then ``frames``. A robot the spec names that cannot be
+    loaded is a StackError naming the stack file."""
     if robot is not None:
-        return load_robot(robot).with_frames(*frames)
+        own = [spec.frame_table] if file_frames else []
+        return load_robot(robot).with_frames(*own, *frames)
     try:
         loaded = load_robot(spec.robot)
     except (RobotFileError, RobotNotFoundError) as err:

@@ -136,8 +136,9 @@ class Task(abc.ABC):
         b = -self.gain * self.value(state) + self.feedforward(state)
         return self.jacobian(state), b, b.copy()
 
-    def error_norm(self, state: KinematicState, u: np.ndarray | None = None) -> float:
-        """||e(q)|| for reports (m, rad or mixed for 6D)."""
+    def error_norm(self, state: KinematicState, u: np.ndarray | None = None) -> float | None:
+        """||e(q)|| for reports (m, rad or mixed for 6D); a task of the velocity u (minimal
+        velocity, velocity limits) returns its error of u, or None when u is not given."""
         return float(np.linalg.norm(self.value(state)))
 
 
@@ -358,4 +359,4 @@ class MinimalVelocityTask(Task):
         return np.eye(self.robot.nv)[self.select]
 
     def error_norm(self, state, u=None):
-        return float("nan") if u is None else float(np.linalg.norm(np.asarray(u)[self.select]))
+        return None if u is None else float(np.linalg.norm(np.asarray(u)[self.select]))

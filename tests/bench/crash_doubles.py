@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import os
 import sys
+import time
 
 from doubles import SleepSolver
 
@@ -35,3 +36,16 @@ class ChattyExitSolver(SleepSolver):
     def solve(self, hierarchy):
         print("about to vanish", flush=True)
         os._exit(0)
+
+
+class HangAfterFirstSolver(SleepSolver):
+    """Answers its first solve in a process, then never returns."""
+
+    name = "hang-after-first"
+    solves = 0
+
+    def solve(self, hierarchy):
+        HangAfterFirstSolver.solves += 1
+        while HangAfterFirstSolver.solves > 1:
+            time.sleep(0.05)
+        return super().solve(hierarchy)

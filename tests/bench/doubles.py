@@ -206,6 +206,13 @@ class Sleep4ms(Sleep2ms):
         super().__init__(delay)
 
 
+class Sleep20ms(Sleep2ms):
+    """``sleeper`` again, 20 ms per solve: an injected 10x slowdown."""
+
+    def __init__(self, delay: float = 0.02):
+        super().__init__(delay)
+
+
 def still_run(sc, steps: int, status=None, err: float = 1e-3):
     """A ScenarioRun of ``steps`` steps standing at ``sc.q_init`` (no solve), every task error
     ``err``, statuses ``status`` (default all optimal); a last status "diverged" adds no q, as

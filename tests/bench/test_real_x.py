@@ -69,3 +69,19 @@ def test_a_float64_x_stays_as_it_is():
     from hikbench.solvers.base import checked_result
 
     assert checked_result(res, tiny(n=3, depth=1, rows=1), ComplexSolver()) is res
+
+
+class NoXSolver(ComplexSolver):
+    """Says optimal and gives no x."""
+
+    def solve(self, hierarchy):
+        return SolveResult(None, OPTIMAL)
+
+
+def test_an_in_process_solver_saying_optimal_without_x_is_an_error():
+    from hikbench.bench.harness.worker import execute
+
+    res = execute({"kind": "solve", "hierarchy": tiny(), "solver": f"{__file__}:NoXSolver", "options": {},
+                   "mode": "cold", "repeat": 2, "warmup": 0})
+    assert res["status"] == "error" and res["x"] is None, res
+    assert "status optimal with x None: expected x, shape (n,)" in res["reason"], res["reason"]

@@ -65,6 +65,45 @@ def test_a_new_failure_is_a_regression():
     assert [(c.verdict, c.solver) for c in dec.failed] == [("NEWLY FAILING", "daqp")]
 
 
+def test_a_new_failure_names_its_level_and_amount():
+    change = _frames(3, BASE_TIMES, 0.02, 6, verified={CASES[2]: False})
+    for f in change:
+        f.loc[f["solver"] == "daqp", ["verdict_side", "verdict_level", "verdict_diff"]] = ["worse", 2, 0.0123]
+    [case] = decide(_frames(3, BASE_TIMES, 0.02, 5), change).failed
+    assert (case.verdict, case.why) == ("NEWLY FAILING", "optimal: worse than the yardstick at level 2 by 0.0123")
+
+
+def test_a_declined_case_is_not_timed():
+    """A solver's 9 us `unsupported` decline, twice as long on the change: not a timing case."""
+    declines = [(k, "unsupported") for k in CASES[:1]]
+    frames = {}
+    for name, factor, seed in (("base", 1.0, 11), ("change", 2.0, 12)):
+        frames[name] = _frames(6, BASE_TIMES | {CASES[0]: 9e-6 * factor}, 0.02, seed)
+        for f in frames[name]:
+            for (problem, solver, _, mode), status in declines:
+                f.loc[(f["problem"] == problem) & (f["mode"] == mode), ["status", "verified"]] = [status, False]
+    dec = decide(frames["base"], frames["change"])
+    case = next(c for c in dec.cases if (c.problem, c.solver, c.settings, c.mode) == CASES[0])
+    assert (case.verdict, case.why) == ("not timed", "declined (unsupported) on base and change"), markdown(dec, "")
+    assert case.rounds == 0 and math.isnan(case.ratio) and not dec.failed
+
+
+def test_the_paired_timer_leaves_out_declined_cases(tmp_path):
+    from hikbench.bench.harness.interleave import PairedTimer
+    from hikbench.problems.files import save_npz
+    from tests.bench.doubles import tiny
+
+    (tmp_path / "problems").mkdir()
+    save_npz(tiny(), tmp_path / "problems" / "p1.npz")
+    rows = pd.DataFrame([{"problem": "p1", "solver": s, "settings": "default", "mode": "cold", "status": st,
+                          "problem_hash": "h", "options": "{}"}
+                         for s, st in (("hcod", "optimal"), ("nullspace-svd", "unsupported"))])
+    timer = PairedTimer.__new__(PairedTimer)  # (no workers: only the selection of the cases)
+    timer.repeat, timer.verified = 15, {"base": rows, "change": rows}
+    cases, skipped = timer._cases(tmp_path)
+    assert [key for key, _ in cases] == [("p1", "hcod", "default", "cold")] and skipped == []
+
+
 def test_a_case_gone_from_the_change_is_missing_when_its_solver_still_ran():
     change = {k: t for k, t in BASE_TIMES.items() if k != CASES[1]}
     dec = decide(_frames(3, BASE_TIMES, 0.02, 7), _frames(3, change, 0.02, 8),

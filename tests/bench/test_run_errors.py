@@ -122,6 +122,11 @@ def test_unknown_solver_lists_the_known_ones(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+def test_a_misspelt_solver_gets_its_close_match(tmp_path, capsys):
+    assert _run("--suite", "quick", "--solvers", "hcdo", "--out", tmp_path / "out") == 2
+    assert "unknown solver 'hcdo' (in --solvers); did you mean 'hcod'?; known solvers: " in _one_error_line(capsys)
+
+
 def test_unknown_solver_in_the_suite_file(tmp_path, capsys):
     path = write_suite(tmp_path / "s.toml", ["yardstick", "no-such-solver"], grid={"n": [4]})
     assert _run("--suite", path, "--out", tmp_path / "out") == 2

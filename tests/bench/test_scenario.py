@@ -6,7 +6,8 @@ import pytest
 from doubles import WarmReference, spec, still_run
 
 from hikbench.bench.cli import main
-from hikbench.bench.scenarios.runner import BLAME, COLUMNS, NO_WARM_START, check_run, run_scenario
+from hikbench.bench.scenarios.checks import BLAME, check_run
+from hikbench.bench.scenarios.runner import COLUMNS, NO_WARM_START, run_scenario
 from hikbench.problems.robots.dimensions import robot_length
 from hikbench.problems.robots.scenarios import ScenarioError, load_scenario, scenario_names
 
@@ -82,11 +83,11 @@ def test_user_scenario_on_an_arm(tmp_path):
 def test_cli_writes_csv_and_figures(tmp_path, capsys):
     rc = main(["scenario", "step", "--steps", "3", "--out", str(tmp_path), "--plot"])
     out = capsys.readouterr().out
-    assert "yardstick: 3 steps" in out
-    csv = tmp_path / "step_talos_yardstick.csv"
+    assert "hcod (time): 3 steps" in out  # (the default solver)
+    csv = tmp_path / "step_talos_hcod_time.csv"
     df = pd.read_csv(csv)
     assert len(df) == 3 and "err_right_foot" in df
-    for fig in ("fig1_solve_time.png", "fig2_time_activations.png", "fig3_joints_yardstick.png",
+    for fig in ("fig1_solve_time.png", "fig2_time_activations.png", "fig3_joints_hcod_time.png",
                 "fig4_task_errors.png"):
         assert (tmp_path / fig).stat().st_size > 10_000
     assert rc == 0  # (3 steps: not judged on final errors; the checks of these steps hold)
@@ -188,39 +189,77 @@ def test_warm_start_modes_reach_the_solver(warm_solver, tmp_path, capsys):
 
 
 @pytest.mark.parametrize("last_status, passed, final", [
-    ("optimal", True, "final 1.00e-03 not judged: the run was cut to 5 of the scenario's 700 steps (--steps)"),
+    ("optimal", None, "final 1.00e-03 not judged: the run was cut to 5 of the scenario's 700 steps (--steps)"),
     ("diverged", False, "final 1.00e-03 (tol 1e-05)"),
 ], ids=["cut-by-steps", "stopped-by-a-failure"])
 def test_a_run_cut_by_steps_is_not_judged_on_final_errors(last_status, passed, final):
-    # 5 steps cannot bring a regulated error to 1e-5: a run the user shortened says so and passes on
-    # what it can judge; a run that stopped on a failure is judged in full (and fails)
+    # 5 steps cannot bring a regulated error to 1e-5: a run the user shortened says so and leaves
+    # the check unjudged (neither pass nor FAIL); a run that stopped on a failure is judged in full (and fails)
     sc = load_scenario("reach")
     assert sc.steps == 700 and sc.checks["regulated"] == ["com", "left_foot", "right_foot"]
     checks = {c.name: c for c in check_run(still_run(sc, 5, ["optimal"] * 4 + [last_status]))}
     for task in ("com", "left_foot", "right_foot"):
         c = checks[f"{task} regulated"]
         assert c.passed is passed, c
-        assert f"max 1.00e-03 at step 0, {final}; decay per step" in c.detail, c.detail
-    assert checks["run completed"].passed is passed
-    # the out-of-reach phase (until t = 3 s) did not end in 5 steps: its last value is no "lowest
-    # value" (it was judged, and marked [pass] or FAIL, on a cut run)
-    reach = checks["out of reach: lowest value"]
-    assert reach.passed is passed, reach
-    assert reach.detail.endswith("; not judged: the run was cut to 5 of the scenario's 700 steps (--steps)") is passed
-    assert reach.detail.endswith(f" -> {BLAME['solver']}") is not passed
+        assert c.verdict == {None: "not judged", False: "FAIL"}[passed]
+        assert f"max 1.00e-03 at step 0 (tol e0 + 0.002), {final}; decay per step" in c.detail, c.detail
+    assert checks["run completed"].passed is (passed is None)
     assert "back in reach: converges to 0" not in checks
     # an error of 1e-3 from the first step: the target was within reach, whatever the steps run
-    # (the scenario's assumption, not the solver, failed)
+    # (the scenario's assumption, not the solver, failed), and the solver is not judged on reaching
+    # the lowest value of an unreachable target
     unreachable = checks["out of reach: target unreachable"]
     assert not unreachable.passed and unreachable.judges == "scenario", unreachable
     assert unreachable.detail == ("lowest error 1.000e-03 (expected > 0.01): the target is within this robot's reach; "
                                   f"give the scenario a longer offset (e.g. in arm lengths) -> {BLAME['scenario']}")
+    lowest = checks["out of reach: lowest value"]
+    assert lowest.passed is None and lowest.detail.endswith(
+        "not judged: the target is within reach (out of reach: target unreachable)"), lowest
+
+
+def test_an_unreachable_target_on_a_cut_run_is_not_judged_on_its_end():
+    """The out-of-reach phase (until t = 3 s) did not end in 5 steps: its last value is no
+    "lowest value"; a run that covers the phase is judged on it."""
+    sc = load_scenario("reach")
+    lowest = {c.name: c for c in check_run(still_run(sc, 5, err=0.5))}["out of reach: lowest value"]
+    assert lowest.passed is None and lowest.detail.endswith(
+        "; not judged: the run was cut to 5 of the scenario's 700 steps (--steps)"), lowest
+    checks = {c.name: c for c in check_run(still_run(sc, 310, err=0.5))}  # (past 3 s: the phase ended)
+    assert checks["out of reach: target unreachable"].passed
+    lowest = checks["out of reach: lowest value"]  # (a constant error never came down)
+    assert lowest.passed is False and lowest.detail.endswith(f" -> {BLAME['solver']}"), lowest
+    assert checks["back in reach: converges to 0"].passed is None
+
+
+def test_no_check_line_contradicts_itself(capsys):
+    """A passing line says no "not judged" and no nan; "run completed" says the statuses are
+    recorded, not judged, and counts them by status."""
+    sc = load_scenario("reach")
+    status = ["optimal", "infeasible_level", "optimal", "max_iterations"] + ["optimal"] * 56
+    checks = check_run(still_run(sc, 60, status, err=0.0))  # (every error 0 from the first step)
+    for c in checks:
+        assert "nan" not in c.detail, c
+        assert c.passed is not True or "not judged:" not in c.detail, c
+    by_name = {c.name: c for c in checks}
+    assert "decay per step not measured (e0 0.0e+00: at most 1e-9, nothing to decay)" in by_name["com regulated"].detail
+    done = by_name["run completed"]
+    assert done.passed and done.detail == (
+        "60 steps; the solver's statuses, recorded (the checks judge the task errors, not the statuses): 58 optimal, "
+        "1 infeasible_level, 1 max_iterations (first not optimal: step 1, infeasible_level)"), done
+    assert check_run(still_run(sc, 3))[0].detail == "3 steps; every status optimal"
+
+
+def test_a_check_not_judged_is_counted_apart():
+    from hikbench.bench.scenarios.rows import check_counts
+
+    assert check_counts([("a", True), ("b", None), ("c", False), ("d", None)]) == {
+        "checks_passed": 1, "checks_failed": 1, "checks_not_judged": 2, "failed_checks": "c"}
 
 
 def test_a_failed_check_names_what_failed():
     """A check that fails ends its detail with the solver or the scenario's assumption;
     one that passes keeps its detail as given."""
-    from hikbench.bench.scenarios.runner import Check
+    from hikbench.bench.scenarios.checks import Check
 
     assert Check("x", False, "d").detail == "d -> the solver failed"
     assert Check("x", False, "d", judges="scenario").detail == (
@@ -228,6 +267,15 @@ def test_a_failed_check_names_what_failed():
     assert Check("x", True, "d", judges="scenario").detail == "d"
     with pytest.raises(ValueError, match="judges must be one of solver, scenario; got 'user'"):
         Check("x", False, "d", judges="user")
+
+
+def test_without_solver_a_scenario_runs_hcod(tmp_path, capsys):
+    """The default is the strict hierarchy solver a controller runs (time warm start), not the
+    yardstick (23 ms a step of g1's step scenario)."""
+    rc = main(["scenario", "reach", "--steps", "2", "--repeat", "1", "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert rc == 0 and "\nhcod (time): 2 steps" in out, out
+    assert [p.name for p in tmp_path.glob("*.csv") if p.name != "summary.csv"] == ["reach_talos_hcod_time.csv"]
 
 
 def test_a_solver_given_as_file_and_class(tmp_path, capsys):
@@ -296,7 +344,7 @@ def test_velocity_limits_are_checked_with_the_joint_limits():
     """`limits = true` also judges the stack's velocity limits on the u each step commanded:
     a run within them passes, a step past them by more than VELOCITY_TOL fails the check and
     names the step (a solver that ignores a two-sided velocity row must not pass)."""
-    from hikbench.bench.scenarios.runner import VELOCITY_TOL
+    from hikbench.bench.scenarios.checks import VELOCITY_TOL
 
     run = run_scenario(load_scenario("reach"), "hcod", steps=3, repeat=1)
     held = {c.name: c for c in check_run(run)}["velocity_limits held"]

@@ -50,3 +50,38 @@ def test_steps_that_are_not_optimal_are_marked(tmp_path, monkeypatch):
     marked = [(lab, x) for lab, x in labels if "not optimal" in lab]
     assert marked == [("hcod (time): not optimal (infeasible_level 2, max_iterations 1)", [1, 3, 4]),
                       ("status not optimal (infeasible_level 2, max_iterations 1)", [1, 3, 4])]
+
+
+@pytest.mark.parametrize("joints", [None, "all"], ids=["the-12-that-move-most", "every-joint-of-romeo"])
+def test_every_joint_of_fig3_has_its_own_colour_and_line_style(tmp_path, monkeypatch, joints):
+    """The default colour cycle has 10 colours: the 12 joints drawn by default repeated two."""
+    sc = load_scenario("reach", robot="romeo" if joints else None)
+    if joints:
+        sc.plot_joints = list(sc.robot.bounded_joint_names)  # (55 joints)
+    drawn = {}
+    real = matplotlib.axes.Axes.plot
+
+    def spy(self, *args, **kwargs):
+        lines = real(self, *args, **kwargs)
+        for line in lines:
+            drawn.setdefault(self, []).append((line.get_label(), line.get_color(), line.get_linestyle()))
+        return lines
+
+    monkeypatch.setattr(matplotlib.axes.Axes, "plot", spy)
+    plot_runs([still_run(sc, 4)], tmp_path, joints=sc.plot_joints)
+    joint_names = set(sc.robot.bounded_joint_names)
+    fig3 = [lines for lines in drawn.values() if any(label in joint_names for label, _, _ in lines)]
+    assert len(fig3) == 1, drawn
+    labels = [label for label, _, _ in fig3[0]]
+    styles = [(c, ls) for _, c, ls in fig3[0]]
+    assert len(labels) == (len(joint_names) if joints else 12)
+    assert len(set(styles)) == len(styles), styles
+
+
+def test_too_many_plotted_joints_are_refused_on_loading(tmp_path):
+    from hikbench.problems.robots.scenarios import PLOT_JOINTS_MAX, ScenarioError
+
+    f = tmp_path / "s.toml"
+    f.write_text('name = "s"\nstack = "arm_reach"\n[plot]\njoints = [' + ", ".join(['"panda_joint1"'] * 81) + "]\n")
+    with pytest.raises(ScenarioError, match=f"plot.joints: 81 joints; expected at most {PLOT_JOINTS_MAX}"):
+        load_scenario(f)

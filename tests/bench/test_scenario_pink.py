@@ -10,7 +10,8 @@ import pytest
 from hikbench.bench.cli import main
 from hikbench.bench.scenarios.controllers import ControllerError, build_controller
 from hikbench.bench.scenarios.pink_ik import LEVEL_FACTOR, PinkController, level_costs
-from hikbench.bench.scenarios.runner import NO_WARM_START, check_run, run_scenario
+from hikbench.bench.scenarios.checks import check_run
+from hikbench.bench.scenarios.runner import NO_WARM_START, run_scenario
 from hikbench.problems.robots.kinematics import KinematicState
 from hikbench.problems.robots.scenarios import load_scenario
 from hikbench.problems.robots.stacks import Stack, StackSpec, build_stack

@@ -29,7 +29,8 @@ from hikbench.bench.scenarios.rows import (
     summary_row,
     write_scenario_row,
 )
-from hikbench.bench.scenarios.runner import COLUMNS, ScenarioRun, check_run
+from hikbench.bench.scenarios.checks import check_run
+from hikbench.bench.scenarios.runner import COLUMNS, ScenarioRun
 from hikbench.bench.suites import load_suite
 from hikbench.solvers import registry
 from hikbench.solvers.peers import NOT_BUILT, load_module
@@ -120,8 +121,10 @@ def test_the_summary_row_is_the_per_step_csv_summarized_and_its_checks(scenario_
     assert row["steps_not_optimal"] == (df["status"] != "optimal").sum()
     q = np.load(path.with_name(path.stem + "_q.npy"))
     checks = check_run(ScenarioRun(reach, solver, str(df["warm_start"].iloc[0]), df, q))
-    failed = [c.name for c in checks if not c.passed]
-    assert (row["checks_passed"], row["checks_failed"]) == (len(checks) - len(failed), len(failed))
+    failed = [c.name for c in checks if c.passed is False]
+    unjudged = sum(c.passed is None for c in checks)  # (the suite's runs are cut: some checks are not judged)
+    assert (row["checks_passed"], row["checks_failed"], row["checks_not_judged"]) == (
+        len(checks) - len(failed) - unjudged, len(failed), unjudged)
     assert (row["failed_checks"] if isinstance(row["failed_checks"], str) else "") == "; ".join(failed)
 
 
@@ -199,6 +202,10 @@ def test_the_report_shows_the_scenario_table(scenario_run, tmp_path):
     assert "[Scenarios](#scenarios)" in text and "\n## Scenarios\n" in text
     assert f"| reach | talos | hcod | time | {STEPS} (cut: the scenario has 700) |" in text
     assert "| reach | talos | abort | n/a |" in text and "| crashed: " in text
+    hcod = _rows(out).loc["hcod"]  # (a cut run: the checks of its final values are not judged, and it says so)
+    counts = int(hcod["checks_passed"]), int(hcod["checks_failed"]), int(hcod["checks_not_judged"])
+    assert counts[2] > 0, counts
+    assert f"| {counts[0]}/{sum(counts)} passed, {counts[2]} not judged" in text, text
     assert f"{len(SOLVERS)} scenario runs, {len(SOLVERS) - 1} finished" in text  # (its opening line)
     data = json.loads((out / "report.json").read_text())
     assert [r["solver"] for r in data["scenarios"]] == read_scenario_rows(out)["solver"].tolist()
@@ -224,7 +231,7 @@ def test_the_claims_find_the_scenario_csvs_of_the_run(scenario_run):
 def test_the_peers_suite_runs_the_reach_scenario_with_the_peers_and_a_cascade():
     (entry,) = load_suite("peers").scenarios
     assert entry["name"] == "reach" and entry["robot"] == "talos"
-    assert entry["solvers"] == ["hcod", "soth", "lexls", "cascade-daqp"]
+    assert entry["solvers"] == ["hcod", "soth", "lexls", "nipm-hlsp", "cascade-daqp"]
     assert entry["warm_start"] == ["time"]
 
 

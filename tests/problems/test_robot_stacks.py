@@ -149,3 +149,19 @@ def test_an_unknown_frame_suggests_the_closest_names(panda):
         load_robot("ur5").frame_name("tool_0")
     with pytest.raises(FrameNotFoundError, match="frame names: universe, "):
         load_robot("ur5").frame_name("zzz")  # (22 frames: all listed)
+
+
+def test_errors_of_the_velocity_are_measured_at_u_and_none_without_it():
+    """``stack.errors(q)`` gives the tasks of q their error and the tasks of the velocity None
+    (not nan); with u, velocity_limits is the total excess of |u_i| over the URDF limits."""
+    stack = build_stack("arm_reach")
+    q = stack.robot.q0
+    at_q = stack.errors(q)
+    assert at_q["velocity_limits"] is None
+    assert all(isinstance(at_q[t], float) and np.isfinite(at_q[t]) for t in ("joint_limits", "ee", "posture"))
+    u = np.linspace(-4.0, 4.0, stack.robot.nv)
+    vmax = np.asarray(stack.robot.model.velocityLimit)  # (panda: 2.175, 2.61 rad/s, fingers 0.2 m/s)
+    expected = float(np.sum(np.maximum(np.abs(u) - vmax, 0.0)))
+    assert expected > 0
+    np.testing.assert_allclose(stack.errors(q, u)["velocity_limits"], expected, rtol=1e-12, atol=0)
+    assert stack.errors(q, np.zeros(stack.robot.nv))["velocity_limits"] == 0.0

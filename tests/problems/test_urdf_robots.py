@@ -74,8 +74,50 @@ def test_relative_paths_in_a_stack_file_are_relative_to_the_file(tmp_path, monke
     stack = build_stack(folder / "s.toml")
     assert stack.robot.floating_base and stack.robot.frames["right_hand"] == "r_wrist_link"
     assert stack.robot.model.frames[stack.task("right_hand").frame_id].name == "r_wrist_link"
-    # another robot replaces the file's, and its [frames] (written for the file's robot)
+    # the same URDF given again keeps the file's [frames]; another robot replaces the file's, and its
+    # [frames] (written for the file's robot)
+    assert build_stack(folder / "s.toml", robot=str(folder / "biped.urdf")).robot.frames["right_hand"] == "r_wrist_link"
     assert build_stack(folder / "s.toml", robot=str(files["biped.urdf"])).robot.frames["right_hand"] == "r_hand"
+
+
+def _tip_stack(folder):
+    """A stack on arm.urdf whose [frames] table names the alias ``tip`` (no name pattern finds it)."""
+    write_robots(folder)
+    (folder / "st.toml").write_text('name = "st"\nrobot = "arm.urdf"\n[frames]\ntip = "arm_link7"\n'
+                                    '[[levels]]\ntasks = [{ type = "joint_limits" }]\n'
+                                    '[[levels]]\ntasks = [{ type = "position", frame = "tip" }]\n')
+    return folder / "st.toml"
+
+
+@pytest.mark.parametrize("given", ["absolute", "relative"], ids=["absolute-path", "path-from-the-working-dir"])
+def test_a_stack_given_its_own_urdf_again_keeps_its_frames(tmp_path, monkeypatch, given):
+    """A suite or a command line that names the stack's own URDF file (as the robot-stack family's
+    ``robot`` or a [[scenarios]] entry's) runs the stack with its [frames] table."""
+    stack_file = _tip_stack(tmp_path / "robots")
+    monkeypatch.chdir(tmp_path)
+    ref = str(tmp_path / "robots" / "arm.urdf") if given == "absolute" else "robots/arm.urdf"
+    stack = build_stack(stack_file, robot=ref)
+    assert stack.robot.frames["tip"] == "arm_link7"
+    assert stack.robot.model.frames[stack.task("tip").frame_id].name == "arm_link7"
+    h = stack_problem(str(stack_file), 0, robot=ref)
+    assert h.n == 7 and h.depth == 2
+    scenario = tmp_path / "robots" / "sc.toml"
+    scenario.write_text('name = "sc"\nstack = "st.toml"\nsteps = 2\n')
+    from hikbench.problems.robots.scenarios import load_scenario
+
+    assert load_scenario(scenario, robot=ref).robot.frames["tip"] == "arm_link7"
+
+
+def test_a_frames_table_left_out_for_another_robot_is_said(tmp_path, files):
+    """On another robot the table is not applied, and the frame error says so and what to write."""
+    stack_file = _tip_stack(tmp_path / "robots")
+    with pytest.raises(HikbenchError) as err:
+        build_stack(stack_file, robot=str(files["biped.urdf"]))
+    text = str(err.value)
+    assert "levels[1].tasks[0].frame = 'tip': expected an alias of robot 'biped'" in text, text
+    assert text.endswith("; the file's frames.tip = 'arm_link7' is written for its robot 'arm' and is not applied "
+                         "to robot 'biped': name the frame for this robot where the robot is given (a scenario "
+                         "file's [frames] table, --frame tip=FRAME), or give the stack's own robot"), text
 
 
 @pytest.mark.parametrize("stack, robot, srdf, n", [

@@ -6,24 +6,10 @@ from __future__ import annotations
 from functools import cache
 
 import numpy as np
-from threadpoolctl import threadpool_info
 
-from hikbench.bench.harness.environment import openblas_kernels
 from hikbench.problems import generators as g
 from hikbench.problems.hierarchy import Hierarchy, Level
 from hikbench.solvers.yardstick import yardstick_solution
-
-#: the kernels numpy's OpenBLAS chose on this CPU (threadpoolctl's ``architecture``, read as
-#: ``hikbench.bench.harness.environment.machine_class``), None without one
-BLAS_KERNELS = openblas_kernels(threadpool_info())
-#: whether numpy's OpenBLAS runs its AVX-512 "SkylakeX" kernels: the test problems (random
-#: orthogonal factors, products) and the solvers' NumPy steps round otherwise there, and on the
-#: borderline cases which answers go wrong follows. It is the kernels, not the CPU: an AVX-512
-#: AMD EPYC Zen 5 (numba target znver5) whose environment sets OPENBLAS_CORETYPE=Haswell gives
-#: every outcome of the AVX2 machines, and the Zen 4's with SkylakeX kernels (the variable unset).
-#: Only these two kinds were observed: under OPENBLAS_CORETYPE=Sandybridge 9 tests of test_cascade
-#: and test_hcod (borderline cascade outcomes, hcod's known wrong answers) read otherwise
-SKYLAKEX_BLAS = BLAS_KERNELS == "SkylakeX"
 
 #: name -> builder; random families and every degenerate case at n = 8
 CASE_BUILDERS = {

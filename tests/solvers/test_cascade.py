@@ -9,10 +9,12 @@ expected outcome is ``"ok"`` unless :data:`KNOWN` records otherwise — those
 entries are the backend failures observed where numpy's OpenBLAS runs its
 "Haswell" kernels (AVX2 AMD EPYCs, and an AVX-512 Zen 5 whose environment
 sets OPENBLAS_CORETYPE=Haswell; qpsolvers 4.13, osqp 1.1, proxsuite 0.8, clarabel 0.11,
-daqp, quadprog, piqp 0.7, highspy), with the outcomes that differ where it
-runs its AVX-512 "SkylakeX" kernels (an AMD EPYC Zen 4) in
-:data:`KNOWN_SKYLAKEX`, and are asserted exactly on either, so a backend that
-gets better or worse shows up.
+daqp, quadprog, piqp 0.7, highspy), with the outcomes seen where it runs its
+AVX-512 "SkylakeX" kernels (an AMD EPYC Zen 4, an Intel Xeon) in
+:data:`KNOWN_SKYLAKEX`. On these borderline cases which frozen set a backend
+calls infeasible follows the CPU's rounding, so every machine accepts "ok" or
+the outcomes seen on either kind: a case that was "ok" on both and fails, or a
+wrong answer ("differs") where none was seen, still shows up.
 """
 
 from __future__ import annotations
@@ -22,7 +24,7 @@ import re
 
 import numpy as np
 import pytest
-from baseline_cases import BIG_CASES, CASES, SKYLAKEX_BLAS, case, reference
+from baseline_cases import BIG_CASES, CASES, case, reference
 from hypothesis import assume, example, given, settings
 from hypothesis import strategies as st
 
@@ -158,8 +160,7 @@ KNOWN: dict[tuple[str, str, str, str], str | tuple[str, ...]] = {
     ("cascade-cvxpy", "low", "shift", "ik-like-8"): "infeasible_level",
 }
 
-# The outcomes that differ where numpy's OpenBLAS runs its SkylakeX kernels (baseline_cases.
-# SKYLAKEX_BLAS; an AMD EPYC Zen 4, the same package versions, three runs gave the same; an AMD EPYC
+# The outcomes that differ where numpy's OpenBLAS runs its SkylakeX kernels (an AMD EPYC Zen 4, the same package versions, three runs gave the same; an AMD EPYC
 # Zen 5 with these kernels gives the same but osqp's first entry): the test problems and the backends'
 # NumPy steps round differently and, on these borderline cases, so does which frozen set they
 # call infeasible.
@@ -188,12 +189,16 @@ KNOWN_SKYLAKEX: dict[tuple[str, str, str, str], str | tuple[str, ...]] = {
 }
 
 
-def expected_outcome(key: tuple[str, str, str, str]):
-    """The outcome expected for ``key``: under OpenBLAS's SkylakeX kernels KNOWN_SKYLAKEX's
-    if it has one, else KNOWN's, else "ok"."""
-    if SKYLAKEX_BLAS and key in KNOWN_SKYLAKEX:
-        return KNOWN_SKYLAKEX[key]
-    return KNOWN.get(key, "ok")
+def expected_outcome(key: tuple[str, str, str, str]) -> tuple[str, ...]:
+    """The outcomes accepted for ``key``: "ok", and those :data:`KNOWN` and :data:`KNOWN_SKYLAKEX` record
+    for it (the two kinds of OpenBLAS kernels seen; KNOWN_SKYLAKEX holds only where the second
+    differs). A recorded failure is a borderline case: on a third machine (an Intel Xeon with the
+    Haswell kernels solves quadprog's shifted infeasible_top) it may be solved."""
+    haswell = KNOWN.get(key, "ok")
+    accepted = ["ok"]
+    for seen in (haswell, KNOWN_SKYLAKEX.get(key, haswell)):
+        accepted += [seen] if isinstance(seen, str) else list(seen)
+    return tuple(dict.fromkeys(accepted))
 
 
 def outcome(name: str, profile: str, freeze: str, case_name: str):
@@ -221,9 +226,7 @@ def _matrix():
 @pytest.mark.parametrize("name, profile, freeze, case_name", list(_matrix()))
 def test_cascade_matches_reference_or_known_status(name, profile, freeze, case_name):
     got, res = outcome(name, profile, freeze, case_name)
-    expected = expected_outcome((name, profile, freeze, case_name))
-    allowed = expected if isinstance(expected, tuple) else (expected,)
-    assert got in allowed, f"{res.status}: {res.reason}"
+    assert got in expected_outcome((name, profile, freeze, case_name)), f"{res.status}: {res.reason}"
     if res.status != OPTIMAL:
         assert f"level {res.info['failed_level']}" in res.reason
         assert res.reason.startswith(name)
@@ -250,7 +253,6 @@ KNOWN_BIG: dict[tuple[str, str, str], str] = {
     ("cascade-quadprog", "equality", "ik-like-20"): "infeasible_level",
     ("cascade-quadprog", "equality", "ik-like-40"): "infeasible_level",
     ("cascade-quadprog", "equality", "equality-36x8x6"): "infeasible_level",
-    ("cascade-quadprog", "relaxed", "ik-like-20"): "infeasible_level",
     ("cascade-piqp", "relaxed", "ik-like-40"): "max_iterations",
     ("cascade-highs", "equality", "ik-like-40"): "differs",
     ("cascade-highs", "equality", "random-20"): "differs",
@@ -267,7 +269,7 @@ KNOWN_BIG: dict[tuple[str, str, str], str] = {
                           for f in cascade.FREEZE_MODES for c in BIG_CASES])
 def test_cascade_on_family_sized_problems(name, freeze, case_name):
     got, res = outcome(name, "high", freeze, case_name)
-    assert got == KNOWN_BIG.get((name, freeze, case_name), "ok"), f"{res.status}: {res.reason}"
+    assert got in ("ok", KNOWN_BIG.get((name, freeze, case_name), "ok")), f"{res.status}: {res.reason}"
 
 
 @pytest.mark.parametrize("name", ALL_CASCADES)

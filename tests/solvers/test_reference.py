@@ -46,6 +46,18 @@ from hikbench.solvers.base import OPTIMAL
 from hikbench.solvers.yardstick import YardstickSolver, cascade_yardstick, nullspace_yardstick, yardstick_solution
 
 INF = np.inf
+#: the dual active-set cascades as judges solve the exact frozen set (``shift``, regularisation
+#: 1e-12), not their default: ``relaxed`` (quadprog) widens it by 1e-9, so its level k + 1 may
+#: end below the optimum by more than verify's 1e-9 where level k pays for it within it
+JUDGE_OPTIONS = {"cascade-daqp": {"freeze": "shift", "regularization": 1e-12},
+                 "cascade-quadprog": {"freeze": "shift", "regularization": 1e-12}}
+
+
+def _judge(name: str):
+    """The registry solver ``name`` as a judge of the yardstick (:data:`JUDGE_OPTIONS`)."""
+    from hikbench.solvers import registry
+
+    return registry.create(name, **JUDGE_OPTIONS.get(name, {}))
 
 
 def enumerate_qp(P, G_eq, h_eq, G_in, h_in):
@@ -466,7 +478,7 @@ def test_the_reference_reaches_the_optimum_of_degenerate_levels(case, judge):
     h = random_hierarchy(n, depth, rows, **kw)
     x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
-    other = registry.create(judge).solve(h)
+    other = _judge(judge).solve(h)
     assert other.x is not None, other.reason
     verdict = verify(h, x, other.x, rtol=1e-9)
     assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
@@ -487,7 +499,7 @@ def test_an_active_set_read_too_tight_is_read_again(monkeypatch):
     x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
     for judge in ("hcod", "cascade-quadprog"):
-        other = registry.create(judge).solve(h)
+        other = _judge(judge).solve(h)
         verdict = verify(h, x, other.x, rtol=1e-9)
         assert verdict.equal, (judge, verdict, level_norms(h, x), level_norms(h, other.x))
     monkeypatch.setattr(yardstick, "_ACTIVE_RETRY", ())
@@ -512,7 +524,7 @@ def test_the_reference_drops_rows_of_a_wrong_active_set(case, judge):
     h = degenerate("badly_scaled", *case)
     x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
-    other = registry.create(judge).solve(h)  # (daqp's status flag aside: judged by its norms)
+    other = _judge(judge).solve(h)  # (daqp's status flag aside: judged by its norms)
     verdict = verify(h, x, other.x, rtol=1e-9)
     assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
@@ -535,7 +547,7 @@ def test_the_reference_holds_a_met_row_by_its_multiplier(case, judge):
     h = degenerate("badly_scaled", *case)
     x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
-    other = registry.create(judge).solve(h)
+    other = _judge(judge).solve(h)
     verdict = verify(h, x, other.x, rtol=1e-9)
     assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
@@ -554,7 +566,7 @@ def test_the_reference_does_not_drop_again_a_row_the_step_pushes_back(judge):
     h = degenerate("badly_scaled", 5, 343)
     x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
-    other = registry.create(judge).solve(h)
+    other = _judge(judge).solve(h)
     verdict = verify(h, x, other.x, rtol=1e-9)
     assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
@@ -583,7 +595,7 @@ def test_a_descended_point_no_cheaper_to_round_off_is_taken_where_kkt_holds_ther
     h = degenerate(case, n, seed)
     x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
-    other = registry.create(judge).solve(h)
+    other = _judge(judge).solve(h)
     verdict = verify(h, x, other.x, rtol=1e-9)
     assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
@@ -796,7 +808,7 @@ def test_a_met_row_of_the_level_does_not_hold_back_its_objective(judge):
     h = load_npz(Path(__file__).parent / "data" / "badly_scaled_12_6444.npz")
     x, info = cascade_yardstick(h)
     assert all(info["polished"]), info["backend"]
-    other = registry.create(judge).solve(h)  # (judged by its norms, not its status flag)
+    other = _judge(judge).solve(h)  # (judged by its norms, not its status flag)
     verdict = verify(h, x, other.x, rtol=1e-9)
     assert verdict.equal, (verdict, level_norms(h, x), level_norms(h, other.x))
 
@@ -819,6 +831,6 @@ def test_an_unpolished_point_out_of_the_bounds_above_is_not_kept():
     assert all(info["polished"]), info["backend"]
     assert info["backend"][3].startswith("none solved it"), info["backend"]
     for judge in ("hcod", "cascade-piqp"):
-        other = registry.create(judge).solve(h)
+        other = _judge(judge).solve(h)
         verdict = verify(h, x, other.x, rtol=1e-9)
         assert verdict.equal, (judge, verdict, level_norms(h, x), level_norms(h, other.x))

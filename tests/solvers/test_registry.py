@@ -65,7 +65,9 @@ def test_create_passes_defaults_and_options(fake_registry):
     # a factory taking **options validates names itself
     ("test-kwargs", {"bogus": 1}, TypeError, r"unexpected keyword argument 'bogus'"),
     ("nope", {}, SolverNotFoundError, r"unknown solver 'nope' \(found solvers: .*yardstick"),
-], ids=["unknown option", "no options", "bad value", "constructor bug", "kwargs factory", "unknown solver"])
+    ("test-otp", {}, SolverNotFoundError, r"unknown solver 'test-otp'; did you mean 'test-opt'\? \(found solvers: "),
+], ids=["unknown option", "no options", "bad value", "constructor bug", "kwargs factory", "unknown solver",
+        "misspelt solver"])
 def test_create_errors(fake_registry, name, options, error, message):
     with pytest.raises(error, match=message):
         registry.create(name, **options)
@@ -92,6 +94,14 @@ def test_optimal_result_with_nonfinite_x_becomes_numerical_failure(x, status):
     assert ("NaN or inf" in r.reason) == (status == "numerical_failure")
 
 
+@pytest.mark.parametrize("reason", ["", "converged"], ids=["no reason", "a reason"])
+def test_an_optimal_result_without_x_is_a_solver_error(reason):
+    r = SolveResult(x=None, status="optimal", reason=reason)
+    assert r.status == "error" and not r.ok
+    assert r.reason == (f"{reason}; " if reason else "") + "status optimal with x None: expected x, shape (n,)"
+    assert SolveResult(x=None, status="unsupported").status == "unsupported"  # no x is right there
+
+
 def test_x_finite_is_the_callers_word_and_not_a_field():
     """x_finite=True (a solver whose compiled code tested every entry, as
     hcod's kernel does) skips the repeat of the test; it is init-only."""
@@ -103,7 +113,7 @@ def test_x_finite_is_the_callers_word_and_not_a_field():
 # every solver of the project, listed without importing a backend (registry.available() at
 # collection would import them all for any -k run)
 _ALL = ("hcod", "yardstick", "cascade-cvxpy", *(f"cascade-{b}" for b in tables.BACKENDS), "nullspace-svd",
-        "nullspace-cod", "pinv-all", "weighted", "dls", "dls-liegeois")
+        "nullspace-cod", "pinv-all", "weighted", "dls", "dls-liegeois", "daqp-hqp")
 
 
 def test_every_solver_of_the_project_is_installed():
@@ -111,7 +121,7 @@ def test_every_solver_of_the_project_is_installed():
     the tests parametrized over the installed solvers quietly running fewer cases (and _ALL is
     the registry)."""
     missing = registry.missing()
-    peers = {"soth", "lexls"}  # (C++ peers: listed once built by `make peers`, docs/peers.md)
+    peers = {"soth", "lexls", "nipm-hlsp"}  # (C++ peers: listed once built by `make peers`, docs/peers.md)
     assert {k: v for k, v in missing.items() if k not in peers} == {}
     assert set(_ALL) == set(registry.available()) - peers
     built = peers & set(registry.available())
