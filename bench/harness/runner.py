@@ -651,6 +651,11 @@ def _certify_all(points: dict, problems: dict, executor, budget: float, progress
             elif not res["certified"]:
                 refs[pid] = (x, "optimal", note, REFERENCE_ONLY,
                              f"{note}; the exact certificate refused it: {res['reason']}", 0.0)
+            elif res.get("x_cert") is None:  # (x* is not representable: no double reaches it)
+                refs[pid] = (x, "optimal", note, CERTIFIED,
+                             f"{note}; the certificate's exact optimum x* is not representable in double "
+                             f"precision (rounded, it misses its exact level norms at level "
+                             f"{res['unrepresentable_level']}): the point is the yardstick", 0.0)
             else:  # (certified: the exact optimum x* is the yardstick, never a point within a tolerance of it)
                 refs[pid] = (res["x_cert"], "optimal", note, CERTIFIED,
                              f"the certificate's exact optimum x*, from {note}" + (
