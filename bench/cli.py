@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import errno
 import importlib
 import os
 import signal
@@ -91,7 +92,9 @@ def main(argv: list[str] | None = None) -> int:
         return stop.code if isinstance(stop.code, int) else 0
     try:
         with _sigterm_as_interrupt():
-            return int(args._run(args) or 0)
+            code = int(args._run(args) or 0)
+            sys.stdout.flush()  # (here, where a full device is one line, not at the interpreter's exit)
+            return code
     except Terminated:
         print(f"hikbench {args.command}: terminated (SIGTERM)", file=sys.stderr)
         return 128 + signal.SIGTERM
@@ -111,9 +114,28 @@ def main(argv: list[str] | None = None) -> int:
         print(f"hikbench {args.command}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:  # output piped into `head`: stop quietly
-        devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())
+        _stdout_to_devnull()
         return 0
+    except OSError as err:
+        if err.errno not in _NO_SPACE:  # a bug, with its traceback
+            raise
+        where = f" writing {err.filename}" if err.filename else " writing the output"
+        if err.filename is None:  # (stdout itself: what is left in its buffer cannot be written either)
+            _stdout_to_devnull()
+        print(f"hikbench {args.command}: error: {err.strerror or 'no space left'}{where}; free space and "
+              f"run it again", file=sys.stderr)
+        return 2
+
+
+#: errno values of a write that found no space: a full device, a quota, a file too large
+_NO_SPACE = frozenset(getattr(errno, name) for name in ("ENOSPC", "EDQUOT", "EFBIG") if hasattr(errno, name))
+
+
+def _stdout_to_devnull() -> None:
+    """Point fd 1 at /dev/null: Python's flush of stdout at exit then finds nothing to fail on."""
+    devnull = os.open(os.devnull, os.O_WRONLY)
+    os.dup2(devnull, sys.stdout.fileno())
+    os.close(devnull)
 
 
 class Terminated(KeyboardInterrupt):

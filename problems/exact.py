@@ -1,61 +1,68 @@
-"""An exact certificate of a lexicographic solution, in multiple-precision arithmetic.
+"""An exact certificate of a lexicographic solution, in rational arithmetic (python-flint).
 
 Where two solvers disagree near a level's conditioning, double precision cannot say which one
-is right. :func:`certify` reads an active set off a point x (each row inside its bounds, or
-held at a bound, or violated), solves the sequence of LSIs (ICRA 2010, eqs. (33)-(36)) on that
-set in ``digits``-digit arithmetic (mpmath), and checks that the result is the lexicographic
-optimum: feasible for every row read as inside, and at each stage (every level, then the
-minimum-norm stage) a KKT point with multipliers of the right sign. A certified x* is the
-exact optimum of the problem as stored (the float64 numbers of A and the bounds, taken
-exactly); its level norms judge any solver's, whatever their agreement with each other.
+is right. :func:`certify` reads an active set off a point x (each row inside its bounds, held
+at a bound, or violated), computes the lexicographic optimum x* on that set exactly (every
+float64 of A and the bounds taken as the rational it is), and proves it optimal: every stage
+(each level, then the minimum-norm stage) a KKT point with exact multipliers of the right
+sign. A certified x* is the exact optimum of the problem as stored; its level norms judge any
+solver's, whatever their agreement with each other. Derivation: docs/verification.md.
 
-On that active set, stage k (levels j < k done) is
+On the active set, stage k (levels j < k done) is
 
-    min_x 1/2 ||w_k||^2,  w_k = A_T x - t_T
-    s.t.  A_E x = e_E
+    min_x 1/2 ||w_k||^2,  w_k = A_T x - t_T,   s.t.  A_H x = h_H
 
-with T the rows of level k read at a bound or violated (their targets t the bound they are
-at or beyond; an equality row its value), E the rows of the levels above that are held: a row
-with a nonzero optimal slack at its achieved value (eq. 35, w_j* fixed), one with a zero
-slack at its bound. Each stage is solved by the SVD null-space method (eq. 2) in ``digits``
-digits. The last stage is min 1/2 ||x||^2 on every held row.
+T the rows of level k read at a bound or violated (t their bound; an equality row its value),
+H the rows of the levels above held at their stage's value ``t + w`` (ICRA 2010, eq. 35: a
+nonzero optimal slack at its value, a zero one at its bound). With B an independent subset of
+H and T1 of T that extends it (chosen modulo a 62-bit prime; every consequence is checked
+exactly), the rows T2 = T \\ T1 are combinations of R = [B; T1]: where T2 is empty, w_k = 0;
+otherwise, on pivot columns P of R (R_P square, nonsingular, and x zero off P: the same
+reachable ``A x``), the stage's KKT system
 
-At x*, stage k is optimal iff ``A_T^T w_k + A_E^T lam = 0`` with lam free on the rows held
-at a value and ``lam >= 0`` (row held at its upper bound) or ``<= 0`` (lower) on the others
-(a target row of level k at its bound has the multiplier w_i = 0: it is no constraint).
-lam is solved for in ``digits`` digits on the supports float64 bounded least squares gives,
-and where none of them serves, by an exact NNLS (Lawson and Hanson), so that a refusal at a
-stage means that no multipliers of the right sign exist; the residual must vanish to
-``10**-(digits // 2)`` of the size of g's terms. The held rows' equations and the multipliers'
-least squares are solved with each row divided by its norm: the same solutions, and a rank
-cut at each row's own scale (rows of norm 1e200 and 1 side by side).
+    [A_TP  -I     0   ] [x_P]   [t]
+    [B_P    0     0   ] [w  ] = [h]
+    [0     A_TP^T B_P^T] [lam]   [0]
 
-Only a certificate that passes every check is returned certified; the reason names the first
-check that failed otherwise. The active set is read at each tolerance of :data:`READINGS` in
-turn until one certifies. A row read at a bound whose exact slack on its stage points inside
-its bounds (a row of a rank-deficient level that the others place there) is let go for that
-stage, and held at its bound below if the stage's point leaves it there.
+is square and nonsingular (one exact solve, ``fmpq_mat.solve``). A row read at a bound whose
+exact slack points inside its bounds is let go for that stage, and held at its bound below
+where the stage's point leaves it there. x* is the minimum-norm point of every held row,
+``x* = B^T (B B^T)^-1 v``.
 
-What it certifies is the stored problem. A level whose rows are rank-deficient only to float64
-rounding (combinations of others, the ``rank_deficient`` family) has full rank in exact
-arithmetic, with singular values ~1e-17 of the largest: its exact optimum is another point
-than the one a solver's rank threshold gives, and the certificate is refused there. The cost
-is that of dense SVDs in software arithmetic: ~0.1 s at n = 5, ~3 s at n = 20.
+At x*, stage k is optimal iff ``g + sum_j lam_j a_j = 0``, g = sum of level k's violations
+times their rows, lam free on the rows of the levels above with a nonzero slack (or an
+equality), ``lam >= 0`` at an upper bound and ``<= 0`` at a lower one. The stage's own lam
+(the KKT solve's) is checked first; where a sign is wrong (multipliers not unique: parallel or
+duplicated rows at their bounds, rows weakly active), the multipliers are searched over every
+row of the levels above that x* holds at a bound or a value, as the feasibility problem it is:
+a float64 LP (HiGHS) proposes a support, checked exactly, else an exact NNLS (Lawson and
+Hanson) decides. Every check is exact: no tolerance, no digit limit.
+
+Only a certificate that passes every check is certified; the reason names the first check
+that failed otherwise. The active set is read at each tolerance of :data:`READINGS` in turn
+until one certifies. What it certifies is the stored problem: a level rank-deficient only to
+float64 rounding (the ``rank_deficient`` family) has full rank in exact arithmetic and another
+optimum, which the active set read off a solver's point does not give: refused.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
+from fractions import Fraction
 
 import numpy as np
 
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.hierarchy import Hierarchy
 
-__all__ = ["COST_S", "Certificate", "certify", "estimated_seconds"]
+__all__ = ["COST_S", "READINGS", "Certificate", "certify", "estimated_seconds"]
 
 #: row states read off x
 INSIDE, AT_LOWER, AT_UPPER, EQUALITY = "inside", "lower", "upper", "equality"
+#: the prime of the independence and pivot choices (the largest below 2^62); a choice it gets
+#: wrong (probability ~n/2^62) fails an exact check, never passes one
+_PRIME = 2**62 - 57
 
 
 @dataclass
@@ -69,13 +76,19 @@ class Certificate:
     reason : str
         Empty when certified, else the first check that failed.
     level_norms : ndarray, shape (levels,)
-        The level norms ``||v_k(x*)||`` of the exact x*, rounded to float64 (NaN where the
-        stages did not reach x*).
+        The level norms ``||v_k(x*)||`` of the exact x*, rounded to float64 (NaN where not
+        certified).
     x : ndarray, shape (n,)
-        x* rounded to float64 (NaN where not reached).
+        x* rounded to float64 (NaN where not certified).
     states : list of str
         The state read off the given point for each row (``inside``, ``lower``, ``upper``,
         ``equality``).
+    level_norms_sq : tuple of Fraction, shape (levels,)
+        The exact squared level norms ``||v_k(x*)||^2`` (empty where not certified).
+    x_exact : tuple of Fraction, shape (n,)
+        The exact x* (empty where not certified).
+    reading : float
+        The reading tolerance of :data:`READINGS` whose active set this is.
     """
 
     certified: bool
@@ -83,243 +96,342 @@ class Certificate:
     level_norms: np.ndarray
     x: np.ndarray
     states: list = field(default_factory=list)
+    level_norms_sq: tuple = ()
+    x_exact: tuple = ()
+    reading: float = float("nan")
 
 
-def _row_scales(h: Hierarchy, x: np.ndarray, E: "_Exact") -> list:
-    """Each row's scale at x, ``|a_i| X + |bound_i|`` (the larger finite bound), in E's numbers
-    (no overflow at rows of norm 1e308), a list of (rows,). ``X = ||x||``, or where x = 0 the
-    largest ``|bound_j| / |a_j|`` (the distance of a bound's hyperplane from the origin, 1 where
-    every bound is 0). No absolute part: the scale of a row multiplied by c (bounds alike) is c
-    times its own, and A times c with x divided by c (the same problem in other units of x)
-    leaves it unchanged, so that what reads as held and what counts as zero are the same in
-    any units (an absolute ``|a_i| (1 + ||x||)`` read every row of A x 1e100 as held and
-    certified a point above the optimum)."""
-    ctx = E.ctx
-    norms = [E.norm(row) if any(row) else ctx.mpf(0) for row in E.A]
-    bound = [max(abs(v) if v is not None else ctx.mpf(0) for v in (lo, up)) for lo, up in zip(E.lo, E.up)]
-    size = ctx.sqrt(ctx.fsum(ctx.mpf(float(v)) ** 2 for v in x))
-    if size == 0:
-        size = max((b / a for a, b in zip(norms, bound) if a > 0), default=ctx.mpf(0)) or ctx.mpf(1)
-    return [a * size + b for a, b in zip(norms, bound)]
+def _q(v: float):
+    from flint import fmpq
+
+    return fmpq(*v.as_integer_ratio())
 
 
-def _row_norms(A: np.ndarray) -> np.ndarray:
-    """Each row's 2-norm without overflow (entries up to the largest double), shape (rows,)."""
-    m = np.max(np.abs(A), axis=1, initial=0.0)
-    safe = np.where(m > 0, m, 1.0)
-    return m * np.linalg.norm(A / safe[:, None], axis=1)
+def _to_float(q) -> float:
+    """The float64 nearest the rational q (Python's int division rounds correctly; 0 or inf
+    beyond the double range)."""
+    p, d = int(q.p), int(q.q)
+    try:
+        return p / d
+    except OverflowError:
+        return math.copysign(math.inf, p)
 
 
-def _where(h: Hierarchy, i: int) -> str:
-    """``level k, row j`` of the stacked row i."""
-    k = int(np.searchsorted(h.starts, i, side="right")) - 1
-    return f"level {k}, row {i - h.starts[k]}"
+def _sqrt_float(q) -> float:
+    """sqrt(q) for a rational q >= 0, to float64 (~2^-100 relative before rounding)."""
+    p, d = int(q.p), int(q.q)
+    if p == 0:
+        return 0.0
+    e = (220 - p.bit_length() + d.bit_length()) // 2  # p 4^e / d has ~220 bits: its root ~110
+    r = math.isqrt((p << (2 * e)) // d if e >= 0 else p // (d << (-2 * e)))
+    return math.ldexp(float(r), -e) if r.bit_length() < 1000 else math.ldexp(float(r >> 200), 200 - e)
 
 
-def _read_states(h: Hierarchy, E: "_Exact", x, rtol: float, scale: list) -> list[str]:
-    """Each row's state at x (E's numbers): at a bound or beyond it within or past ``rtol`` of
-    the row's scale (:func:`_row_scales`) reads as held there (or violated, the same target).
-    ``A x`` is taken in E's digits (a row of norm 1e308 overflows in float64)."""
-    states = []
-    for i in range(h.A.shape[0]):
-        lo, up = E.lo[i], E.up[i]
-        if h.lower[i] == h.upper[i]:
-            states.append(EQUALITY)
-            continue
-        r, tol = E.dot(i, x), rtol * scale[i]
-        if up is not None and r >= up - tol and (lo is None or up - r <= r - lo):
-            states.append(AT_UPPER)
-        elif lo is not None and r <= lo + tol:
-            states.append(AT_LOWER)
-        else:
-            states.append(INSIDE)
-    return states
+def _norm_q(v: np.ndarray):
+    """||v||_2 of a float64 vector as a rational (its largest entry times the float norm of v
+    divided by it: no overflow at entries of 1e308), about 1e-16 relative."""
+    m = float(np.max(np.abs(v), initial=0.0))
+    return _q(0.0) if m == 0 else _q(m) * _q(float(np.linalg.norm(v / m)))
 
 
-class _Exact:
-    """The problem's numbers in ``digits`` digits and the linear algebra on them."""
+class _Data:
+    """The problem's numbers as rationals (fmpq) and modulo :data:`_PRIME`, and the exact
+    linear algebra on them. Rows are indexed by the hierarchy's stacked row."""
 
-    def __init__(self, h: Hierarchy, digits: int):
-        import mpmath
+    def __init__(self, h: Hierarchy):
+        from flint import fmpq, fmpq_mat
 
-        self.ctx = mpmath.MPContext()  # (its own precision: mpmath.mp's is left alone)
-        self.ctx.dps = digits
-        self.digits = digits
-        self.A = [[self.ctx.mpf(float(v)) for v in row] for row in h.A]
-        self.lo = [self.ctx.mpf(float(v)) if np.isfinite(v) else None for v in h.lower]
-        self.up = [self.ctx.mpf(float(v)) if np.isfinite(v) else None for v in h.upper]
-        self.n = h.n
+        self.n, self.m = h.n, h.A.shape[0]
+        self.rows, self.mod = [], []
+        for row in h.A.tolist():
+            pq = [v.as_integer_ratio() for v in row]
+            self.rows.append([fmpq(p, q) for p, q in pq])
+            self.mod.append([p * pow(q, -1, _PRIME) % _PRIME for p, q in pq])
+        self.lo = [_q(v) if math.isfinite(v) else None for v in h.lower.tolist()]
+        self.up = [_q(v) if math.isfinite(v) else None for v in h.upper.tolist()]
+        self.A = fmpq_mat(self.m, self.n, [v for row in self.rows for v in row])
 
-    def matrix(self, rows):
-        return self.ctx.matrix([self.A[i] for i in rows]) if rows else self.ctx.zeros(0, self.n)
+    def mat(self, rows, cols=None):
+        """The fmpq_mat of the given rows (and columns), shape (len(rows), len(cols))."""
+        from flint import fmpq_mat
 
-    def solve_held(self, rows, values):
-        """The minimum-norm x of ``A_rows x = values`` and the null-space basis of ``A_rows``
-        (:meth:`lstsq`), each row divided by its norm: the same solution set, and a rank cut
-        at the rows' own scale (relative to the stacked rows' norm it dropped a row 1e-200 the
-        size of another)."""
-        ctx = self.ctx
-        if not rows:
-            return self.lstsq(ctx.zeros(0, self.n), ctx.zeros(0, 1))
-        norms = [self.norm(self.A[i]) for i in rows]
-        M = ctx.matrix([[v / s for v in self.A[i]] for i, s in zip(rows, norms)])
-        return self.lstsq(M, ctx.matrix([v / s for v, s in zip(values, norms)]))
+        if cols is None:
+            return fmpq_mat(len(rows), self.n, [v for i in rows for v in self.rows[i]])
+        return fmpq_mat(len(rows), len(cols), [self.rows[i][q] for i in rows for q in cols])
 
-    def norm(self, row):
-        """||row||_2 of a list of this context's numbers (1 for a zero row: a divisor)."""
-        return self.ctx.sqrt(self.ctx.fsum(v * v for v in row)) or self.ctx.mpf(1)
+    def dots(self, x) -> list:
+        """``A x`` for an exact x (a list of n fmpq), a list of (rows,)."""
+        from flint import fmpq_mat
 
-    def dot(self, i, x):
-        return self.ctx.fsum(self.A[i][q] * x[q] for q in range(self.n))
+        return (self.A * fmpq_mat(self.n, 1, list(x))).entries()
 
-    def _svd(self, M, ref):
-        """U, s, Vt and the rank of M: singular values above 10**-(digits * 2 // 3) of ``ref``
-        (the data's own zeros, not a tolerance), ``ref`` the size of the rows before their
-        projection (projected, a row in the span of the rows above is ~1e-50, not 0: measured
-        against itself, it made a direction of an x of 1e50)."""
-        U, s, Vt = self.ctx.svd_r(M, full_matrices=True)
-        cut = self.ctx.mpf(10) ** (-(self.digits * 2 // 3)) * ref
-        rank = sum(1 for j in range(len(s)) if s[j] > cut)
-        return U, s, Vt, rank
+    def _rref_pivots(self, entries, r: int, c: int) -> list[int]:
+        """The pivot columns of the r x c matrix ``entries`` (row-major, mod the prime)."""
+        from flint import nmod_mat
 
-    def lstsq(self, M, b, ref=None):
-        """The minimum-norm least-squares solution of M y = b (M m x p), and the null-space
-        basis of M (p x (p - rank), columns). ``ref``: the scale of the rank cut (default
-        ``||M||_F``)."""
-        ctx = self.ctx
-        p = M.cols
-        if M.rows == 0:
-            return ctx.zeros(p, 1), ctx.eye(p)
-        if ref is None:
-            ref = ctx.mnorm(M, "f")
-        U, s, Vt, r = self._svd(M, ref)
-        y = ctx.zeros(p, 1)
-        for j in range(r):
-            c = ctx.fsum(U[i, j] * b[i] for i in range(M.rows)) / s[j]
-            for q in range(p):
-                y[q] += c * Vt[j, q]
-        N = ctx.zeros(p, p - r)
-        for j in range(r, p):
-            for q in range(p):
-                N[q, j - r] = Vt[j, q]
-        return y, N
+        if r == 0 or c == 0:
+            return []
+        R, rank = nmod_mat(r, c, entries, _PRIME).rref()
+        rows = R.tolist()
+        pivots, j = [], 0
+        for i in range(rank):
+            while int(rows[i][j]) == 0:
+                j += 1
+            pivots.append(j)
+            j += 1
+        return pivots
+
+    def independent(self, rows) -> list:
+        """The greedy independent subset of ``rows``, in their order (mod the prime)."""
+        rows = list(rows)
+        ent = [self.mod[i][q] for q in range(self.n) for i in rows]  # (the rows as columns)
+        return [rows[j] for j in self._rref_pivots(ent, self.n, len(rows))]
+
+    def pivot_columns(self, rows) -> list[int]:
+        """Columns P where the independent ``rows`` restricted to P are nonsingular."""
+        return self._rref_pivots([v for i in rows for v in self.mod[i]], len(rows), self.n)
 
 
-def _multipliers_vanish(E: _Exact, g, gscale, held, rtol_exp: int) -> bool:
-    """Whether ``g + C^T lam = 0`` has a solution with lam's signs (``held``: (row, sign) with
-    sign +1 at an upper bound (lam >= 0), -1 at a lower one (its row negated, lam >= 0), 0 free),
-    to ``10**-rtol_exp`` of ``gscale`` (the size of g's terms). First on the supports that float64
-    bounded least squares gives, lam on each in E's digits; where none passes, by
-    :func:`_nnls` in E's digits, which settles it."""
-    from scipy.optimize import lsq_linear
+def _solve(K, b):
+    """K y = b for a square fmpq_mat K, or None where K is singular."""
+    try:
+        return K.solve(b).entries()
+    except ZeroDivisionError:
+        return None
 
-    ctx = E.ctx
-    tol = ctx.mpf(10) ** -rtol_exp * gscale
-    if ctx.sqrt(ctx.fsum(v * v for v in g)) <= tol:
+
+def _stage(D: _Data, B, hB, T, t, cache=None):
+    """Stage k's exact slacks w on T and multipliers lam on the held rows B (values hB):
+    (w, lam) with ``g + B^T lam = 0`` on every column (checked). lam is None where every
+    target is met (w = 0, g = 0) and where T lies in the span of B (w from any point of the
+    held set, ``cache``: B -> that point; g in the span of B, its multipliers solved only where
+    a sign is asked). None where a system is singular (an independence the prime got wrong)."""
+    from flint import fmpq, fmpq_mat
+
+    zero = fmpq(0)
+    R = D.independent([*B, *T])
+    T1 = [i for i in R if i not in set(B)]
+    if len(T1) == len(T):
+        return [zero] * len(T), None
+    if not T1:  # (saturated: A_T x is the same at every point of the held set)
+        xh = cache.get(tuple(B)) if cache is not None else None
+        if xh is None:
+            xh = _stage_point(D, B, hB)
+            if xh is None:
+                return None
+            if cache is not None:
+                cache[tuple(B)] = xh
+        r = (D.mat(T) * fmpq_mat(D.n, 1, xh)).entries()
+        return [ri - ti for ri, ti in zip(r, t)], None
+    P = D.pivot_columns([*B, *T1])
+    r, nt, nb = len(P), len(T), len(B)
+    N = r + nt + nb
+    K = [zero] * (N * N)
+    for a, i in enumerate(T):  # A_TP x_P - w = t
+        for c, q in enumerate(P):
+            K[a * N + c] = D.rows[i][q]
+            K[(nt + nb + c) * N + r + a] = D.rows[i][q]  # A_TP^T w + ...
+        K[a * N + r + a] = fmpq(-1)
+    for b, i in enumerate(B):  # B_P x_P = h
+        for c, q in enumerate(P):
+            K[(nt + b) * N + c] = D.rows[i][q]
+            K[(nt + nb + c) * N + r + nt + b] = D.rows[i][q]  # ... + B_P^T lam = 0
+    y = _solve(fmpq_mat(N, N, K), fmpq_mat(N, 1, [*t, *hB, *([zero] * r)]))
+    if y is None:
+        return None
+    w, lam = y[r:r + nt], y[r + nt:]
+    # g + B^T lam = 0 on every column (on P by the solve; elsewhere as T2 lies in span R)
+    res = (D.mat(T).transpose() * fmpq_mat(nt, 1, w) + (D.mat(B).transpose() * fmpq_mat(nb, 1, lam)
+                                                         if nb else fmpq_mat(D.n, 1)))
+    if any(v != 0 for v in res.entries()):
+        return None
+    return w, lam
+
+
+def _stage_point(D: _Data, held_rows, values):
+    """An exact x with ``A_i x = v_i`` on the independent ``held_rows`` (zero off their pivot
+    columns), a list of (n,); None where singular."""
+    from flint import fmpq, fmpq_mat
+
+    x = [fmpq(0)] * D.n
+    if not held_rows:
+        return x
+    P = D.pivot_columns(held_rows)
+    y = _solve(D.mat(held_rows, P), fmpq_mat(len(values), 1, list(values)))
+    if y is None:
+        return None
+    for q, v in zip(P, y):
+        x[q] = v
+    return x
+
+
+def _min_norm(D: _Data, rows, values, need_z: bool = True):
+    """The minimum-norm x of ``A_rows x = values`` (rows independent): ``x = B^T z``,
+    ``B B^T z = v``; returns (x, z) or None where singular. Where the rows fix every direction
+    (B square) x solves ``B x = v`` and z ``B^T z = x`` (entries of the data's size, not the Gram
+    matrix's: ~5x faster), z only where ``need_z``."""
+    from flint import fmpq, fmpq_mat
+
+    if not rows:
+        return [fmpq(0)] * D.n, []
+    Bm = D.mat(rows)
+    v = fmpq_mat(len(values), 1, list(values))
+    if len(rows) == D.n:
+        x = _solve(Bm, v)
+        if x is None:
+            return None
+        z = _solve(Bm.transpose(), fmpq_mat(D.n, 1, x)) if need_z else None
+        return (None if need_z and z is None else (x, z))
+    z = _solve(Bm * Bm.transpose(), v)
+    if z is None:
+        return None
+    return (Bm.transpose() * fmpq_mat(len(z), 1, z)).entries(), z
+
+
+def _signs_ok(signs, lam) -> bool:
+    """lam_j >= 0 at an upper bound (+1), <= 0 at a lower one (-1), free (0)."""
+    return all(s * v >= 0 for s, v in zip(signs, lam))
+
+
+def _scaled_floats(values) -> np.ndarray:
+    """Rationals as float64 after one power-of-2 scaling that brings the largest near 1."""
+    e = max((int(v.p).bit_length() - int(v.q).bit_length() for v in values if v != 0), default=0)
+    out = []
+    for v in values:
+        p, d = int(v.p), int(v.q)
+        out.append(p / (d << e) if e >= 0 else (p << -e) / d)
+    return np.array(out, dtype=float)
+
+
+def _multipliers_exist(D: _Data, g, cands) -> bool:
+    """Whether ``g + sum_j lam_j a_j = 0`` has a solution with lam's signs (``cands``: (row,
+    sign), sign +1 an upper bound (lam >= 0), -1 a lower one (lam <= 0), 0 free), decided
+    exactly: a support proposed by a float64 LP, solved and checked exactly; else the exact
+    NNLS (:func:`_nnls`)."""
+    if all(v == 0 for v in g):
         return True
-    if not held:
+    if not cands:
         return False
-    C = [[E.A[i][q] * (s if s else 1) for q in range(E.n)] for i, s in held]
-    Cf = np.array([[float(v) for v in row] for row in C])
-    gmax = max(abs(v) for v in g)
-    gf = np.array([float(v / gmax) for v in g])  # (g scaled: its terms may exceed a double)
-    lb = np.array([-np.inf if s == 0 else 0.0 for _, s in held])
-    # the support from the rows as they are and from the rows and g scaled to norm 1 (on the raw
-    # rows, norms 1e-4 .. 1e4 around a gradient of 3e-7, bounded least squares stopped at 20 % of
-    # |g|: badly_scaled n=12 seed 101), then every row
-    rn = np.maximum(_row_norms(Cf), 1e-300)
-    lam_tol = tol / float(rn.max())  # (a multiplier that small moves g by under tol)
+    from scipy.optimize import linprog
 
-    def passes(support, lam) -> bool:
-        res = [ctx.fsum(C[j][q] * lam[t] for t, j in enumerate(support)) + g[q] for q in range(E.n)]
-        small = ctx.sqrt(ctx.fsum(v * v for v in res)) <= tol
-        return small and all(held[j][1] == 0 or lam[t] >= -lam_tol for t, j in enumerate(support))
-
-    supports = []
-    cmax = max(float(np.max(np.abs(Cf))), 1e-300)  # (rows of norm 1e308 overflow bounded least squares)
-    for M, b in ((Cf / cmax, gf), (Cf / rn[:, None], gf / max(float(np.linalg.norm(gf)), 1e-300))):
-        with np.errstate(over="ignore", invalid="ignore"):  # (rows 1e300 apart: a support that fails, not an error)
-            lam_f = np.nan_to_num(lsq_linear(M.T, -b, bounds=(lb, np.inf), method="bvls").x)
-        big = max(float(np.max(np.abs(lam_f))), 1e-300)
-        supports.append([j for j in range(len(held)) if held[j][1] == 0 or abs(lam_f[j]) > 1e-12 * big])
-    supports.append(list(range(len(held))))
-    for support in supports:
-        if support and passes(support, _lstsq_on(E, C, g, support)):
+    C = np.array([[_to_float(v) for v in D.rows[i]] for i, _ in cands])
+    C *= np.array([s or 1 for _, s in cands], dtype=float)[:, None]
+    with np.errstate(over="ignore", invalid="ignore"):
+        m = np.max(np.abs(C), axis=1, keepdims=True)
+        C = np.nan_to_num(C / np.where(m > 0, m, 1.0))
+        gf = _scaled_floats(g)
+    free = [s == 0 for _, s in cands]
+    res = linprog(np.zeros(len(cands)), A_eq=C.T, b_eq=-gf, method="highs",
+                  bounds=[(None, None) if f else (0, None) for f in free])
+    if res.status == 0:
+        lam = np.asarray(res.x)
+        big = max(float(np.max(np.abs(lam))), 1e-300)
+        support = [j for j in range(len(cands)) if abs(lam[j]) > 1e-9 * big]
+        if _exact_on_support(D, g, [cands[j] for j in support]):
             return True
-    lam = _nnls(E, C, g, [s == 0 for _, s in held], gscale)
-    return passes(list(range(len(held))), lam)
+    return _nnls(D, g, cands)
 
 
-def _lstsq_on(E: _Exact, C, g, support) -> list:
-    """A lam of ``min ||g + C_S^T lam||`` on the rows S = ``support`` of C: the minimum-norm one
-    of the rows divided by their norms (the rank cut at the rows' own scale), scaled back."""
-    ctx = E.ctx
-    norms = [E.norm(C[j]) for j in support]
-    M = ctx.matrix([[C[j][q] / s for j, s in zip(support, norms)] for q in range(E.n)])  # (n, |S|)
-    lam, _ = E.lstsq(M, ctx.matrix([-v for v in g]))
-    return [lam[t] / s for t, s in enumerate(norms)]
+def _exact_on_support(D: _Data, g, cands) -> bool:
+    """Whether multipliers of the right signs on the rows of ``cands`` (made independent)
+    cancel g exactly: one square solve on pivot coordinates, then every coordinate checked."""
+    from flint import fmpq_mat
+
+    rows = D.independent([i for i, _ in cands])
+    if not rows:
+        return False
+    sign = dict(cands)
+    Q = D.pivot_columns(rows)
+    lam = _solve(D.mat(rows, Q).transpose(), fmpq_mat(len(Q), 1, [-g[q] for q in Q]))
+    if lam is None:
+        return False
+    res = D.mat(rows).transpose() * fmpq_mat(len(rows), 1, lam)
+    if any(r + gq != 0 for r, gq in zip(res.entries(), g)):
+        return False
+    return _signs_ok([sign[i] for i in rows], lam)
 
 
-def _nnls(E: _Exact, C, g, free, gscale) -> list:
-    """lam minimising ``||g + C^T lam||`` with ``lam_j >= 0`` where not ``free[j]``: the active
-    set method of Lawson and Hanson (Solving Least Squares Problems, 1974, ch. 23, NNLS), the
-    free multipliers always in the passive set P, each least squares on P solved in E's digits.
-    A row enters P where the residual's gain along it, ``-c_j . (g + C^T lam)``, exceeds the
-    arithmetic's zero (``10**-(2 digits / 3)`` of ``|c_j| gscale``). C: (rows, n) lists of E's
-    numbers; returns lam, a list of (rows,)."""
-    ctx = E.ctx
-    m, n = len(C), E.n
-    eps = ctx.mpf(10) ** (-(E.digits * 2 // 3))
-    gain_zero = [eps * gscale * E.norm(row) for row in C]
-    P = [j for j in range(m) if free[j]]
+def _nnls(D: _Data, g, cands) -> bool:
+    """Exact Lawson and Hanson NNLS (Solving Least Squares Problems, 1974, ch. 23) on
+    ``min ||g + C^T lam||``, C the candidate rows times their signs, lam >= 0 on the signed
+    ones, the free ones always in the passive set P; each least squares on P (independent by
+    construction) solved exactly through its Gram matrix. Finite in exact arithmetic; True
+    iff the residual vanishes."""
+    from flint import fmpq, fmpq_mat
 
-    def solve(P):
-        z = [ctx.mpf(0)] * m
-        for t, v in zip(P, _lstsq_on(E, C, g, P) if P else ()):
-            z[t] = v
-        return z
+    sign = [s for _, s in cands]
+    C = [[v * (s or 1) for v in D.rows[i]] for i, s in cands]
+    Cm = fmpq_mat(len(C), D.n, [v for row in C for v in row])
+    gm = fmpq_mat(D.n, 1, list(g))
+    free_rows = D.independent([i for i, s in cands if s == 0])
+    P = [j for j, (i, s) in enumerate(cands) if s == 0 and i in set(free_rows)]
+    # (a row duplicated among the candidates: the first copy only)
+    P = list(dict.fromkeys(P))
 
-    lam = solve(P)
-    for _ in range(3 * m + 3):  # (finite in exact arithmetic: a cap against the rank cut)
-        r = [-(ctx.fsum(C[j][q] * lam[j] for j in range(m)) + g[q]) for q in range(n)]
-        gains = [(ctx.fsum(C[j][q] * r[q] for q in range(n)), j) for j in range(m)
-                 if j not in P]
-        gains = [(w, j) for w, j in gains if w > gain_zero[j]]
-        if not gains:
-            break
-        P.append(max(gains)[1])
+    def ls(P):
+        if not P:
+            return {}
+        CP = fmpq_mat(len(P), D.n, [v for j in P for v in C[j]])
+        z = _solve(CP * CP.transpose(), -(CP * gm))
+        return None if z is None else dict(zip(P, z))
+
+    def residual(lam):
+        r = -gm
+        if lam:
+            idx = list(lam)
+            r = r - fmpq_mat(len(idx), D.n, [v for j in idx for v in C[j]]).transpose() * fmpq_mat(
+                len(idx), 1, [lam[j] for j in idx])
+        return r
+
+    lam = ls(P)
+    if lam is None:
+        return False
+    for _ in range(10 * len(cands) + 10):
+        r = residual(lam)
+        if all(v == 0 for v in r.entries()):
+            return True
+        gains = (Cm * r).entries()
+        enter = [(gains[j], j) for j in range(len(cands)) if j not in lam and sign[j] != 0 and gains[j] > 0]
+        if not enter:
+            return False
+        best = max(enter)
+        P = [*lam, best[1]]
+        lam = {**lam, best[1]: fmpq(0)}
         while True:
-            z = solve(P)
-            out = [j for j in P if not free[j] and z[j] <= 0]
+            z = ls(P)
+            if z is None:
+                return False
+            out = [j for j in P if sign[j] != 0 and z[j] <= 0]
             if not out:
+                lam = z
                 break
-            # back along lam -> z to the first multiplier that reaches 0; it leaves P
-            alpha = min(lam[j] / (lam[j] - z[j]) if lam[j] > 0 else ctx.mpf(0) for j in out)
-            lam = [lam[j] + alpha * (z[j] - lam[j]) for j in range(m)]
-            P = [j for j in P if free[j] or lam[j] > 0]
-        lam = z
-    return lam
+            alpha = min(lam[j] / (lam[j] - z[j]) for j in out if lam[j] > 0) if any(lam[j] > 0 for j in out) \
+                else fmpq(0)
+            lam = {j: lam[j] + alpha * (z[j] - lam[j]) for j in P}
+            P = [j for j in P if sign[j] == 0 or lam[j] > 0]
+            lam = {j: lam[j] for j in P}
+    return False
 
 
-#: seconds of :func:`certify` (one reading, 50 digits) per ``n^2 x rows x levels``, an upper estimate:
-#: the quick, ci and paper suites' problems (n = 6 .. 50, 4 .. 65 rows) and a robot stack (n = 38, 117
-#: rows) took 0.2 to 1 times it on an AMD EPYC core (1 on a loaded machine)
-COST_S = 2.5e-4
+#: seconds of :func:`certify` (one reading) per ``(n + rows)^3``, on an AMD EPYC core: the shipped
+#: suites' problems took 0.05 to 1 times it (see :func:`estimated_seconds`)
+COST_S = 3e-7
 
 
 def estimated_seconds(h: Hierarchy) -> float:
-    """The time :func:`certify` is expected to take on h when its first reading certifies
-    (:data:`COST_S` ``n^2 rows depth``; dense SVDs in software arithmetic): 1 s at n = 12 with
-    12 rows in 3 levels, 211 s at a robot stack of n = 38 and 117 rows in 5 levels (99 s
-    measured)."""
-    return COST_S * float(h.n) ** 2 * h.rows * h.depth
+    """The time :func:`certify` is expected to take on h when its first reading certifies, to an
+    order of magnitude (:data:`COST_S` ``(n + rows)^3``: the stages' exact KKT systems and the
+    minimum-norm system): 1.1 s at a robot stack of n = 38 and 117 rows (0.2-0.4 s measured),
+    8.5 s at IK-like n = 80 with 225 rows (0.5-1.4 s), 3 s at equality n = 120 with 96 rows
+    (0.9-1.7 s), 1 s at equality n = 30 with 20 levels of 6 rows (0.4 s)."""
+    return COST_S * float(h.n + h.rows) ** 3
 
 
 #: the reading tolerances :func:`certify` tries in turn (rows within them of a bound read as held)
 READINGS = (1e-8, 1e-11, 1e-14, 0.0)
 
 
-def certify(h: Hierarchy, x, rtol: float | None = None, digits: int = 50) -> Certificate:
+def certify(h: Hierarchy, x, rtol: float | None = None) -> Certificate:
     """Certify the lexicographic optimum on the active set read off x (module docstring).
 
     Parameters
@@ -332,8 +444,6 @@ def certify(h: Hierarchy, x, rtol: float | None = None, digits: int = 50) -> Cer
         By default each of :data:`READINGS` in turn, until one certifies: a row a solver left
         2e-9 inside its bound, or a bound of 1e-300 beside x = 0, reads as held at 1e-8 and
         the exact x* on that set is then not the minimum-norm point.
-    digits : int
-        Decimal digits of the arithmetic (>= 30).
 
     Returns
     -------
@@ -343,113 +453,192 @@ def certify(h: Hierarchy, x, rtol: float | None = None, digits: int = 50) -> Cer
     x = np.asarray(x, dtype=np.float64)
     if x.shape != (h.n,) or not np.all(np.isfinite(x)):
         raise HikbenchError(f"certify: x must be finite with shape ({h.n},); got shape {x.shape}")
-    if not (isinstance(digits, int) and not isinstance(digits, bool) and digits >= 30):
-        raise HikbenchError(f"certify: digits must be an int >= 30; got {digits!r}")
-    if rtol is not None and not 0.0 <= rtol < 1.0:
+    if rtol is not None and not (isinstance(rtol, (int, float)) and 0.0 <= rtol < 1.0):
         raise HikbenchError(f"certify: rtol must be in [0, 1); got {rtol!r}")
-    first = None
-    for reading in (READINGS if rtol is None else (rtol,)):
-        cert = _certify_reading(h, x, reading, digits)
+    D = _Data(h)
+    first, tried = None, set()
+    for reading in (READINGS if rtol is None else (float(rtol),)):
+        cert = _certify_reading(h, D, x, reading, tried)
+        if cert is None:  # (the same active set as a reading before: the same refusal)
+            continue
         if cert.certified:
             return cert
         first = first or cert
     return first
 
 
-def _certify_reading(h: Hierarchy, x: np.ndarray, rtol: float, digits: int) -> Certificate:
-    """:func:`certify` for one reading tolerance."""
-    E = _Exact(h, digits)
-    ctx = E.ctx
-    x_mp = [ctx.mpf(float(v)) for v in x]
-    scale = _row_scales(h, x, E)
-    states = _read_states(h, E, x_mp, rtol, scale)
-    row_norm = [E.norm(row) for row in E.A]
-    # a slack within 10**-(2 digits / 3) of its row's scale is the arithmetic's zero
-    zero = [v * ctx.mpf(10) ** (-(digits * 2 // 3)) for v in scale]
+def _where(h: Hierarchy, i: int) -> str:
+    """``level k, row j`` of the stacked row i."""
+    k = int(np.searchsorted(h.starts, i, side="right")) - 1
+    return f"level {k}, row {i - h.starts[k]}"
 
-    def slack(i, xv, target):
-        w = E.dot(i, xv) - target
-        return w if abs(w) > zero[i] else ctx.mpf(0)
+
+def _row_scales(h: Hierarchy, D: _Data, x: np.ndarray) -> list:
+    """Each row's scale at x, ``|a_i| X + |bound_i|`` (the larger finite bound), as rationals
+    (no overflow at rows of norm 1e308), a list of (rows,). ``X = ||x||``, or where x = 0 the
+    largest ``|bound_j| / |a_j|`` (1 where every bound is 0). No absolute part: the scale of a
+    row multiplied by c (bounds alike) is c times its own, and A times c with x divided by c
+    leaves it unchanged, so that what reads as held is the same in any units."""
+    from flint import fmpq
+
+    norms = [_norm_q(row) for row in h.A]
+    bound = [max(abs(v) if v is not None else fmpq(0) for v in (lo, up)) for lo, up in zip(D.lo, D.up)]
+    size = _norm_q(x)
+    if size == 0:
+        size = max((b / a for a, b in zip(norms, bound) if a > 0), default=fmpq(0)) or fmpq(1)
+    return [a * size + b for a, b in zip(norms, bound)]
+
+
+def _read_states(h: Hierarchy, D: _Data, r: list, rtol: float, scale: list) -> list[str]:
+    """Each row's state at x (``r = A x``, exact): at a bound or beyond it within or past
+    ``rtol`` of the row's scale reads as held there (or violated, the same target)."""
+    rq = _q(rtol)
+    states = []
+    for i in range(D.m):
+        lo, up = D.lo[i], D.up[i]
+        if h.lower[i] == h.upper[i]:
+            states.append(EQUALITY)
+            continue
+        tol = rq * scale[i]
+        if up is not None and r[i] >= up - tol and (lo is None or up - r[i] <= r[i] - lo):
+            states.append(AT_UPPER)
+        elif lo is not None and r[i] <= lo + tol:
+            states.append(AT_LOWER)
+        else:
+            states.append(INSIDE)
+    return states
+
+
+def _violation(D: _Data, i: int, r):
+    """The signed violation of row i at ``a_i x = r``: r - up above, r - lo below, else 0."""
+    if D.up[i] is not None and r > D.up[i]:
+        return r - D.up[i]
+    if D.lo[i] is not None and r < D.lo[i]:
+        return r - D.lo[i]
+    return r * 0
+
+
+def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: set) -> Certificate | None:
+    """:func:`certify` for one reading tolerance; None where its active set is one of ``tried``
+    (the active sets read before, to which it is added)."""
+    x_q = [_q(v) for v in x.tolist()]
+    scale = _row_scales(h, D, x)
+    states = _read_states(h, D, D.dots(x_q), rtol, scale)
+    if tuple(states) in tried:
+        return None
+    tried.add(tuple(states))
     nan = np.full(h.depth, np.nan)
 
     def fail(reason: str) -> Certificate:
-        return Certificate(False, reason, nan, np.full(h.n, np.nan), states)
+        return Certificate(False, reason, nan, np.full(h.n, np.nan), states, reading=rtol)
 
     held: list[tuple[int, int]] = []  # (row, sign): +1 upper, -1 lower, 0 at a value
     values: list = []  # the value each held row is held at
-    stages = []  # (target rows, their targets, rows held above) per level, for the KKT checks at x*
+    stages = []  # per level: (its targets T, their slacks w, the held rows B it was solved on, lam on B or None)
+    basis: list[int] = []  # an independent subset of the held rows
+    points: dict = {}  # a point of each independent held set a saturated stage met
     for k in range(h.depth):
         rows = range(h.starts[k], h.starts[k + 1])
-        x0, N = E.solve_held([i for i, _ in held], values)
+        hB = [values[j] for j, (i, _) in enumerate(held) if i in set(basis)]
+        B = [i for i, _ in held if i in set(basis)]
         let_go = {}  # rows read at a bound that are free on this stage: their bound
         while True:
             T = [i for i in rows if states[i] != INSIDE and i not in let_go]
-            t = [E.lo[i] if states[i] in (AT_LOWER, EQUALITY) else E.up[i] for i in T]
-            if not T:
-                break
-            AT = E.matrix(T)
-            y, _ = E.lstsq(AT * N, ctx.matrix(t) - AT * x0, ref=ctx.mnorm(AT, "f"))
-            x_k = x0 + N * y
-            w = [slack(i, x_k, ti) for i, ti in zip(T, t)]
+            t = [D.lo[i] if states[i] in (AT_LOWER, EQUALITY) else D.up[i] for i in T]
+            out = _stage(D, B, hB, T, t, points) if T else ([], None)
+            if out is None:
+                return fail(f"level {k}: the stage's exact KKT system is singular on the rows chosen "
+                            f"independent (a choice modulo the prime that exact arithmetic refutes)")
+            w, lam = out
             side = [{AT_UPPER: 1, AT_LOWER: -1, EQUALITY: 0}[states[i]] for i in T]
             # a row read at a bound whose exact slack points inside its bounds is free on this
             # stage (a row of a rank-deficient level that the others place there): the one
             # furthest inside is let go, and the stage solved again
-            inside = [(-sd * wi / zero[i], i) for i, sd, wi in zip(T, side, w) if sd * wi < 0]
+            inside = [(-sd * wi / (scale[i] or 1), i) for i, sd, wi in zip(T, side, w) if sd * wi < 0]
             if not inside:
                 break
             j = max(inside)[1]
-            let_go[j] = E.lo[j] if states[j] == AT_LOWER else E.up[j]
-        stages.append((T, t, len(held)))
-        for i, ti, wi, sd in (zip(T, t, w, side) if T else ()):
-            if wi != 0 or sd == 0:
-                held.append((i, 0))
-                values.append(ti + wi)
-            else:
-                held.append((i, sd))
-                values.append(ti)
+            let_go[j] = D.lo[j] if states[j] == AT_LOWER else D.up[j]
+        stages.append((T, w, B, lam))
+        for i, ti, wi, sd in zip(T, t, w, side):
+            held.append((i, 0 if wi != 0 or sd == 0 else sd))
+            values.append(ti + wi)
+        basis = D.independent([*B, *T])
         # a row let go that the stage's point leaves at its bound is held there below (an
         # inequality of a level above); one inside is free, and x* must keep it inside
-        for i, b in let_go.items():
-            if T and slack(i, x_k, b) == 0:
-                held.append((i, 1 if states[i] == AT_UPPER else -1))
-                values.append(b)
-            else:
-                states[i] = INSIDE
-    xs, _ = E.solve_held([i for i, _ in held], values)  # the minimum-norm x*
-    # feasibility: the held rows at their values (the SVD's rank cut may have left a row out),
-    # every other row inside its bounds
-    for i, v in zip((i for i, _ in held), values):
-        if abs(E.dot(i, xs) - v) > zero[i]:
-            return fail(f"{_where(h, i)}: held at its value by the active set read off x, "
-                        f"but the exact x* misses it (rows dependent beyond the arithmetic's digits)")
+        if let_go:
+            held_vals = dict(zip((i for i, _ in held), values))
+            xk = _stage_point(D, basis, [held_vals[i] for i in basis])
+            if xk is None:
+                return fail(f"level {k}: the stage's point is singular on the rows chosen independent")
+            rk = D.dots(xk)
+            for i, b in let_go.items():
+                grown = D.independent([*basis, i])
+                if len(grown) > len(basis) or rk[i] == b:  # (a value the stage leaves free, or at b)
+                    held.append((i, 1 if states[i] == AT_UPPER else -1))
+                    values.append(b)
+                    basis = grown
+                else:
+                    states[i] = INSIDE
+    held_vals = dict(zip((i for i, _ in held), values))
+    basis = D.independent([i for i, _ in held])
+    sign_of = dict(held)
+    # (z's signs matter where a held row is signed, unless the free held rows span every direction:
+    # then they alone cancel any gradient)
+    need_z = any(sign_of[i] for i in basis) and len(D.independent([i for i, s in held if not s])) < D.n
+    sol = _min_norm(D, basis, [held_vals[i] for i in basis], need_z=need_z)
+    if sol is None:
+        return fail("the held rows chosen independent are singular (a choice modulo the prime that "
+                    "exact arithmetic refutes)")
+    xs, z = sol
+    r = D.dots(xs)
+    # feasibility: the held rows at their values (a dependent one may not be), every other row
+    # inside its bounds
+    for (i, _), v in zip(held, values):
+        if r[i] != v:
+            return fail(f"{_where(h, i)}: held at its value by the active set read off x, but the exact "
+                        f"x* misses it (its value is not reachable with the rows held with it)")
     for i, s in enumerate(states):
-        if s != INSIDE:
+        if s == INSIDE and ((D.lo[i] is not None and r[i] < D.lo[i])
+                            or (D.up[i] is not None and r[i] > D.up[i])):
+            return fail(f"{_where(h, i)}: read as inside its bounds, but the exact x* leaves them")
+    viol = [_violation(D, i, r[i]) for i in range(D.m)]
+
+    def candidates(upto: int) -> list:
+        """The rows of stacked index < upto x* holds at a value (free) or at a bound (signed)."""
+        out = []
+        for i in range(upto):
+            if h.lower[i] == h.upper[i] or viol[i] != 0:
+                out.append((i, 0))
+            elif D.up[i] is not None and r[i] == D.up[i]:
+                out.append((i, 1))
+            elif D.lo[i] is not None and r[i] == D.lo[i]:
+                out.append((i, -1))
+        return out
+
+    for k, (T, w, B, lam) in enumerate(stages):
+        if all(v == 0 for v in w) or not any(sign_of[i] for i in B):
+            continue  # (g = 0, or multipliers of any sign: the stage's exact solve is its optimum)
+        if lam is not None and _signs_ok([sign_of[i] for i in B], lam):
             continue
-        r = E.dot(i, xs)
-        if (E.lo[i] is not None and r < E.lo[i]) or (E.up[i] is not None and r > E.up[i]):
-            return fail(f"{_where(h, i)}: read as inside its bounds, but the exact x* "
-                        f"leaves them")
-    # KKT at x*, stage by stage: the rows held above stage k, the gradient of its objective
-    half = digits // 2
-    for k, (T, t, n_above) in enumerate(stages):
-        if not T:
+        from flint import fmpq_mat
+
+        g = (D.mat(T).transpose() * fmpq_mat(len(T), 1, w)).entries()
+        if lam is None and _exact_on_support(D, g, [(i, sign_of[i]) for i in B]):
             continue
-        w = [slack(i, xs, ti) for i, ti in zip(T, t)]
-        g = [ctx.fsum(E.A[i][q] * wi for i, wi in zip(T, w)) for q in range(h.n)]
-        gscale = ctx.fsum(row_norm[i] * abs(wi) for i, wi in zip(T, w))
-        if not _multipliers_vanish(E, g, gscale, held[:n_above], half):
+        if not _multipliers_exist(D, g, candidates(int(h.starts[k]))):
             return fail(f"level {k}: the exact x* is not optimal for its stage (no multipliers of the "
                         f"right sign cancel the gradient): the active set read off x is not the optimal one")
-    if not _multipliers_vanish(E, list(xs), ctx.sqrt(ctx.fsum(v * v for v in xs)), held, half):
+    # the minimum-norm stage: x* + B^T lam = 0 with lam = -z
+    if need_z and not _signs_ok([sign_of[i] for i in basis], [-v for v in z]) and not _multipliers_exist(
+            D, xs, candidates(D.m)):
         return fail("the minimum-norm stage: the exact x* is not the minimum-norm point of the optimal set")
-    norms = np.zeros(h.depth)
+    sq = []
     for k in range(h.depth):
-        s2 = ctx.mpf(0)
+        s2 = _q(0.0)
         for i in range(h.starts[k], h.starts[k + 1]):
-            r = E.dot(i, xs)
-            v = (E.lo[i] - r if E.lo[i] is not None and r < E.lo[i] else 0) + (
-                r - E.up[i] if E.up[i] is not None and r > E.up[i] else 0)
-            s2 += v * v if abs(v) > zero[i] else 0  # (a violation within the arithmetic's zero is none)
-        norms[k] = float(ctx.sqrt(s2))
-    return Certificate(True, "", norms, np.array([float(v) for v in xs]), states)
+            s2 += viol[i] * viol[i]
+        sq.append(s2)
+    return Certificate(True, "", np.array([_sqrt_float(v) for v in sq]), np.array([_to_float(v) for v in xs]),
+                       states, tuple(Fraction(int(v.p), int(v.q)) for v in sq),
+                       tuple(Fraction(int(v.p), int(v.q)) for v in xs), rtol)

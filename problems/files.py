@@ -36,11 +36,34 @@ def _array(z, key: str, path) -> np.ndarray:
         raise ProblemFileError(f"{path}: array {key} cannot be read ({err})") from err
 
 
+#: the compression methods numpy.savez and savez_compressed write (zipfile reads no other without extras)
+_ZIP_METHODS = {zipfile.ZIP_STORED: "stored", zipfile.ZIP_DEFLATED: "deflated"}
+
+
+def check_zip_members(path, zf: zipfile.ZipFile, limit: int) -> None:
+    """ProblemFileError naming the member of the npz archive ``zf`` (the file ``path``) that
+    is encrypted, compressed by another method than numpy writes, or whose uncompressed
+    size, from its directory entry, is larger than ``limit`` bytes: checked before any
+    member is read (zipfile would raise RuntimeError or NotImplementedError, or inflate it whole)."""
+    for info in zf.infolist():
+        if info.flag_bits & 0x1:
+            raise ProblemFileError(f"{path}: member {info.filename!r} is encrypted: expected the arrays "
+                                   f"numpy.savez writes")
+        if info.compress_type not in _ZIP_METHODS:
+            raise ProblemFileError(f"{path}: member {info.filename!r} uses zip compression method "
+                                   f"{info.compress_type}: expected {' or '.join(_ZIP_METHODS.values())} "
+                                   f"(numpy.savez, savez_compressed)")
+        if info.file_size > limit:
+            raise ProblemFileError(f"{path}: member {info.filename!r} holds {info.file_size} bytes: expected "
+                                   f"at most {limit}")
+
+
 def _headers(path) -> dict:
     """{array name: (shape, dtype)} of every ``.npy`` member of the npz, read from
     the members' headers only (numpy.lib.format; nothing is decompressed past them)."""
     out = {}
     with zipfile.ZipFile(path) as zf:
+        check_zip_members(path, zf, MEMORY_BYTES // 2)
         for member in zf.namelist():
             if not member.endswith(".npy"):
                 continue

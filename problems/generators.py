@@ -29,7 +29,7 @@ import numpy as np
 from hikbench.problems.errors import HikbenchError, UnknownFamilyError
 from hikbench.problems.family import Family
 from hikbench.problems.family import finite_number as _number
-from hikbench.problems.hierarchy import Hierarchy, Level, check_fits_in_memory
+from hikbench.problems.hierarchy import Hierarchy, Level, check_fits_in_memory, check_sizes_fit
 
 __all__ = ["DEGENERATE_CASES", "FAMILIES", "INEQUALITY_MIXES", "Family", "all_families", "degenerate",
            "equality_stack",
@@ -151,6 +151,8 @@ def random_hierarchy(n: int, depth: int, rows: int | Sequence[int], *, rank=None
     box_bound = _number(box_bound, "box_bound", 0, " (the box is -box_bound <= x_i <= box_bound)")
     _number(equality_fraction, "equality_fraction", 0, high=1)
     rng = np.random.default_rng(_seed(seed))
+    total = depth * _integer(rows, "rows") if np.isscalar(rows) else sum(_integer(v, "rows") for v in rows)
+    check_sizes_fit(n, depth + bool(box), total + n * bool(box), "random_hierarchy")
     m = _per_level(rows, depth, "rows")
     if any(mk < 0 for mk in m):
         raise HikbenchError(f"rows must be >= 0 (per level); got {rows!r}")
@@ -193,6 +195,7 @@ def equality_stack(n: int, depth: int, rows: int, seed: int = 0, rank: int | Non
     n, depth, rows = (_integer(v, label) for v, label in ((n, "n"), (depth, "depth"), (rows, "rows")))
     if n < 1 or depth < 0 or rows < 0:
         raise HikbenchError(f"need n >= 1, depth >= 0, rows >= 0; got n={n}, depth={depth}, rows={rows}")
+    check_sizes_fit(n, depth, depth * rows, "equality_stack")
     if rank is not None:
         rank = _integer(rank, "rank")
     rng = np.random.default_rng(_seed(seed))

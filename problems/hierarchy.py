@@ -27,7 +27,7 @@ import psutil
 
 from hikbench.problems.errors import InvalidHierarchyError, ProblemTooLargeError
 
-__all__ = ["MEMORY_BYTES", "Hierarchy", "Level", "check_fits_in_memory", "row_normalised"]
+__all__ = ["MEMORY_BYTES", "Hierarchy", "Level", "check_fits_in_memory", "check_sizes_fit", "row_normalised"]
 
 #: bytes of this machine's memory; a problem whose one n x n matrix of doubles
 #: needs more is refused (:func:`check_fits_in_memory`)
@@ -49,6 +49,23 @@ def check_fits_in_memory(n: int, who: str, matrices: int = 1) -> None:
         raise ProblemTooLargeError(
             f"{who}: n = {int(n)} variables: one n x n matrix of doubles needs {one / 2**30:.3g} GiB{held}, "
             f"more than this machine's {MEMORY_BYTES / 2**30:.3g} GiB of memory")
+
+
+#: bytes a level costs beyond its rows' numbers (its Level object, name and index entries), an estimate
+LEVEL_BYTES = 2048
+
+
+def check_sizes_fit(n: int, depth: int, rows: int, who: str) -> None:
+    """ProblemTooLargeError (``who`` first) when a hierarchy of ``depth`` levels holding ``rows``
+    rows in all, of ``n`` variables each, needs more than half this machine's memory (the bound
+    of a problem file's arrays, problems/files.py): ``8 (n + 3)`` bytes a row (its row of A,
+    lower, upper, level) and :data:`LEVEL_BYTES` a level. Called from the sizes, before the
+    first level is made: a suite asking for a depth of 10**9 is refused, not grown to swapping."""
+    need = 8 * (int(n) + 3) * int(rows) + LEVEL_BYTES * int(depth)
+    if need > MEMORY_BYTES // 2:
+        raise ProblemTooLargeError(
+            f"{who}: depth = {int(depth)} levels, {int(rows)} rows of n = {int(n)} variables need "
+            f"{need / 2**30:.3g} GiB, more than half of this machine's {MEMORY_BYTES / 2**30:.3g} GiB of memory")
 
 
 def _real(value, what: str, level: int | None = None) -> np.ndarray:

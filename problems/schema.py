@@ -38,6 +38,20 @@ __all__ = ["Any", "Bool", "Int", "List", "Number", "SchemaError", "Str", "Table"
 SHORT_REPR = 60  # characters of a value quoted in an error
 
 
+#: upper bounds of the counts (repetitions, samples, rounds, warm-up solves, steps) and of the durations
+#: (timeouts, budgets) a file or an option takes: far beyond any real run, and small enough that what is
+#: sized from them (sample arrays, deadlines passed to the OS's timers) fits the machine
+MAX_COUNT = 1_000_000
+MAX_SECONDS = 7 * 24 * 3600.0  # one week
+
+
+def check_at_most(option: str, value, high, what: str) -> None:
+    """HikbenchError ``--repeat must be <= 1000000 (WHAT); got 1000000000000`` when ``value``
+    (None: not given) is larger than ``high``."""
+    if value is not None and value > high:
+        raise HikbenchError(f"{option} must be <= {_num(high)} ({what}); got {_num(value)}")
+
+
 class SchemaError(HikbenchError, ValueError):
     """A file's value that does not fit its schema (used when the caller names no error class)."""
 

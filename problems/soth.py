@@ -71,6 +71,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 
 import numpy as np
 
@@ -130,28 +131,52 @@ def to_soth_text(h: Hierarchy) -> str:
     return "\n".join(lines)
 
 
+_TOKEN = re.compile(r"\S+")
+_BREAKS = "\n\r\x0b\x0c\x1c\x1d\x1e"  # (str.splitlines' line breaks in ASCII text)
+_LINE = re.compile(f"[^{_BREAKS}]*(?:\r\n|[{_BREAKS}])?")
+_LONG_LINE = 1 << 16  # characters: a longer line is split one token at a time
+
+
+def _tokens(text: str):
+    """(line number, token) of each whitespace token of ``text``, one at a time: no list of
+    every token (nor of every line) is made, so a file refused at its third token costs
+    nothing for the rest (a 40 MB line would be 10 million strings)."""
+    line = 0
+    for m in _LINE.finditer(text):
+        a, b = m.span()
+        if a == len(text):
+            break
+        line += 1
+        toks = text[a:b].split() if b - a <= _LONG_LINE else (t.group() for t in _TOKEN.finditer(text, a, b))
+        for tok in toks:
+            yield line, tok
+
+
 class _Tokens:
-    """Whitespace tokens with their line numbers, and parse helpers that
+    """Whitespace tokens with their line numbers (:func:`_tokens`), and parse helpers that
     raise ProblemFileError naming the line and what was expected."""
 
     def __init__(self, text: str, source: str):
         self.source = source
-        lines = text.splitlines()
-        self._toks = [(ln, tok) for ln, line in enumerate(lines, start=1) for tok in line.split()]
-        self._i = 0
-        self._eof_line = max(1, len(lines))
+        self._text = text
+        self._it = _tokens(text)
+        self._ahead = next(self._it, None)
         self.line = 1  # line of the last token read
 
     @property
+    def _eof_line(self) -> int:
+        return max(1, sum(1 for m in _LINE.finditer(self._text) if m.start() < len(self._text)))
+
+    @property
     def at_end(self) -> bool:
-        return self._i >= len(self._toks)
+        return self._ahead is None
 
     def next(self, expected: str) -> str:
         if self.at_end:
             raise ProblemFileError(
                 f"{self.source}: line {self._eof_line}: expected {expected}, got end of file")
-        self.line, tok = self._toks[self._i]
-        self._i += 1
+        self.line, tok = self._ahead
+        self._ahead = next(self._it, None)
         return tok
 
     def fail(self, expected: str, tok: str) -> ProblemFileError:

@@ -78,9 +78,9 @@ def violation(h: Hierarchy, x) -> np.ndarray:
     result must look wrong), never a silent zero.
     """
     x = _check_x(h, x)
-    r = h.A @ x
-    with np.errstate(invalid="ignore"):  # inf - inf cannot occur: A x is finite or NaN
-        v = np.maximum(h.lower - r, 0.0) + np.maximum(r - h.upper, 0.0)
+    with np.errstate(invalid="ignore", over="ignore"):  # (x holding inf: 0 * inf is NaN, said by the row, not a warning)
+        r = h.A @ x
+        v = np.maximum(h.lower - r, 0.0) + np.maximum(r - h.upper, 0.0)  # (inf - inf: NaN, as it should)
     v[np.isnan(r)] = np.nan
     return v
 

@@ -27,6 +27,9 @@ def add_arguments(p) -> None:
 def _cell(value, fmt: str) -> str:
     if isinstance(value, float) and math.isnan(value):
         return "-"
+    if isinstance(value, str):  # (a level name holding a line break or a control character: escaped, so
+        # that it cannot start a line of its own in the table)
+        return "".join(c if c.isprintable() else repr(c)[1:-1] for c in value)
     return format(value, fmt)
 
 

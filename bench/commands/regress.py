@@ -42,6 +42,7 @@ def add_arguments(p) -> None:
 
 def _check(args) -> None:
     from hikbench.problems.errors import HikbenchError
+    from hikbench.problems.schema import MAX_COUNT, MAX_SECONDS, check_at_most
 
     if not (1.0 < args.threshold < math.inf):
         raise HikbenchError(f"--threshold must be a finite time ratio > 1 (e.g. 1.15); got {args.threshold:g}")
@@ -54,6 +55,9 @@ def _check(args) -> None:
         raise HikbenchError(f"--budget must be a positive number of seconds; got {args.budget:g}")
     if args.repeat is not None and args.repeat < 2:
         raise HikbenchError(f"--repeat must be at least 2; got {args.repeat}")
+    check_at_most("--repeat", args.repeat, MAX_COUNT, "timed solves per pair")
+    check_at_most("--max-rounds", args.max_rounds, MAX_COUNT, "paired rounds")
+    check_at_most("--budget", args.budget, MAX_SECONDS, "seconds: a week")
     suite = Path(args.suite)
     if suite.suffix == ".toml" and not suite.is_file():
         raise HikbenchError(f"--suite {args.suite}: no such file")

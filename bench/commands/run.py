@@ -3,9 +3,11 @@
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
 
 from hikbench.problems.errors import HikbenchError
+from hikbench.problems.schema import MAX_COUNT, MAX_SECONDS, check_at_most
 
 HELP = "run a benchmark suite; rows are appended to OUT/results.csv and the run resumes where it stopped"
 
@@ -54,6 +56,12 @@ def add_arguments(p) -> None:
     p.add_argument("--quiet", action="store_true", help="no progress bar (CI)")
 
 
+def max_workers() -> int:
+    """The largest --workers: 4 local worker processes per CPU (each holds a Dask worker and its
+    isolated solve process; more only compete for the same CPUs, and grow the run's memory)."""
+    return 4 * (os.cpu_count() or 1)
+
+
 def _check_args(args) -> None:
     """Bad option values: one-line HikbenchError naming the option (exit 2)."""
     import math
@@ -71,6 +79,12 @@ def _check_args(args) -> None:
         raise HikbenchError(f"--workers must be >= 1; got {args.workers}")
     if args.limit is not None and args.limit < 0:
         raise HikbenchError(f"--limit must be >= 0 (new rows to write before stopping); got {args.limit}")
+    check_at_most("--repeat", args.repeat, MAX_COUNT, "timed solves per row")
+    check_at_most("--rounds", args.rounds, MAX_COUNT, "rounds per row")
+    check_at_most("--timeout", args.timeout, MAX_SECONDS, "seconds: a week")
+    check_at_most("--first-solve-timeout", fst, MAX_SECONDS, "seconds: a week")
+    check_at_most("--workers", args.workers, max_workers(), f"4 worker processes per CPU of this machine's "
+                                                           f"{os.cpu_count() or 1}")
     if args.scheduler is not None:
         from hikbench.bench.harness.executors import _check_scheduler_address
         _check_scheduler_address(args.scheduler)

@@ -15,12 +15,14 @@ registered one, ``module:Class`` / ``file.py:Class``, or a scenario controller
 from __future__ import annotations
 
 import argparse
+import time
 from pathlib import Path
 
 import numpy as np
 
 from hikbench.bench.commands.solve import parse_options
 from hikbench.problems.errors import HikbenchError
+from hikbench.problems.schema import MAX_COUNT, check_at_most
 
 #: the solver of a scenario run without --solver: the strict hierarchy solver a controller would run
 DEFAULT_SOLVER = "hcod"
@@ -61,6 +63,9 @@ def add_arguments(p) -> None:
                    help="after each step's timed calls, time each solver object solving the same step's problem "
                         "again (column resolve_time_min_s: the cost of a problem the solver has just solved, "
                         "hcod time's warm re-solve)")
+    p.add_argument("--certify", nargs="?", type=int, const=2, default=None, metavar="WORKERS",
+                   help="after each run, certify every step's x exactly (hikbench.problems.exact) in WORKERS "
+                        "processes (default 2): columns certified, certify_reason, x_attains")
     p.add_argument("--out", default=None, help="output directory (default: results/scenarios/NAME)")
     p.add_argument("--plot", action="store_true", help="write the figures (PNG)")
     p.add_argument("--option", action="append", default=[], metavar="[SOLVER.]KEY=VALUE",
@@ -93,6 +98,10 @@ def run(args) -> int:
         raise HikbenchError(f"--steps must be >= 1; got {args.steps}")
     if args.repeat is not None and args.repeat < 1:
         raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
+    if args.certify is not None and args.certify < 1:
+        raise HikbenchError(f"--certify must be >= 1 worker process; got {args.certify}")
+    check_at_most("--steps", args.steps, MAX_COUNT, "control steps")
+    check_at_most("--repeat", args.repeat, MAX_COUNT, "timed calls per step")
     repeat = REPEAT if args.repeat is None else args.repeat
     scenario = load_scenario(args.name, robot=_robot(args), frames=_frames(args.frame))
     print(_robot_line(scenario.robot))
@@ -130,8 +139,10 @@ def run(args) -> int:
     runs, checks, failed = [], [], False
     for solver, opts, mode in plan:
         with solver_calls_killable():  # a backend looping in C code still ends on SIGTERM / Ctrl-C
+            t0 = time.perf_counter()
             run_ = run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps, repeat=repeat,
-                                resolve=args.resolve)
+                                resolve=args.resolve, certify=args.certify or 0)
+            wall = time.perf_counter() - t0
         runs.append(run_)
         stem = run_stem(scenario.name, scenario.robot.name, run_.label)
         csv = out / f"{stem}.csv"
@@ -150,6 +161,13 @@ def run(args) -> int:
         if apart:
             print(f"  note: on {apart} of {len(df)} steps the {repeat} solver objects did not all return the "
                   f"first's answer (x, status or counts): their minimum may time other work (repeats_agree)")
+        if args.certify:
+            ok = df["certified"].eq(True)
+            print(f"  exact certificate: {int(ok.sum())} of {len(df)} steps certified, x attains the exact optimum "
+                  f"on {int(df['x_attains'].eq(True).sum())} (run and certificates {wall:.1f} s, "
+                  f"{args.certify} worker(s))" + ("" if ok.all() else
+                                                  f"; first refused: step {int(df.loc[~ok, 'step'].iloc[0])}: "
+                                                  f"{df.loc[~ok, 'certify_reason'].iloc[0]}"))
         errs = [c for c in df.columns if c.startswith("err_")]
         print("  final errors: " + ", ".join(f"{c[4:]}={df[c].iloc[-1]:.2e}" for c in errs))
         checks.append(check_run(run_))

@@ -24,6 +24,7 @@ from hikbench.bench.harness.worker import solver_info
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import load
 from hikbench.problems.hierarchy import row_normalised
+from hikbench.problems.schema import MAX_COUNT, check_at_most
 from hikbench.problems.verify import PROFILES, judge, level_gaps, level_norms
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR
@@ -49,8 +50,8 @@ def add_arguments(p) -> None:
                         "its kernels once, about 70 s without numba's cache), when larger than --timeout "
                         "(default: the quick suite's, as `run`: 300)")
     p.add_argument("--certify", action="store_true",
-                   help="also certify x in 50-digit arithmetic: the exact optimum on the active set read off x, "
-                        "and its level norms (hikbench.problems.exact; ~0.1 s at n = 5, ~3 s at n = 20); for a "
+                   help="also certify x in exact rational arithmetic: the exact optimum on the active set read off x, "
+                        "and its level norms (hikbench.problems.exact; ~0.05 s at n = 7, ~1 s at n = 80-120); for a "
                         "solver claiming row-normalised levels (daqp-hqp), of the row-normalised hierarchy")
     p.add_argument("--accuracy", default="default", choices=tuple(PROFILES),
                    help="with --certify: the profile whose verdict decides the exit status (1: x is not optimal; "
@@ -124,6 +125,7 @@ def run(args) -> int:
     if args.repeat < 1:
         raise HikbenchError(f"--repeat must be >= 1; got {args.repeat}")
     _timeouts(args)  # (a bad value: exit 2 before the problem is read)
+    check_at_most("--repeat", args.repeat, MAX_COUNT, "timed solves")
     h = load(args.file)
     options = parse_options(args.option)
     info = solver_info(args.solver)  # a registry name, or module:Class as `run --solvers` takes it

@@ -28,6 +28,9 @@ from pathlib import Path
 
 import numpy as np
 
+from hikbench.bench.harness.regular import open_regular
+from hikbench.problems.errors import HikbenchError
+from hikbench.problems.files import check_zip_members
 from hikbench.problems.hierarchy import Hierarchy
 
 __all__ = ["CERTIFIED", "NO_YARDSTICK", "REFERENCE_ONLY", "YARDSTICK_MODULES", "load_yardstick", "problem_hash", "save_yardstick", "yardstick_code",
@@ -88,20 +91,27 @@ def load_yardstick(path: Path, n: int):
     the caller computes it again, as it does for a key other than its own). A file
     without ``kind`` (written before yardsticks were certified) has the code ``""``."""
     try:
-        with np.load(path, allow_pickle=False) as z:
-            x, status, reason = z["x"], str(z["status"]), str(z["reason"])
-            key = (str(z["problem_hash"]), str(z["code"]) if "kind" in z.files else "")
-            kind = (str(z["kind"]), str(z["kind_reason"]), float(z["certify_budget"])) if "kind" in z.files \
-                else (NO_YARDSTICK, "", 0.0)
+        with open_regular(path) as f:  # (a FIFO is not waited on, a folder not read)
+            with zipfile.ZipFile(f) as zf:  # (no member encrypted, compressed otherwise, or larger than x)
+                check_zip_members(path, zf, 8 * int(n) + _MEMBER_BYTES)
+            f.seek(0)
+            with np.load(f, allow_pickle=False) as z:
+                x, status, reason = z["x"], str(z["status"]), str(z["reason"])
+                key = (str(z["problem_hash"]), str(z["code"]) if "kind" in z.files else "")
+                kind = (str(z["kind"]), str(z["kind_reason"]), float(z["certify_budget"])) if "kind" in z.files \
+                    else (NO_YARDSTICK, "", 0.0)
         if x.dtype.kind != "f" or x.shape not in ((0,), (n,)):
             raise ValueError(f"x of dtype {x.dtype} and shape {x.shape}: expected float64 of shape ({n},)")
         if kind[0] not in (CERTIFIED, REFERENCE_ONLY, NO_YARDSTICK):
             raise ValueError(f"kind {kind[0]!r}: expected {CERTIFIED}, {REFERENCE_ONLY} or {NO_YARDSTICK}")
-    except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile) as err:
+    except (OSError, EOFError, KeyError, ValueError, zipfile.BadZipFile, HikbenchError) as err:
         print(f"hikbench run: {path} cannot be read ({type(err).__name__}: {' '.join(str(err).split())}); "
               f"computing the yardstick again", file=sys.stderr)
         return None
     return ((x if x.size else None), status, reason, *kind), key
+
+
+_MEMBER_BYTES = 1 << 16  # of a cached yardstick's member beyond 8 bytes a variable (its header, a reason)
 
 
 def save_yardstick(path: Path, ref: tuple, phash: str, code: str) -> None:

@@ -67,7 +67,9 @@ def _git() -> dict:
     root = Path(__file__).resolve().parents[2]  # the checkout (bench/harness/../..)
     def git(*args):  # its output, None when git failed (no repository, no git, timeout)
         try:
-            done = subprocess.run(["git", "-C", str(root), *args], capture_output=True, text=True,
+            # (--no-optional-locks: `status` would refresh the index under index.lock, and a git killed
+            # at the timeout, or stopped by a full disk, would leave that lock to block the user's next commit)
+            done = subprocess.run(["git", "--no-optional-locks", "-C", str(root), *args], capture_output=True, text=True,
                                   timeout=10, check=False)  # (the return code is read below)
         except (OSError, subprocess.TimeoutExpired):
             return None
@@ -138,26 +140,62 @@ def machine_class(env: dict) -> str | None:
     return f"{cpu or 'unknown CPU'}, OpenBLAS {arch or 'unknown'}" + (f", numba {target}" if target else "")
 
 
+#: the types of the fields of run.json that runs, reports and compare read (others are kept as they are)
+RUN_JSON_TYPES = {"sessions": list, "selected_solvers": list, "suite": dict, "environment": dict,
+                  "accuracy": dict, "skipped_solvers": dict, "export_skipped": dict, "key": list,
+                  "suite_rows": int, "suite_scenario_runs": int, "calibration_ns": (int, float),
+                  "created": str, "yardstick_code": str, "calibration_kernel": str}
+_RUN_JSON_BYTES = 1 << 28  # a run.json larger than this is refused unread (its sessions are a few hundred bytes)
+
+
 def read_run_json(run_dir) -> dict:
-    """OUT/run.json as a dict ({} when there is none); HikbenchError when it is not a JSON object."""
+    """OUT/run.json as a dict ({} when there is none); HikbenchError when it is no regular file
+    (a FIFO, a folder), not a JSON object, or a field of :data:`RUN_JSON_TYPES` has another type."""
+    from hikbench.bench.harness.regular import read_regular, regular_or_absent
     from hikbench.problems.errors import HikbenchError
 
     p = Path(run_dir) / RUN_JSON
-    if not p.exists():
+    expected = "the run.json written by hikbench run"
+    if not regular_or_absent(p, expected):
         return {}
     try:
-        data = json.loads(p.read_text())
-    except (json.JSONDecodeError, UnicodeDecodeError) as err:
-        raise HikbenchError(f"{p}: not valid JSON ({err}); expected the run.json written by hikbench run "
-                            f"(restore it, or write to a new --out directory)") from err
+        data = json.loads(read_regular(p, _RUN_JSON_BYTES, expected).decode("utf-8"))
+    except (RecursionError, ValueError) as err:  # (JSONDecodeError, UnicodeDecodeError, digits past the limit)
+        why = "nested too deep" if isinstance(err, RecursionError) else str(err)
+        raise HikbenchError(f"{p}: not valid JSON ({why}); expected {expected} "
+                            f"(restore it, or write to a new --out directory)") from None
     if not isinstance(data, dict):
         raise HikbenchError(f"{p}: expected a JSON object (the run.json written by hikbench run); "
                             f"got a {type(data).__name__}")
+    for key, types in RUN_JSON_TYPES.items():
+        value = data.get(key)
+        if value is not None and (not isinstance(value, types) or isinstance(value, bool)):
+            want = " or ".join(t.__name__ for t in (types if isinstance(types, tuple) else (types,)))
+            raise HikbenchError(f"{p}: {key} is a {type(value).__name__}: expected a {want} ({expected}; "
+                                f"restore it, or write to a new --out directory)")
+    bad = next((i for i, s in enumerate(data.get("sessions") or []) if not isinstance(s, dict)), None)
+    if bad is not None:
+        raise HikbenchError(f"{p}: sessions[{bad}] is a {type(data['sessions'][bad]).__name__}: expected an "
+                            f"object ({expected}; restore it, or write to a new --out directory)")
     return data
 
 
 def write_run_json(run_dir, data: dict) -> None:
+    """Write OUT/run.json whole or not at all: through ``run.json.tmp``, fsynced, then
+    renamed over it; a write that fails (a full disk) removes the temporary file and
+    raises HikbenchError naming the cause, the previous run.json left as it was."""
+    from hikbench.problems.errors import HikbenchError
+
     p = Path(run_dir) / RUN_JSON
     tmp = p.with_suffix(".json.tmp")
-    tmp.write_text(json.dumps(data, indent=1, default=str) + "\n")
-    os.replace(tmp, p)
+    try:
+        with open(tmp, "w") as f:
+            f.write(json.dumps(data, indent=1, default=str) + "\n")
+            f.flush()
+            os.fsync(f.fileno())
+        os.replace(tmp, p)
+    except OSError as err:
+        if not tmp.is_dir():  # (a folder in its place is not this function's to remove)
+            tmp.unlink(missing_ok=True)
+        raise HikbenchError(f"{p}: cannot write it ({err.strerror or err}); the previous {RUN_JSON} is left as "
+                            f"it was") from None

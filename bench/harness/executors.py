@@ -43,11 +43,19 @@ __all__ = ["NO_WORKER_GRACE", "DaskExecutor", "SerialExecutor", "dask_setup", "r
 NO_WORKER_GRACE = 60.0  # seconds a Dask cluster may have no worker while jobs wait (see DaskExecutor)
 
 
+#: seconds an isolated worker running an external program has past the program's timeout (to write the
+#: problem's files, have the launcher end the program's tree, read and check its answer)
+EXTERNAL_MARGIN_S = 15.0
+
+
 def run_job(worker: IsolatedWorker, job: dict, timeout: float) -> dict:
+    """Run ``job`` in ``worker``'s isolated process, a solve's under the job timeout
+    (and its first-solve allowance); an external program's too (it starts it, reads
+    and checks its answer there: an answer that breaks the parser costs its row, never
+    this process), the program killed at ``timeout``."""
     t0 = time.perf_counter()
     if job["kind"] == "external":
-        from hikbench.bench.harness.external import run_external
-        res = run_external(job, timeout)
+        res = worker.run({**job, "program_timeout": timeout}, timeout + EXTERNAL_MARGIN_S)
     else:
         res = worker.run(job, timeout, job.get("first_timeout"))
     res["wall_s"] = time.perf_counter() - t0

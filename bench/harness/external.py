@@ -9,7 +9,10 @@ times and its per-level gap to the yardstick, not as failing it.
 
 Protocol (docs/adding-a-solver.md, "An external program"): for every solve, the harness writes the
 problem to a temporary directory and runs CMD (split like a shell command line,
-no shell) after replacing the placeholders
+no shell) after replacing the placeholders (checked before the first job, with
+the program's existence: an unbalanced quote, a word in braces that is none of
+them, such as ``{problm}``, or a program that is neither a path nor found on
+PATH is one error at start-up)
 
 * ``{problem}``       path of the problem as ``.npz`` (problems/files.py layout),
 * ``{problem_soth}``  path of the problem in SOTH text format (needs hikbench.problems.soth),
@@ -28,7 +31,11 @@ the timeout is wall time, whatever holds the program's output open. Its
 stdout and stderr are read as they come, keeping only their first and last
 4 KiB. A non-zero exit code gives status ``error`` with the head and tail of
 stderr; exceeding the job timeout gives ``timeout``; an answer file larger
-than an answer can be (64 bytes a number, plus 1 MiB) is refused unread; an output that
+than an answer can be (64 bytes a number, plus 1 MiB), or that is no regular file
+(a FIFO, a link to /dev/zero, a directory), is refused unread, and one nested
+deeper than 8 or holding an integer of more than 20 digits unparsed; all of it
+runs in the isolated worker (bench/harness/worker.py), so that whatever the
+answer holds costs its row at most. An output that
 breaks the protocol (no ``x`` or a wrong shape, ``solve_time_s`` not a finite
 number >= 0, ``iterations`` not an integer >= 0, an unknown ``status``) gives
 ``error`` with a reason naming the field; an ``x`` holding NaN or inf that
@@ -42,10 +49,13 @@ import difflib
 import json
 import math
 import os
+import re
 import select
 import shlex
+import shutil
 import signal
 import socket
+import stat
 import subprocess
 import sys
 import tempfile
@@ -54,7 +64,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hikbench.bench.harness.isolation import HeadTail, kill_session
+from hikbench.bench.harness.streams import HeadTail, kill_session
 from hikbench.bench.harness.statuses import TIMEOUT
 from hikbench.solvers.base import ERROR, OPTIMAL, STATUSES, SolveResult
 
@@ -85,7 +95,55 @@ def parse_spec(text: str) -> ExternalSpec:
         raise ValueError("expected external:NAME=CMD, e.g. external:mysolver='./mysolver {problem} {out}'")
     if "{out}" not in cmd:
         raise ValueError("CMD must contain the placeholder {out} (where x is written)")
-    return ExternalSpec(name, _declarations(decl), cmd)
+    strict = _declarations(decl)
+    _check_program(_argv(cmd))
+    return ExternalSpec(name, strict, cmd)
+
+
+#: the placeholders CMD may hold (replaced by paths for every solve)
+PLACEHOLDERS = ("{problem}", "{problem_soth}", "{out}")
+# a word in braces, not a shell's ${NAME}: what a placeholder looks like, known or misspelt
+_PLACEHOLDER = re.compile(r"(?<!\$)\{([A-Za-z_][A-Za-z0-9_]*)\}")
+
+
+def _argv(cmd: str) -> list[str]:
+    """CMD split like a shell command line (no shell), every word in braces one of
+    :data:`PLACEHOLDERS`; ValueError naming an unbalanced quote or an unknown
+    placeholder (with its closest known one) otherwise."""
+    try:
+        argv = shlex.split(cmd)
+    except ValueError as err:  # shlex: "No closing quotation", "No escaped character"
+        raise ValueError(f"CMD {_clip(cmd)!r} cannot be split like a shell command line ({err}): "
+                         f"expected its quotes closed") from None
+    if not argv:
+        raise ValueError("CMD is empty after splitting: expected a program and its arguments")
+    for m in _PLACEHOLDER.finditer(cmd):
+        if m.group(0) not in PLACEHOLDERS:
+            close = difflib.get_close_matches(m.group(0), PLACEHOLDERS, n=1)
+            hint = f" (did you mean {close[0]}?)" if close else ""
+            raise ValueError(f"unknown placeholder {m.group(0)}{hint} in CMD: expected "
+                             f"{', '.join(PLACEHOLDERS)}")
+    return argv
+
+
+def _check_program(argv: list[str]) -> None:
+    """ValueError when CMD's program (``argv[0]``, a path or a name looked up on PATH)
+    cannot be run: checked once, before the first job, not once per row."""
+    program = argv[0]
+    if any(ph in program for ph in PLACEHOLDERS):
+        return  # (the program is one of the problem's files: nothing to check yet)
+    if shutil.which(program) is not None:
+        return
+    if os.sep in program or (os.altsep and os.altsep in program):
+        why = ("is a directory" if os.path.isdir(program) else
+               "is not executable (chmod +x, or name its interpreter first)" if os.path.exists(program) else
+               "does not exist")
+        raise ValueError(f"program {program!r} {why} (relative to {os.getcwd()})")
+    raise ValueError(f"program {program!r} is not found on PATH: expected a program's name on PATH or its path")
+
+
+def _clip(text: str, keep: int = 120) -> str:
+    return text if len(text) <= keep else text[:keep] + "..."
 
 
 def _split(text: str) -> tuple[str, str, str]:
@@ -249,18 +307,71 @@ def _describe_code(code: int) -> str:
 
 
 def _read_answer(path: str, n: int):
-    """The JSON object the program wrote to ``{out}``, refused unread when the file
-    is larger than an answer of ``n`` numbers can be; ValueError / OSError otherwise."""
-    size = os.path.getsize(path)
+    """The JSON object the program wrote to ``{out}``, read within bounds: opened
+    without blocking and refused unless it is a regular file (a FIFO, a link to
+    /dev/zero or a directory is named, never waited on or read), refused unread
+    when larger than an answer of ``n`` numbers can be, and parsed only when
+    its nesting is at most :data:`_ANSWER_DEPTH` deep and none of its integers
+    has more than :data:`_ANSWER_INT_DIGITS` digits; ValueError / OSError naming
+    what is wrong otherwise."""
     limit = _ANSWER_BYTES_PER_NUMBER * n + _ANSWER_BYTES_EXTRA
-    if size > limit:
-        raise ValueError(f"it is {size} bytes: expected at most {limit} for an answer of {n} numbers")
-    with open(path) as f:
-        return json.load(f)
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    try:
+        st = os.fstat(fd)
+        if not stat.S_ISREG(st.st_mode):
+            raise ValueError(f"it is {_kind(st.st_mode)}: expected a regular file holding a JSON object")
+        if st.st_size > limit:
+            raise ValueError(f"it is {st.st_size} bytes: expected at most {limit} for an answer of {n} numbers")
+        chunks, got = [], 0
+        while got <= limit and (chunk := os.read(fd, min(1 << 20, limit + 1 - got))):
+            chunks.append(chunk)
+            got += len(chunk)
+    finally:
+        os.close(fd)
+    if got > limit:  # (it grew while read)
+        raise ValueError(f"it holds more than {limit} bytes: expected at most {limit} for an answer of {n} numbers")
+    text = b"".join(chunks).decode("utf-8", errors="strict")
+    depth = _nesting(text)
+    if depth > _ANSWER_DEPTH:
+        raise ValueError(f"its JSON is nested {depth} deep: expected at most {_ANSWER_DEPTH} "
+                         f"(an object holding a list x)")
+    return json.loads(text, parse_int=_bounded_int)
 
 
 _ANSWER_BYTES_PER_NUMBER = 64  # bytes per number of x in the answer file, at most
 _ANSWER_BYTES_EXTRA = 1 << 20  # and for the other fields (a reason)
+_ANSWER_DEPTH = 8  # nesting of arrays and objects in an answer (it needs 2)
+_ANSWER_INT_DIGITS = 20  # digits of an integer in an answer (an iteration count; 2**64 has 20)
+_STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
+
+
+def _kind(mode: int) -> str:
+    """What a file that is not a regular file is, in words."""
+    for test, words in ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
+                        (stat.S_ISBLK, "a block device"), (stat.S_ISDIR, "a directory"),
+                        (stat.S_ISSOCK, "a socket")):
+        if test(mode):
+            return words
+    return "not a regular file"
+
+
+def _nesting(text: str) -> int:
+    """The deepest nesting of ``[`` and ``{`` in the JSON ``text`` (strings left out),
+    counted without recursion: json's own parser recurses and would exhaust the stack."""
+    code = np.frombuffer(_STRING.sub("", text).encode("utf-8", errors="replace"), dtype=np.uint8)
+    step = np.zeros(code.size, dtype=np.int64)
+    step[(code == ord("[")) | (code == ord("{"))] = 1
+    step[(code == ord("]")) | (code == ord("}"))] = -1
+    return int(np.cumsum(step).max(initial=0))
+
+
+def _bounded_int(digits: str) -> int:
+    """A JSON integer of at most :data:`_ANSWER_INT_DIGITS` digits (a longer one is no
+    iteration count, and as x or a time it is no float64)."""
+    if len(digits.lstrip("-")) > _ANSWER_INT_DIGITS:
+        raise ValueError(f"it holds an integer of {len(digits.lstrip('-'))} digits ({digits[:12]}...): "
+                         f"expected at most {_ANSWER_INT_DIGITS} (write x and times as floats)")
+    return int(digits)
 
 
 def run_external(job: dict, timeout: float) -> dict:
@@ -279,13 +390,15 @@ def run_external(job: dict, timeout: float) -> dict:
         if "{problem_soth}" in cmd:
             from hikbench.problems.soth import save_soth
             save_soth(h, paths["{problem_soth}"])
-        argv = [a for a in shlex.split(cmd)]
+        try:
+            argv = _argv(cmd)
+        except ValueError as err:
+            return {**base, "status": ERROR, "x": None, "samples_ns": [], "reason": str(err)}
         for ph, p in paths.items():
             argv = [a.replace(ph, p) for a in argv]
         total = int(job.get("warmup", 0)) + int(job["repeat"])
         for i in range(total):
-            if os.path.exists(paths["{out}"]):
-                os.remove(paths["{out}"])
+            _remove(paths["{out}"])
             ran = _run(argv, max(deadline - time.monotonic(), 0.001), tmp)
             if ran.timed_out:
                 return {**base, "status": TIMEOUT, "x": None, "samples_ns": [],
@@ -315,6 +428,14 @@ def run_external(job: dict, timeout: float) -> dict:
             "solve_time_s": float(np.median(reported)) if use_reported else float("nan")}
 
 
+def _remove(path: str) -> None:
+    """Remove what the last run left at ``path`` (a file, a FIFO, a link, or a directory)."""
+    if os.path.isdir(path) and not os.path.islink(path):
+        shutil.rmtree(path)
+    elif os.path.lexists(path):
+        os.remove(path)
+
+
 def _shorten(text: str, head: int = 200, tail: int = 300) -> str:
     """``text`` cut to its first ``head`` and last ``tail`` characters, on one line."""
     text = " ".join(text.split())
@@ -329,12 +450,19 @@ def _real_x(value, n: int) -> tuple[np.ndarray | None, str]:
     if not isinstance(value, list):
         return None, f'"x" must be a list of {n} numbers; got {type(value).__name__}'
     if len(value) != n:
-        shape = np.shape(value) if all(isinstance(v, list) for v in value) else (len(value),)
-        return None, f'"x" has shape {shape}: expected ({n},)'
+        return None, f'"x" has shape {_shape(value)}: expected ({n},)'
     for i, v in enumerate(value):
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             return None, f'"x" must be a list of {n} numbers: element {i} is {_describe_element(v)}'
     return np.asarray(value, dtype=float), ""
+
+
+def _shape(value: list) -> tuple:
+    """The shape of the nested lists ``value`` (of its first axis only when they are ragged)."""
+    try:
+        return np.shape(value) if all(isinstance(v, list) for v in value) else (len(value),)
+    except ValueError:  # (ragged: numpy refuses an inhomogeneous shape)
+        return (len(value),)
 
 
 def _describe_element(v) -> str:
@@ -388,7 +516,7 @@ def _check_output(out, n: int) -> tuple[dict, str]:
     if it is None:
         it = 0
     elif (isinstance(it, bool) or not isinstance(it, (int, float)) or not math.isfinite(it)
-          or it != int(it) or it < 0):
+          or it != int(it) or not 0 <= it < 2 ** 63):
         return {}, f'"iterations" must be an integer >= 0 or absent; got {it!r}'
     reason = "" if out.get("reason") is None else str(out["reason"])
     res = SolveResult(x, status, reason)  # its rule: an optimal x holding NaN or inf is a numerical_failure

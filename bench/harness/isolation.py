@@ -46,6 +46,7 @@ import threading
 import time
 import zlib
 
+from hikbench.bench.harness.streams import HeadTail, become_subreaper, kill_descendants, kill_session, reap_children
 from hikbench.problems.errors import HikbenchError
 from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
 from hikbench.solvers.base import ERROR
@@ -139,49 +140,6 @@ def describe_exit(code: int | None, who: str = "worker process") -> str:
     return f"{who} exited with code {code}"
 
 
-class HeadTail:
-    """The first ``head`` bytes and the last ``tail`` bytes of a stream read in
-    chunks, and how many bytes came between them: what a process writes is kept
-    in bounded memory however much it writes."""
-
-    def __init__(self, head: int, tail: int):
-        self.head_cap, self.tail_cap = int(head), int(tail)
-        self.head = bytearray()
-        self._tail = bytearray()  # up to twice tail_cap between trims (amortized)
-        self.total = 0
-
-    def add(self, chunk: bytes) -> bytes:
-        """Keep ``chunk``'s share; returns the part of it that went to the head."""
-        to_head = chunk[: max(self.head_cap - len(self.head), 0)]
-        self.head += to_head
-        rest = memoryview(chunk)[len(to_head):]
-        if len(rest) >= self.tail_cap:
-            self._tail = bytearray(rest[len(rest) - self.tail_cap:])
-        elif rest:
-            self._tail += rest
-            if len(self._tail) > 2 * self.tail_cap:
-                del self._tail[: len(self._tail) - self.tail_cap]
-        self.total += len(chunk)
-        return to_head
-
-    @property
-    def tail(self) -> bytes:
-        return bytes(self._tail[-self.tail_cap:]) if self.tail_cap else b""
-
-    @property
-    def omitted(self) -> int:
-        """Bytes neither in the head nor in the tail."""
-        return self.total - len(self.head) - len(self.tail)
-
-    def marker(self) -> bytes:
-        """The line standing for the omitted bytes (empty when none was)."""
-        return f"\n[... {self.omitted} bytes omitted ...]\n".encode() if self.omitted else b""
-
-    def text(self) -> str:
-        """Head, the omitted-bytes marker and tail, decoded (undecodable bytes replaced)."""
-        return (bytes(self.head) + self.marker() + self.tail).decode(errors="replace")
-
-
 LOG_KEEP_BYTES = 1 << 20  # of the head and of the tail of a worker process's stderr, in its log
 
 
@@ -210,15 +168,6 @@ class CappedLog:
         """Wait (at most ``timeout`` s: a process the solver left may hold the pipe)
         for the pipe to close and the tail to be written."""
         self._thread.join(timeout)
-
-
-def kill_session(pid: int) -> None:
-    """SIGKILL the process group led by ``pid`` (a process started in a session of its own:
-    the group holds it and the processes it started); nothing when none is left."""
-    try:
-        os.killpg(pid, signal.SIGKILL)
-    except ProcessLookupError:
-        return  # the whole group has ended: nothing left to kill
 
 
 class IsolatedWorker:
@@ -369,6 +318,7 @@ class IsolatedWorker:
         """End the worker and every process a solver started in its session (a helper
         left running would burn CPU through the timings of every later job)."""
         if self.proc is not None:
+            kill_descendants(self.proc.pid)  # (those that left its session too: the worker is their subreaper)
             kill_session(self.proc.pid)
             self.proc.wait()
             if self._log_pump is not None:
@@ -446,6 +396,10 @@ def _send(channel, result: dict, token: bytes) -> None:
 
 def _child_main() -> None:
     die_with_parent()
+    why = become_subreaper()  # (a solver's grandchild that called setsid comes back here: ended after its job)
+    if why:
+        print(f"hikbench worker: a process a solver started outside its session may outlive its job ({why})",
+              file=sys.stderr)
     # the channel and the jobs on close-on-exec descriptors >= _CHANNEL_FD_MIN; fd 1 goes to stderr (what a
     # solver prints), fd 0 to /dev/null (a solver reading stdin reads nothing: not the job channel)
     channel = os.fdopen(_high_fd(1), "wb")
@@ -475,6 +429,8 @@ def _child_main() -> None:
         if job.get("kind") == "scenario":  # (a suite's [[scenarios]]: pinocchio and the robots, loaded here only)
             from hikbench.bench.scenarios.job import execute_scenario as run
         _send(channel, run(job, notify=lambda: _write_frame(channel, _FIRST_SOLVE_DONE, token)), token)
+        kill_descendants(os.getpid())  # every process the job left (a solver's helper would burn CPU through
+        reap_children()  # the timings of every later job), then their exit statuses
 
 
 if __name__ == "__main__":

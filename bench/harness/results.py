@@ -1,9 +1,15 @@
-"""results.csv: rows appended as they finish (one flush + fsync per row), read
+"""results.csv: rows appended as they finish (one write + fsync per row), read
 back for resuming, reporting and comparing.
 
-A run killed in the middle of writing a row leaves at most one partial last
-line; :class:`ResultsWriter` cuts it off before appending (that row was not
-finished, so it is run again).
+Each row is one line: a line break in a field is written as the two characters
+``\\n`` (:func:`one_line`), so a row cut anywhere lacks its final newline. A run
+killed in the middle of writing a row leaves at most one partial last row (also
+one cut inside a quoted field holding a line break, as earlier versions wrote
+them: :func:`_scan`); :class:`ResultsWriter` cuts it off before appending (that
+row was not finished, so it is run again), and readers leave it out. A row
+whose write fails (a full disk) is cut off again at once. A line holding more or
+fewer fields than the header, results.csv that is no regular file, or one
+larger than 2 GiB, is an error naming it.
 
 Finished rows are never rewritten, except when a row is run again (``--rerun``,
 or its settings' options changed): the old file is first copied to a new
@@ -15,6 +21,7 @@ row of a key wins, also for readers of a file left with both by a kill).
 
 from __future__ import annotations
 
+import codecs
 import csv
 import io
 import json
@@ -25,77 +32,167 @@ from pathlib import Path
 import pandas as pd
 
 from hikbench.bench.harness.columns import JSON_COLUMNS, KEY, NUMBER_COLUMNS, VERIFIED_COLUMNS, names
+from hikbench.bench.harness.regular import check_run_folder, read_regular, regular_or_absent
 from hikbench.problems.errors import HikbenchError
 
-__all__ = ["RESULTS", "ResultsWriter", "backup", "compact", "finished_keys", "finished_rows",
+__all__ = ["RESULTS", "ResultsWriter", "backup", "compact", "finished_keys", "finished_rows", "one_line",
            "parse_json_column", "read_results"]
 
 RESULTS = "results.csv"
 
 
+_MAX_BYTES = 1 << 31  # a results.csv larger than this is refused unread (some 10 million rows)
+_EXPECTED = f"the {RESULTS} written by hikbench run"
+
+
+def one_line(value):
+    """``value`` with each line break (CR, LF, CRLF) written as the two characters
+    ``\\n`` when it is a string: a row is one line, so that a row cut anywhere lacks
+    its final newline (:func:`_scan`)."""
+    if isinstance(value, str) and ("\n" in value or "\r" in value):
+        return value.replace("\r\n", "\\n").replace("\r", "\\n").replace("\n", "\\n")
+    return value
+
+
+def _scan(data: bytes) -> tuple[list[tuple[int, int, int]], int]:
+    """The complete records of the CSV bytes ``data``: (line number, start, end) of each,
+    and the offset where the incomplete rest starts. A record ends at a newline outside
+    quotes: with an even count of ``"`` since its start (a quote inside a quoted field is
+    doubled), so that a record cut inside a quoted field holding a line break (written by
+    an earlier version) is incomplete too."""
+    records, pos, line = [], 0, 1
+    while pos < len(data):
+        i, quotes, lines = pos, 0, 0
+        while True:
+            j = data.find(b"\n", i)
+            if j < 0:
+                return records, pos
+            quotes += data.count(b'"', i, j + 1)
+            lines += 1
+            if quotes % 2 == 0:
+                break
+            i = j + 1
+        records.append((line, pos, j + 1))
+        line, pos = line + lines, j + 1
+    return records, pos
+
+
+class _Csv:
+    """results.csv parsed and checked: ``header`` (None: empty), ``rows`` (lists of
+    strings, with ``lines``: their first line numbers), ``text`` (the complete records)
+    and ``end`` (the byte offset after them: what follows is a partial row)."""
+
+    def __init__(self, path: Path):
+        self.path = path
+        data = read_regular(path, _MAX_BYTES, _EXPECTED)
+        records, self.end = _scan(data)
+        try:  # (the partial row too, but for a character cut at its end: a binary file is no results.csv)
+            codecs.getincrementaldecoder("utf-8")().decode(data, final=False)
+        except UnicodeDecodeError as err:
+            raise HikbenchError(f"{path}: not a text file ({err.reason} at byte {err.start}); expected "
+                                f"{_EXPECTED}") from err
+        self.text, tail = data[: self.end].decode("utf-8"), data[self.end:].decode("utf-8", errors="replace")
+        self.header, self.rows, self.lines = None, [], []
+        for line, a, b in records:
+            fields = list(csv.reader(io.StringIO(data[a:b].decode("utf-8"), newline="")))
+            if self.header is None:
+                self.header = fields[0] if fields else []
+                continue
+            if len(fields) != 1 or len(fields[0]) != len(self.header):
+                got = sum(map(len, fields))
+                raise HikbenchError(f"{path}: line {line} holds {got} fields, expected {len(self.header)}: a "
+                                    f"damaged row (remove that line: its row runs again; or write to a new --out)")
+            self.rows.append(fields[0])
+            self.lines.append(line)
+        first = records[-1][0] + data[records[-1][1]:records[-1][2]].count(b"\n") if records else 1
+        self._check_tail(tail, first)
+
+    def _check_tail(self, tail: str, line: int) -> None:
+        """A partial last row is expected (a run killed while writing it); a quote opened on
+        line ``line`` and never closed, with complete rows after it, is a damaged file."""
+        width = len(self.header) if self.header else len(names())
+        for k, text in enumerate(tail.split("\n")[1:-1], start=1):
+            row = next(csv.reader([text]), [])
+            if len(row) == width:
+                raise HikbenchError(f"{self.path}: line {line} opens a quoted field that is never closed (line "
+                                    f"{line + k}, a complete row, would be read into it): a damaged row (remove "
+                                    f"line {line}, or write to a new --out)")
+
+
 def _cut_partial_line(path: Path) -> None:
-    with open(path, "rb+") as f:
-        data = f.read()
-        if data and not data.endswith(b"\n"):
-            f.truncate(data.rfind(b"\n") + 1)
+    """Cut a partial last row (a run killed while writing it: it runs again)."""
+    parsed = _Csv(path)
+    if parsed.end < path.stat().st_size:
+        with open(path, "rb+") as f:
+            f.truncate(parsed.end)
 
 
 def _check_header(path: Path) -> list | None:
     """The header of ``path`` (None: an empty file); HikbenchError unless it holds this version's columns."""
-    try:
-        with open(path, newline="") as f:
-            header = next(csv.reader(f), None)
-    except UnicodeDecodeError as err:
-        raise HikbenchError(f"{path}: not a text file ({err.reason} at byte {err.start}); expected the "
-                            f"results.csv written by hikbench run") from err
+    return _checked(_Csv(path)).header
+
+
+def _checked(parsed: _Csv) -> _Csv:
+    header = parsed.header
     if header is not None and header != names():
-        raise HikbenchError(f"{path}: its columns differ from this version's ({len(header)} vs {len(names())} "
-                            f"columns); expected a results.csv written by this version of hikbench run "
-                            f"(write to a new --out directory)")
-    return header
+        raise HikbenchError(f"{parsed.path}: its columns differ from this version's ({len(header)} vs "
+                            f"{len(names())} columns); expected a results.csv written by this version of "
+                            f"hikbench run (write to a new --out directory)")
+    return parsed
 
 
 class ResultsWriter:
-    """Appends rows (dicts keyed by hikbench.bench.harness.columns names) to OUT/results.csv."""
+    """Appends rows (dicts keyed by hikbench.bench.harness.columns names) to OUT/results.csv,
+    one line each (:func:`one_line`), each written whole or not at all: a write that fails
+    (a full disk) is cut off again and raises :class:`HikbenchError` naming the file and the
+    cause, the finished rows kept."""
 
     def __init__(self, out_dir: str | os.PathLike):
         self.path = Path(out_dir) / RESULTS
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        if self.path.exists():
+        exists = regular_or_absent(self.path, _EXPECTED)
+        if exists:
             _cut_partial_line(self.path)  # (a header cut off by a kill leaves an empty file: new)
-        new = not (self.path.exists() and self.path.stat().st_size)
+        new = not (exists and self.path.stat().st_size)
         if not new:
             _check_header(self.path)
-        self._f = open(self.path, "a", newline="")  # noqa: SIM115 - held open for the run, closed by close()
-        self._w = csv.DictWriter(self._f, fieldnames=names(), extrasaction="raise")
+        try:
+            self._fd = os.open(self.path, os.O_WRONLY | os.O_APPEND | os.O_CREAT | getattr(os, "O_CLOEXEC", 0),
+                               0o666)
+        except OSError as err:
+            raise HikbenchError(f"{self.path}: cannot be opened for writing ({err.strerror or err})") from None
         if new:
-            self._w.writeheader()
-            self._sync()
+            self._append(names())
 
-    def _sync(self) -> None:
-        self._f.flush()
-        os.fsync(self._f.fileno())
+    def _append(self, fields: list) -> None:
+        """Write one CSV line and fsync it; on failure cut the file back to where it was."""
+        buf = io.StringIO()
+        csv.writer(buf).writerow([one_line(v) for v in fields])
+        data = memoryview(buf.getvalue().encode("utf-8"))
+        size = os.fstat(self._fd).st_size
+        try:
+            while data:
+                data = data[os.write(self._fd, data):]
+            os.fsync(self._fd)
+        except OSError as err:
+            os.ftruncate(self._fd, size)  # (frees blocks: it works on a full disk too)
+            raise HikbenchError(f"{self.path}: cannot write a row ({err.strerror or err}); the rows "
+                                f"finished before it are kept: free space and run the same command again "
+                                f"to resume") from None
 
     def write(self, row: dict) -> None:
-        self._w.writerow({k: ("" if row.get(k) is None else row.get(k)) for k in names()})
-        self._sync()
+        self._append(["" if row.get(k) is None else row.get(k) for k in names()])
 
     def close(self) -> None:
-        self._f.close()
+        if self._fd is not None:
+            os.close(self._fd)
+            self._fd = None
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
         self.close()
-
-
-def _complete_text(path: Path) -> str:
-    """The text of ``path`` without a partial last line."""
-    text = path.read_text()
-    if text and not text.endswith("\n"):
-        text = text[: text.rfind("\n") + 1]
-    return text
 
 
 def finished_keys(out_dir) -> set[tuple]:
@@ -106,9 +203,10 @@ def finished_keys(out_dir) -> set[tuple]:
 def finished_rows(out_dir) -> dict[tuple, tuple[str, str]]:
     """Key (hikbench.bench.harness.columns.KEY) -> (``options`` JSON, ``problem_hash``) of the
     complete rows of OUT/results.csv (the last row of a key wins): what a finished row
-    was run with, for resuming (hikbench.bench.harness.runner)."""
+    was run with, for resuming (hikbench.bench.harness.runner). Keys as written
+    (:func:`one_line`)."""
     path = Path(out_dir) / RESULTS
-    if not path.exists():
+    if not regular_or_absent(path, _EXPECTED):
         return {}
     return {tuple(r[k] for k in KEY): (r.get("options") or "{}", r.get("problem_hash") or "")
             for r in _complete_rows(path)}
@@ -118,7 +216,8 @@ def _complete_rows(path: Path) -> list[dict]:
     """The complete rows of results.csv as dicts of strings; a HikbenchError
     for a header line among them (rows appended after it, or kept by
     :func:`compact`, would be read back as strings: refused, not grown)."""
-    rows = list(csv.DictReader(io.StringIO(_complete_text(path))))
+    parsed = _checked(_Csv(path))
+    rows = [dict(zip(parsed.header, r)) for r in parsed.rows]
     for i, r in enumerate(rows, start=1):
         if tuple(r[k] for k in KEY) == KEY:
             raise _second_header(path, i)
@@ -134,16 +233,21 @@ def backup(out_dir) -> Path | None:
     ``results.csv.bak.1``, ``results.csv.bak.2``, ... (an existing backup is
     never overwritten); returns the backup's path (None: no results.csv)."""
     path = Path(out_dir) / RESULTS
-    if not path.exists():
+    if not regular_or_absent(path, _EXPECTED):
         return None
     i = 0
     while True:
         dest = path.with_name(RESULTS + ".bak" + (f".{i}" if i else ""))
         try:
             with open(path, "rb") as src, open(dest, "xb") as dst:  # "x": fails rather than overwrite
-                shutil.copyfileobj(src, dst)
-                dst.flush()
-                os.fsync(dst.fileno())
+                try:
+                    shutil.copyfileobj(src, dst)
+                    dst.flush()
+                    os.fsync(dst.fileno())
+                except OSError as err:
+                    dest.unlink()  # (no half backup left)
+                    raise HikbenchError(f"{dest}: cannot write the backup of {path} ({err.strerror or err}); "
+                                        f"nothing was changed") from None
         except FileExistsError:
             i += 1
             continue
@@ -156,21 +260,25 @@ def compact(out_dir) -> int:
     replaces (a row run again), atomically; returns how many were removed.
     The file is left untouched when no key repeats."""
     path = Path(out_dir) / RESULTS
-    if not path.exists() or not path.stat().st_size:
+    if not regular_or_absent(path, _EXPECTED) or not path.stat().st_size:
         return 0
-    _check_header(path)
     rows = _complete_rows(path)
     last = {tuple(r[k] for k in KEY): i for i, r in enumerate(rows)}
     if len(last) == len(rows):
         return 0
     keep = [r for i, r in enumerate(rows) if last[tuple(r[k] for k in KEY)] == i]
     tmp = path.with_suffix(".csv.tmp")
-    with open(tmp, "w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=names())
-        w.writeheader()
-        w.writerows(keep)
-        f.flush()
-        os.fsync(f.fileno())
+    try:
+        with open(tmp, "w", newline="") as f:
+            w = csv.writer(f)
+            w.writerow(names())
+            w.writerows([one_line(r[k]) for k in names()] for r in keep)
+            f.flush()
+            os.fsync(f.fileno())
+    except OSError as err:
+        tmp.unlink(missing_ok=True)  # (results.csv itself is untouched: the old rows are read as replaced)
+        raise HikbenchError(f"{path}: cannot rewrite it without its replaced rows ({err.strerror or err}); "
+                            f"it is left as it was") from None
     os.replace(tmp, path)
     return len(rows) - len(keep)
 
@@ -222,14 +330,16 @@ def read_results(run_dir) -> pd.DataFrame:
     if Path(run_dir).is_file():
         raise HikbenchError(f"{run_dir}: is a file; expected a run directory (the --out of `hikbench run`, "
                             f"which holds {RESULTS})")
-    if not path.exists():
+    check_run_folder(run_dir)  # (report writes report.md and plots/, compare reads run.json: none of them a FIFO)
+    if not regular_or_absent(path, _EXPECTED):
         raise HikbenchError(f"{run_dir}: no {RESULTS} (run `hikbench run --out {run_dir}` first)")
-    if _check_header(path) is None:  # killed before its header was written: no rows
+    parsed = _checked(_Csv(path))
+    if parsed.header is None:  # killed before its header was written: no rows
         return pd.DataFrame(columns=names())
     dtype = {"problem": str, "solver": str, "settings": str, "mode": str, "reason": str, "verdict_side": str,
              "family": str, "host": str, "worker": str, **{c: str for c in JSON_COLUMNS}}
     # complete lines only: a run still writing (or killed mid-row) leaves a partial last row
-    df = pd.read_csv(io.StringIO(_complete_text(path)), dtype=dtype, keep_default_na=True)
+    df = pd.read_csv(io.StringIO(parsed.text), dtype=dtype, keep_default_na=True)
     _check_numbers(df, path)
     _check_json(df, path)
     for c in JSON_COLUMNS:

@@ -49,7 +49,8 @@ from hikbench.bench.harness.calibration import KERNEL, calibrate
 from hikbench.bench.harness.columns import KEY
 from hikbench.bench.harness.environment import environment, read_run_json, utc_now, write_run_json
 from hikbench.bench.suites.problemset import generate, problem_columns, save_problems
-from hikbench.bench.harness.results import ResultsWriter, backup, compact, finished_rows
+from hikbench.bench.harness.regular import check_run_folder
+from hikbench.bench.harness.results import ResultsWriter, backup, compact, finished_rows, one_line
 from hikbench.bench.harness.summary import write_summary
 from hikbench.bench.harness.timing import tail_columns
 from hikbench.bench.suites import Suite, SuiteError, Task, expand
@@ -268,15 +269,20 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         scenarios, more = expand_scenarios(suite, solvers)
         skipped = {**skipped, **more}
     summary = RunSummary(total=len(tasks), skipped_solvers=skipped, scenario_runs=len(scenarios))
-    problems, pcols = {}, {}
-    for spec in [t.problem for t in tasks] if tasks else [sp for sp, _ in suite.problems()]:
-        if spec.id not in problems:  # every problem is generated (and checked) before anything is written
-            problems[spec.id] = _generate(suite, spec)
-            pcols[spec.id] = problem_columns(spec, problems[spec.id])
+    problems, pcols, families = {}, {}, {}
+    try:
+        for spec in [t.problem for t in tasks] if tasks else [sp for sp, _ in suite.problems()]:
+            if spec.id not in problems:  # every problem is generated (and checked) before anything is written
+                problems[spec.id] = _generate(suite, spec, families)
+                pcols[spec.id] = problem_columns(spec, problems[spec.id])
+    finally:
+        if "worker" in families:
+            families["worker"].close()
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise HikbenchError(f"--out {out}: cannot create the output directory: {err.strerror or err}") from err
+    check_run_folder(out)  # (an entry of the wrong kind, a FIFO at run.lock or worker.log, is one line, not a hang)
     lock = out_lock(out)  # released on return or raise, and by the OS when the process dies
     try:
         export, export_skipped = _export_formats(suite.export)
@@ -295,7 +301,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         summary.skipped_finished = len(tasks) - len(todo)
         if limit is not None:
             todo = todo[: max(int(limit), 0)]
-        replaced = sum(t.key in done for t in todo)
+        replaced = sum(_written(t.key) in done for t in todo)
         if replaced:
             bak = backup(out)
             print(f"hikbench run: {replaced} finished row(s) will be replaced as they are run again; "
@@ -326,6 +332,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         own_executor = executor is None
         executor = executor or SerialExecutor(log=out / "worker.log")
         session["executor"] = getattr(executor, "name", type(executor).__name__)
+        failure = None
         try:
             with _Progress(quiet) as progress:
                 judged, jcols = _judged_problems(todo, problems, pcols)
@@ -365,11 +372,12 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                     (summary.scenario_skipped_finished, summary.scenario_written,
                      summary.scenario_statuses) = run_scenarios(scenarios, out, executor, suite.first_solve_timeout,
                                                                 rerun=rerun, limit=left, progress=progress)
+        except BaseException as err:
+            failure = err
+            raise
         finally:
             if own_executor:
                 executor.close()
-            if replaced:
-                compact(out)  # drop the old rows of the keys that were run again
             session["finished"] = utc_now()
             session["calibration_end_ns"] = calibrate()
             session["written"] = summary.written
@@ -378,11 +386,25 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
             cal = [s[k] for s in meta["sessions"] for k in ("calibration_start_ns",
                                                             "calibration_end_ns") if k in s]
             meta["calibration_ns"] = int(np.median(cal))
-            write_run_json(out, meta)
+            _close_files(out, meta, replaced, failure)
         write_summary(out)
         return summary
     finally:
         lock.close()
+
+
+def _close_files(out: Path, meta: dict, replaced: int, failure: BaseException | None) -> None:
+    """Drop the old rows of the keys run again (results.compact) and write run.json. When the run
+    is already failing (a full disk that stopped a row's write, an interrupt), an error of these is
+    not raised over that failure, the one reported: results.csv keeps its finished rows (a replaced
+    row's old copy is read as replaced) and run.json its previous sessions, each whole."""
+    steps = ([lambda: compact(out)] if replaced else []) + [lambda: write_run_json(out, meta)]
+    for step in steps:
+        try:
+            step()
+        except HikbenchError:
+            if failure is None:
+                raise
 
 
 def _share(count: int | None, rounds: int, rnd: int) -> int | None:
@@ -442,12 +464,30 @@ def _merge_rounds(earlier: list[dict], res: dict, rounds: int) -> dict:
     return out
 
 
-def _generate(suite: Suite, spec):
-    """generate(spec), a bad family or parameter reported with the suite file and the problem."""
-    try:
-        return generate(spec)
-    except HikbenchError as err:
-        raise SuiteError(f"suite {suite.source or suite.name}: problem {spec.id}: {err}") from err
+def _generate(suite: Suite, spec, families: dict):
+    """generate(spec), a bad family or parameter reported with the suite file and the problem. A
+    user's ``module:function`` family runs in an isolated worker (``families["worker"]``, started
+    for the first one), under the suite's ``first_solve_timeout``: one that hangs or crashes is the
+    run's one-line error, not a hang of this process."""
+    where = f"suite {suite.source or suite.name}: problem {spec.id}"
+    if ":" not in spec.family:
+        try:
+            return generate(spec)
+        except HikbenchError as err:
+            raise SuiteError(f"{where}: {err}") from err
+    from hikbench.bench.harness.isolation import IsolatedWorker
+
+    worker = families.get("worker") or families.setdefault("worker", IsolatedWorker())
+    res = worker.run({"kind": "generate", "spec": spec, "hierarchy": None}, suite.first_solve_timeout)
+    if res.get("status") == "optimal":
+        return res["hierarchy"]
+    if res.get("user_error"):
+        raise SuiteError(f"{where}: {res['reason']}")
+    if res.get("status") == TIMEOUT:
+        raise SuiteError(f"{where}: family {spec.family!r}, seed {spec.seed} gave no problem within the "
+                         f"suite's first_solve_timeout of {suite.first_solve_timeout:g} s (does it hang?)")
+    raise SuiteError(f"{where}: family {spec.family!r}, seed {spec.seed}: {res.get('status')}: "
+                     f"{res.get('reason')}")
 
 
 def _export_formats(formats) -> tuple[tuple, dict]:
@@ -466,6 +506,11 @@ def _export_formats(formats) -> tuple[tuple, dict]:
     return tuple(keep), skipped
 
 
+def _written(key: tuple) -> tuple:
+    """A task's key as its row holds it (hikbench.bench.harness.results.one_line)."""
+    return tuple(one_line(k) for k in key)
+
+
 def _todo(tasks: list[Task], done: dict, pcols: dict) -> list[Task]:
     """The tasks to run when resuming: those without a finished row, and those
     whose finished row was run with other settings' options or on another
@@ -473,10 +518,10 @@ def _todo(tasks: list[Task], done: dict, pcols: dict) -> list[Task]:
     since); each such reason is one line on stderr."""
     todo, options, content = [], 0, 0
     for t in tasks:
-        if t.key not in done:
+        if _written(t.key) not in done:
             todo.append(t)
             continue
-        opts, phash = done[t.key]
+        opts, phash = done[_written(t.key)]
         if opts != t.entry.options_json():
             options += 1
         elif phash != pcols[t.problem.id]["problem_hash"]:

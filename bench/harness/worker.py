@@ -1,13 +1,15 @@
 """The worker side of a solve: build the solver, time it, return plain data.
 
-Runs inside the isolated worker process (``python -m hikbench.bench.harness.isolation``) or,
-for external programs, in the caller. A job is a dict::
+Runs inside the isolated worker process (``python -m hikbench.bench.harness.isolation``), for
+external programs too (``"kind": "external"``, with ``"program_timeout"``: the program is started,
+and its answer read and checked, here). A job is a dict::
 
-    {"kind": "solve" | "yardstick" | "candidate" | "certify", "hierarchy": Hierarchy, "solver": spec,
+    {"kind": "solve" | "external" | "generate" | "yardstick" | "candidate" | "certify", "hierarchy": Hierarchy, "solver": spec,
      "options": {...}, "mode": "cold" | "warm", "repeat": R, "warmup": W,
      "samples": S or None, "sample_time": T}      # (hikbench.bench.harness.timing.time_solves)
 
-A ``yardstick`` job returns the independent yardstick's point, a ``candidate`` job (with
+A ``generate`` job (with ``"spec"``, a ProblemSpec of a user's ``module:function`` family) returns
+its ``hierarchy``. A ``yardstick`` job returns the independent yardstick's point, a ``candidate`` job (with
 ``"solver"``) one cold solve's point of a registry solver (:func:`candidate_point`: ``hcod``'s, the
 yardstick's other candidate), a ``certify`` job (with ``"x"``) the exact certificate of x
 (:func:`certify_point`).
@@ -30,7 +32,7 @@ from hikbench.problems.errors import HikbenchError
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult
 
-__all__ = ["candidate_point", "certify_point", "execute", "solver_factory", "solver_info"]
+__all__ = ["candidate_point", "certify_point", "exception_text", "execute", "solver_factory", "solver_info"]
 
 _frozen: set[str] = set()  # solvers whose first solve in this process is behind gc.freeze()
 
@@ -125,6 +127,16 @@ def execute(job: dict, notify=None) -> dict:
             return {**base, **candidate_point(h, job["solver"])}
         if job["kind"] == "certify":
             return {**base, **certify_point(h, np.asarray(job["x"], dtype=float))}
+        if job["kind"] == "generate":  # (a user's module:function family, here: one that hangs is killed)
+            from hikbench.bench.suites.problemset import generate
+            from hikbench.problems.errors import HikbenchError
+            try:
+                return {**base, "status": "optimal", "reason": "", "x": None, "hierarchy": generate(job["spec"])}
+            except HikbenchError as err:  # (the family's own fault, named: the run's one-line error)
+                return {**base, "status": ERROR, "reason": str(err), "x": None, "user_error": True}
+        if job["kind"] == "external":  # (the program's answer is read and checked here, not by the run)
+            from hikbench.bench.harness.external import run_external
+            return {**base, **run_external(job, float(job["program_timeout"]))}
         from hikbench.bench.harness.timing import SAMPLE_TIME, time_solves
         make = solver_factory(job["solver"], job.get("options", {}))
         first = make()
@@ -153,11 +165,23 @@ def execute(job: dict, notify=None) -> dict:
         if calib:
             out["calib_ns"] = min(calib[0], calibrate(reps=3))  # around the timed solves
         return out
-    except Exception as err:  # noqa: BLE001 - a failing job costs its row (status error + reason)
+    except (Exception, KeyboardInterrupt) as err:  # noqa: BLE001 - a failing job costs its row (status error + reason)
+        # (KeyboardInterrupt too: this process has a session of its own, no terminal's Ctrl-C reaches
+        # it; one raised here is the solver's own, and would end the worker with a traceback)
         tb = traceback.extract_tb(err.__traceback__)
         where = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
-        out = {**base, "status": ERROR, "reason": f"{type(err).__name__}: {err}{where}", "x": None,
+        out = {**base, "status": ERROR, "reason": f"{exception_text(err)}{where}", "x": None,
                "samples_ns": []}
         if isinstance(err, HikbenchError):  # (a wrong option value: `solve` makes it its one-line user error)
             out["user_error"] = str(err)
         return out
+
+
+def exception_text(err: BaseException) -> str:
+    """``TypeName: message`` of a solver's exception, on one line; an exception whose ``str``
+    itself raises is named with that failure instead of its message."""
+    try:
+        message = str(err)
+    except Exception as inner:  # noqa: BLE001 - the solver's __str__ raises what it raises
+        message = f"(its message cannot be shown: str() raised {type(inner).__name__})"
+    return " ".join(f"{type(err).__name__}: {message}".split()) if message else type(err).__name__

@@ -146,8 +146,13 @@ def write_scenario_row(out, row: dict) -> Path:
     new = pd.DataFrame([{k: row.get(k) for k in names()}], columns=names())
     df = pd.concat([keep, new], ignore_index=True) if len(keep) else new
     tmp = path.with_suffix(".csv.tmp")
-    df.to_csv(tmp, index=False)
-    os.replace(tmp, path)
+    try:
+        df.to_csv(tmp, index=False)
+        os.replace(tmp, path)
+    except OSError as err:  # (a full disk: the rows written before are kept, whole)
+        tmp.unlink(missing_ok=True)
+        raise HikbenchError(f"{path}: cannot write a row ({err.strerror or err}); the rows finished before it "
+                            f"are kept: free space and run the same command again to resume") from None
     return path
 
 

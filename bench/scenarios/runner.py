@@ -62,6 +62,19 @@ err_<task>                 the task's error norm at q_k (``Task.error_norm``;
                            log errors; for minimal velocity ||u|| rad/s)
 level_norm_<level>         ||v_k(u)||, the level's violation recomputed from u
 =========================  ==================================================
+
+With ``certify`` (``hikbench scenario --certify``), after the run each step's u is certified
+exactly (:func:`certify_steps`, in worker processes) and three columns follow:
+
+=========================  ==================================================
+certified                  the exact certificate (hikbench.problems.exact) accepted the
+                           active set read off u: its x* is the step's exact lexicographic
+                           optimum (empty where the step has no finite u)
+certify_reason             why not (the first check that failed), else empty
+x_attains                  no level norm of u is above x*'s beyond the high profile's
+                           tolerance (1e-9 of the level's terms, hikbench.problems.verify.judge;
+                           empty where not certified)
+=========================  ==================================================
 """
 
 from __future__ import annotations
@@ -85,8 +98,8 @@ from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult, checked_result
 from hikbench.problems.verify import level_norms
 
-__all__ = ["ACTIVE_RTOL", "COLUMNS", "NO_WARM_START", "REPEAT", "ScenarioRun", "active_rows", "run_scenario",
-           "warm_start_default"]
+__all__ = ["ACTIVE_RTOL", "COLUMNS", "NO_WARM_START", "REPEAT", "ScenarioRun", "active_rows", "certify_steps",
+           "run_scenario", "warm_start_default"]
 
 COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_min_s", "solve_time_first_s",
            "resolve_time_min_s", "repeat", "repeats_agree", "iterations", "activations", "deactivations",
@@ -144,7 +157,7 @@ def active_rows(h, u: np.ndarray) -> np.ndarray:
 
 def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
                  warm_start: str | None = None, steps: int | None = None, repeat: int = REPEAT,
-                 resolve: bool = False) -> ScenarioRun:
+                 resolve: bool = False, certify: int = 0) -> ScenarioRun:
     """Run ``scenario`` in closed loop with solver ``solver``.
 
     Parameters
@@ -165,6 +178,9 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
     resolve : bool
         Also time each object solving the step's hierarchy again
         (``resolve_time_min_s``, module docstring).
+    certify : int
+        With ``certify`` >= 1 worker processes, certify every step's u exactly after the run
+        (columns ``certified``, ``certify_reason``, ``x_attains``; module docstring).
     """
     options = dict(options or {})
     make, mode = _maker(scenario, solver, options, warm_start)
@@ -184,7 +200,7 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
     _solve(first, stack.hierarchy(scenario.q_init, state))  # (step 0 reports a failure)
     scenario.reset()
     q = scenario.q_init.copy()
-    traj, rows, before = [q.copy()], [], None
+    traj, rows, before, steps_hx = [q.copy()], [], None, []
     with threadpool_limits(limits=1):
         for k in range(steps):
             t = k * dt
@@ -210,12 +226,38 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
             rows.append(row)
             if u is None or not np.all(np.isfinite(u)):
                 break  # the status column says why
+            steps_hx.append((k, h, np.asarray(u, dtype=float)))
             q = pin.integrate(robot.model, q, u * dt)
             if not np.all(np.isfinite(q)):  # e.g. u ~ 1e154 returned as "optimal"
                 row["status"] = "diverged"
                 break
             traj.append(q.copy())
-    return ScenarioRun(scenario, solver, mode, pd.DataFrame(rows), np.array(traj))
+    df = pd.DataFrame(rows)
+    if certify:
+        df["certified"], df["certify_reason"], df["x_attains"] = None, "", None
+        for (k, _, _), res in zip(steps_hx, certify_steps([(h, u) for _, h, u in steps_hx], int(certify))):
+            df.loc[df["step"] == k, ["certified", "certify_reason", "x_attains"]] = [
+                res["certified"], res["reason"], res.get("attains")]
+    return ScenarioRun(scenario, solver, mode, df, np.array(traj))
+
+
+def certify_steps(problems: list, workers: int = 2) -> list[dict]:
+    """The exact certificate of each (hierarchy, x) of ``problems``
+    (:func:`hikbench.bench.harness.worker.certify_point`: ``certified``, ``reason``, and where
+    certified ``attains``), in ``workers`` fresh processes (spawned: no state of the caller's),
+    in order."""
+    import multiprocessing as mp
+    from concurrent.futures import ProcessPoolExecutor
+
+    from hikbench.bench.harness.worker import certify_point
+
+    if not problems:
+        return []
+    if workers < 1:
+        raise HikbenchError(f"certify: workers must be >= 1; got {workers}")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=mp.get_context("spawn")) as pool:
+        chunk = max(1, len(problems) // (8 * workers))
+        return list(pool.map(certify_point, *zip(*problems), chunksize=chunk))
 
 
 def _maker(scenario: Scenario, solver: str, options: dict, warm_start: str | None):

@@ -76,8 +76,9 @@ from hikbench.bench.suites.problemset import ProblemSpec
 from hikbench.bench.harness.timing import SAMPLE_TIME, SAMPLES
 from hikbench.bench.harness.worker import solver_info
 from hikbench.problems.errors import HikbenchError
+from hikbench.problems.schema import (MAX_COUNT, MAX_SECONDS, Any, Bool, Int, List, Number, Str, Table, Where,
+                                      read_toml, short)
 from hikbench.problems.verify import PROFILES
-from hikbench.problems.schema import Any, Bool, Int, List, Number, Str, Table, Where, read_toml, short
 from hikbench.solvers.errors import SolverNotFoundError
 
 __all__ = ["ACCURACY", "SolverEntry", "Suite", "Task", "builtin_suites", "load_suite", "resolve_solvers"]
@@ -231,7 +232,8 @@ def _resolve_paths(data: dict, base: Path) -> None:
                 e[key] = str((base / v).resolve())
 
 
-_SECONDS = Number(0, low_open=True, what="a number of seconds > 0")
+_SECONDS = Number(0, MAX_SECONDS, low_open=True, what=f"a number of seconds > 0 and <= {MAX_SECONDS:g} (a week)")
+_COUNT = Int(1, MAX_COUNT)
 _NAMES = 'a non-empty list of strings, e.g. solvers = ["hcod", "cascade-*"]'
 _GROUP = Table({
     "family": Str(what="a non-empty string: a `hikbench list families` name or module:function"),
@@ -248,12 +250,12 @@ _SCENARIO = Table({
     "robot": Str(what="a non-empty string: a robot name (`hikbench list robots`) or a .urdf path"),
     "solvers": List(Str(), what=_NAMES),
     "warm_start": List(Str(), what='a non-empty list of strings, e.g. warm_start = ["none", "time"]'),
-    "steps": Int(1), "repeat": Int(1), "timeout": _SECONDS,
+    "steps": _COUNT, "repeat": _COUNT, "timeout": _SECONDS,
 }, required=("name",), what="a [[scenarios]] table")
 #: the suite file (see the module docstring); solver options are checked against their solvers later
 SCHEMA = Table({
-    "description": Str(empty=True), "repeat": Int(1), "samples": Int(1), "sample_time": _SECONDS,
-    "rounds": Int(1), "warmup": Int(0),
+    "description": Str(empty=True), "repeat": _COUNT, "samples": _COUNT, "sample_time": _SECONDS,
+    "rounds": _COUNT, "warmup": Int(0, MAX_COUNT),
     "timeout": _SECONDS, "first_solve_timeout": _SECONDS, "certify_timeout": _SECONDS, "calibrate_each_job": Bool(),
     "modes": List(Str(("cold", "warm")), what='a non-empty list of strings, e.g. modes = ["cold", "warm"]'),
     "accuracy": Str(tuple(ACCURACY)),

@@ -42,7 +42,8 @@ def test_scenario_without_name(capsys):
     # numpy's MemoryError tracebacks before
     (["--param", "n=1000000000000"], ("family random: n = 1000000000000 variables: one n x n matrix of doubles "
                                       "needs 7.45e+15 GiB, more than this machine's ")),
-    (["--param", "rows=1000000000000"], "out of memory (Unable to allocate "),  # (numpy's wording follows)
+    (["--param", "rows=1000000000000"], ("random_hierarchy: depth = 5 levels, 4000000000020 rows of n = 20 "
+                                         "variables need 6.85e+05 GiB, more than half of this machine's")),
 ], ids=["negative seed", "cond overflow", "cond below 1", "row_scale nan", "box_bound negative",
         "equality_fraction", "rows negative", "n beyond the memory", "rows beyond the memory"])
 def test_generate_parameter_errors(capsys, tmp_path, argv, fragment):

@@ -353,3 +353,20 @@ def test_velocity_limits_are_checked_with_the_joint_limits():
     held = {c.name: c for c in check_run(run)}["velocity_limits held"]
     assert not held.passed and held.judges == "solver"
     assert held.detail.startswith("max total excess 1.000e-04 rad/s at step 1 (tol 1e-06)"), held.detail
+
+
+def test_scenario_certify_certifies_each_steps_x(tmp_path, capsys):
+    """--certify: every step's x certified exactly after the run (worker processes), three columns
+    in the per-step CSV; hcod's x attains the exact optimum on the first steps of reach."""
+    code = main(["scenario", "reach", "--solver", "hcod", "--steps", "2", "--repeat", "1", "--certify", "1",
+                 "--out", str(tmp_path)])
+    out = capsys.readouterr().out
+    assert code == 0 and "exact certificate: 2 of 2 steps certified, x attains the exact optimum on 2" in out, out
+    df = pd.read_csv(next(tmp_path.glob("reach_*_hcod_*.csv")))
+    assert df["certified"].tolist() == [True, True] and df["x_attains"].tolist() == [True, True]
+    assert df["certify_reason"].isna().all()
+
+
+def test_scenario_certify_needs_a_worker(capsys):
+    assert main(["scenario", "reach", "--steps", "1", "--certify", "0"]) == 2
+    assert "--certify must be >= 1 worker process; got 0" in capsys.readouterr().err

@@ -46,17 +46,18 @@ def test_a_problem_the_certificate_refuses_is_judged_by_no_row(tmp_path):
     assert side["wrong"] == "no certified yardstick; worse than its point"
 
 
-@pytest.mark.parametrize(("cost", "fragment"), [(None, "did not finish in certify_timeout"),
-                                                 (1e3, "was not tried")], ids=["timed-out", "not-tried"])
-def test_a_certificate_beyond_its_budget_leaves_a_reference_only_yardstick(tmp_path, monkeypatch, cost, fragment):
+@pytest.mark.parametrize(("cost", "n", "fragment"), [(None, 80, "did not finish in certify_timeout"),
+                                                      (1e3, 12, "was not tried")], ids=["timed-out", "not-tried"])
+def test_a_certificate_beyond_its_budget_leaves_a_reference_only_yardstick(tmp_path, monkeypatch, cost, n, fragment):
     """A certificate that does not finish in certify_timeout (its worker is stopped), or whose
     estimated time is beyond twice it (not tried), leaves the point as reference-only: the run
     goes on, the point is kept (ref_level_norms), no row is verified."""
     from hikbench.problems import exact
 
     monkeypatch.setattr(exact, "COST_S", 0.0 if cost is None else cost)
-    df = _run(tmp_path, ["hcod"], '[[problems]]\nfamily = "ik-like"\nparams = { n = 12 }\n',
-              certify_timeout=0.5)
+    # (IK-like n = 80: a certificate of 0.5-1.4 s, beyond 0.1 s)
+    df = _run(tmp_path, ["hcod"], f'[[problems]]\nfamily = "ik-like"\nparams = {{ n = {n} }}\n',
+              certify_timeout=0.1)
     assert df["yardstick"].eq("reference-only").all()
     assert df["yardstick_reason"].str.contains(fragment).all(), df["yardstick_reason"].tolist()
     assert df["ref_level_norms"].notna().all() and df["verified"].isna().all()

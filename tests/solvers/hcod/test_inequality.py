@@ -115,7 +115,7 @@ def test_grid_random_hierarchies_match_reference(h):
        warm_start=st.sampled_from(["none", "stage"]))
 def test_grid_random_hierarchies_are_the_exact_optimum(h, warm_start):
     """The grid problems above judged without a reference: the active set read off hcod's x is
-    certified in 50-digit arithmetic (hikbench.problems.exact: feasible, KKT with signed multipliers at
+    certified in exact rational arithmetic (hikbench.problems.exact: feasible, KKT with signed multipliers at
     every stage, the minimum-norm point), and hcod's level norms are its exact ones at 1e-9 of
     each level's scale. (3000 examples per mode: every one certified.)"""
     from hikbench.problems.exact import certify
