@@ -129,7 +129,6 @@ def execute(job: dict, notify=None) -> dict:
             return {**base, **certify_point(h, np.asarray(job["x"], dtype=float))}
         if job["kind"] == "generate":  # (a user's module:function family, here: one that hangs is killed)
             from hikbench.bench.suites.problemset import generate
-            from hikbench.problems.errors import HikbenchError
             try:
                 return {**base, "status": "optimal", "reason": "", "x": None, "hierarchy": generate(job["spec"])}
             except HikbenchError as err:  # (the family's own fault, named: the run's one-line error)
