@@ -9,10 +9,20 @@ from hikbench.problems.errors import (
     UnknownFamilyError,
 )
 from hikbench.problems.hierarchy import Hierarchy, Level
-from hikbench.problems.verify import Verdict, compare_lexicographic, level_norms, level_scales, verify, violation
+from hikbench.problems.verify import (
+    PROFILES,
+    Verdict,
+    compare_lexicographic,
+    judge,
+    level_gaps,
+    level_norms,
+    level_scales,
+    verify,
+    violation,
+)
 
 __all__ = [
     "Hierarchy", "HikbenchError", "InvalidHierarchyError", "Level", "ProblemFileError", "ProblemTooLargeError",
-    "UnknownFamilyError", "Verdict", "compare_lexicographic", "level_norms",
+    "PROFILES", "UnknownFamilyError", "Verdict", "compare_lexicographic", "judge", "level_gaps", "level_norms",
     "level_scales", "verify", "violation",
 ]

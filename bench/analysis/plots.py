@@ -174,21 +174,18 @@ def plot_sweep(g: pd.DataFrame, var: str, path: Path, title: str, mode: str = "c
 
 def plot_success(df: pd.DataFrame, path: Path) -> Path | None:
     """Heatmap of the success rate per solver and family, each solver judged by
-    its own claim (:func:`hikbench.bench.analysis.ranking.claim_met`): strict
-    solvers by ``verified``, non-strict ones (labelled so) by level 0 met; the
-    rows a solver declined are left out, as are the rows that cannot tell."""
-    from hikbench.bench.analysis.ranking import claim_met, strict_labels
+    its own claim: the table of :func:`hikbench.bench.analysis.ranking.success_by`
+    (report.md's "Success per family"): strict solvers by ``verified``, non-strict
+    ones (labelled so) by level 0 met; the rows a solver declined are left out,
+    as are the rows that cannot tell (no certified yardstick)."""
+    from hikbench.bench.analysis.ranking import strict_labels, success_by
 
-    if df.empty:
-        return None
-    df = df[df["status"] != "unsupported"]  # as in report.md: success among the rows a solver supports
-    if df.empty:
+    if df.empty or (df["status"] == "unsupported").all():
         return None
     df = df.assign(label=solver_label(df))
     strict = strict_labels(df)
-    shown = df["label"].where(df["label"].isin(strict), df["label"] + " (non-strict: level 0)")
-    tab = df.assign(_ok=claim_met(df, strict), _s=shown).pivot_table(
-        index="_s", columns="family", values="_ok", aggfunc="mean", dropna=False)
+    rates, _ = success_by(df, strict, "family")
+    tab = rates.set_axis([i if i in strict else f"{i} (non-strict: level 0)" for i in rates.index])
     fig, ax = plt.subplots(figsize=(max(5.5, 2.5 + 1.3 * tab.shape[1]), max(2.8, 1.6 + 0.4 * tab.shape[0])),
                            dpi=_STYLE["dpi"])
     im = ax.imshow(tab.to_numpy() * 100, cmap="RdYlGn", vmin=0, vmax=100, aspect="auto")

@@ -6,13 +6,19 @@
   = ``verified`` True), then the relative time of
   :func:`hikbench.bench.analysis.shgeom.relative_time` (1.0 = fastest), with
   failures charged by :func:`hikbench.bench.analysis.shgeom.charge_failures`.
+* :func:`rank_supported`: for each strict solver that declined some problems,
+  the same ranking over the problems it supports, of every strict solver that
+  attempted all of them: a decliner is ranked there.
 * :func:`own_problems`: each strict solver over the problems it attempted
   alone: not comparable across solvers, and labelled so.
 * :func:`non_strict`: solvers that do not claim the lexicographic optimum,
   with their real times and their per-level gap to the yardstick.
 * :func:`claim_met`: each row judged by its solver's own claim (the success
   of the per-family table and figure): a strict row by ``verified``, a
-  non-strict row by its highest-priority level, level 0, met.
+  non-strict row by its highest-priority level, level 0, met; NaN where the
+  row cannot tell (no certified yardstick).
+* :func:`success_by`: the share of :func:`claim_met` per solver and family (or
+  any column): the one table report.md prints and success_rate.png draws.
 
 Every function takes the rows of one mode with a ``label`` column
 (:func:`hikbench.bench.analysis.plots.solver_label`).
@@ -28,8 +34,10 @@ import numpy as np
 import pandas as pd
 
 from hikbench.bench.analysis.shgeom import charge_failures, relative_time, shifted_geometric_mean, timed
+from hikbench.problems.verify import PROFILES
 
-__all__ = ["Ranking", "claim_met", "level0_met", "non_strict", "own_problems", "rank", "strict_labels"]
+__all__ = ["Ranking", "claim_met", "level0_met", "non_strict", "own_problems", "rank", "rank_supported", "strict_labels",
+           "success_by"]
 
 
 @dataclass
@@ -72,6 +80,8 @@ def rank(d: pd.DataFrame, strict: set[str], mode: str) -> Ranking | None:
         return out
     t = _grid(r, r["time_median_s"].where(timed(r, zero_ok=True)).astype(float), problems, labels)
     ok = _grid(r, r["verified"].eq(True), problems, labels)
+    at = {p: _grid(r, r[f"verified_{p}"].eq(True), problems, labels) for p in PROFILES
+          if f"verified_{p}" in r and r[f"verified_{p}"].notna().any()}  # (rows written before the profiles: none)
     charged, out.unsolved = charge_failures(t)
     rel = relative_time(charged)
     fastest = charged.eq(charged.min(axis=1), axis=0).sum()
@@ -79,10 +89,35 @@ def rank(d: pd.DataFrame, strict: set[str], mode: str) -> Ranking | None:
         k = int(ok[lab].sum())
         succ = t[lab].dropna()
         out.rows.append({"solver": lab, "problems": len(problems), "success": k,
-                         "success_rate": k / len(problems), "relative_time": float(rel[lab]),
+                         "success_rate": k / len(problems),
+                         "success_at": {p: int(g[lab].sum()) for p, g in at.items()},
+                         "relative_time": float(rel[lab]),
                          "fastest_on": int(fastest[lab]), "charged": int(t[lab].loc[charged.index].isna().sum()),
                          "median_time_s": float(succ.median()) if len(succ) else None})
     out.rows.sort(key=lambda row: (-row["success_rate"], _or_inf(row["relative_time"]), row["solver"]))
+    return out
+
+
+def rank_supported(d: pd.DataFrame, strict: set[str], mode: str, ranking: Ranking | None) -> list[tuple[list[str], Ranking]]:
+    """A ranking on the problems each solver listed apart from ``ranking`` (it declined some)
+    supports: the problems it attempted, and every strict solver of ``d`` that attempted all of
+    them (:func:`rank` over those rows; a solver that declines one of them is listed apart
+    there). Solvers that support the same problems share one ranking. Returns [(the solvers
+    whose supported problems it is over, the Ranking)], the largest problem sets first."""
+    if ranking is None or not ranking.apart:
+        return []
+    d = d[d["label"].isin(strict)]
+    tried = d[d["status"] != "unsupported"]
+    own = {lab: frozenset(tried.loc[tried["label"] == lab, "problem"]) for lab in ranking.apart}
+    groups: dict[frozenset, list[str]] = {}
+    for lab, probs in own.items():
+        if probs:
+            groups.setdefault(probs, []).append(lab)
+    out = []
+    for probs, labs in sorted(groups.items(), key=lambda kv: (-len(kv[0]), sorted(kv[1]))):
+        r = rank(d[d["problem"].isin(probs)], strict, mode)
+        if r is not None and r.rows:
+            out.append((sorted(labs), r))
     return out
 
 
@@ -178,4 +213,27 @@ def claim_met(d: pd.DataFrame, strict: set[str]) -> pd.Series:
     solver's row when it meets level 0 (:func:`level0_met`: NaN when it cannot
     tell). docs/reports.md, "Success by each solver's claim"."""
     is_strict = d["label"].isin(strict)
-    return d["verified"].eq(True).astype(float).where(is_strict, level0_met(d))
+    judged = d["verified"].notna()  # (False or True: a row without a certified yardstick cannot tell)
+    ok = d["verified"].eq(True).astype(float).where(judged)
+    return ok.where(is_strict, level0_met(d))
+
+
+def success_by(d: pd.DataFrame, strict: set[str], by: str | pd.Series = "family") -> tuple[pd.DataFrame, pd.DataFrame]:
+    """The success of each solver by its own claim (:func:`claim_met`) per value of ``by`` (a
+    column name, or a Series on d's index), over the rows it attempted (``unsupported`` left
+    out) that can tell (no certified yardstick: left out): (rates, counts), two label x value
+    tables, a rate NaN where no row is judged. report.md's "Success per family" table and
+    success_rate.png are both this table."""
+    d = d[d["status"] != "unsupported"]
+    key = d[by] if isinstance(by, str) else by.loc[d.index]
+    ok = claim_met(d, strict)
+    g = pd.DataFrame({"label": d["label"], "by": key, "ok": ok}).dropna(subset=["ok"])
+    labels, values = sorted(d["label"].unique()), sorted(key.unique())
+    if g.empty:
+        return (pd.DataFrame(np.nan, index=labels, columns=values),
+                pd.DataFrame(0, index=labels, columns=values))
+    rates = g.pivot_table(index="label", columns="by", values="ok", aggfunc="mean").reindex(index=labels,
+                                                                                          columns=values)
+    counts = g.pivot_table(index="label", columns="by", values="ok", aggfunc="count").reindex(
+        index=labels, columns=values).fillna(0).astype(int)
+    return rates, counts

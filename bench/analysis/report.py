@@ -25,7 +25,7 @@ import pandas as pd
 from hikbench.bench.analysis import plots
 from hikbench.bench.analysis.plots import solver_label
 from hikbench.bench.analysis.scenarios import scenario_rows, scenario_section
-from hikbench.bench.analysis.ranking import Ranking, claim_met, non_strict, own_problems, rank, strict_labels
+from hikbench.bench.analysis.ranking import Ranking, non_strict, own_problems, rank, rank_supported, strict_labels, success_by
 from hikbench.bench.analysis.shgeom import FAILURE_FACTOR, SHIFT_S, shifted_geometric_mean, timed
 from hikbench.bench.analysis.tail import tail_table
 from hikbench.bench.harness.environment import read_run_json
@@ -34,6 +34,7 @@ from hikbench.bench.harness.summary import run_summary, summary_line
 from hikbench.bench.scenarios.rows import read_scenario_rows
 from hikbench.bench.testset.sequences import sequence_rows, sequence_section
 from hikbench.problems.errors import HikbenchError
+from hikbench.problems.verify import PROFILES
 
 __all__ = ["MIN_PROFILE_PROBLEMS", "REPORT_JSON", "solver_label", "write_report"]
 
@@ -121,11 +122,6 @@ def _speed_cell(t: float, verified: float, seeds: float, declined: bool) -> str:
     return _us(t) + (f" ({int(verified)}/{int(seeds)})" if verified < seeds else "")
 
 
-def _percent(ok: pd.Series) -> str:
-    """Share of True (or 1.0) in ``ok`` (a boolean or 0/1 Series), '-' for no rows."""
-    return f"{100 * ok.mean():.0f}%" if len(ok) else "-"
-
-
 TIME_COLUMNS = ("time_median_s", "time_p90_s", "time_p99_s", "time_max_s", "time_min_s")
 #: file name prefixes of the figures write_report draws in RUN/plots/
 REPORT_FIGURES = ("time_vs_", "success_rate", "performance_profile_", "accuracy_per_level", "cold_vs_warm")
@@ -182,29 +178,52 @@ def _contents(titles: list[str]) -> str:
     return "Contents: " + " · ".join(f"[{t}](#{_anchor(t)})" for t in titles)
 
 
+def _ranking_table(doc: _Doc, key: str, title: str, r: Ranking, accuracy: str) -> None:
+    """One ranking table: success at each accuracy profile side by side (the headline's orders
+    the table), time vs fastest, fastest on, failures charged, median time of its successes."""
+    P, solved = len(r.problems), len(r.problems) - len(r.unsolved)
+    have = r.rows[0].get("success_at", {}) if r.rows else {}
+    profiles = [p for p in PROFILES if p in have or p == accuracy]
+
+    def success(row: dict, p: str) -> int:
+        return row["success"] if p == accuracy else row["success_at"][p]  # (the headline: column verified)
+
+    doc.table(key, title, ["rank", "solver", *[f"success {p}" for p in profiles],
+                           "time vs fastest (1.00 = fastest)", "fastest on", "failures charged",
+                           "median time of its successes [us]"],
+              [[i + 1, row["solver"], *[f"{success(row, p) / P:.0%} ({success(row, p)}/{P})" for p in profiles],
+                _num(row["relative_time"]), f"{row['fastest_on']}/{solved}", row["charged"],
+                _us(row["median_time_s"])] for i, row in enumerate(r.rows)])
+
+
 def _ranking_section(doc: _Doc, rankings: dict[str, Ranking | None], has_non_strict: bool,
-                     uncertified: frozenset = frozenset()) -> None:
-    """The headline tables, one per mode, with the solvers listed apart; ``uncertified``: the
-    problems whose yardstick is not certified (their rows are never verified)."""
+                     uncertified: frozenset = frozenset(), accuracy: str = "default",
+                     supported: dict | None = None) -> None:
+    """The headline tables, one per mode, with the solvers listed apart and, for those, the
+    rankings on the problems they support; ``uncertified``: the problems whose yardstick is not
+    certified (their rows are never verified); ``accuracy``: the headline profile."""
     doc.section("Ranking")
     doc.text(f"Strict solvers over the problems every one of them attempted, one table per mode. Success "
-             f"(`verified`) first, then the shifted geometric mean (shift {SHIFT_S * 1e6:g} us) of each "
-             f"solver's time over the fastest's on each problem, divided by the lowest: 1.00 = the fastest. "
-             f"A failure is charged {FAILURE_FACTOR:g} x the slowest success on its problem; a problem no "
-             f"solver succeeded on is left out of the time and counted. Solvers that declined some of the "
-             f"problems are listed apart (their figures: next section)"
+             f"first, at each accuracy profile side by side (the share of the problems where no level of x is "
+             f"above the certified optimum beyond rtol times the level's own terms: "
+             + ", ".join(f"{p} {_e(prof.rtol)}" for p, prof in PROFILES.items())
+             + f"; docs/verification.md); the table is ordered by the headline profile, {accuracy} (column "
+             f"`verified`, `hikbench run --accuracy`), then by the shifted geometric mean (shift "
+             f"{SHIFT_S * 1e6:g} us) of each solver's time over the fastest's on each problem, divided by the "
+             f"lowest: 1.00 = the fastest. A failure (at the headline profile) is charged {FAILURE_FACTOR:g} x "
+             f"the slowest success on its problem; a problem no solver succeeded on is left out of the time and "
+             f"counted. A solver that declined some of the problems is listed apart and ranked, below, on the "
+             f"problems it supports"
              + ("; non-strict solvers are judged by their own claim (below)." if has_non_strict else "."))
+    for p, prof in PROFILES.items():
+        doc.lines.append(f"- `{p}` (rtol {_e(prof.rtol)}): {prof.accepts}.")
+    doc.lines.append("")
     for mode, r in rankings.items():
         if r is None:
             continue
         P, solved = len(r.problems), len(r.problems) - len(r.unsolved)
-        doc.table(f"ranking_{mode}", f"Ranking, {mode}: {len(r.rows)} solvers over the same {P} problems "
-                  f"(time over the {solved} solved by at least one)",
-                  ["rank", "solver", "success", "time vs fastest (1.00 = fastest)", "fastest on",
-                   "failures charged", "median time of its successes [us]"],
-                  [[i + 1, row["solver"], f"{row['success_rate']:.0%} ({row['success']}/{P})",
-                    _num(row["relative_time"]), f"{row['fastest_on']}/{solved}", row["charged"],
-                    _us(row["median_time_s"])] for i, row in enumerate(r.rows)])
+        _ranking_table(doc, f"ranking_{mode}", f"Ranking, {mode}: {len(r.rows)} solvers over the same {P} problems "
+                       f"(time over the {solved} solved by at least one)", r, accuracy)
         notes = []
         unjudged = [p for p in r.unsolved if p in uncertified]
         unsolved = [p for p in r.unsolved if p not in uncertified]
@@ -216,10 +235,25 @@ def _ranking_section(doc: _Doc, rankings: dict[str, Ranking | None], has_non_str
             notes.append(f"No solver of the ranking solved {len(unsolved)} of the {P} problems (left out of "
                          f"the time): {', '.join(unsolved[:5])}{' ...' if len(unsolved) > 5 else ''}.")
         if r.apart:
-            notes.append(f"Not ranked in {mode} (declined some problems): " + "; ".join(
-                f"{lab} declined {a['declined']} of its {a['of']}" for lab, a in r.apart.items()) + ".")
+            notes.append(f"Not ranked in {mode} over these problems (declined some): " + "; ".join(
+                f"{lab} declined {a['declined']} of its {a['of']}" for lab, a in r.apart.items())
+                + ": ranked below on the problems it supports.")
         if notes:
             doc.text(*notes)
+        for labs, sr in (supported or {}).get(mode, []):
+            Ps, solved = len(sr.problems), len(sr.problems) - len(sr.unsolved)
+            _ranking_table(doc, f"ranking_{mode}_supported_{'_'.join(labs)}",
+                           f"Ranking, {mode}, on the {Ps} problems {', '.join(labs)} "
+                           f"support{'s' * (len(labs) == 1)}: {len(sr.rows)} solvers (time over the {solved} "
+                           f"solved by at least one)", sr, accuracy)
+            if sr.apart:
+                doc.text(f"Not ranked over these problems (declined some): " + "; ".join(
+                    f"{lab} declined {a['declined']} of its {a['of']}" for lab, a in sr.apart.items()) + ".")
+
+
+def _e(v: float) -> str:
+    """1e-09 as 1e-9."""
+    return f"{v:.0e}".replace("e-0", "e-")
 
 
 def _uncertified_problems(df: pd.DataFrame) -> frozenset:
@@ -289,26 +323,34 @@ def _non_strict_section(doc: _Doc, ns: dict[str, list[dict]]) -> None:
 
 def _family_section(doc: _Doc, df: pd.DataFrame, strict: set[str]) -> None:
     """Success per solver and family (and per bound_scale when the run has several),
-    each solver judged by its own claim (hikbench.bench.analysis.ranking.claim_met)."""
+    each solver judged by its own claim (hikbench.bench.analysis.ranking.success_by, the
+    numbers success_rate.png draws)."""
     doc.section("Success per family")
-    supported = df[df["status"] != "unsupported"]
-    supported = supported.assign(ok=claim_met(supported, strict))
-    labels, families = sorted(df["label"].unique()), sorted(df["family"].unique())
+    labels = sorted(df["label"].unique())
     shown = {i: i if i in strict else f"{i} (non-strict: level 0)" for i in labels}
-    by = {k: g["ok"].dropna() for k, g in supported.groupby(["label", "family"])}
+    rates, _ = success_by(df, strict, "family")
+    left = _uncertified_problems(df)
+    out = f"; rows of the {len(left)} problem{'s' * (len(left) != 1)} without a certified yardstick left out" if left else ""
     doc.table("success_per_family", "Success rate per solver and family, by each solver's claim (strict: "
-              "verified; non-strict: level 0 met as the yardstick does; unsupported rows left out; - = the "
-              "solver declined every problem of the family)", ["solver", *families],
-              [[shown[i], *[_percent(by.get((i, f), pd.Series(dtype=float))) for f in families]] for i in labels])
+              "verified; non-strict: level 0 met as the yardstick does; unsupported rows left out" + out +
+              "; - = no row judged: the solver declined every problem of the family, or none has a certified "
+              "yardstick)", ["solver", *rates.columns],
+              [[shown[i], *[_rate(rates.at[i, f]) if i in rates.index else "-" for f in rates.columns]]
+               for i in labels])
     # the units suite: the same problems with every bound times bound_scale (a family parameter)
-    scales = supported["params"].map(lambda p: float(json.loads(p or "{}").get("bound_scale", 1.0)))
-    if scales.ne(1.0).any():
-        cols = sorted(scales.unique(), reverse=True)
-        by = {k: g["ok"].dropna() for k, g in supported.assign(bs=scales).groupby(["label", "bs"])}
+    scales = df["params"].map(lambda p: float(json.loads(p or "{}").get("bound_scale", 1.0)))
+    if scales[df["status"] != "unsupported"].ne(1.0).any():
+        rates, _ = success_by(df, strict, scales)
+        cols = sorted(rates.columns, reverse=True)
         doc.table("success_per_bound_scale", "Success rate per solver and bound_scale, by each solver's claim "
                   "(every bound times it: the same problems in other units of x; unsupported rows left out)",
                   ["solver", *[f"x {c:g}" for c in cols]],
-                  [[shown[i], *[_percent(by.get((i, c), pd.Series(dtype=float))) for c in cols]] for i in labels])
+                  [[shown[i], *[_rate(rates.at[i, c]) if i in rates.index else "-" for c in cols]] for i in labels])
+
+
+def _rate(v: float) -> str:
+    """A rate in [0, 1] as a percentage, '-' for NaN (no row judged)."""
+    return f"{100 * v:.0f}%" if np.isfinite(v) else "-"
 
 
 def _speed_section(doc: _Doc, df: pd.DataFrame) -> None:
@@ -412,7 +454,7 @@ def _draw_figures(df: pd.DataFrame, plot_dir: Path, doc: _Doc, uncertified: froz
                           f"(verified rows{span}; - = fewer than 3 verified sizes)",
                           ["solver", "slope", "std. err.", "sizes verified / attempted"],
                           [[s, _num(a), _num(b), f"{k}/{m}"] for s, (a, b, k, m) in sorted(slopes.items())])
-    p = plots.plot_success(judged, plot_dir / "success_rate.png")
+    p = plots.plot_success(df, plot_dir / "success_rate.png")  # (success_by leaves the uncertified rows out)
     left_out = (f" ({len(uncertified)} problem{'s' * (len(uncertified) != 1)} without a certified yardstick "
                 f"left out)") if uncertified else ""
     if p:
@@ -514,6 +556,8 @@ def write_report(run_dir) -> Path:
     strict = strict_labels(df)
     modes = [m for m in ("cold", "warm") if (df["mode"] == m).any()]
     rankings = {m: rank(df[df["mode"] == m], strict, m) for m in modes}
+    supported = {m: rank_supported(df[df["mode"] == m], strict, m, rankings[m]) for m in modes}
+    accuracy = (meta.get("accuracy") or {}).get("profile", "default")
     own = {m: own_problems(df[df["mode"] == m], strict) for m in modes}
     ns = {m: non_strict(df[df["mode"] == m], strict) for m in modes}
     tail = {m: tail_table(df[df["mode"] == m], strict) for m in modes}
@@ -534,7 +578,7 @@ def write_report(run_dir) -> Path:
                  f"covers the rows run so far only.")
     doc.text(_contents(titles))
     doc.text(f"**Summary:** {summary_line(summary)}")
-    _ranking_section(doc, rankings, has_ns, _uncertified_problems(df))
+    _ranking_section(doc, rankings, has_ns, _uncertified_problems(df), accuracy, supported)
     _own_section(doc, own)
     _tail_section(doc, tail)
     if has_ns:
@@ -552,12 +596,13 @@ def write_report(run_dir) -> Path:
     out = run_dir / "report.md"
     out.write_text("\n".join(doc.lines).rstrip() + "\n")
     _write_json(run_dir, summary, rankings, own, ns, claims, figures, _calibration_ms(df), doc, meta, tail,
-                scenarios, sequences)
+                scenarios, sequences, supported)
     return out
 
 
 def _write_json(run_dir: Path, summary, rankings, own, ns, claims, figures, calibration, doc: _Doc,
-                meta: dict, tail: dict, scenarios: list[dict], sequences: list[dict] = ()) -> Path:
+                meta: dict, tail: dict, scenarios: list[dict], sequences: list[dict] = (),
+                supported: dict | None = None) -> Path:
     """RUN/report.json: the numbers of report.md (docs/reports.md, "report.json")."""
     data = {
         "summary": summary,
@@ -565,7 +610,11 @@ def _write_json(run_dir: Path, summary, rankings, own, ns, claims, figures, cali
                  "min_profile_problems": MIN_PROFILE_PROBLEMS},
         "ranking": {m: None if r is None else {
             "problems": len(r.problems), "problem_ids": r.problems, "unsolved": r.unsolved,
-            "solvers": r.rows, "not_ranked": r.apart} for m, r in rankings.items()},
+            "solvers": r.rows, "not_ranked": r.apart,
+            "supported": [{"for": labs, "problems": len(sr.problems), "problem_ids": sr.problems,
+                           "unsolved": sr.unsolved, "solvers": sr.rows, "not_ranked": sr.apart}
+                          for labs, sr in (supported or {}).get(m, [])]} for m, r in rankings.items()},
+        "accuracy": meta.get("accuracy", {}),
         "own_problems": own,
         "tail": tail,
         "non_strict": ns,

@@ -1,4 +1,4 @@
-"""``hikbench run [--suite NAME|FILE] [--solvers ...] [--out DIR] [--repeat R]
+"""``hikbench run [--suite NAME|FILE] [--solvers ...] [--out DIR] [--accuracy PROFILE] [--repeat R]
 [--rounds K] [--timeout S] [--first-solve-timeout S] [--workers N | --scheduler ADDR] [--rerun] [--quiet] [--limit N]``."""
 
 from __future__ import annotations
@@ -23,6 +23,10 @@ def add_arguments(p) -> None:
                         "or external:NAME=CMD (external:NAME[strict=false]=CMD: a program that does not "
                         "claim the lexicographic optimum)")
     p.add_argument("--out", default=None, help="output directory (default: results/<suite>)")
+    p.add_argument("--accuracy", default=None, choices=("high", "default", "low"),
+                   help="the headline accuracy profile: column `verified` and the ranking's order (default: "
+                        "the suite's `accuracy`, default); every row records its verdict at each profile "
+                        "(verified_high, verified_default, verified_low; docs/verification.md)")
     p.add_argument("--repeat", type=int, default=None, metavar="R",
                    help="exactly R timed repetitions per row (default: the suite's repeat, and up to its "
                         "samples for a fast solve: 100 for a solve under 1 ms in quick)")
@@ -115,7 +119,8 @@ def run(args) -> int:
         executor = DaskExecutor(workers=args.workers, scheduler=args.scheduler)
     try:
         s = run_suite(suite, out, solvers=args.solvers, repeat=args.repeat, timeout=args.timeout,
-                      rounds=args.rounds, rerun=args.rerun, executor=executor, quiet=args.quiet, limit=args.limit)
+                      rounds=args.rounds, rerun=args.rerun, executor=executor, quiet=args.quiet, limit=args.limit,
+                      accuracy=args.accuracy)
     finally:
         if executor is not None:
             executor.close()

@@ -1,9 +1,13 @@
 """``hikbench solve FILE --solver NAME|module:Class [--repeat R] [--warm] [--timeout S] [--first-solve-timeout S]
-[--certify] [--json]``.
+[--certify [--accuracy PROFILE]] [--json]``.
 
 The solve runs as one job of ``hikbench run`` does: in an isolated worker process
 (hikbench.bench.harness.isolation) under a hard timeout, so a solver that hangs, segfaults or
-exits costs a one-line ``timeout`` or ``crashed`` result (exit 1), not the command."""
+exits costs a one-line ``timeout`` or ``crashed`` result (exit 1), not the command.
+
+Exit status: 0; 1 when the solver failed (error, crashed, timeout) or, with ``--certify``, when
+the certified optimum is below x at some level beyond the ``--accuracy`` profile's tolerance (x
+is not optimal); 2 for bad input."""
 
 from __future__ import annotations
 
@@ -21,7 +25,7 @@ from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import load
 from hikbench.problems.hierarchy import row_normalised
 from hikbench.problems.schema import MAX_COUNT, check_at_most
-from hikbench.problems.verify import level_norms, verify
+from hikbench.problems.verify import PROFILES, judge, level_gaps, level_norms
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR
 
@@ -49,6 +53,9 @@ def add_arguments(p) -> None:
                    help="also certify x in exact rational arithmetic: the exact optimum on the active set read off x, "
                         "and its level norms (hikbench.problems.exact; ~0.05 s at n = 7, ~1 s at n = 80-120); for a "
                         "solver claiming row-normalised levels (daqp-hqp), of the row-normalised hierarchy")
+    p.add_argument("--accuracy", default="default", choices=tuple(PROFILES),
+                   help="with --certify: the profile whose verdict decides the exit status (1: x is not optimal; "
+                        "default: default); the verdicts at every profile are printed")
     p.add_argument("--json", action="store_true", help="print one JSON object")
 
 
@@ -169,16 +176,24 @@ def run(args) -> int:
         from hikbench.problems.exact import certify
 
         cert = certify(hc, res.x)
-    attains = None if cert is None or not cert.certified else verify(hc, res.x, cert.x)
+    # whether x itself reaches the certified optimum's level norms (judge, at each profile): the
+    # certificate is of the optimum on the active set read off x, which any x has
+    verdicts = None if cert is None or not cert.certified else {
+        p: judge(hc, res.x, cert.x, prof.rtol) for p, prof in PROFILES.items()}
+    attains = None if verdicts is None else verdicts[args.accuracy]
+    optimal = None if attains is None else attains.lower != "b"
     if args.certify:
+        above = attains is not None and attains.lower == "b"
         out["certificate"] = None if cert is None else {"judged_on": judged_on,
             "certified": cert.certified, "reason": cert.reason,
             "level_norms": [_finite_or_none(float(v)) for v in cert.level_norms],
-            # whether x itself reaches the certified optimum's level norms (verify, rtol 1e-9): the
-            # certificate is of the optimum on the active set read off x, which any x has
-            "x_is_optimal": None if attains is None else attains.equal,
-            "x_above_at_level": None if attains is None or attains.equal else attains.level,
-            "x_above_by": None if attains is None or attains.equal else attains.difference}
+            "accuracy": args.accuracy,
+            "x_is_optimal": optimal,
+            "verified": None if verdicts is None else {p: v.lower != "b" for p, v in verdicts.items()},
+            "level_gaps": None if verdicts is None else [
+                _finite_or_none(float(g)) for g in level_gaps(hc, res.x, cert.x)],
+            "x_above_at_level": attains.level if above else None,
+            "x_above_by": attains.difference if above else None}
     if args.json:
         print(json.dumps(out))
     else:
@@ -195,8 +210,25 @@ def run(args) -> int:
                                     f"exact optimum, level norms {cert.level_norms.tolist()}" if cert.certified
                                     else f"refused: {cert.reason}"))
             if attains is not None:
-                print("x           " + ("attains it (the same level norms within 1e-9 of each level's scale)"
-                                        if attains.equal else
-                                        f"is NOT optimal: above the certified optimum at level {attains.level} "
-                                        f"by {attains.difference:.3g}"))
-    return 1 if res.status in (ERROR, CRASHED, TIMEOUT) else 0  # (an exception in the solver, or an answer off the contract)
+                print("x           " + _attains_line(attains, verdicts, args.accuracy))
+    # (an exception in the solver, or an answer off the contract; with --certify, an x the certified
+    # optimum is below at the profile's tolerance)
+    return 1 if res.status in (ERROR, CRASHED, TIMEOUT) or optimal is False else 0
+
+
+def _attains_line(v, verdicts: dict, accuracy: str) -> str:
+    """The ``x`` line of ``--certify``: whether x attains the certified optimum at ``accuracy``
+    (v, its :func:`hikbench.problems.verify.judge` verdict), and at which profiles."""
+    at = ", ".join(p for p, w in verdicts.items() if w.lower != "b") or "none"
+    rtol = f"{PROFILES[accuracy].rtol:.0e}".replace("e-0", "e-")
+    if v.lower == "b":
+        return (f"is NOT optimal at the {accuracy} profile: above the certified optimum at level {v.level} by "
+                f"{v.difference:.3g} (tolerance {v.tolerance:.3g}, rtol {rtol} of the level's terms); "
+                f"verified at: {at}")
+    if v.lower == "a":
+        return (f"attains it at the {accuracy} profile (no level above it beyond rtol {rtol} of its terms), "
+                f"below it at level {v.level} by {-v.difference:.3g}: a level above is over the exact optimum "
+                f"within its tolerance; verified at: {at}")
+    return (f"attains it (no level above it beyond rtol {rtol} of its terms, the {accuracy} profile); "
+            f"verified at: {at}")
+

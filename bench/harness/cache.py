@@ -38,7 +38,9 @@ __all__ = ["CERTIFIED", "NO_YARDSTICK", "REFERENCE_ONLY", "YARDSTICK_MODULES", "
 
 #: the modules whose source computes a yardstick (the worker's yardstick job calls them); a module
 #: added to that computation is added here, so that a change in it recomputes the cached yardsticks
-YARDSTICK_MODULES: tuple[str, ...] = ("hikbench.solvers.yardstick", "hikbench.problems.exact")
+#: (the worker's certify job decides that a certified yardstick is the certificate's x*)
+YARDSTICK_MODULES: tuple[str, ...] = ("hikbench.solvers.yardstick", "hikbench.problems.exact",
+                                      "hikbench.bench.harness.worker")
 #: what a row's yardstick is (column ``yardstick``): certified by the exact certificate, a
 #: reference point the certificate did not accept (or did not reach in its budget), none at all
 CERTIFIED, REFERENCE_ONLY, NO_YARDSTICK = "certified", "reference-only", "none"

@@ -7,7 +7,15 @@ applicable / not reported".
 
 from __future__ import annotations
 
-__all__ = ["COLUMNS", "JSON_COLUMNS", "KEY", "markdown", "names"]
+from hikbench.problems.verify import PROFILES
+
+
+def _e(v: float) -> str:
+    """1e-09 as 1e-9."""
+    return f"{v:.0e}".replace("e-0", "e-")
+
+
+__all__ = ["COLUMNS", "JSON_COLUMNS", "KEY", "VERIFIED_COLUMNS", "markdown", "names"]
 
 #: (name, description), in CSV order
 COLUMNS: tuple[tuple[str, str], ...] = (
@@ -43,14 +51,21 @@ COLUMNS: tuple[tuple[str, str], ...] = (
                 "crashed: the worker process died, e.g. segfault)")),
     ("reason", ("detail for any status other than optimal; also, when the row reports a timed "
                 "repetition other than the last, which one and why (see verified)")),
-    ("verified", ("True when the level norms recomputed from x are lexicographically not worse than "
-                  "the yardstick's (tolerance from the suite's accuracy profile); False otherwise; "
+    ("verified", ("the verdict at the run's headline accuracy profile (`hikbench run --accuracy`, the suite's "
+                  "`accuracy`, run.json `accuracy.profile`): its column verified_<profile>. True when no level "
+                  "norm recomputed from x is above the certified yardstick's (the exact optimum) beyond the "
+                  "level's tolerance, rtol x the level's own terms (hikbench.problems.verify.judge, "
+                  "docs/verification.md); False otherwise; "
                   "empty when the yardstick is not certified (see yardstick): a row is never verified "
                   "against an uncertified point. x, status and the counts are those of the "
                   "last timed repetition unless an earlier one was worse: a status other than optimal "
                   "beside the last's optimal, or an x above the last's at some level beyond 1e-9 of its "
                   "scale (hikbench.bench.harness.timing.reported_result); the row then reports that one")),
-    ("verdict_level", "first level whose norm differs from the yardstick beyond tolerance (empty: none)"),
+    *((f"verified_{p}", (f"the verdict at the `{p}` profile (rtol {_e(prof.rtol)} of each level's own terms): "
+                         f"True, False, or empty as verified. A row verified at a profile is verified at every "
+                         f"looser one (high, then default, then low)")) for p, prof in PROFILES.items()),
+    ("verdict_level", ("at the headline profile, the first level whose norm is above the yardstick's beyond its "
+                       "tolerance (verified False), else the first below it beyond it (empty: none)")),
     ("verdict_side", ("at verdict_level: 'worse' (solver higher than the yardstick), 'better', "
                       "'no x' (no solution), 'no yardstick', 'no certified yardstick' (yardstick "
                       "reference-only, x equal to its point; '...; worse than its point' or '...; better "
@@ -70,6 +85,12 @@ COLUMNS: tuple[tuple[str, str], ...] = (
                           "yardstick")),
     ("level_norms", "JSON list: ||v_k(x)||_2 per level, recomputed from x (hikbench.problems.verify.level_norms)"),
     ("ref_level_norms", "JSON list: the same for the yardstick's solution (hikbench.solvers.yardstick)"),
+    ("level_gaps", ("JSON list: per level, (||v_k(x)|| - ||v_k(x_ref)||) / t_k, x's level norm above the "
+                    "yardstick's relative to the level's own terms t_k = || |A_k| |x_ref| + |b_k| || "
+                    "(hikbench.problems.verify.level_gaps; < 0: below it; null: the terms vanish and the "
+                    "norms differ, or a norm is NaN). A row is verified at a profile when every gap is at "
+                    "most its rtol (up to the round-off floor, docs/verification.md); against a "
+                    "reference-only yardstick the gaps are to its point, not a verdict")),
     ("x_norm", "||x||_2 of the solution (minimum-norm solvers match the yardstick's)"),
     ("iterations", "iterations reported by the solver (last timed repetition)"),
     ("iterations_per_level", "JSON list: iterations of each level, if reported"),
@@ -95,8 +116,10 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("finished_at", "UTC time the row was written (ISO 8601)"),
 )
 
+#: the verdict columns (True, False or empty): the headline's, then each profile's
+VERIFIED_COLUMNS = ("verified", *(f"verified_{p}" for p in PROFILES))
 KEY = ("problem", "solver", "settings", "mode")  #: a row's identity; resuming skips finished keys
-JSON_COLUMNS = ("params", "rows_per_level", "ranks", "options", "level_norms", "ref_level_norms",
+JSON_COLUMNS = ("params", "rows_per_level", "ranks", "options", "level_norms", "ref_level_norms", "level_gaps",
                 "iterations_per_level", "samples_ns")
 NUMBER_COLUMNS = ("seed", "n", "depth", "rows", "eq_rows", "ineq_rows", "rank", "repeat", "verdict_level",
                   "verdict_diff", "x_norm", "iterations", "activations", "deactivations", "flops", "time_median_s",

@@ -31,7 +31,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from hikbench.bench.harness.columns import JSON_COLUMNS, KEY, NUMBER_COLUMNS, names
+from hikbench.bench.harness.columns import JSON_COLUMNS, KEY, NUMBER_COLUMNS, VERIFIED_COLUMNS, names
 from hikbench.bench.harness.regular import check_run_folder, read_regular, regular_or_absent
 from hikbench.problems.errors import HikbenchError
 
@@ -346,7 +346,8 @@ def read_results(run_dir) -> pd.DataFrame:
         if c in df:
             df[c] = df[c].fillna("")
     df["reason"] = df["reason"].fillna("")
-    df["verified"] = df["verified"].map({True: True, False: False, "True": True, "False": False})
+    for c in VERIFIED_COLUMNS:
+        df[c] = df[c].map({True: True, False: False, "True": True, "False": False})
     # a run killed while replacing rows can leave an old row before its replacement
     df = df.drop_duplicates(subset=list(KEY), keep="last", ignore_index=True)
     return df

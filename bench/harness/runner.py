@@ -53,10 +53,10 @@ from hikbench.bench.harness.regular import check_run_folder
 from hikbench.bench.harness.results import ResultsWriter, backup, compact, finished_rows, one_line
 from hikbench.bench.harness.summary import write_summary
 from hikbench.bench.harness.timing import tail_columns
-from hikbench.bench.suites import ACCURACY, Suite, SuiteError, Task, expand
+from hikbench.bench.suites import Suite, SuiteError, Task, expand
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.hierarchy import row_normalised
-from hikbench.problems.verify import level_norms, verify
+from hikbench.problems.verify import PROFILES, judge, level_gaps, level_norms, verify
 from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
 from hikbench.solvers.base import ERROR
 
@@ -89,33 +89,41 @@ def _json_floats(a) -> str:
 NO_CERTIFIED = "no certified yardstick"
 
 
-def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: float) -> dict:
+def make_row(task: Task, pcols: dict, h, ref, res: dict, accuracy: str = "default") -> dict:
     """One results.csv row from a job result (hikbench.bench.harness.worker) and the yardstick
-    ``ref`` (:func:`_yardsticks`' tuple). A row is verified only against a certified
-    yardstick: against a reference-only one ``verified`` is empty and ``verdict_side`` says
-    ``no certified yardstick`` when x is equal to its point, with ``; worse than its point``
-    or ``; better than its point`` (and ``verdict_level``) when it is not. ``h`` and ``ref``
+    ``ref`` (:func:`_yardsticks`' tuple). Against a certified yardstick (the exact optimum) the
+    row is judged at every profile of hikbench.problems.verify.PROFILES (``verified_<profile>``,
+    hikbench.problems.verify.judge), ``verified`` and the verdict columns at ``accuracy``, the
+    headline profile; ``level_gaps`` holds what the verdicts read. A row is verified only
+    against a certified yardstick: against a reference-only one ``verified`` is empty and
+    ``verdict_side`` says ``no certified yardstick`` when x is not above its point at any
+    level, with ``; worse than its point`` or ``; better than its point`` (and
+    ``verdict_level``) when it is. ``h`` and ``ref``
     are those of the hierarchy the solver's levels are (``task.entry.judged_on``: for
     ``row-normalised``, :func:`hikbench.problems.hierarchy.row_normalised` of the problem and
     its own yardstick), and so are the row's norms; ``yardstick_reason`` then starts with
     ``judged on the row-normalised hierarchy (the solver's claim):``."""
     x_ref, ref_status, ref_reason, kind, kind_reason = ref[:5]
     x = res.get("x")
+    has_x = x is not None and np.shape(x) == (h.n,)
     samples = np.asarray(res.get("samples_ns") or [], dtype=np.int64)
     row = dict(pcols)
     e = task.entry
     row.update(solver=e.solver, settings=e.settings, options=e.options_json(), strict=e.strict,
                mode=task.mode,
                repeat=len(samples), status=res["status"], reason=res.get("reason", ""))
-    if x is not None and np.shape(x) == (h.n,):
+    if has_x:
         norms = level_norms(h, x)
         row["level_norms"] = _json_floats(norms)
         row["x_norm"] = float(np.linalg.norm(x))
     if x_ref is not None:
         row["ref_level_norms"] = _json_floats(level_norms(h, x_ref))
+        if has_x:
+            row["level_gaps"] = _json_floats(level_gaps(h, x, x_ref))
     if e.judged_on != "rows":
         kind_reason = f"judged on the {e.judged_on} hierarchy (the solver's claim): {kind_reason}"
     row.update(yardstick=kind, yardstick_reason=kind_reason)
+    rtol = PROFILES[accuracy].rtol
     if x_ref is None:
         row["verified"] = None
         row["verdict_side"] = "no yardstick"
@@ -123,16 +131,18 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, rtol: float, atol: floa
     elif kind != CERTIFIED:
         row["verified"] = None
         row["verdict_side"] = NO_CERTIFIED
-        if x is not None and np.shape(x) == (h.n,):  # (how x compares with the uncertified point, said apart)
-            v = verify(h, x, x_ref, rtol=rtol, atol=atol)
+        if has_x:  # (how x compares with the uncertified point, said apart)
+            v = judge(h, x, x_ref, rtol)
             if not v.equal:
                 row.update(verdict_level=v.level, verdict_diff=_finite(float(v.difference)),
                            verdict_side=f"{NO_CERTIFIED}; {'better' if v.lower == 'a' else 'worse'} than its point")
-    elif x is None or np.shape(x) != (h.n,):
-        row.update(verified=False, verdict_side="no x")
+    elif not has_x:
+        row.update(verified=False, verdict_side="no x", **{f"verified_{p}": False for p in PROFILES})
     else:
-        v = verify(h, x, x_ref, rtol=rtol, atol=atol)
-        row["verified"] = bool(v.equal or v.lower == "a")
+        verdicts = {p: judge(h, x, x_ref, prof.rtol) for p, prof in PROFILES.items()}
+        row.update({f"verified_{p}": v.lower != "b" for p, v in verdicts.items()})
+        v = verdicts[accuracy]
+        row["verified"] = row[f"verified_{accuracy}"]
         if not v.equal:
             row.update(verdict_level=v.level, verdict_side="better" if v.lower == "a" else "worse",
                        verdict_diff=_finite(float(v.difference)))
@@ -214,12 +224,13 @@ def out_lock(out: Path):
 
 
 def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rerun=False, executor=None,
-              quiet=False, limit=None, rounds=None, log=print) -> RunSummary:
+              quiet=False, limit=None, rounds=None, accuracy=None, log=print) -> RunSummary:
     """Run ``suite`` into directory ``out`` (see the module docstring).
 
     ``solvers`` (patterns) replaces the suite's solver lists; ``repeat``,
     ``rounds`` and ``timeout`` override the suite's (``repeat`` fixes the
-    count: no extra ``samples``); ``limit`` stops after
+    count: no extra ``samples``), ``accuracy`` the suite's headline profile (column ``verified``;
+    every row records each profile's verdict); ``limit`` stops after
     that many new rows (the run resumes later). With ``rounds`` R > 1 the
     ``repeat`` timed solves of a row are split over R rounds, each round
     running every job of the run once (:func:`_merge_rounds`), each round in
@@ -249,7 +260,9 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         raise HikbenchError(f"rounds = {rounds} (--rounds or the suite's): expected at most repeat = {repeat} "
                             "(--repeat or the suite's): each round times at least one solve of every row")
     timeout = float(timeout or suite.timeout)
-    rtol, atol = ACCURACY[suite.accuracy]
+    accuracy = accuracy or suite.accuracy
+    if accuracy not in PROFILES:
+        raise HikbenchError(f"--accuracy {accuracy}: expected one of {', '.join(PROFILES)}")
     tasks, skipped = expand(suite, solvers)  # checks solvers and settings before anything is written
     scenarios = []
     if suite.scenarios:  # (pinocchio and the robots only for a suite that has scenarios)
@@ -296,6 +309,12 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                   f"the previous results.csv is kept as {bak}", file=sys.stderr)
 
         meta = read_run_json(out)
+        before = (meta.get("accuracy") or {}).get("profile")
+        if done and before and before != accuracy:
+            raise HikbenchError(f"--accuracy {accuracy}: the rows of {out / 'results.csv'} have the headline "
+                                f"profile {before} (run.json; `verified` is its verdict); every row records each "
+                                f"profile's (verified_{'/'.join(PROFILES)}): run with --accuracy {before}, or "
+                                f"give this run another --out")
         session = {"started": utc_now(), "calibration_start_ns": calibrate(), "todo": len(todo),
                    "repeat": repeat, "samples": samples, "sample_time": suite.sample_time, "rounds": rounds,
                    "timeout": timeout}
@@ -304,7 +323,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
         meta.update({"suite": suite.to_dict(), "suite_rows": len(tasks), "suite_scenario_runs": len(scenarios),
                      "selected_solvers": selected,
                      "calibration_kernel": KERNEL, "key": list(KEY), "yardstick_code": yardstick_code(),
-                     "accuracy": {"profile": suite.accuracy, "rtol": rtol, "atol": atol},
+                     "accuracy": {"profile": accuracy, "rtol": PROFILES[accuracy].rtol,
+                                  "profiles": {p: prof.rtol for p, prof in PROFILES.items()}},
                      "skipped_solvers": skipped, "export_skipped": export_skipped, "environment": environment()})
         meta.setdefault("created", session["started"])
         meta.setdefault("sessions", []).append(session)
@@ -342,7 +362,7 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                                 continue
                             res = _merge_rounds(earlier.pop(i), res, rounds)
                             pid, jid = t.problem.id, _judged_id(t)
-                            row = make_row(t, pcols[pid], judged[jid], refs[jid], res, rtol, atol)
+                            row = make_row(t, pcols[pid], judged[jid], refs[jid], res, accuracy)
                             writer.write(row)
                             summary.written += 1
                             summary.statuses[row["status"]] = summary.statuses.get(row["status"], 0) + 1
@@ -660,8 +680,8 @@ def _certify_all(points: dict, problems: dict, executor, budget: float, progress
     """The exact certificate of each problem's chosen point (pid -> (x, note)), through the
     executor with ``budget`` seconds each; a problem whose estimated cost
     (:func:`hikbench.problems.exact.estimated_seconds`) exceeds twice the budget is not tried.
-    Returns pid -> the yardstick tuple: ``certified`` (x, or the certificate's exact optimum
-    where x is above it), else ``reference-only`` with the reason (refused, timed out, not
+    Returns pid -> the yardstick tuple: ``certified`` (the certificate's exact optimum x*,
+    rounded, whether x attains it or not), else ``reference-only`` with the reason (refused, timed out, not
     tried, failed), never losing the point."""
     from hikbench.problems.exact import estimated_seconds
 
@@ -690,10 +710,14 @@ def _certify_all(points: dict, problems: dict, executor, budget: float, progress
             elif not res["certified"]:
                 refs[pid] = (x, "optimal", note, REFERENCE_ONLY,
                              f"{note}; the exact certificate refused it: {res['reason']}", 0.0)
-            elif res["attains"]:
-                refs[pid] = (x, "optimal", note, CERTIFIED, note, 0.0)
-            else:
+            elif res.get("x_cert") is None:  # (x* is not representable: no double reaches it)
+                refs[pid] = (x, "optimal", note, CERTIFIED,
+                             f"{note}; the certificate's exact optimum x* is not representable in double "
+                             f"precision (rounded, it misses its exact level norms at level "
+                             f"{res['unrepresentable_level']}): the point is the yardstick", 0.0)
+            else:  # (certified: the exact optimum x* is the yardstick, never a point within a tolerance of it)
                 refs[pid] = (res["x_cert"], "optimal", note, CERTIFIED,
-                             f"the certificate's exact optimum x*: {note} is above it at level {res['above_level']}",
+                             f"the certificate's exact optimum x*, from {note}" + (
+                                 "" if res["attains"] else f", which is above it at level {res['above_level']}"),
                              0.0)
     return refs

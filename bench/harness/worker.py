@@ -82,17 +82,28 @@ def candidate_point(h, solver: str) -> dict:
 
 def certify_point(h, x: np.ndarray) -> dict:
     """The exact certificate of x (:func:`hikbench.problems.exact.certify`): ``certified``,
-    ``reason`` (why not), and where certified ``x_cert`` (the exact optimum x*, rounded) and
-    ``attains`` (x's level norms equal x*'s at 1e-9 of each level's scale, or lower)."""
+    ``reason`` (why not), and where certified ``x_cert`` (the exact optimum x*, rounded: the
+    yardstick, whatever x's level norms are; a point within a tolerance of x* is not x*, and a
+    tolerance that grew with ``||x||`` hid a gap of 65 of x above it), ``attains`` (no level
+    of x above x*'s beyond the ``high`` profile, hikbench.problems.verify.judge) and
+    ``above_level`` (the first level of x above x*'s, where it does not attain it).
+    ``x_cert`` is None, and ``unrepresentable_level`` the first level where it fails, when the
+    rounded x* does not hold the certificate's exact level norms within the ``high``
+    tolerance at x (an x* of norm 5e16 on levels rank-deficient only to rounding): no double
+    reaches that optimum, and x stays the yardstick."""
     from hikbench.problems.exact import certify
-    from hikbench.problems.verify import verify
+    from hikbench.problems.verify import PROFILES, judge, level_norms, level_tolerances
 
     cert = certify(h, x)
     out = {"status": "optimal", "certified": bool(cert.certified), "reason": cert.reason}
     if cert.certified:
-        v = verify(h, x, cert.x, rtol=1e-9)
-        out.update(x_cert=np.asarray(cert.x, dtype=float), attains=bool(v.equal or v.lower == "a"),
-                   above_level=None if v.equal else int(v.level))
+        xc = np.asarray(cert.x, dtype=float)
+        rtol = PROFILES["high"].rtol
+        off = np.flatnonzero(~(np.abs(level_norms(h, xc) - np.asarray(cert.level_norms, dtype=float))
+                               <= level_tolerances(h, x, rtol)))  # (at x's scale: x* may be huge)
+        v = judge(h, x, xc, rtol)
+        out.update(x_cert=None if off.size else xc, unrepresentable_level=int(off[0]) if off.size else None,
+                   attains=v.lower != "b", above_level=None if v.lower != "b" else int(v.level))
     return out
 
 

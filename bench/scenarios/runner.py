@@ -71,8 +71,9 @@ certified                  the exact certificate (hikbench.problems.exact) accep
                            active set read off u: its x* is the step's exact lexicographic
                            optimum (empty where the step has no finite u)
 certify_reason             why not (the first check that failed), else empty
-x_attains                  u's level norms equal x*'s within 1e-9 of each level's scale, or
-                           are lower (empty where not certified)
+x_attains                  no level norm of u is above x*'s beyond the high profile's
+                           tolerance (1e-9 of the level's terms, hikbench.problems.verify.judge;
+                           empty where not certified)
 =========================  ==================================================
 """
 

@@ -69,13 +69,43 @@ def test_solve_certify_says_when_x_is_not_the_certified_optimum(capsys, problem,
     f.write_text("import numpy as np\nfrom hikbench.solvers.base import SolveResult\n\nclass Zero:\n    name = 'zero'\n\n"
                  "    def solve(self, h):\n        return SolveResult(np.zeros(h.n), 'optimal')\n")
     code, out, err = run(capsys, "solve", problem[1], "--solver", f"{f}:Zero", "--json", "--certify")
-    assert code == 0, err
+    assert code == 1, err  # (x is not optimal: the exit status says so)
     cert = json.loads(out)["certificate"]
     assert cert["certified"] and cert["x_is_optimal"] is False and cert["x_above_at_level"] == 0, cert
+    assert cert["verified"] == {"high": False, "default": False, "low": False}, cert
     assert cert["x_above_by"] == pytest.approx(json.loads(out)["level_norms"][0] - cert["level_norms"][0],
                                                rel=1e-12)
     code, out, _ = run(capsys, "solve", problem[1], "--solver", f"{f}:Zero", "--certify")
-    assert code == 0 and "x           is NOT optimal: above the certified optimum at level 0 by 2" in out
+    assert code == 1
+    assert "x           is NOT optimal at the default profile: above the certified optimum at level 0 by 2" in out
+
+
+#: level 0: x0 = 1e6 and x0 = -1e6 (in conflict: x0* = 0, level 0's norm sqrt(2) 1e6); level 1:
+#: x0 = 1. x0 = 1e-3 raises level 0's norm by 5e-13 (second order), far within its tolerance
+#: (rtol x 1.4e6), and lowers level 1's by 1e-3: below the exact optimum there
+TRADE = Hierarchy.from_levels([Level.equality([[1.0], [1.0]], [1e6, -1e6]), Level.equality([[1.0]], [1.0])])
+
+
+@pytest.mark.parametrize("x0, code, words", [
+    (0.0, 0, "x           attains it (no level above it"),
+    (1e-3, 0, "below it at level 1 by 0.001"),
+    (1e-5, 0, "below it at level 1 by 1e-05"),
+], ids=["optimum", "below-by-1e-3", "below-by-1e-5"])
+def test_solve_certify_says_below_when_x_is_below_the_optimum(capsys, tmp_path, x0, code, words):
+    """An x below the certified optimum at a level (bought within the tolerance of a level
+    above) attains it at the profile and is said to be *below* it, never "above ... by" a
+    negative amount (before: "above the certified optimum at level 1 by -0.001", exit 0)."""
+    save_npz(TRADE, tmp_path / "trade.npz")
+    f = tmp_path / "fixed.py"
+    f.write_text("import numpy as np\nfrom hikbench.solvers.base import SolveResult\n\nclass Fixed:\n"
+                 "    name = 'fixed'\n\n    def solve(self, h):\n"
+                 f"        return SolveResult(np.array([{x0!r}]), 'optimal')\n")
+    rc, out, err = run(capsys, "solve", str(tmp_path / "trade.npz"), "--solver", f"{f}:Fixed", "--certify")
+    assert rc == code, out + err
+    assert words in out and "above the certified optimum" not in out, out
+    rc, out, err = run(capsys, "solve", str(tmp_path / "trade.npz"), "--solver", f"{f}:Fixed", "--certify", "--json")
+    cert = json.loads(out)["certificate"]
+    assert cert["x_is_optimal"] is True and cert["x_above_at_level"] is None and cert["x_above_by"] is None, cert
 
 
 def test_solve_text(capsys, problem):

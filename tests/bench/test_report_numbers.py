@@ -45,7 +45,7 @@ UNITS_SUITE = """repeat = 1
 warmup = 0
 timeout = 20.0
 modes = ["cold", "warm"]
-accuracy = "relative"
+accuracy = "high"
 solvers = ["hcod", "cascade-clarabel", "nullspace-svd"]
 [[problems]]
 family = "ik-like"

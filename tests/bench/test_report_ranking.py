@@ -41,7 +41,7 @@ def test_the_fastest_shows_one_and_every_ranked_figure_is_over_the_stated_proble
     by = {r[1]: dict(zip(head, r)) for r in rows}
     assert [r[1] for r in rows] == ["fast", "slow"]  # success first: 6/7, then 5/7
     assert by["fast"]["time vs fastest (1.00 = fastest)"] == "1.00"
-    assert {c["success"].split("(")[1] for c in by.values()} == {"6/7)", "5/7)"}
+    assert {c["success default"].split("(")[1] for c in by.values()} == {"6/7)", "5/7)"}
     assert {c["fastest on"].split("/")[1] for c in by.values()} == {"6"}
     assert f"{UNSOLVED}" in md and "No solver of the ranking solved 1 of the 7 problems" in md
 
@@ -70,7 +70,8 @@ def test_no_table_holds_the_job_timeout(tmp_path, timeout):
 
 def test_solvers_that_declined_are_listed_apart_with_their_count(report):
     md, data = report
-    assert "Not ranked in cold (declined some problems): picky declined 2 of its 7." in md
+    assert ("Not ranked in cold over these problems (declined some): picky declined 2 of its 7: ranked below on "
+            "the problems it supports." in md)
     assert data["ranking"]["cold"]["not_ranked"] == {"picky": {"declined": 2, "of": 7}}
     head, rows = _table(md, "Each strict solver on the problems it attempted alone")
     picky = dict(zip(head, next(r for r in rows if r[0] == "picky")))
@@ -96,7 +97,7 @@ def test_report_json_holds_the_numbers_of_the_markdown(report):
         cell = dict(zip(head, r))
         assert cell["solver"] == j["solver"]
         assert cell["time vs fastest (1.00 = fastest)"] == f"{j['relative_time']:.2f}"
-        assert cell["success"] == f"{j['success_rate']:.0%} ({j['success']}/{j['problems']})"
+        assert cell["success default"] == f"{j['success_rate']:.0%} ({j['success']}/{j['problems']})"
     s = data["summary"]
     assert (s["rows"], s["problems"], s["wall_time_s"]) == (28, 7, 100.0)
     assert f"**Summary:** {s['rows']} rows: 4 solvers x 7 problems (cold); {s['verified']} verified" in md

@@ -208,3 +208,45 @@ def test_a_huge_free_component_buys_no_tolerance(free):
                                Level.equality([[1.0, 1.0, 0.0]], [0.0])], n=3)
     v = verify(h, [1.001, -1.0, free], [1.0, -1.0, 0.0], rtol=1e-6)
     assert (v.level, v.lower) == (0, "b"), v
+
+
+def test_level_terms_by_hand():
+    """t_k = || |A_k| |x| + |b_k| ||, b_i the finite bound nearer a_i x (0 for a free row)."""
+    from hikbench.problems.verify import level_terms
+
+    # level 0: rows [3, -4] in (-inf, 12] and [1, 1] in [-1, 50]; level 1: a free row [1, 1]
+    h = Hierarchy([[3, -4], [1, 1], [1, 1]], [-INF, -1, -INF], [12, 50, INF], [0, 0, 1])
+    x = np.array([1.0, 2.0])  # A x = (-5, 3, 3): bounds 12 and -1 (nearer 3 than 50)
+    np.testing.assert_allclose(level_terms(h, x), [np.hypot(3 + 8 + 12, 1 + 2 + 1), 3.0], rtol=1e-15)
+    np.testing.assert_allclose(level_terms(h), [np.hypot(12, 1), 0.0], rtol=1e-15)  # (x = 0)
+
+
+@pytest.mark.parametrize("rtol", [1e-9, 1e-8, 1e-6], ids=["high", "default", "low"])
+def test_a_huge_optimum_at_one_level_buys_no_tolerance_at_another(rtol):
+    """Level 0 ``0.1 x0 = 1e9`` puts x0* at 1e10; level 1 ``10 x1 = 0``. x1 = 6.526 leaves
+    level 1 at 65.26 where 0 is reachable. With the tolerance rtol ||A_1||_F ||x*|| (before) it
+    was 100 at rtol 1e-9, and the gap was hidden; level 1's own terms at x* are 0, which leaves
+    the round-off floor 1e-12 x ||A_1||_F ||x*|| = 0.1."""
+    from hikbench.problems.verify import judge, level_tolerances
+
+    h = Hierarchy.from_levels([Level.equality([[0.1, 0.0]], [1e9]), Level.equality([[0.0, 10.0]], [0.0])])
+    x_star, x = np.array([1e10, 0.0]), np.array([1e10, 6.526])
+    np.testing.assert_allclose(level_norms(h, x), [0.0, 65.26], rtol=1e-12)
+    np.testing.assert_allclose(level_tolerances(h, x_star, rtol)[1], 0.1, rtol=1e-12)
+    assert 1e-9 * level_scales(h, x_star)[1] == pytest.approx(100.0)  # (the former tolerance)
+    for v in (verify(h, x, x_star, rtol=rtol), judge(h, x, x_star, rtol)):
+        assert (v.level, v.lower) == (1, "b"), v
+
+
+@given(hierarchies(coefficients=moderate, bounds=moderate, min_n=1, names=False, x0=False), st.data(),
+       st.floats(min_value=1e-12, max_value=1e-2))
+def test_a_row_verified_at_a_profile_is_verified_at_every_looser_one(h, data, d):
+    """judge at high, default, low (PROFILES, tightest first): True, then never False again,
+    for x = x_ref perturbed by d relative and for an unrelated x."""
+    from hikbench.problems.verify import PROFILES, judge
+
+    x_ref = np.array(data.draw(st.lists(moderate, min_size=h.n, max_size=h.n)))
+    s = np.array(data.draw(st.lists(st.sampled_from([-1.0, 1.0]), min_size=h.n, max_size=h.n)))
+    for x in (x_ref * (1 + d * s), np.array(data.draw(st.lists(moderate, min_size=h.n, max_size=h.n)))):
+        ok = [judge(h, x, x_ref, p.rtol).lower != "b" for p in PROFILES.values()]
+        assert ok == sorted(ok), ok
