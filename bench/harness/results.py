@@ -132,8 +132,18 @@ def _check_header(path: Path) -> list | None:
     return _checked(_Csv(path)).header
 
 
-def _checked(parsed: _Csv) -> _Csv:
+#: the columns this version added to results.csv: a file of the version before lacks them (read, with
+#: them empty, by ``report`` and ``compare``; never appended to)
+ADDED_COLUMNS = frozenset({"level_gaps", "verified_high", "verified_default", "verified_low"})
+
+
+def _checked(parsed: _Csv, earlier: bool = False) -> _Csv:
+    """``parsed``, whose header must be this version's columns; with ``earlier``, also those of the
+    version before: this version's without some of :data:`ADDED_COLUMNS`."""
     header = parsed.header
+    if (earlier and header is not None and header == [c for c in names() if c in set(header)]
+            and set(names()) - set(header) <= ADDED_COLUMNS):
+        return parsed
     if header is not None and header != names():
         raise HikbenchError(f"{parsed.path}: its columns differ from this version's ({len(header)} vs "
                             f"{len(names())} columns); expected a results.csv written by this version of "
@@ -333,13 +343,17 @@ def read_results(run_dir) -> pd.DataFrame:
     check_run_folder(run_dir)  # (report writes report.md and plots/, compare reads run.json: none of them a FIFO)
     if not regular_or_absent(path, _EXPECTED):
         raise HikbenchError(f"{run_dir}: no {RESULTS} (run `hikbench run --out {run_dir}` first)")
-    parsed = _checked(_Csv(path))
+    parsed = _checked(_Csv(path), earlier=True)  # (a run of an earlier version is read: report, compare)
     if parsed.header is None:  # killed before its header was written: no rows
         return pd.DataFrame(columns=names())
     dtype = {"problem": str, "solver": str, "settings": str, "mode": str, "reason": str, "verdict_side": str,
              "family": str, "host": str, "worker": str, **{c: str for c in JSON_COLUMNS}}
     # complete lines only: a run still writing (or killed mid-row) leaves a partial last row
     df = pd.read_csv(io.StringIO(parsed.text), dtype=dtype, keep_default_na=True)
+    missing = [c for c in names() if c not in df]  # (an earlier version's run: the columns it did not record, empty)
+    df = df.reindex(columns=names())
+    for c in missing:
+        df[c] = df[c].astype(object)
     _check_numbers(df, path)
     _check_json(df, path)
     for c in JSON_COLUMNS:

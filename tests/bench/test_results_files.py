@@ -138,3 +138,28 @@ def test_compare_on_a_foreign_or_damaged_results_csv_is_a_one_line_error(tmp_pat
     new = verified_run(tmp_path / "new", ["p0"])
     code, _, err = run(capsys, "compare", base, new)
     assert_user_error(code, err, str(base), message)
+
+
+def test_a_run_of_an_earlier_version_is_reported_with_its_new_columns_empty_and_never_resumed(tmp_path, capsys):
+    """An earlier version's results.csv (without the per-profile verdicts and level gaps) is read by
+    ``report`` and ``compare`` with those columns empty; ``run`` refuses to append to it (one
+    line: a new --out)."""
+    suite = write_suite(tmp_path / "s.toml", [SLEEP], modes=("cold",))
+    out = tmp_path / "out"
+    assert _run("--suite", suite, "--out", out) == 0
+    path = out / "results.csv"
+    new = ["level_gaps", "verified_high", "verified_default", "verified_low"]
+    with open(path, newline="") as f:
+        rows = list(csv.DictReader(f))
+    kept = [c for c in rows[0] if c not in new]
+    with open(path, "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=kept, extrasaction="ignore")
+        w.writeheader()
+        w.writerows(rows)
+    df = read_results(out)
+    assert len(df) == len(rows) and (df["level_gaps"] == "").all() and df[new[1:]].isna().all().all()
+    assert list(df["verified"]) == [r["verified"] == "True" for r in rows]
+    assert main(["report", str(out)]) == 0
+    capsys.readouterr()
+    assert _run("--suite", suite, "--out", out, "--rerun") == 2
+    assert "its columns differ from this version's" in capsys.readouterr().err
