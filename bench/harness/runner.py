@@ -377,8 +377,8 @@ def run_suite(suite: Suite, out, *, solvers=None, repeat=None, timeout=None, rer
                     from hikbench.bench.testset.sequences import run_sequences, sequence_tasks
                     entries = list({(t.entry.solver, t.entry.settings): t.entry for t in tasks}.values())
                     summary.sequence_written = run_sequences(
-                        sequence_tasks(suite.sequences, entries), out, executor, suite.first_solve_timeout, rtol,
-                        atol, rerun=rerun, progress=progress)
+                        sequence_tasks(suite.sequences, entries), out, executor, suite.first_solve_timeout,
+                        PROFILES[accuracy].rtol, rerun=rerun, progress=progress)
         except BaseException as err:
             failure = err
             raise
