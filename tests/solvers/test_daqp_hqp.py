@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from hik_strategies import hierarchies
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from hikbench.problems import generators as g
@@ -65,6 +65,7 @@ WELL_SCALED = st.one_of(st.just(0.0), st.floats(0.1, 10.0), st.floats(-10.0, -0.
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(hierarchies(max_n=5, max_depth=4, max_rows=3, coefficients=WELL_SCALED,
                    bounds=st.floats(-5.0, 5.0), names=False, x0=False, min_n=1))
+@example(Hierarchy.from_levels([Level.equality(np.array([[1.0, 0.0], [-6.0, 0.125]]), [0.0, 1.0])]))  # (5.4e-7: ATOL)
 def test_agrees_with_hcod_on_hypothesis_hierarchies(h):
     res = registry.create("daqp-hqp").solve(h)
     if res.status != OPTIMAL:
