@@ -55,7 +55,6 @@ import shlex
 import shutil
 import signal
 import socket
-import stat
 import subprocess
 import sys
 import tempfile
@@ -64,6 +63,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from hikbench.bench.harness.regular import NotRegular, TooLarge, bounded_bytes
 from hikbench.bench.harness.streams import HeadTail, kill_session
 from hikbench.bench.harness.statuses import TIMEOUT
 from hikbench.solvers.base import ERROR, OPTIMAL, STATUSES, SolveResult
@@ -315,22 +315,15 @@ def _read_answer(path: str, n: int):
     has more than :data:`_ANSWER_INT_DIGITS` digits; ValueError / OSError naming
     what is wrong otherwise."""
     limit = _ANSWER_BYTES_PER_NUMBER * n + _ANSWER_BYTES_EXTRA
-    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     try:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise ValueError(f"it is {_kind(st.st_mode)}: expected a regular file holding a JSON object")
-        if st.st_size > limit:
-            raise ValueError(f"it is {st.st_size} bytes: expected at most {limit} for an answer of {n} numbers")
-        chunks, got = [], 0
-        while got <= limit and (chunk := os.read(fd, min(1 << 20, limit + 1 - got))):
-            chunks.append(chunk)
-            got += len(chunk)
-    finally:
-        os.close(fd)
-    if got > limit:  # (it grew while read)
-        raise ValueError(f"it holds more than {limit} bytes: expected at most {limit} for an answer of {n} numbers")
-    text = b"".join(chunks).decode("utf-8", errors="strict")
+        data = bounded_bytes(path, limit)
+    except NotRegular as err:
+        raise ValueError(f"it is {err.what}: expected a regular file holding a JSON object") from None
+    except TooLarge as err:
+        raise ValueError(f"it is {err.size} bytes: expected at most {limit} for an answer of {n} numbers" if err.size
+                         else f"it holds more than {limit} bytes: expected at most {limit} for an answer of {n} "
+                              f"numbers") from None
+    text = data.decode("utf-8", errors="strict")
     depth = _nesting(text)
     if depth > _ANSWER_DEPTH:
         raise ValueError(f"its JSON is nested {depth} deep: expected at most {_ANSWER_DEPTH} "
@@ -343,16 +336,6 @@ _ANSWER_BYTES_EXTRA = 1 << 20  # and for the other fields (a reason)
 _ANSWER_DEPTH = 8  # nesting of arrays and objects in an answer (it needs 2)
 _ANSWER_INT_DIGITS = 20  # digits of an integer in an answer (an iteration count; 2**64 has 20)
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
-
-
-def _kind(mode: int) -> str:
-    """What a file that is not a regular file is, in words."""
-    for test, words in ((stat.S_ISFIFO, "a FIFO"), (stat.S_ISCHR, "a character device"),
-                        (stat.S_ISBLK, "a block device"), (stat.S_ISDIR, "a directory"),
-                        (stat.S_ISSOCK, "a socket")):
-        if test(mode):
-            return words
-    return "not a regular file"
 
 
 def _nesting(text: str) -> int:

@@ -11,7 +11,8 @@ from pathlib import Path
 
 from hikbench.problems.errors import HikbenchError
 
-__all__ = ["RUN_FOLDER", "check_run_folder", "kind", "open_regular", "read_regular", "regular_or_absent"]
+__all__ = ["RUN_FOLDER", "NotRegular", "TooLarge", "bounded_bytes", "check_run_folder", "kind", "open_regular",
+           "read_regular", "regular_or_absent"]
 
 
 def kind(mode: int) -> str:
@@ -51,31 +52,58 @@ def open_regular(path):
     return os.fdopen(fd, "rb")
 
 
-def read_regular(path, limit: int, expected: str) -> bytes:
-    """The bytes of the regular file ``path``, at most ``limit`` of them; HikbenchError
-    naming the path and ``expected`` when it is another kind of file, larger, or unreadable."""
-    path = Path(path)
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
-    except OSError as err:
-        raise HikbenchError(f"{path}: cannot be read ({err.strerror or err}); expected {expected}") from None
+class NotRegular(ValueError):
+    """The file read by :func:`bounded_bytes` is not a regular file: ``what`` it is, in words."""
+
+    def __init__(self, what: str):
+        super().__init__(what)
+        self.what = what
+
+
+class TooLarge(ValueError):
+    """The file read by :func:`bounded_bytes` holds more than its limit: ``size`` its size when
+    known before reading (None: it grew while read)."""
+
+    def __init__(self, size: int | None):
+        super().__init__(size)
+        self.size = size
+
+
+def bounded_bytes(path, limit: int) -> bytes:
+    """The bytes of the regular file ``path``, at most ``limit`` of them, opened without blocking
+    (a FIFO is never waited on); :class:`NotRegular` or :class:`TooLarge` otherwise (unread), an
+    OSError as the system raises it. Callers word these for their reader."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     try:
         st = os.fstat(fd)
         if not stat.S_ISREG(st.st_mode):
-            raise HikbenchError(f"{path}: is {kind(st.st_mode)}; expected {expected}")
+            raise NotRegular(kind(st.st_mode))
         if st.st_size > limit:
-            raise HikbenchError(f"{path}: {st.st_size} bytes, more than the {limit} expected of {expected}")
+            raise TooLarge(st.st_size)
         chunks, got = [], 0
         while got <= limit and (chunk := os.read(fd, min(1 << 24, limit + 1 - got))):
             chunks.append(chunk)
             got += len(chunk)
-    except OSError as err:
-        raise HikbenchError(f"{path}: cannot be read ({err.strerror or err}); expected {expected}") from None
     finally:
         os.close(fd)
     if got > limit:
-        raise HikbenchError(f"{path}: more than the {limit} bytes expected of {expected}")
+        raise TooLarge(None)
     return b"".join(chunks)
+
+
+def read_regular(path, limit: int, expected: str) -> bytes:
+    """The bytes of the regular file ``path``, at most ``limit`` of them (:func:`bounded_bytes`);
+    HikbenchError naming the path and ``expected`` when it is another kind of file, larger, or unreadable."""
+    path = Path(path)
+    try:
+        return bounded_bytes(path, limit)
+    except NotRegular as err:
+        raise HikbenchError(f"{path}: is {err.what}; expected {expected}") from None
+    except TooLarge as err:
+        raise HikbenchError(f"{path}: {err.size} bytes, more than the {limit} expected of {expected}" if err.size
+                            else f"{path}: more than the {limit} bytes expected of {expected}") from None
+    except OSError as err:
+        raise HikbenchError(f"{path}: cannot be read ({err.strerror or err}); expected {expected}") from None
 
 
 #: the entries of a run folder (OUT) and the kind each must be when present: ``dir`` a folder of
