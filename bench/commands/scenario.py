@@ -1,9 +1,11 @@
 """``hikbench scenario NAME [--robot R|PATH.urdf [--srdf PATH] [--floating-base] [--reference NAME]]
 [--frame ALIAS=FRAME ...] --solver S [--solver S2 ...] [--warm-start MODE ...]
-[--steps K] [--repeat R] [--resolve] [--out DIR] [--plot] [--option KEY=VALUE ...]``.
+[--[no-]interleave] [--steps K] [--repeat R] [--resolve] [--out DIR] [--plot] [--option KEY=VALUE ...]``.
 
 Runs a closed-loop robot scenario (``problems/robots/scenarios/NAME.toml`` or a
-TOML path) once per (solver, warm-start mode), writes one per-step CSV per run
+TOML path) once per (solver, warm-start mode) -- several modes of one solver
+interleaved step by step in one process unless ``--no-interleave``
+(:func:`hikbench.bench.scenarios.runner.run_interleaved`) --, writes one per-step CSV per run
 (columns documented in ``bench/scenarios/runner.py``), ``summary.csv`` (one row per
 run: cost per step, max and final task errors by level, checks) and, with
 ``--plot``, the figures of ICRA 2010 sec. XII; prints the scenario's checks and,
@@ -54,6 +56,10 @@ def add_arguments(p) -> None:
                    help="warm-start modes to run (repeatable), one run each, for solvers with a warm_start option "
                         "(hcod: none stage time; a module:Class solver: the values its warm_start "
                         "parameter takes; default: the solver's default); ignored for the others")
+    p.add_argument("--interleave", action=argparse.BooleanOptionalAction, default=None,
+                   help="with several --warm-start modes: solve every mode at each step in turn, in one process "
+                        "(the default: the modes' ratio is the solver's, not the machine's drift; the loop follows "
+                        "the first mode's u, column x_gap_to_first); --no-interleave runs them one after the other")
     p.add_argument("--steps", type=int, default=None, help="control steps (default: the scenario's)")
     p.add_argument("--repeat", type=int, default=None, metavar="R",
                    help="timed calls per step, on R solver objects fed the same steps (same warm-start "
@@ -78,9 +84,8 @@ def add_arguments(p) -> None:
 def run(args) -> int:
     from hikbench.bench.cli import solver_calls_killable
     from hikbench.bench.scenarios.controllers import CONTROLLERS, build_controller, is_controller
-    from hikbench.bench.scenarios.rows import run_stem, slug
-    from hikbench.bench.scenarios.checks import check_run
-    from hikbench.bench.scenarios.runner import REPEAT, run_scenario, warm_start_default
+    from hikbench.bench.scenarios.rows import slug
+    from hikbench.bench.scenarios.runner import REPEAT, run_interleaved, run_scenario, warm_start_default
     from hikbench.bench.harness.worker import solver_info
     from hikbench.problems.robots.scenarios import load_scenario, scenario_names
     from hikbench.problems.robots.stacks import stack_names
@@ -119,12 +124,12 @@ def run(args) -> int:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise HikbenchError(f"--out {out}: cannot create the directory: {err.strerror or err}") from err
-    plan = []  # (solver, options, mode), each built once here so that a bad mode or option fails before any run
+    plan = []  # (solver, options, modes), each mode built once here so that a bad mode or option fails first
     for solver in solvers:
         if is_controller(solver):  # pink: built on the scenario's stack (an unsupported task fails here)
             opts = {**{k: v for k, v in options.items() if k != "warm_start"}, **scoped.get(solver, {})}
             build_controller(solver, scenario.stack, **opts)
-            plan.append((solver, opts, None))
+            plan.append((solver, opts, [None]))
             continue
         info = solver_info(solver)
         default = warm_start_default(info)
@@ -135,45 +140,25 @@ def run(args) -> int:
         opts = {k: v for k, v in {**options, **own}.items() if k != "warm_start" or has_modes}
         for mode in modes:
             build(info, **{**opts, **({"warm_start": mode} if has_modes else {})})
-            plan.append((solver, opts, mode))
+        plan.append((solver, opts, modes))
     runs, checks, failed = [], [], False
-    for solver, opts, mode in plan:
+    for solver, opts, modes in plan:
+        interleave = len(modes) > 1 and args.interleave is not False
         with solver_calls_killable():  # a backend looping in C code still ends on SIGTERM / Ctrl-C
             t0 = time.perf_counter()
-            run_ = run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps, repeat=repeat,
-                                resolve=args.resolve, certify=args.certify or 0)
+            if interleave:
+                group = run_interleaved(scenario, solver, modes, opts, steps=args.steps, repeat=repeat,
+                                        resolve=args.resolve, certify=args.certify or 0)
+            else:
+                group = [run_scenario(scenario, solver, options=opts, warm_start=mode, steps=args.steps,
+                                      repeat=repeat, resolve=args.resolve, certify=args.certify or 0)
+                         for mode in modes]
             wall = time.perf_counter() - t0
-        runs.append(run_)
-        stem = run_stem(scenario.name, scenario.robot.name, run_.label)
-        csv = out / f"{stem}.csv"
-        run_.records.to_csv(csv, index=False)
-        np.save(out / f"{stem}_q.npy", run_.q)
-        df = run_.records
-        print(f"{run_.label}: {len(df)} steps, solve time per step (min of {repeat} calls) median "
-              f"{np.median(df['solve_time_min_s']) * 1e3:.3f} ms, max "
-              f"{df['solve_time_min_s'].max() * 1e3:.3f} ms; "
-              f"first call median {np.median(df['solve_time_first_s']) * 1e3:.3f} ms, max "
-              f"{df['solve_time_first_s'].max() * 1e3:.3f} ms -> {csv}")
-        if args.resolve:
-            print(f"  re-solve of each step's problem (min of {repeat} calls) median "
-                  f"{np.median(df['resolve_time_min_s']) * 1e3:.3f} ms")
-        apart = int((~df["repeats_agree"].astype(bool)).sum())
-        if apart:
-            print(f"  note: on {apart} of {len(df)} steps the {repeat} solver objects did not all return the "
-                  f"first's answer (x, status or counts): their minimum may time other work (repeats_agree)")
-        if args.certify:
-            ok = df["certified"].eq(True)
-            print(f"  exact certificate: {int(ok.sum())} of {len(df)} steps certified, x attains the exact optimum "
-                  f"on {int(df['x_attains'].eq(True).sum())} (run and certificates {wall:.1f} s, "
-                  f"{args.certify} worker(s))" + ("" if ok.all() else
-                                                  f"; first refused: step {int(df.loc[~ok, 'step'].iloc[0])}: "
-                                                  f"{df.loc[~ok, 'certify_reason'].iloc[0]}"))
-        errs = [c for c in df.columns if c.startswith("err_")]
-        print("  final errors: " + ", ".join(f"{c[4:]}={df[c].iloc[-1]:.2e}" for c in errs))
-        checks.append(check_run(run_))
-        for check in checks[-1]:
-            failed |= check.passed is False
-            print(f"  [{check.verdict}] {check.name}: {check.detail}")
+        if interleave:
+            print(f"{solver}: warm-start modes {', '.join(r.warm_start for r in group)} interleaved step by step "
+                  f"(the loop follows {group[0].label}'s u; --no-interleave runs them one after the other)")
+        for run_ in group:
+            failed |= _report_run(run_, scenario, out, repeat, args, wall, runs, checks)
     if len(runs) > 1:
         _print_side_by_side(runs, checks)
     _summary(runs, checks).to_csv(out / "summary.csv", index=False)
@@ -184,6 +169,48 @@ def run(args) -> int:
         for path in plot_runs(runs, out, joints=scenario.plot_joints):
             print(f"figure {path}")
     return 1 if failed else 0
+
+
+def _report_run(run_, scenario, out: Path, repeat: int, args, wall: float, runs: list, checks: list) -> bool:
+    """Write one run's CSV and trajectory, print its costs, certificates, errors and checks,
+    append it to ``runs`` and its checks to ``checks``; True when a check failed."""
+    from hikbench.bench.scenarios.checks import check_run
+    from hikbench.bench.scenarios.rows import run_stem
+
+    runs.append(run_)
+    stem = run_stem(scenario.name, scenario.robot.name, run_.label)
+    csv = out / f"{stem}.csv"
+    run_.records.to_csv(csv, index=False)
+    np.save(out / f"{stem}_q.npy", run_.q)
+    df = run_.records
+    print(f"{run_.label}: {len(df)} steps, solve time per step (min of {repeat} calls) median "
+          f"{np.median(df['solve_time_min_s']) * 1e3:.3f} ms, max "
+          f"{df['solve_time_min_s'].max() * 1e3:.3f} ms; "
+          f"first call median {np.median(df['solve_time_first_s']) * 1e3:.3f} ms, max "
+          f"{df['solve_time_first_s'].max() * 1e3:.3f} ms -> {csv}")
+    if args.resolve:
+        print(f"  re-solve of each step's problem (min of {repeat} calls) median "
+              f"{np.median(df['resolve_time_min_s']) * 1e3:.3f} ms")
+    apart = int((~df["repeats_agree"].astype(bool)).sum())
+    if apart:
+        print(f"  note: on {apart} of {len(df)} steps the {repeat} solver objects did not all return the "
+              f"first's answer (x, status or counts): their minimum may time other work (repeats_agree)")
+    if args.certify:
+        ok = df["certified"].eq(True)
+        print(f"  exact certificate: {int(ok.sum())} of {len(df)} steps certified, x attains the exact optimum "
+              f"on {int(df['x_attains'].eq(True).sum())} (run and certificates {wall:.1f} s, "
+              f"{args.certify} worker(s))" + ("" if ok.all() else
+                                              f"; first refused: step {int(df.loc[~ok, 'step'].iloc[0])}: "
+                                              f"{df.loc[~ok, 'certify_reason'].iloc[0]}"))
+    if "x_gap_to_first" in df and (gap := df["x_gap_to_first"].max()) > 0:
+        print(f"  x against the first mode's, on its steps: max |du| {gap:.1e} (x_gap_to_first; nonzero on "
+              f"{int((df['x_gap_to_first'] > 0).sum())} of {len(df)} steps)")
+    errs = [c for c in df.columns if c.startswith("err_")]
+    print("  final errors: " + ", ".join(f"{c[4:]}={df[c].iloc[-1]:.2e}" for c in errs))
+    checks.append(check_run(run_))
+    for check in checks[-1]:
+        print(f"  [{check.verdict}] {check.name}: {check.detail}")
+    return any(c.passed is False for c in checks[-1])
 
 
 def _robot(args):

@@ -61,6 +61,10 @@ err_<task>                 the task's error norm at q_k (``Task.error_norm``;
                            m for positions, rad for orientations, mixed for 6D
                            log errors; for minimal velocity ||u|| rad/s)
 level_norm_<level>         ||v_k(u)||, the level's violation recomputed from u
+x_gap_to_first             only in a run of several warm-start modes interleaved
+                           (:func:`run_interleaved`, ``hikbench scenario`` with several
+                           ``--warm-start`` modes): max |u - u of the first mode| at the step,
+                           whose u the loop follows (0 where they agree)
 =========================  ==================================================
 
 With ``certify`` (``hikbench scenario --certify``), after the run each step's u is certified
@@ -99,7 +103,7 @@ from hikbench.solvers.base import ERROR, SolveResult, checked_result
 from hikbench.problems.verify import level_norms
 
 __all__ = ["ACTIVE_RTOL", "COLUMNS", "NO_WARM_START", "REPEAT", "ScenarioRun", "active_rows", "certify_steps",
-           "run_scenario", "warm_start_default"]
+           "run_interleaved", "run_scenario", "warm_start_default"]
 
 COLUMNS = ("solver", "warm_start", "step", "time_s", "solve_time_min_s", "solve_time_first_s",
            "resolve_time_min_s", "repeat", "repeats_agree", "iterations", "activations", "deactivations",
@@ -185,65 +189,123 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
         ``on_step(k, h, result)`` after each step's timed calls: the step's hierarchy and the
         controller's SolveResult (``hikbench testset``'s recorder, bench/testset/record.py).
     """
+    return run_interleaved(scenario, solver, [warm_start], options, steps=steps, repeat=repeat, resolve=resolve,
+                           certify=certify, on_step=on_step)[0]
+
+
+def run_interleaved(scenario: Scenario, solver: str, modes: list, options: dict | None = None, *,
+                    steps: int | None = None, repeat: int = REPEAT, resolve: bool = False, certify: int = 0,
+                    on_step=None) -> list[ScenarioRun]:
+    """Run ``scenario`` once per warm-start mode of ``modes`` (None: the solver's default),
+    interleaved step by step in one process: at step k every mode's ``repeat`` objects solve
+    the step's hierarchy, the modes taken in turn from mode ``k mod len(modes)`` on, so that a
+    drift of the machine's speed falls on every mode alike and the ratio of two modes is the
+    solver's. The loop follows the first mode's u (the controller's); the other modes solve the
+    same hierarchies, each on its own objects (so each holds its own warm-start state), and
+    with several modes each row has ``x_gap_to_first``, max |u - u of the first mode| (0 where
+    they agree; empty where either has no u). One :class:`ScenarioRun` per mode, in the order
+    of ``modes``; the other parameters as in :func:`run_scenario`."""
     options = dict(options or {})
-    make, mode = _maker(scenario, solver, options, warm_start)
+    if not modes:
+        raise HikbenchError("run_interleaved: expected at least one warm-start mode")
+    makers = [_maker(scenario, solver, dict(options), mode) for mode in modes]  # (each its own options)
     steps = scenario.steps if steps is None else int(steps)
     if steps < 1:
         raise HikbenchError(f"steps must be >= 1; got {steps}")
     if int(repeat) < 1:
         raise HikbenchError(f"repeat must be >= 1; got {repeat}")
-    solvers = [make() for _ in range(int(repeat))]  # [0]: the controller's
+    groups = [[make() for _ in range(int(repeat))] for make, _ in makers]  # [m][0]: mode m's controller
     robot, stack, dt = scenario.robot, scenario.stack, scenario.dt
-    # warm-up (untimed, on a separate solver object): numba compilation, backend caches
-    scenario.reset()
-    state = KinematicState(robot, scenario.q_init)
-    scenario.targets_at(0.0, state)
-    first = make()
-    _prepare([first], scenario.q_init)
-    _solve(first, stack.hierarchy(scenario.q_init, state))  # (step 0 reports a failure)
+    for make, _ in makers:  # warm-up (untimed, on a separate object): numba compilation, backend caches
+        scenario.reset()
+        state = KinematicState(robot, scenario.q_init)
+        scenario.targets_at(0.0, state)
+        first = make()
+        _prepare([first], scenario.q_init)
+        _solve(first, stack.hierarchy(scenario.q_init, state))  # (step 0 reports a failure)
     scenario.reset()
     q = scenario.q_init.copy()
-    traj, rows, before, steps_hx = [q.copy()], [], None, []
+    traj, rows = [q.copy()], [[] for _ in modes]
+    before, kept = [None] * len(modes), [[] for _ in modes]  # kept[m]: (k, h, u) to certify
     with threadpool_limits(limits=1):
         for k in range(steps):
-            t = k * dt
             state = KinematicState(robot, q)
-            scenario.targets_at(t, state)
+            scenario.targets_at(k * dt, state)
             h = stack.hierarchy(q, state)
-            _prepare(solvers, q)
-            res, times, agree = _timed_calls(solvers, h)
+            results = [None] * len(modes)
+            for m in [(k + j) % len(modes) for j in range(len(modes))]:
+                _prepare(groups[m], q)
+                res, times, agree = _timed_calls(groups[m], h)
+                again = min(_timed_calls(groups[m], h)[1]) if resolve else None
+                results[m] = res
+                rows[m].append(_step_row(scenario, solver, makers[m][1], k, q, h, res, state, times, agree, again))
+                before[m] = _record_changes(rows[m][-1], before[m], h, res.x)
             if on_step is not None:
-                on_step(k, h, res)
-            u = res.x
-            now = active_rows(h, u) if u is not None and np.all(np.isfinite(u)) else None
-            row = {"solver": solver, "warm_start": mode, "step": k, "time_s": t,
-                   "solve_time_min_s": min(times), "solve_time_first_s": times[0],
-                   "resolve_time_min_s": min(_timed_calls(solvers, h)[1]) if resolve else None, "repeat": len(times),
-                   "repeats_agree": agree, "iterations": int(res.iterations), "activations": int(res.activations),
-                   "deactivations": int(res.deactivations), **_changes(before, now), "status": res.status,
-                   "reason": res.reason,
-                   "min_joint_limit_margin": float(np.min(robot.limit_margin(q), initial=np.inf))}
-            before = now
-            # (a velocity task without u, the solver having returned none: an empty cell)
-            row.update({f"err_{name}": np.nan if v is None else v for name, v in stack.errors(q, u, state).items()})
-            norms = level_norms(h, u) if u is not None else np.full(h.depth, np.nan)
-            row.update({f"level_norm_{name}": float(v) for name, v in zip(h.names, norms)})
-            rows.append(row)
-            if u is None or not np.all(np.isfinite(u)):
+                on_step(k, h, results[0])
+            if len(modes) > 1:
+                for m, res in enumerate(results):
+                    rows[m][-1]["x_gap_to_first"] = _gap(res.x, results[0].x)
+            for m, res in enumerate(results):
+                if _finite(res.x):
+                    kept[m].append((k, h, np.asarray(res.x, dtype=float)))
+            u = results[0].x
+            if not _finite(u):
                 break  # the status column says why
-            steps_hx.append((k, h, np.asarray(u, dtype=float)))
             q = pin.integrate(robot.model, q, u * dt)
             if not np.all(np.isfinite(q)):  # e.g. u ~ 1e154 returned as "optimal"
-                row["status"] = "diverged"
+                rows[0][-1]["status"] = "diverged"  # (the loop's u; the other modes' rows keep theirs)
                 break
             traj.append(q.copy())
-    df = pd.DataFrame(rows)
-    if certify:
-        df["certified"], df["certify_reason"], df["x_attains"] = None, "", None
-        for (k, _, _), res in zip(steps_hx, certify_steps([(h, u) for _, h, u in steps_hx], int(certify))):
-            df.loc[df["step"] == k, ["certified", "certify_reason", "x_attains"]] = [
-                res["certified"], res["reason"], res.get("attains")]
-    return ScenarioRun(scenario, solver, mode, df, np.array(traj))
+    runs = []
+    for m, (_, mode) in enumerate(makers):
+        df = pd.DataFrame(rows[m])
+        if certify:
+            _certify_records(df, kept[m], int(certify))
+        runs.append(ScenarioRun(scenario, solver, mode, df, np.array(traj)))
+    return runs
+
+
+def _step_row(scenario: Scenario, solver: str, mode: str, k: int, q, h, res: SolveResult, state, times: list,
+              agree: bool, again: float | None) -> dict:
+    """One step's record (module docstring): timing, counts, status, task errors, level norms."""
+    robot, u = scenario.robot, res.x
+    row = {"solver": solver, "warm_start": mode, "step": k, "time_s": k * scenario.dt,
+           "solve_time_min_s": min(times), "solve_time_first_s": times[0], "resolve_time_min_s": again,
+           "repeat": len(times), "repeats_agree": agree, "iterations": int(res.iterations),
+           "activations": int(res.activations), "deactivations": int(res.deactivations),
+           "active_rows": None, "rows_entered": None, "rows_left": None, "status": res.status,
+           "reason": res.reason, "min_joint_limit_margin": float(np.min(robot.limit_margin(q), initial=np.inf))}
+    # (a velocity task without u, the solver having returned none: an empty cell)
+    row.update({f"err_{name}": np.nan if v is None else v for name, v in scenario.stack.errors(q, u, state).items()})
+    norms = level_norms(h, u) if u is not None else np.full(h.depth, np.nan)
+    row.update({f"level_norm_{name}": float(v) for name, v in zip(h.names, norms)})
+    return row
+
+
+def _record_changes(row: dict, before: np.ndarray | None, h, u) -> np.ndarray | None:
+    """Fill the row's active_rows, rows_entered, rows_left; returns the step's active rows."""
+    now = active_rows(h, u) if _finite(u) else None
+    row.update(_changes(before, now))
+    return now
+
+
+def _certify_records(df: pd.DataFrame, kept: list, workers: int) -> None:
+    """Columns certified, certify_reason, x_attains of each step of ``kept`` ((k, h, u))."""
+    df["certified"], df["certify_reason"], df["x_attains"] = None, "", None
+    for (k, _, _), res in zip(kept, certify_steps([(h, u) for _, h, u in kept], workers)):
+        df.loc[df["step"] == k, ["certified", "certify_reason", "x_attains"]] = [
+            res["certified"], res["reason"], res.get("attains")]
+
+
+def _finite(u) -> bool:
+    return u is not None and bool(np.all(np.isfinite(u)))
+
+
+def _gap(u, first) -> float | None:
+    """max |u - first|, None where either is missing or not finite."""
+    if not (_finite(u) and _finite(first)) or np.shape(u) != np.shape(first):
+        return None
+    return float(np.max(np.abs(np.asarray(u) - np.asarray(first)), initial=0.0))
 
 
 def certify_steps(problems: list, workers: int = 2) -> list[dict]:

@@ -143,6 +143,20 @@ class WarmReference:
         return res
 
 
+class LoggedModes(WarmReference):
+    """WarmReference whose calls are logged in order (``LoggedModes.log``: the mode of each call)
+    and whose x in mode ``stage`` is the reference's plus 1e-3: another answer than the others'."""
+
+    log: list = []
+
+    def solve(self, h):
+        LoggedModes.log.append(self.warm_start)
+        res = super().solve(h)
+        if self.warm_start == "stage":
+            res.x = res.x + 1e-3
+        return res
+
+
 class WarmOnOff(WarmReference):
     """A warm_start parameter with its own modes, "on" and "off" (not hcod's)."""
 

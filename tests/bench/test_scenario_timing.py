@@ -148,3 +148,60 @@ def test_long_solver_names_fit_the_figures(tmp_path, monkeypatch, reach):
         runs.append(run)
     paths = plot_runs(runs, tmp_path)
     assert len(paths) == len(saved) and all(saved), saved
+
+
+def _loaded(name: str):
+    """The class the runner builds for ``spec(name)`` (a file.py:Class is imported as its own module)."""
+    from hikbench.bench.harness.worker import solver_info
+
+    return solver_info(spec(name)).factory
+
+
+def test_interleaved_modes_take_turns_at_every_step(reach):
+    """run_interleaved: at step k every mode's objects solve the step, the modes taken in turn
+    from mode k mod 3 on (so that the machine's drift falls on every mode alike); one warm-up
+    call per mode first."""
+    from hikbench.bench.scenarios.runner import run_interleaved
+
+    LoggedModes = _loaded("LoggedModes")
+    LoggedModes.log.clear()
+    runs = run_interleaved(reach, spec("LoggedModes"), ["none", "stage", "time"], steps=3, repeat=2)
+    assert [r.warm_start for r in runs] == ["none", "stage", "time"]
+    per_step = [m for m in ["none", "stage", "time"] for _ in range(2)]
+    turns = [per_step[2 * k:] + per_step[:2 * k] for k in range(3)]
+    assert LoggedModes.log == ["none", "stage", "time"] + [m for t in turns for m in t]
+    for run in runs:
+        assert run.records["step"].tolist() == [0, 1, 2] and (run.records["solve_time_min_s"] > 0).all()
+
+
+def test_interleaved_modes_follow_the_first_modes_u(reach):
+    """The loop follows the first mode's u: every run has its trajectory, and x_gap_to_first
+    shows the mode whose x is another (stage: the reference's + 1e-3) and 0 for the others."""
+    from hikbench.bench.scenarios.runner import run_interleaved
+
+    runs = run_interleaved(reach, spec("LoggedModes"), ["none", "stage", "time"], steps=3, repeat=1)
+    for run in runs:
+        np.testing.assert_array_equal(run.q, runs[0].q)
+    gaps = {r.warm_start: r.records["x_gap_to_first"].to_numpy() for r in runs}
+    np.testing.assert_array_equal(gaps["none"], 0.0)
+    np.testing.assert_array_equal(gaps["time"], 0.0)
+    np.testing.assert_allclose(gaps["stage"], 1e-3, rtol=1e-9)
+    alone = run_scenario(reach, spec("LoggedModes"), warm_start="stage", steps=3, repeat=1)
+    assert "x_gap_to_first" not in alone.records and not np.array_equal(alone.q, runs[0].q)
+
+
+@pytest.mark.parametrize("flag, interleaved", [([], True), (["--no-interleave"], False)],
+                         ids=["default", "no-interleave"])
+def test_scenario_interleaves_several_modes_unless_told_not_to(tmp_path, capsys, flag, interleaved):
+    LoggedModes = _loaded("LoggedModes")
+    LoggedModes.log.clear()
+    code = main(["scenario", "reach", "--solver", spec("LoggedModes"), "--warm-start", "none", "time",
+                 "--steps", "2", "--repeat", "1", "--out", str(tmp_path), *flag])
+    out = capsys.readouterr().out
+    assert code == 0
+    assert ("interleaved step by step" in out) is interleaved
+    calls = LoggedModes.log[2:] if interleaved else LoggedModes.log
+    expected = ["none", "time", "time", "none"] if interleaved else ["none", "none", "none", "time", "time", "time"]
+    assert calls == expected
+    csv = pd.read_csv(next(tmp_path.glob("*time*.csv")))
+    assert ("x_gap_to_first" in csv) is interleaved
