@@ -53,6 +53,7 @@ from hikbench.bench.harness.regular import check_run_folder
 from hikbench.bench.harness.results import ResultsWriter, backup, compact, finished_rows, one_line
 from hikbench.bench.harness.summary import write_summary
 from hikbench.bench.harness.timing import tail_columns
+from hikbench.bench.specs import EXTERNAL
 from hikbench.bench.suites import Suite, SuiteError, Task, expand
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.hierarchy import row_normalised
@@ -423,8 +424,8 @@ def _job(suite: Suite, t: Task, problems: dict, repeat: int, samples: int | None
          sample_time: float | None = None) -> dict:
     """The worker's job (hikbench.bench.harness.worker) timing ``repeat`` solves of task t,
     or more up to ``samples`` within ``sample_time`` s (hikbench.bench.harness.timing)."""
-    return {"kind": "external" if t.entry.spec.startswith("external:") else "solve",
-            "hierarchy": problems[t.problem.id], "solver": t.entry.spec, "options": t.entry.options,
+    return {"kind": "external" if t.entry.spec.kind == EXTERNAL else "solve",
+            "hierarchy": problems[t.problem.id], "solver": t.entry.spec.text, "options": t.entry.options,
             "mode": t.mode, "repeat": repeat, "samples": samples,
             "sample_time": suite.sample_time if sample_time is None else sample_time, "warmup": suite.warmup,
             "first_timeout": suite.first_solve_timeout,
