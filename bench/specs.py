@@ -120,9 +120,12 @@ class SolverSpec:
                 raise HikbenchError(f"{self.text!r} is not a solver: expected a class with a solve(hierarchy) "
                                     f"method (a hikbench.solvers.base.Solver subclass) or a factory returning one")
             return registry.SolverInfo(name or self.text, "", obj, strict=bool(getattr(obj, "strict", True)))
-        if self.kind in (EXTERNAL, CONTROLLER):
-            raise HikbenchError(f"{self.text!r}: {'an external program' if self.kind == EXTERNAL else 'a controller'} "
-                                f"is no solver object: expected a registry name or module:Class")
+        if self.kind == EXTERNAL:
+            raise HikbenchError(f"{self.text!r}: an external program is no solver object (`hikbench run --solvers` "
+                                f"runs it): expected a registry name or module:Class")
+        if self.kind == CONTROLLER:
+            raise HikbenchError(f"{self.text!r}: a controller is no solver object (`hikbench scenario --solver` "
+                                f"runs it): expected a registry name or module:Class")
         return registry.get(self.text)  # (a pattern too: no solver is named so, SolverNotFoundError says which are)
 
     def factory(self, options: dict):
