@@ -111,9 +111,9 @@ class SolverSpec:
 
     def info(self, name: str = "") -> registry.SolverInfo:
         """The :class:`~hikbench.solvers.registry.SolverInfo` of a REGISTRY name
-        (SolverNotFoundError when unknown or not installed, as for a PATTERN), or one made for an OBJECT (its
-        factory the object, named ``name`` or the text, no default options; HikbenchError
-        when it cannot be imported or is no solver)."""
+        (SolverNotFoundError when unknown or not installed, as for a PATTERN), or one made
+        for an OBJECT (its factory the object, named ``name`` or the text, no default
+        options; HikbenchError when it cannot be imported or is no solver)."""
         if self.kind == OBJECT:
             obj = load_object(self.text)
             if not callable(obj) or (isinstance(obj, type) and not callable(getattr(obj, "solve", None))):
