@@ -83,10 +83,10 @@ def add_arguments(p) -> None:
 
 def run(args) -> int:
     from hikbench.bench.cli import solver_calls_killable
-    from hikbench.bench.scenarios.controllers import CONTROLLERS, build_controller, is_controller
+    from hikbench.bench.scenarios.controllers import CONTROLLERS, build_controller
     from hikbench.bench.scenarios.rows import slug
-    from hikbench.bench.scenarios.runner import REPEAT, run_interleaved, run_scenario, warm_start_default
-    from hikbench.bench.harness.worker import solver_info
+    from hikbench.bench.scenarios.runner import REPEAT, run_interleaved, run_scenario
+    from hikbench.bench.specs import CONTROLLER, SolverSpec, warm_start_modes
     from hikbench.problems.robots.scenarios import load_scenario, scenario_names
     from hikbench.problems.robots.stacks import stack_names
     from hikbench.solvers.registry import build
@@ -126,17 +126,16 @@ def run(args) -> int:
         raise HikbenchError(f"--out {out}: cannot create the directory: {err.strerror or err}") from err
     plan = []  # (solver, options, modes), each mode built once here so that a bad mode or option fails first
     for solver in solvers:
-        if is_controller(solver):  # pink: built on the scenario's stack (an unsupported task fails here)
+        spec = SolverSpec.parse(solver, controllers=True)
+        if spec.kind == CONTROLLER:  # pink: built on the scenario's stack (an unsupported task fails here)
             opts = {**{k: v for k, v in options.items() if k != "warm_start"}, **scoped.get(solver, {})}
             build_controller(solver, scenario.stack, **opts)
             plan.append((solver, opts, [None]))
             continue
-        info = solver_info(solver)
-        default = warm_start_default(info)
-        has_modes = default is not None  # a warm_start option: hcod's, or a class parameter
+        info = spec.info()
         own = scoped.get(solver, {})
-        modes = (args.warm_start or [own.get("warm_start", options.get("warm_start", default))]) if has_modes \
-            else [None]
+        modes = warm_start_modes(info, args.warm_start, own.get("warm_start", options.get("warm_start")))
+        has_modes = modes != [None]  # a warm_start option: hcod's, or a class parameter
         opts = {k: v for k, v in {**options, **own}.items() if k != "warm_start" or has_modes}
         for mode in modes:
             build(info, **{**opts, **({"warm_start": mode} if has_modes else {})})

@@ -20,7 +20,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from hikbench.bench.harness.statuses import CRASHED, TIMEOUT
-from hikbench.bench.harness.worker import solver_info
+from hikbench.bench.specs import solver_info
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.files import load
 from hikbench.problems.hierarchy import row_normalised

@@ -1,7 +1,8 @@
 """External solvers: ``--solvers external:NAME=CMD`` (strict) or
 ``external:NAME[strict=false]=CMD``.
 
-The declaration in brackets is the program's claim (:func:`parse_spec`):
+The declaration in brackets is the program's claim (parsed with the spelling by
+:func:`hikbench.bench.specs.parse_spec`):
 ``strict=true`` (the default) says it returns the lexicographic optimum (its
 rows are judged by ``verified``); ``strict=false`` says it solves another
 problem (weighted, damped): it is reported like ``weighted``, with its real
@@ -51,7 +52,6 @@ import math
 import os
 import re
 import select
-import shlex
 import shutil
 import signal
 import socket
@@ -66,118 +66,10 @@ import numpy as np
 from hikbench.bench.harness.regular import NotRegular, TooLarge, bounded_bytes
 from hikbench.bench.harness.streams import HeadTail, kill_session
 from hikbench.bench.harness.statuses import TIMEOUT
+from hikbench.bench.specs import SPEC_KEYS, ExternalSpec, command_argv, external_command, parse_spec
 from hikbench.solvers.base import ERROR, OPTIMAL, STATUSES, SolveResult
 
-__all__ = ["SPEC_KEYS", "ExternalSpec", "parse_spec", "run_external"]
-
-
-#: the declarations an external spec takes in brackets, ``external:NAME[strict=false]=CMD``
-SPEC_KEYS = ("strict",)
-_BOOLS = {"true": True, "false": False}
-
-
-@dataclass(frozen=True)
-class ExternalSpec:
-    """``external:NAME[strict=...]=CMD`` parsed: ``name`` (NAME), ``strict``, ``command`` (CMD)."""
-
-    name: str
-    strict: bool
-    command: str
-
-
-def parse_spec(text: str) -> ExternalSpec:
-    """Parse ``external:NAME=CMD`` or ``external:NAME[strict=true|false]=CMD``;
-    ValueError naming what is wrong (NAME missing, CMD without ``{out}``, an
-    unknown key in the brackets with its closest known one, a strict value
-    other than true or false)."""
-    name, decl, cmd = _split(text)
-    if not name or not cmd.strip():
-        raise ValueError("expected external:NAME=CMD, e.g. external:mysolver='./mysolver {problem} {out}'")
-    if "{out}" not in cmd:
-        raise ValueError("CMD must contain the placeholder {out} (where x is written)")
-    strict = _declarations(decl)
-    _check_program(_argv(cmd))
-    return ExternalSpec(name, strict, cmd)
-
-
-#: the placeholders CMD may hold (replaced by paths for every solve)
-PLACEHOLDERS = ("{problem}", "{problem_soth}", "{out}")
-# a word in braces, not a shell's ${NAME}: what a placeholder looks like, known or misspelt
-_PLACEHOLDER = re.compile(r"(?<!\$)\{([A-Za-z_][A-Za-z0-9_]*)\}")
-
-
-def _argv(cmd: str) -> list[str]:
-    """CMD split like a shell command line (no shell), every word in braces one of
-    :data:`PLACEHOLDERS`; ValueError naming an unbalanced quote or an unknown
-    placeholder (with its closest known one) otherwise."""
-    try:
-        argv = shlex.split(cmd)
-    except ValueError as err:  # shlex: "No closing quotation", "No escaped character"
-        raise ValueError(f"CMD {_clip(cmd)!r} cannot be split like a shell command line ({err}): "
-                         f"expected its quotes closed") from None
-    if not argv:
-        raise ValueError("CMD is empty after splitting: expected a program and its arguments")
-    for m in _PLACEHOLDER.finditer(cmd):
-        if m.group(0) not in PLACEHOLDERS:
-            close = difflib.get_close_matches(m.group(0), PLACEHOLDERS, n=1)
-            hint = f" (did you mean {close[0]}?)" if close else ""
-            raise ValueError(f"unknown placeholder {m.group(0)}{hint} in CMD: expected "
-                             f"{', '.join(PLACEHOLDERS)}")
-    return argv
-
-
-def _check_program(argv: list[str]) -> None:
-    """ValueError when CMD's program (``argv[0]``, a path or a name looked up on PATH)
-    cannot be run: checked once, before the first job, not once per row."""
-    program = argv[0]
-    if any(ph in program for ph in PLACEHOLDERS):
-        return  # (the program is one of the problem's files: nothing to check yet)
-    if shutil.which(program) is not None:
-        return
-    if os.sep in program or (os.altsep and os.altsep in program):
-        why = ("is a directory" if os.path.isdir(program) else
-               "is not executable (chmod +x, or name its interpreter first)" if os.path.exists(program) else
-               "does not exist")
-        raise ValueError(f"program {program!r} {why} (relative to {os.getcwd()})")
-    raise ValueError(f"program {program!r} is not found on PATH: expected a program's name on PATH or its path")
-
-
-def _clip(text: str, keep: int = 120) -> str:
-    return text if len(text) <= keep else text[:keep] + "..."
-
-
-def _split(text: str) -> tuple[str, str, str]:
-    """(NAME, the declaration in brackets, CMD) of ``external:NAME[...]=CMD``
-    (CMD empty when there is no '='); ValueError for brackets not closed by ']='."""
-    body = text[len("external:"):] if text.startswith("external:") else text
-    head, _, cmd = body.partition("=")
-    if "[" not in head:
-        return head, "", cmd
-    name, _, rest = body.partition("[")  # (the brackets hold '=': the command starts after the matching ']=')
-    decl, close, after = rest.partition("]")
-    if not close or not after.startswith("="):
-        raise ValueError("expected external:NAME[strict=true|false]=CMD: no ']=' after the declaration")
-    return name, decl, after[1:]
-
-
-def _declarations(decl: str) -> bool:
-    """The ``strict`` of the declaration ``strict=false`` (empty: True)."""
-    strict = True
-    for item in filter(None, (d.strip() for d in decl.split(","))):
-        key, eq, value = (p.strip() for p in item.partition("="))
-        if key not in SPEC_KEYS:
-            close = difflib.get_close_matches(key, SPEC_KEYS, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise ValueError(f"unknown declaration {key!r}{hint} in [...]: expected strict=true or strict=false")
-        if not eq or value not in _BOOLS:
-            raise ValueError(f"strict={value}: expected strict=true (the program returns the lexicographic "
-                             f"optimum) or strict=false (it does not: weighted, damped)")
-        strict = _BOOLS[value]
-    return strict
-
-
-def _command(spec: str) -> str:
-    return _split(spec)[2]
+__all__ = ["SPEC_KEYS", "ExternalSpec", "parse_spec", "run_external"]  # (the spelling: hikbench.bench.specs)
 
 
 _LAUNCHER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "launcher.py")
@@ -362,7 +254,7 @@ def run_external(job: dict, timeout: float) -> dict:
     from hikbench.problems.files import save_npz
 
     base = {"host": socket.gethostname(), "pid": os.getpid(), "calib_ns": None}
-    cmd = _command(job["solver"])
+    cmd = external_command(job["solver"])
     h = job["hierarchy"]
     deadline = time.monotonic() + timeout
     wall, reported, last = [], [], {}
@@ -374,7 +266,7 @@ def run_external(job: dict, timeout: float) -> dict:
             from hikbench.problems.soth import save_soth
             save_soth(h, paths["{problem_soth}"])
         try:
-            argv = _argv(cmd)
+            argv = command_argv(cmd)
         except ValueError as err:
             return {**base, "status": ERROR, "x": None, "samples_ns": [], "reason": str(err)}
         for ph, p in paths.items():

@@ -16,7 +16,8 @@ yardstick's other candidate), a ``certify`` job (with ``"x"``) the exact certifi
 
 ``spec`` is a registry name or ``module:Class`` / ``file.py:Class`` (a
 :class:`~hikbench.solvers.base.Solver` subclass or any factory), which is how tests
-inject hanging or crashing solvers without touching the registry.
+inject hanging or crashing solvers without touching the registry; it is parsed by
+:class:`hikbench.bench.specs.SolverSpec`.
 """
 
 from __future__ import annotations
@@ -28,34 +29,14 @@ import traceback
 
 import numpy as np
 
+from hikbench.bench.specs import SolverSpec
 from hikbench.problems.errors import HikbenchError
 from hikbench.solvers import registry
 from hikbench.solvers.base import ERROR, SolveResult
 
-__all__ = ["candidate_point", "certify_point", "exception_text", "execute", "solver_factory", "solver_info"]
+__all__ = ["candidate_point", "certify_point", "exception_text", "execute"]
 
 _frozen: set[str] = set()  # solvers whose first solve in this process is behind gc.freeze()
-
-
-def solver_info(spec: str, name: str = "") -> registry.SolverInfo:
-    """The :class:`~hikbench.solvers.registry.SolverInfo` of a registry name, or one made
-    for a ``module:Class`` spec (its factory the object, no default options)."""
-    if ":" in spec:
-        from hikbench.bench.suites.problemset import load_object
-
-        obj = load_object(spec)
-        if not callable(obj) or (isinstance(obj, type) and not callable(getattr(obj, "solve", None))):
-            raise HikbenchError(f"{spec!r} is not a solver: expected a class with a solve(hierarchy) method "
-                                f"(a hikbench.solvers.base.Solver subclass) or a factory returning one")
-        return registry.SolverInfo(name or spec, "", obj, strict=bool(getattr(obj, "strict", True)))
-    return registry.get(spec)
-
-
-def solver_factory(spec: str, options: dict):
-    """A zero-argument callable building a fresh solver with ``options``
-    (:func:`hikbench.solvers.registry.build`: option names checked against the factory)."""
-    info = solver_info(spec)
-    return lambda: registry.build(info, **options)
 
 
 def _result_dict(res: SolveResult, samples_ns) -> dict:
@@ -137,7 +118,7 @@ def execute(job: dict, notify=None) -> dict:
             from hikbench.bench.harness.external import run_external
             return {**base, **run_external(job, float(job["program_timeout"]))}
         from hikbench.bench.harness.timing import SAMPLE_TIME, time_solves
-        make = solver_factory(job["solver"], job.get("options", {}))
+        make = SolverSpec.parse(job["solver"]).factory(job.get("options", {}))
         first = make()
         if callable(getattr(first, "warmup", None)):  # (module:Class solvers need not derive from Solver)
             first.warmup()

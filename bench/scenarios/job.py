@@ -19,10 +19,10 @@ import os
 import socket
 import traceback
 
-from hikbench.bench.harness.worker import solver_info
 from hikbench.bench.scenarios.rows import FINISHED
 from hikbench.bench.scenarios.checks import check_run
 from hikbench.bench.scenarios.runner import run_scenario
+from hikbench.bench.specs import SolverSpec
 from hikbench.problems.robots.kinematics import KinematicState
 from hikbench.problems.robots.scenarios import load_scenario
 from hikbench.solvers import registry
@@ -33,7 +33,7 @@ __all__ = ["execute_scenario"]
 
 def _first_solve(scenario, spec: str, warm_start: str | None) -> None:
     """Compile and load what the solver needs: its warm-up, then one solve of step 0's hierarchy."""
-    info = solver_info(spec)
+    info = SolverSpec.parse(spec).info()
     slv = registry.build(info, **({} if warm_start is None else {"warm_start": warm_start}))
     if callable(getattr(slv, "warmup", None)):
         slv.warmup()

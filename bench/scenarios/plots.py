@@ -97,15 +97,16 @@ def not_optimal(records) -> tuple[np.ndarray, str]:
 def run_strict(run) -> bool:
     """The solver's claim (``strict``): the registry's, a ``module:Class``'s attribute
     (default True), a scenario controller's (pink: False)."""
-    from hikbench.bench.harness.worker import solver_info
-    from hikbench.bench.scenarios.controllers import controller_class, is_controller
+    from hikbench.bench.scenarios.controllers import controller_class
+    from hikbench.bench.specs import CONTROLLER, REGISTRY, SolverSpec
     from hikbench.solvers import registry
 
-    if is_controller(run.solver):
+    spec = SolverSpec.parse(run.solver, controllers=True)
+    if spec.kind == CONTROLLER:
         return bool(controller_class(run.solver).strict)
-    if run.solver in registry.available():
-        return registry.get(run.solver).strict
-    return bool(getattr(solver_info(run.solver).factory, "strict", True))
+    if spec.kind == REGISTRY and spec.text in registry.available():
+        return registry.get(spec.text).strict
+    return bool(getattr(spec.info().factory, "strict", True))
 
 
 def run_styles(runs: list) -> dict[str, dict]:

@@ -84,7 +84,6 @@ x_attains                  no level norm of u is above x*'s beyond the high prof
 from __future__ import annotations
 
 import gc
-import inspect
 import time
 from dataclasses import dataclass
 
@@ -93,8 +92,8 @@ import pandas as pd
 import pinocchio as pin
 from threadpoolctl import threadpool_limits
 
-from hikbench.bench.harness.worker import solver_info
-from hikbench.bench.scenarios.controllers import Controller, build_controller, is_controller
+from hikbench.bench.scenarios.controllers import Controller, build_controller
+from hikbench.bench.specs import CONTROLLER, SolverSpec, warm_start_default, warm_start_modes
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.robots.kinematics import KinematicState
 from hikbench.problems.robots.scenarios import Scenario
@@ -131,21 +130,6 @@ class ScenarioRun:
         return self.solver if self.warm_start == NO_WARM_START else f"{self.solver} ({self.warm_start})"
 
 
-def warm_start_default(info: registry.SolverInfo) -> str | None:
-    """The default warm-start mode of a solver with the HCOD modes (none / stage /
-    time): its registered option, or, for a ``module:Class`` solver, the default
-    of the factory's ``warm_start`` parameter; None for a solver without one."""
-    if "warm_start" in info.options:
-        return str(info.options["warm_start"])
-    if "warm_start" not in (registry.option_names(info) or ()):
-        return None
-    param = inspect.signature(info.factory).parameters["warm_start"]
-    if param.default is param.empty:
-        raise HikbenchError(f"solver {info.name!r}: its warm_start parameter has no default value; "
-                            f"expected one (none, stage or time)")
-    return str(param.default)
-
-
 def active_rows(h, u: np.ndarray) -> np.ndarray:
     """Bool mask, shape (rows,): the inequality rows (lower < upper) of ``h``
     whose A_i u is within ACTIVE_RTOL x max(1, |bound|) of a finite bound or
@@ -168,7 +152,7 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
     ----------
     solver : str
         A registry name or ``module:Class`` / ``file.py:Class``
-        (:func:`hikbench.bench.harness.worker.solver_info`), or a scenario
+        (:class:`hikbench.bench.specs.SolverSpec`), or a scenario
         controller (``pink``, bench/scenarios/controllers.py).
     options : dict
         Solver options (``registry.build(info, **options)``).
@@ -331,15 +315,16 @@ def _maker(scenario: Scenario, solver: str, options: dict, warm_start: str | Non
     """``(make, mode)``: a function building one solver object (a registered or
     ``module:Class`` solver, or a scenario controller on the scenario's stack,
     bench/scenarios/controllers.py) and the run's warm-start mode."""
-    if is_controller(solver):
+    spec = SolverSpec.parse(solver, controllers=True)
+    if spec.kind == CONTROLLER:
         return (lambda: build_controller(solver, scenario.stack, **options)), NO_WARM_START
-    info = solver_info(solver)
-    default = warm_start_default(info)
-    if default is None:
+    info = spec.info()
+    [mode] = warm_start_modes(info, [] if warm_start is None else [warm_start], options.get("warm_start"))
+    if mode is None:
         return (lambda: registry.build(info, **options)), NO_WARM_START
     if warm_start is not None:  # solvers with the HCOD warm-start modes (none / stage / time)
         options["warm_start"] = warm_start
-    return (lambda: registry.build(info, **options)), str(options.get("warm_start", default))
+    return (lambda: registry.build(info, **options)), str(mode)
 
 
 def _prepare(solvers: list, q: np.ndarray) -> None:

@@ -29,7 +29,6 @@ from pathlib import Path
 import numpy as np
 
 from hikbench.bench.harness.environment import utc_now
-from hikbench.bench.harness.worker import solver_info
 from hikbench.bench.scenarios.rows import (
     FINISHED,
     finished_keys,
@@ -38,7 +37,8 @@ from hikbench.bench.scenarios.rows import (
     summary_row,
     write_scenario_row,
 )
-from hikbench.bench.scenarios.runner import NO_WARM_START, REPEAT, warm_start_default
+from hikbench.bench.scenarios.runner import NO_WARM_START, REPEAT
+from hikbench.bench.specs import EXTERNAL, warm_start_modes
 from hikbench.bench.suites import Suite, SuiteError, resolve_solvers
 from hikbench.problems.errors import HikbenchError
 from hikbench.solvers import registry
@@ -97,12 +97,12 @@ def expand_scenarios(suite: Suite, solver_patterns=None) -> tuple[list[ScenarioT
         if modes and len(set(modes)) < len(modes):
             raise SuiteError(f"{where}.warm_start = {modes}: expected each mode once")
         for entry in entries:
-            if entry.spec.startswith("external:"):
+            if entry.spec.kind == EXTERNAL:
                 skipped[entry.solver] = "an external program cannot run a closed-loop scenario (no solver object)"
                 continue
             for mode in _modes(entry, modes, where):
                 t = ScenarioTask(e["name"], e.get("robot"), scenario.name, scenario.robot.name, entry.solver,
-                                 entry.spec, mode, int(e.get("steps", scenario.steps)), scenario.steps,
+                                 entry.spec.text, mode, int(e.get("steps", scenario.steps)), scenario.steps,
                                  int(e.get("repeat", REPEAT)), float(e.get("timeout", TIMEOUT_S)))
                 if t.key in seen:
                     raise SuiteError(f"{where}: runs {t.label} on {t.scenario} ({t.robot}, {t.steps} steps) as "
@@ -132,13 +132,12 @@ def _modes(entry, modes, where: str) -> list[str | None]:
     """The warm-start modes to run ``entry`` in (None: it has no warm_start option), each
     checked by building the solver with it."""
     try:
-        info = solver_info(entry.spec, entry.solver)
-        default = warm_start_default(info)
+        info = entry.spec.info(entry.solver)
+        out = warm_start_modes(info, modes)
     except HikbenchError as err:
         raise SuiteError(f"{where}.solvers: {err}") from err
-    if default is None:
-        return [None]
-    out = list(modes) if modes else [default]
+    if out == [None]:
+        return out
     for mode in out:
         try:
             registry.build(info, warm_start=mode)

@@ -68,7 +68,6 @@ Decisions (docs/suites.md, "The suite file"):
 
 from __future__ import annotations
 
-import fnmatch
 import itertools
 import json
 import math
@@ -77,7 +76,7 @@ from pathlib import Path
 
 from hikbench.bench.suites.problemset import ProblemSpec
 from hikbench.bench.harness.timing import SAMPLE_TIME, SAMPLES
-from hikbench.bench.harness.worker import solver_info
+from hikbench.bench.specs import EXTERNAL, OBJECT, PATTERN, REGISTRY, SolverSpec, SolverSpecError, located
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.schema import (MAX_COUNT, MAX_SECONDS, Any, Bool, Int, List, Number, Str, Table, Where,
                                       read_toml, short)
@@ -106,7 +105,7 @@ class SolverEntry:
     """A (solver, settings) pair to run."""
 
     solver: str                 # name in results.csv
-    spec: str                   # how the worker builds it (registry name, module:Class, external:...)
+    spec: SolverSpec            # how the worker builds it (registry name, module:Class, external:...)
     settings: str = "default"
     options: dict = field(default_factory=dict)
     strict: bool = True
@@ -213,12 +212,7 @@ def _resolve_paths(data: dict, base: Path) -> None:
     are found next to it (when the file exists there). Values of the wrong
     type are left alone for :func:`suite_from_dict` to reject."""
     def fix(spec):
-        if not isinstance(spec, str) or spec.startswith("external:"):
-            return spec
-        mod, sep, attr = spec.rpartition(":")
-        if sep and mod.endswith(".py") and not Path(mod).is_absolute() and (base / mod).exists():
-            return f"{(base / mod).resolve()}:{attr}"
-        return spec
+        return located(spec, base) if isinstance(spec, str) else spec
 
     if isinstance(data.get("solvers"), list):
         data["solvers"] = [fix(s) for s in data["solvers"]]
@@ -328,26 +322,24 @@ def _check_grid(g: dict, path: str, at: Where) -> None:
                f"per group (each is generated, kept in memory and saved before any job runs)")
 
 
-def _entry_for_object(spec: str, where: str) -> SolverEntry:
+def _entry_for_object(spec: SolverSpec, where: str) -> SolverEntry:
     from hikbench.solvers import registry
 
-    obj = solver_info(spec).factory
-    mod, _, attr = spec.rpartition(":")
-    if mod.endswith(".py") and not Path(mod).is_absolute():  # the workers (Dask) may run in another directory
-        spec = f"{Path(mod).resolve()}:{attr}"
-    name = getattr(obj, "name", "") or attr
-    name = name if isinstance(name, str) else spec
+    obj = spec.info().factory
+    spec = spec.located()  # the workers (Dask) may run in another directory
+    name = getattr(obj, "name", "") or spec.text.rpartition(":")[2]
+    name = name if isinstance(name, str) else spec.text
     known = registry.available().get(name)
     if (known is not None and known.factory is not obj) or name in registry.missing():  # (e.g. inherited)
-        raise SuiteError(f"{where}: solver {spec!r} is named {name!r} (its attribute `name`), the name of a "
+        raise SuiteError(f"{where}: solver {spec.text!r} is named {name!r} (its attribute `name`), the name of a "
                          f"registered solver, whose rows it would take: give it a name of its own")
     strict = getattr(obj, "strict", True)
     if not isinstance(strict, bool):  # (its claim decides how every row of it is judged: no guessing)
-        raise SuiteError(f"{where}: solver {spec!r} has strict = {strict!r}: expected True or False (True: it "
+        raise SuiteError(f"{where}: solver {spec.text!r} has strict = {strict!r}: expected True or False (True: it "
                          f"returns the lexicographic optimum; False: weighted, damped, not strict)")
     judged_on = getattr(obj, "judged_on", "rows")
     if judged_on not in ("rows", "row-normalised"):
-        raise SuiteError(f"{where}: solver {spec!r} has judged_on = {judged_on!r}: expected 'rows' or "
+        raise SuiteError(f"{where}: solver {spec.text!r} has judged_on = {judged_on!r}: expected 'rows' or "
                          f"'row-normalised' (the hierarchy its levels are: hikbench.solvers.base.Solver.judged_on)")
     return SolverEntry(solver=name, spec=spec, strict=strict, warm=bool(getattr(obj, "supports_warm_start", False)),
                        judged_on=judged_on)
@@ -366,14 +358,14 @@ def _check_options(entry: SolverEntry, settings_name: str, options: dict, suite_
     from hikbench.solvers import registry
 
     ctx = f"suite {suite_file}: [[settings]] {settings_name!r}"
-    if entry.spec.startswith("external:"):
+    if entry.spec.kind == EXTERNAL:
         if options:
             raise SuiteError(f"{ctx}: solver {entry.solver!r} is external and takes no options; "
                              f"got {sorted(options)}")
         return
-    user = ":" in entry.spec  # module:Class or any factory
-    try:  # as the worker builds it for every job (hikbench.bench.harness.worker.solver_factory)
-        registry.build(solver_info(entry.spec, entry.solver), **options)  # names and values
+    user = entry.spec.kind == OBJECT  # module:Class or any factory
+    try:  # as the worker builds it for every job (hikbench.bench.specs.SolverSpec.factory)
+        registry.build(entry.spec.info(entry.solver), **options)  # names and values
     except HikbenchError as err:
         raise SuiteError(f"{ctx}: {err}") from err
     except Exception as err:  # a user's factory raises what it likes: reported, never dropped
@@ -389,10 +381,10 @@ def _check_constructible(entry: SolverEntry, where: str) -> None:
     before any job, as ``solve`` refuses it, rather than one error row per job."""
     from hikbench.solvers import registry
 
-    if entry.spec.startswith("external:"):
+    if entry.spec.kind == EXTERNAL:
         return
     try:
-        registry.check_buildable(solver_info(entry.spec, entry.solver), **entry.options)
+        registry.check_buildable(entry.spec.info(entry.solver), **entry.options)
     except HikbenchError as err:
         raise SuiteError(f"{where}: {err}") from err
 
@@ -411,7 +403,7 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
     missing = registry.missing()
     entries: list[SolverEntry] = []
     skipped: dict[str, str] = {}
-    seen: dict[tuple[str, str], str] = {}  # (name, settings) -> spec
+    seen: dict[tuple[str, str], SolverSpec] = {}  # (name, settings) -> spec
 
     def add(e: SolverEntry):
         key = (e.solver, e.settings)
@@ -424,24 +416,21 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
             raise SuiteError(f"{where}: two solvers are named {e.solver!r}: {seen[key]} and {e.spec} "
                              f"(a module:Class solver is named by its attribute `name`: give it one of its own)")
 
-    for pat in patterns:
-        pat = registry.ALIASES.get(pat, pat)  # an earlier name of a solver: its rows take the current one
-        if pat.startswith("external:"):
-            add(parse_external(pat, where))
-        elif ":" in pat:
-            add(_entry_for_object(pat, where))
-        elif any(c in pat for c in "*?["):
-            matched = [n for n in avail if fnmatch.fnmatchcase(n, pat)]
+    for text in patterns:
+        spec = _parse(text, where)  # (an earlier name of a solver: its rows take the current one)
+        pat = spec.text
+        if spec.kind == EXTERNAL:
+            add(_external_entry(spec))
+        elif spec.kind == OBJECT:
+            add(_entry_for_object(spec, where))
+        elif spec.kind == PATTERN:
+            matched = spec.matches(avail)
             if not matched:
                 skipped[pat] = "pattern matches no installed solver"
             for n in matched:
-                info = avail[n]
-                add(SolverEntry(n, n, strict=info.strict, warm=info.supports_warm_start,
-                                judged_on=_judged_on(info, {})))
+                add(_registry_entry(n, avail[n]))
         elif pat in avail:
-            info = avail[pat]
-            add(SolverEntry(pat, pat, strict=info.strict, warm=info.supports_warm_start,
-                            judged_on=_judged_on(info, {})))
+            add(_registry_entry(pat, avail[pat]))
         elif pat in missing:
             skipped[pat] = f"not installed: {missing[pat]}"
         else:
@@ -454,7 +443,7 @@ def resolve_solvers(patterns, settings=(), where: str = "the suite",
         for e in base:
             options = dict(s.get("options", {}))
             _check_options(e, str(s["name"]), options, suite_file or where)
-            judged_on = e.judged_on if ":" in e.spec else _judged_on(avail[e.spec], options)
+            judged_on = _judged_on(avail[e.spec.text], options) if e.spec.kind == REGISTRY else e.judged_on
             add(SolverEntry(e.solver, e.spec, settings=str(s["name"]), options=options,
                             strict=e.strict, warm=e.warm, judged_on=judged_on))
     return entries, skipped
@@ -490,14 +479,29 @@ def expand(suite: Suite, solver_patterns=None) -> tuple[list[Task], dict[str, st
     return tasks, skipped
 
 
+def _parse(text: str, where: str) -> SolverSpec:
+    """:meth:`SolverSpec.parse`, its error a SuiteError naming ``where`` (the suite file, or --solvers)."""
+    try:
+        return SolverSpec.parse(text)
+    except SolverSpecError as err:
+        raise SuiteError(f"{where}: {err}") from None
+
+
+def _registry_entry(name: str, info) -> SolverEntry:
+    return SolverEntry(name, SolverSpec(name, REGISTRY), strict=info.strict,
+                       warm=info.supports_warm_start, judged_on=_judged_on(info, {}))
+
+
+def _external_entry(spec: SolverSpec) -> SolverEntry:
+    return SolverEntry(solver=spec.name, spec=spec, strict=spec.external.strict, warm=False)
+
+
 def parse_external(text: str, where: str = "--solvers") -> SolverEntry:
     """``external:NAME=CMD`` or ``external:NAME[strict=false]=CMD``
-    (hikbench.bench.harness.external.parse_spec) -> SolverEntry; SuiteError
+    (hikbench.bench.specs.parse_spec) -> SolverEntry; SuiteError
     naming ``where`` (the suite file, or --solvers) and the spec otherwise."""
-    from hikbench.bench.harness.external import parse_spec
-
-    try:
-        ext = parse_spec(text)
-    except ValueError as err:
-        raise SuiteError(f"{where}: {text!r}: {err}") from None
-    return SolverEntry(solver=f"external:{ext.name}", spec=text, strict=ext.strict, warm=False)
+    spec = _parse(text, where)
+    if spec.kind != EXTERNAL:
+        raise SuiteError(f"{where}: {text!r}: expected external:NAME=CMD, e.g. "
+                         f"external:mysolver='./mysolver {{problem}} {{out}}'")
+    return _external_entry(spec)

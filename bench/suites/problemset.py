@@ -8,81 +8,21 @@ so a user or a test can bring its own generator without touching the library.
 
 from __future__ import annotations
 
-import importlib
-import importlib.util
 import json
 import os
 import re
 import sys
-import traceback
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from hikbench.bench.harness.cache import problem_hash
+from hikbench.bench.specs import load_object, raised_text
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.hierarchy import Hierarchy
 
 __all__ = ["ProblemSpec", "file_stem", "generate", "load_object", "problem_columns", "save_problem", "save_problems"]
-
-
-def load_object(spec: str):
-    """Import ``module.path:attr`` or ``/path/to/file.py:attr``."""
-    modname, sep, attr = spec.rpartition(":")
-    if not sep or not modname or not attr:
-        raise HikbenchError(f"{spec!r}: expected 'module:attribute' or 'file.py:attribute'")
-    if modname.endswith(".py"):
-        path = Path(modname)
-        if not path.exists():
-            raise HikbenchError(f"{spec!r}: no such file {path}")
-        mod = _load_file(spec, path)
-    else:
-        try:
-            mod = importlib.import_module(modname)
-        except ModuleNotFoundError as err:
-            hint = (f"; the current directory is not searched: give the file ({modname.replace('.', '/')}.py:"
-                    f"{attr}) or set PYTHONPATH" if Path(modname.replace(".", "/") + ".py").exists() else "")
-            raise HikbenchError(f"{spec!r}: cannot import module {modname!r} ({err}){hint}") from err
-        except Exception as err:  # noqa: BLE001 - the user's module failed at import: name it, no traceback
-            raise HikbenchError(f"{spec!r}: importing module {modname!r} raised {_what(err)}") from err
-    try:
-        return getattr(mod, attr)
-    except AttributeError as err:
-        raise HikbenchError(f"{spec!r}: module {modname!r} has no attribute {attr!r}") from err
-
-
-def _load_file(spec: str, path: Path):
-    """The module of a user's ``file.py``, imported once per process as
-    ``_hikbench_user_<path>``, with its directory on ``sys.path`` meanwhile (as
-    ``python file.py`` has it: a sibling module imports). An exception at import
-    is a HikbenchError naming the file and line, and leaves no half-made module."""
-    name = "_hikbench_user_" + re.sub(r"\W", "_", str(path.resolve()))
-    mod = sys.modules.get(name)
-    if mod is not None:
-        return mod
-    s = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(s)
-    sys.modules[name] = mod
-    where = str(path.resolve().parent)
-    sys.path.insert(0, where)
-    try:
-        s.loader.exec_module(mod)
-    except BaseException as err:
-        del sys.modules[name]
-        if not isinstance(err, Exception):  # KeyboardInterrupt, SystemExit: not the file's answer
-            raise
-        raise HikbenchError(f"{spec!r}: importing {path} raised {_what(err)}") from err
-    finally:
-        sys.path.remove(where)
-    return mod
-
-
-def _what(err: Exception) -> str:
-    """``Type: message at file:line`` of an exception from a user's code."""
-    tb = traceback.extract_tb(err.__traceback__)
-    where = f" at {os.path.basename(tb[-1].filename)}:{tb[-1].lineno}" if tb else ""
-    return f"{type(err).__name__}: {err}" + ("" if isinstance(err, SyntaxError) else where)  # (names its line)
 
 
 def _fmt(v) -> str:
@@ -154,7 +94,7 @@ def _user_family(spec: ProblemSpec) -> Hierarchy:
     try:
         h = func(seed=spec.seed, **spec.params)
     except Exception as err:  # noqa: BLE001 - the user's generator failed: name it, no traceback
-        raise HikbenchError(f"{where}: calling it raised {_what(err)}") from err
+        raise HikbenchError(f"{where}: calling it raised {raised_text(err)}") from err
     if not isinstance(h, Hierarchy):
         raise HikbenchError(f"{where}: returned {type(h).__name__}; expected a "
                             "hikbench.problems.hierarchy.Hierarchy")

@@ -48,6 +48,7 @@ class SequenceTask:
 
 def sequence_tasks(sets, entries) -> list[SequenceTask]:
     """One task per (sequence of each set, solver entry that supports warm start, default settings)."""
+    from hikbench.bench.specs import EXTERNAL, REGISTRY
     from hikbench.problems.testset import TestSet
     from hikbench.solvers import registry
 
@@ -55,15 +56,15 @@ def sequence_tasks(sets, entries) -> list[SequenceTask]:
     for name in sets:
         ts = TestSet.read(name)
         for e in entries:
-            if not e.warm or e.settings != "default" or e.spec.startswith("external:"):
+            if not e.warm or e.settings != "default" or e.spec.kind == EXTERNAL:
                 continue
             opts = dict(e.options)
-            info = registry.get(e.spec) if ":" not in e.spec else None
+            info = e.spec.info() if e.spec.kind == REGISTRY else None
             if info is not None and "warm_start" in (registry.option_names(info) or ()):
                 opts["warm_start"] = "time"
             mode = str(opts.get("warm_start", "warm"))
             for sid in ts.sequences:
-                tasks.append(SequenceTask(name, sid, e.solver, e.spec, tuple(sorted(opts.items())), mode))
+                tasks.append(SequenceTask(name, sid, e.solver, e.spec.text, tuple(sorted(opts.items())), mode))
     return tasks
 
 
@@ -72,7 +73,7 @@ def execute_sequence(job: dict, notify=None) -> dict:
     ``notify()``; then every step in order on one object, timed. Never raises."""
     from threadpoolctl import threadpool_limits
 
-    from hikbench.bench.harness.worker import solver_info
+    from hikbench.bench.specs import solver_info
     from hikbench.solvers import registry
     from hikbench.solvers.base import ERROR
 

@@ -16,7 +16,7 @@ import tomli_w
 from clitools import run
 from doubles import spec, tiny
 
-from hikbench.bench.harness import cache, runner
+from hikbench.bench.harness import cache, yardstick
 from hikbench.bench.harness.results import read_results
 from hikbench.problems import generators
 from hikbench.problems.files import load_npz
@@ -115,7 +115,7 @@ def test_a_yardstick_of_other_code_is_computed_again(tmp_path, capsys, monkeypat
     suite, out = _suite(tmp_path / "s.toml", "equality", {"n": 5}), tmp_path / "out"
     _run(capsys, suite, out)
     [ystick] = (out / "yardstick").glob("*.npz")
-    monkeypatch.setattr(runner, "yardstick_code", lambda: "0123456789abcdef")
+    monkeypatch.setattr(yardstick, "yardstick_code", lambda: "0123456789abcdef")
     code, _, err = run(capsys, "run", "--quiet", "--rerun", "--suite", suite, "--out", out)
     assert code == 0, err
     assert "1 cached yardstick(s) computed again: the yardstick's code changed" in err, err

@@ -90,7 +90,7 @@ def test_an_external_spec_declares_its_claim(spec, name, strict):
     assert (ext.name, ext.strict) == (name, strict)
     assert "{out}" in ext.command and not ext.command.startswith("=")
     entry = parse_external(spec)
-    assert (entry.solver, entry.strict, entry.spec) == (f"external:{name}", strict, spec)
+    assert (entry.solver, entry.strict, str(entry.spec)) == (f"external:{name}", strict, spec)
 
 
 @pytest.mark.parametrize("spec, says", [

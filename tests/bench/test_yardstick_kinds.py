@@ -69,18 +69,18 @@ def test_the_lowest_candidate_is_taken_and_named():
     the independent one; a missing candidate leaves the other."""
     from doubles import OldYardstickSolver, rescaled_random
 
-    from hikbench.bench.harness.runner import _lowest
+    from hikbench.bench.harness.yardstick import lowest
     from hikbench.solvers.hcod import HcodSolver
 
     h = rescaled_random(i=0)
     x_old, x_hcod = OldYardstickSolver().solve(h).x, HcodSolver().solve(h).x
-    x, note = _lowest(h, {"x": x_old, "x_hcod": x_hcod})
+    x, note = lowest(h, {"x": x_old, "x_hcod": x_hcod})
     assert x is x_hcod and note == "hcod's point (the independent yardstick's is above it at level 1)"
-    x, note = _lowest(h, {"x": x_hcod, "x_hcod": x_hcod.copy()})
+    x, note = lowest(h, {"x": x_hcod, "x_hcod": x_hcod.copy()})
     assert x is x_hcod and note == "the independent yardstick's point"
-    x, note = _lowest(h, {"x": None, "reason": "yardstick error: E", "x_hcod": x_hcod})
+    x, note = lowest(h, {"x": None, "reason": "yardstick error: E", "x_hcod": x_hcod})
     assert x is x_hcod and "no independent point: yardstick error: E" in note
-    assert _lowest(h, {"x": None, "x_hcod": None}) == (None, "")
+    assert lowest(h, {"x": None, "x_hcod": None}) == (None, "")
 
 
 def test_the_ranking_tells_problems_without_a_certified_yardstick_from_unsolved_ones():
