@@ -152,9 +152,9 @@ def test_long_solver_names_fit_the_figures(tmp_path, monkeypatch, reach):
 
 def _loaded(name: str):
     """The class the runner builds for ``spec(name)`` (a file.py:Class is imported as its own module)."""
-    from hikbench.bench.harness.worker import solver_info
+    from hikbench.bench.specs import SolverSpec
 
-    return solver_info(spec(name)).factory
+    return SolverSpec.parse(spec(name)).info().factory
 
 
 def test_interleaved_modes_take_turns_at_every_step(reach):
