@@ -29,9 +29,10 @@ __all__ = ["YARDSTICK_MODULES", "problem_hash", "yardstick_code"]
 
 #: the modules whose source computes a yardstick (the worker's yardstick job calls them); a module
 #: added to that computation is added here, so that a change in it recomputes the cached yardsticks
-#: (the worker's certify job decides that a certified yardstick is the certificate's x*)
+#: (the worker's certify job decides that a certified yardstick is the certificate's x*; harness.yardstick
+#: chooses among the candidate points)
 YARDSTICK_MODULES: tuple[str, ...] = ("hikbench.solvers.yardstick", "hikbench.problems.exact",
-                                      "hikbench.bench.harness.worker")
+                                      "hikbench.bench.harness.worker", "hikbench.bench.harness.yardstick")
 _DIGITS = 16  # hex digits kept of a SHA-256: 64 bits, no collision in any realistic set of problems
 
 
