@@ -72,7 +72,8 @@ from hikbench.solvers.base import (
     Solver,
     SolveResult,
 )
-from hikbench.solvers.registry import SolverInfo, check_choice, check_int, check_number
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_choice, check_int, check_number
 
 __all__ = ["FREEZE_MODES", "CascadeBase", "QPSolversCascade", "freeze_level", "level_qp"]
 
@@ -181,6 +182,12 @@ class CascadeBase(Solver):
         self.delta = tol if relax_delta is None else relax_delta
         self.slack_tol = tol if slack_tol is None else slack_tol
         self._last_z: dict[int, np.ndarray] = {}
+
+    @classmethod
+    def default_options(cls) -> dict:
+        """The defaults of ``__init__``, ``freeze`` the backend's (None there:
+        :data:`hikbench.solvers._qp_backends.DEFAULT_FREEZE`, else ``"shift"``)."""
+        return {**super().default_options(), "freeze": tables.DEFAULT_FREEZE.get(cls.backend, "shift")}
 
     def reset(self) -> None:
         self._last_z = {}
@@ -313,11 +320,6 @@ def _installed() -> list[str]:
 
 
 CLASSES = {b: _make(b) for b in tables.BACKENDS}
-_DEFAULTS = {"freeze": "shift", "accuracy": "high", "regularization": None, "max_iter": None,
-             "relax_delta": None, "slack_tol": None}
-SOLVERS = [SolverInfo(CLASSES[b].name, CLASSES[b].description, CLASSES[b], supports_inequalities=True,
-                      supports_warm_start=CLASSES[b].supports_warm_start, strict=True,
-                      options={**_DEFAULTS, "freeze": tables.DEFAULT_FREEZE.get(b, "shift")})
-           for b in _installed()]
+SOLVERS = [SolverInfo.of(CLASSES[b]) for b in _installed()]
 MISSING = {f"cascade-{b}": f"qpsolvers backend {b!r} is not installed; install it with: {tables.INSTALL[b]}"
            for b in tables.BACKENDS if b not in _installed()}

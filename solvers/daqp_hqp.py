@@ -63,7 +63,8 @@ from hikbench.solvers.base import (
     Solver,
     SolveResult,
 )
-from hikbench.solvers.registry import SolverInfo, check_bool, check_choice, check_int, check_number
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_bool, check_choice, check_int, check_number
 
 __all__ = ["ACCURACY", "EXIT_STATUS", "SOLVERS", "DaqpHqp", "exit_status"]
 
@@ -182,14 +183,9 @@ class DaqpHqp(Solver):
                                  "warm": start is not None})
 
 
-_DEFAULTS = {"accuracy": "high", "eps": 1e-8, "rho_soft": None, "primal_tol": None, "dual_tol": None,
-             "iter_limit": None, "normalised": True, "warm_start": "time"}
-
-
 def _judged_on(options: dict) -> str:
     """What a daqp-hqp built with ``options`` claims (see :attr:`Solver.judged_on`)."""
     return ROW_NORMALISED if options.get("normalised", True) else ROWS
 
 
-SOLVERS = [SolverInfo(DaqpHqp.name, DaqpHqp.description, DaqpHqp, supports_inequalities=True,
-                      supports_warm_start=True, strict=True, options=dict(_DEFAULTS), judged_on=_judged_on)]
+SOLVERS = [SolverInfo.of(DaqpHqp, judged_on=_judged_on)]

@@ -39,7 +39,8 @@ import numpy as np
 
 from hikbench.problems.hierarchy import Hierarchy
 from hikbench.solvers.base import ERROR, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
-from hikbench.solvers.registry import SolverInfo, check_choice, check_int, check_number
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_choice, check_int, check_number
 
 __all__ = ["MISSING", "SOLVERS", "LexlsSolver", "NipmSolver", "SothSolver", "build_info", "load_module",
            "peers_dir"]
@@ -267,14 +268,9 @@ class NipmSolver(_PeerSolver):
 
 def _registered() -> tuple[list[SolverInfo], dict[str, str]]:
     solvers, missing = [], {}
-    for cls, options in ((SothSolver, {"warm_start": "time", "epsilon": None}),
-                         (LexlsSolver, {"warm_start": "time", "tol_linear_dependence": None,
-                                        "max_factorizations": 1000}),
-                         (NipmSolver, {"max_iterations": 20, "kkt_tolerance": None, "linear_dependence": None,
-                                       "activation_threshold": None})):
+    for cls in (SothSolver, LexlsSolver, NipmSolver):
         if _module_path(cls._module).is_file():
-            solvers.append(SolverInfo(cls.name, cls.description, cls, supports_inequalities=True,
-                                      supports_warm_start=cls.supports_warm_start, options=options))
+            solvers.append(SolverInfo.of(cls))
         else:
             missing[cls.name] = NOT_BUILT
     return solvers, missing

@@ -76,7 +76,7 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from hikbench.bench.cli import solver_calls_killable
+    from hikbench.bench.signals import solver_calls_killable
     from hikbench.bench.scenarios.controllers import CONTROLLERS, build_controller, is_controller
     from hikbench.bench.scenarios.rows import run_stem, slug
     from hikbench.bench.scenarios.checks import check_run

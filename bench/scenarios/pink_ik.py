@@ -63,7 +63,7 @@ from pink.limits import ConfigurationLimit, VelocityLimit
 from pink.tasks import ComTask, DampingTask, FrameTask, PostureTask
 from pink.utils import get_root_joint_dim
 
-from hikbench.bench.scenarios.controllers import Controller, ControllerError
+from hikbench.bench.scenarios.controller import Controller, ControllerError
 from hikbench.problems.hierarchy import Hierarchy
 from hikbench.problems.robots import limits, tasks
 from hikbench.problems.robots.stacks import Stack
