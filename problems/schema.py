@@ -28,7 +28,7 @@ place (:class:`Where` and its subclasses) says how the error reads:
     checked(Number(1, unit="a condition number"), cond, "cond", MyError)
         # MyError("cond must be a finite number >= 1 (a condition number); got 0.5")
     Number(0, 1, high_open=True).check(rtol, "rank_rtol", Option("nullspace-svd", SolverOptionError))
-        # "nullspace-svd: option rank_rtol=2 is not allowed; expected a finite number in [0, 1)"
+        # "nullspace-svd: option rank_rtol=2 is not allowed; expected a finite number >= 0 and < 1"
 """
 
 from __future__ import annotations
@@ -121,7 +121,7 @@ class Option(Where):
 
 def checked(field: "Field", value, name: str, error: type[HikbenchError] = SchemaError, where: str = ""):
     """``value`` when it fits ``field``; else ``error`` naming it (:class:`Named`)."""
-    return field.check(value, name, Named(error, where))
+    return field.check(value, name, Named(where, error))
 
 
 def _join(path: str, key) -> str:
@@ -190,14 +190,13 @@ def _num(v) -> str:
 
 
 def _range_text(low, high, low_open, high_open) -> str:
-    """``>= 0``, ``< 1``, or ``in (0, 1]`` with both ends."""
-    if low is not None and high is not None:
-        return f"in {'(' if low_open else '['}{_num(low)}, {_num(high)}{')' if high_open else ']'}"
+    """``>= 0``, ``< 1``, ``> 0 and <= 1``."""
+    parts = []
     if low is not None:
-        return f"{'>' if low_open else '>='} {_num(low)}"
+        parts.append(f"{'>' if low_open else '>='} {_num(low)}")
     if high is not None:
-        return f"{'<' if high_open else '<='} {_num(high)}"
-    return ""
+        parts.append(f"{'<' if high_open else '<='} {_num(high)}")
+    return " and ".join(parts)
 
 
 class Number(Field):

@@ -22,7 +22,7 @@ from hikbench.problems.generators import degenerate, equality_stack, generate, i
     ({"equality_fraction": float("nan")}, r"equality_fraction must be a finite number >= 0 and <= 1"),
     ({"rows": -1}, r"rows must be >= 0 \(per level\); got -1"),
     ({"seed": -1}, r"seed must be an integer >= 0; got -1"),
-    ({"seed": 1.5}, r"seed must be an integer; got 1.5"),
+    ({"seed": 1.5}, r"seed must be an integer >= 0; got 1.5"),
 ], ids=["cond inf", "cond < 1", "cond nan", "cond string", "row_scale inf", "box_bound negative",
         "box_bound inf", "equality_fraction > 1", "equality_fraction nan", "rows negative", "seed negative",
         "seed fraction"])
