@@ -85,25 +85,26 @@ def _complement(Q: np.ndarray, n: int) -> np.ndarray:
     return u[:, r:]
 
 
-def _bounds(rng: np.random.Generator, kind: str, norms: np.ndarray, m: int, equality_fraction: float):
-    """Bounds of m rows of the given inequality mix, scaled by the row norms."""
+def _bounds(rng: np.random.Generator, mix: str, norms: np.ndarray, m: int, equality_fraction: float):
+    """Bounds of m rows of the inequality mix ``mix``, scaled by the row norms; each row's
+    side: 0 equality, 1 upper bound only, 2 lower bound only, 3 both."""
     c = rng.standard_normal(m) * norms
     lower, upper = c.copy(), c.copy()  # equalities by default
-    if kind == "none":
+    if mix == "none":
         return lower, upper
     width = rng.uniform(0.2, 1.0, m) * norms
-    if kind == "one-sided":
-        kinds = np.where(rng.random(m) < 0.5, 1, 2)
-    elif kind == "two-sided":
-        kinds = np.full(m, 3)
+    if mix == "one-sided":
+        sides = np.where(rng.random(m) < 0.5, 1, 2)
+    elif mix == "two-sided":
+        sides = np.full(m, 3)
     else:  # mixed
-        kinds = rng.integers(1, 4, m)
-    kinds = np.where(rng.random(m) < equality_fraction, 0, kinds)
-    lower = np.where(kinds == 1, -np.inf, np.where(kinds == 3, c - width, c))
-    upper = np.where(kinds == 2, np.inf, np.where(kinds == 3, c + width, c))
+        sides = rng.integers(1, 4, m)
+    sides = np.where(rng.random(m) < equality_fraction, 0, sides)
+    lower = np.where(sides == 1, -np.inf, np.where(sides == 3, c - width, c))
+    upper = np.where(sides == 2, np.inf, np.where(sides == 3, c + width, c))
     # one-sided rows: A x <= c - width/2 (upper) or A x >= c + width/2 (lower) keeps some active
-    upper = np.where(kinds == 1, c - 0.5 * width, upper)
-    lower = np.where(kinds == 2, c + 0.5 * width, lower)
+    upper = np.where(sides == 1, c - 0.5 * width, upper)
+    lower = np.where(sides == 2, c + 0.5 * width, lower)
     return lower, upper
 
 

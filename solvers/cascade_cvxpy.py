@@ -74,13 +74,13 @@ class CvxpyCascade(CascadeBase):
             eq = lo == up
             fu = np.isfinite(up) & ~eq
             fl = np.isfinite(lo) & ~eq
-            for mask, kind in ((eq, "eq"), (fu, "up"), (fl, "lo")):
+            for mask, side in ((eq, "eq"), (fu, "up"), (fl, "lo")):
                 if not mask.any():
                     continue
                 expr = A[mask] @ x - (slack[np.flatnonzero(mask)] if slack is not None else 0)
-                if kind == "eq":
+                if side == "eq":
                     cons.append(expr == lo[mask])
-                elif kind == "up":
+                elif side == "up":
                     cons.append(expr <= up[mask])
                 else:
                     cons.append(expr >= lo[mask])

@@ -180,7 +180,7 @@ class DaqpHqp(Solver):
         return SolveResult(x, status, reason=reason, iterations=int(info["iterations"]),
                            build_time_s=t1 - t0, solve_time_s=t2 - t1,
                            info={"exitflag": int(exitflag), "judged_on": self.judged_on,
-                                 "warm": start is not None})
+                                 "warm_started": start is not None})
 
 
 def _judged_on(options: dict) -> str:

@@ -56,6 +56,7 @@ class SolverInfo:
             raise TypeError(f"SolverInfo.of expects a hikbench.solvers.base.Solver subclass, got {solver!r}")
         if not solver.name:
             raise TypeError(f"{solver.__qualname__}: a registered solver needs a class attribute `name`")
-        return cls(solver.name, solver.description, solver, supports_inequalities=solver.supports_inequalities,
+        return cls(solver.name, solver.description, solver,
+                   supports_inequalities=solver.supports_inequalities,
                    supports_warm_start=solver.supports_warm_start, strict=solver.strict,
                    options=solver.default_options(), judged_on=judged_on)

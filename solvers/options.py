@@ -25,7 +25,8 @@ def check_number(solver: str, opt: str, value, *, low: float | None = None, high
     range given by low / high (open ends with low_open / high_open); None when
     value is None and none_ok; else SolverOptionError naming solver, option,
     value and the expected type and range."""
-    value = Number(low, high, low_open=low_open, high_open=high_open, none_ok=none_ok).check(value, opt, _at(solver))
+    field = Number(low, high, low_open=low_open, high_open=high_open, none_ok=none_ok)
+    value = field.check(value, opt, _at(solver))
     return None if value is None else float(value)
 
 
@@ -53,6 +54,7 @@ def check_numbers(solver: str, opt: str, value, *, low: float | None = None, wha
     as a float ndarray, shape (len,); else SolverOptionError. ``what`` is
     appended to the expectation (e.g. "one weight per level")."""
     item = Number(low)
-    expected = f"a non-empty list of finite numbers{item.what[len('a finite number'):]}{', ' + what if what else ''}"
+    rng = item.what[len("a finite number"):]  # " >= 0", or ""
+    expected = f"a non-empty list of finite numbers{rng}{', ' + what if what else ''}"
     List(item, what=expected, sequences=True, whole=True).check(value, opt, _at(solver))
     return np.asarray(value, dtype=float)

@@ -97,7 +97,7 @@ class _PeerSolver(Solver):
 
     def __init__(self, warm_start: str):
         self.warm_start = check_choice(self.name, "warm_start", warm_start, WARM_STARTS)
-        self._warm = self.warm_start == "time"
+        self._start_from_last = self.warm_start == "time"  # (each solve starts from the last active set)
         self._h = _NONE
         mod = load_module(self._module)
         if mod is None:  # (the registry lists the solver only when built: a stale import of this class)
@@ -116,7 +116,7 @@ class _PeerSolver(Solver):
             self.check_hierarchy(hierarchy)
             self._peer.load(hierarchy.A, hierarchy.lower, hierarchy.upper, hierarchy.starts)
             self._h = hierarchy
-        return self._result(*self._peer.solve(self._warm))
+        return self._result(*self._peer.solve(self._start_from_last))
 
     def _result(self, x, code, act, deact, iters, info, msg) -> SolveResult:
         status = _STATUS[code]
@@ -157,7 +157,7 @@ class SothSolver(_PeerSolver):
             self.check_hierarchy(hierarchy)
             self._peer.load(hierarchy.A, hierarchy.lower, hierarchy.upper, hierarchy.starts)
             self._h = hierarchy
-        x, code, act, deact, msg = self._peer.solve(self._warm)
+        x, code, act, deact, msg = self._peer.solve(self._start_from_last)
         # (SOTH does not report its iterations: 0)
         return self._result(x, code, act, deact, 0, {}, msg)
 
@@ -199,7 +199,7 @@ class LexlsSolver(_PeerSolver):
             self.check_hierarchy(hierarchy)
             self._peer.load(hierarchy.A, hierarchy.lower, hierarchy.upper, hierarchy.starts)
             self._h = hierarchy
-        x, code, act, deact, facts, cycling, msg = self._peer.solve(self._warm)
+        x, code, act, deact, facts, cycling, msg = self._peer.solve(self._start_from_last)
         return self._result(x, code, act, deact, facts, {"cycling_counter": cycling} if cycling else {}, msg)
 
 

@@ -1,9 +1,9 @@
 """The solver registry: names -> factories, filled from what imports cleanly.
 
 Built-in solver modules are listed in ``_BUILTIN_MODULES``; each defines
-``SOLVERS``, a list of :class:`~hikbench.solvers.info.SolverInfo` (``SolverInfo.of(TheClass)``). Third-party packages add solvers
-through the entry-point group ``hikbench.solvers`` (an entry point resolving to
-such a list, or to a function returning one). A module whose optional backend
+``SOLVERS``, a list of :class:`~hikbench.solvers.info.SolverInfo` (``SolverInfo.of(TheClass)``).
+Third-party packages add solvers through the entry-point group ``hikbench.solvers``
+(an entry point resolving to such a list, or to a function returning one). A module whose optional backend
 is missing (``ModuleNotFoundError`` for a package outside hikbench) is simply
 not listed; asking for one of its solvers says how to install it. Any other
 import error is a bug and propagates.

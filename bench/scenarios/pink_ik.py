@@ -84,7 +84,7 @@ def level_costs(stack: Stack, level_factor: float) -> list[float | None]:
     the levels that hold a weighted (equality) task from 0; None for a level of limits only."""
     out, j = [], 0
     for level in stack.levels:
-        if any(t.kind == "equality" for t in level):
+        if any(t.relation == "equality" for t in level):
             out.append(level_factor ** -j)
             j += 1
         else:

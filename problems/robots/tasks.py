@@ -99,10 +99,10 @@ class Task(abc.ABC):
         Unique within a stack; the CSV column of its error.
     gain : float
         lambda of eq. (47), 1/s.
-    kind : {"equality", "inequality"}
+    relation : {"equality", "inequality"}
     """
 
-    kind: ClassVar[str] = "equality"
+    relation: ClassVar[str] = "equality"
 
     def __init__(self, robot: Robot, name: str, gain: float = 1.0):
         if not isinstance(name, str) or not name:
