@@ -278,7 +278,7 @@ class List(Field):
 
     def check(self, value, path, at):
         kinds = (list, tuple, np.ndarray) if self.sequences else list
-        if not isinstance(value, kinds) or np.ndim(value) != 1 and isinstance(value, np.ndarray) or \
+        if not isinstance(value, kinds) or (isinstance(value, np.ndarray) and value.ndim != 1) or \
                 len(value) < self.min_len or (self.max_len is not None and len(value) > self.max_len):
             at.fail(path, value, self.what)
         if self.whole and not all(self.item.fits(v) for v in value):
