@@ -38,7 +38,7 @@ def _dynamic_imports(tree: ast.AST) -> list[str]:
     (``import_module("hikbench.solvers.hcod")``); for a computed one (``import_module(
     f"hikbench.bench.commands.{name}")``, ``import_module(modname)``), every project module's
     full name written in a table of the module (a tuple, list or set entry, a dict value:
-    ``COMMANDS``, ``_BUILTIN_MODULES``)."""
+    ``COMMANDS``, ``_BUILTIN_MODULES``), alone or as ``module:attribute`` (``PROVIDERS``)."""
     calls = [n for n in ast.walk(tree) if isinstance(n, ast.Call) and _is_import_module(n) and n.args]
     literal = [c.args[0].value for c in calls
                if isinstance(c.args[0], ast.Constant) and isinstance(c.args[0].value, str)]
@@ -46,8 +46,8 @@ def _dynamic_imports(tree: ast.AST) -> list[str]:
         return literal
     tables = [n.elts if isinstance(n, (ast.Tuple, ast.List, ast.Set)) else n.values for n in ast.walk(tree)
               if isinstance(n, (ast.Tuple, ast.List, ast.Set, ast.Dict))]
-    named = [e.value for t in tables for e in t
-             if isinstance(e, ast.Constant) and isinstance(e.value, str) and e.value in MODULES]
+    named = [e.value.partition(":")[0] for t in tables for e in t
+             if isinstance(e, ast.Constant) and isinstance(e.value, str) and e.value.partition(":")[0] in MODULES]
     return literal + named
 
 
@@ -126,6 +126,8 @@ def test_the_graph_sees_import_module():
     """The CLI loads its sub-commands by importlib, the registry its solver modules: both edges count."""
     assert "hikbench.bench.commands.scenario" in GRAPH["hikbench.bench.cli"]
     assert "hikbench.solvers.hcod" in GRAPH["hikbench.solvers.registry"]
+    assert "hikbench.problems.robots.models" in GRAPH["hikbench.bench.commands.list_"]
+    assert "hikbench.bench.scenarios.pink_ik" in GRAPH["hikbench.bench.scenarios.controllers"]
     tree = ast.parse('import importlib\nimportlib.import_module("hikbench.bench.cli")\n')
     assert _dynamic_imports(tree) == ["hikbench.bench.cli"]
 
