@@ -9,7 +9,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from hikbench.problems.errors import HikbenchError
-from hikbench.problems.hierarchy import Hierarchy
+from hikbench.problems.hierarchy import Hierarchy, check_fits_in_memory
 from hikbench.problems.schema import Bool, Named, Number, Str
 
 __all__ = ["Family"]
@@ -18,6 +18,7 @@ __all__ = ["Family"]
 #: with their ranges, by the family's generator (``make``), a None default by the code using it
 _BY_DEFAULT = {bool: Bool(), str: Str()}
 _BOUND_SCALE = Number(0, low_open=True, unit="it multiplies every bound")
+_WHOLE = Number(integer=True, whole_floats=True)
 
 
 @dataclass(frozen=True)
@@ -53,6 +54,8 @@ class Family:
         homogeneous in (x, bounds)). Small scales test a solver's absolute
         tolerances."""
         params = {**self.defaults, **self.check_params(params)}
+        if _WHOLE.fits(params.get("n")):  # (before the generator makes its n x n matrices; a wrong n is its to name)
+            check_fits_in_memory(int(params["n"]), f"family {self.name}")
         scale = float(_BOUND_SCALE.check(params.pop("bound_scale"), "bound_scale", self._at()))
         h = self.make(seed=seed, **params)
         if scale != 1.0:

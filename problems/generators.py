@@ -29,7 +29,7 @@ import numpy as np
 from hikbench.problems.errors import HikbenchError, UnknownFamilyError
 from hikbench.problems.family import Family
 from hikbench.problems.hierarchy import Hierarchy, Level, check_fits_in_memory, check_sizes_fit
-from hikbench.problems.schema import Number, checked
+from hikbench.problems.schema import Number, checked, short
 
 __all__ = ["DEGENERATE_CASES", "FAMILIES", "INEQUALITY_MIXES", "Family", "all_families", "degenerate",
            "equality_stack",
@@ -155,6 +155,8 @@ def random_hierarchy(n: int, depth: int, rows: int | Sequence[int], *, rank=None
     box_bound = _number(box_bound, "box_bound", Number(0, unit="the box is -box_bound <= x_i <= box_bound"))
     _number(equality_fraction, "equality_fraction", Number(0, 1))
     rng = np.random.default_rng(_seed(seed))
+    if rows is None or not np.isscalar(rows) and not isinstance(rows, (Sequence, np.ndarray)):
+        raise HikbenchError(f"rows must be an integer or a list of integers, one per level; got {short(rows)}")
     total = depth * _integer(rows, "rows") if np.isscalar(rows) else sum(_integer(v, "rows") for v in rows)
     check_sizes_fit(n, depth + bool(box), total + n * bool(box), "random_hierarchy")
     m = _per_level(rows, depth, "rows")
@@ -345,6 +347,4 @@ def generate(family: str, seed: int = 0, **params) -> Hierarchy:
     families = all_families()
     if family not in families:
         raise UnknownFamilyError(f"unknown family {family!r}; expected one of {', '.join(families)}")
-    if isinstance(params.get("n"), Integral):  # (a wrong type is the family's to name)
-        check_fits_in_memory(params["n"], f"family {family}")
     return families[family].generate(seed=seed, **params)

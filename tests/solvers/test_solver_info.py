@@ -7,9 +7,12 @@ from __future__ import annotations
 import inspect
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from hikbench.solvers import registry
 from hikbench.solvers.base import Solver, SolveResult
+from hikbench.solvers.errors import SolverOptionError
 from hikbench.solvers.info import SolverInfo
 
 INFOS = registry.available()
@@ -74,3 +77,28 @@ def test_of_reads_a_new_class():
 def test_of_refuses_what_is_not_a_named_solver_class(obj, message):
     with pytest.raises(TypeError, match=message):
         SolverInfo.of(obj)
+
+
+VALUES = st.one_of(
+    st.none(), st.booleans(), st.integers(-10**6, 10**6), st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=6), st.sampled_from(["time", "none", "high", "shift", "CLARABEL", "[1, 2]"]),
+    st.lists(st.floats(-2, 2), max_size=3), st.dictionaries(st.text(max_size=2), st.integers(), max_size=2),
+)
+
+
+@pytest.mark.parametrize("name", list(INFOS), ids=list(INFOS))
+@settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(data=st.data())
+def test_any_option_value_builds_or_is_one_line_naming_the_option(name, data):
+    """Whatever value an option gets, the solver is built or SolverOptionError names the
+    solver and the option on one line; no other exception escapes the constructor."""
+    info = INFOS[name]
+    if not info.options:
+        return
+    option = data.draw(st.sampled_from(sorted(info.options)), label="option")
+    value = data.draw(VALUES, label="value")
+    try:
+        registry.create(name, **{option: value})
+    except SolverOptionError as err:
+        message = str(err)
+        assert message.startswith(f"{name}: option {option}") and "\n" not in message, message
