@@ -12,34 +12,33 @@ anything else is a bug and keeps its traceback.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import errno
 import importlib
 import os
 import signal
 import sys
-import threading
 
 from hikbench import __version__
+from hikbench.bench.signals import Terminated, sigterm_as_interrupt
 from hikbench.extras import extra_for, install_hint
 from hikbench.problems.errors import HikbenchError
 
-# sub-command name -> module in hikbench.bench.commands
+# sub-command name -> its module (each name written out: tests/test_layering.py sees these imports)
 COMMANDS: dict[str, str] = {
-    "solve": "solve",
-    "generate": "generate",
-    "inspect": "inspect_",
-    "export": "export",
-    "list": "list_",
-    "run": "run",
-    "report": "report",
-    "compare": "compare",
-    "regress": "regress",
-    "claims": "claims",
-    "columns": "columns",
-    "scenario": "scenario",
-    "warmup": "warmup",
-    "testset": "testset",
+    "solve": "hikbench.bench.commands.solve",
+    "generate": "hikbench.bench.commands.generate",
+    "inspect": "hikbench.bench.commands.inspect_",
+    "export": "hikbench.bench.commands.export",
+    "list": "hikbench.bench.commands.list_",
+    "run": "hikbench.bench.commands.run",
+    "report": "hikbench.bench.commands.report",
+    "compare": "hikbench.bench.commands.compare",
+    "regress": "hikbench.bench.commands.regress",
+    "claims": "hikbench.bench.commands.claims",
+    "columns": "hikbench.bench.commands.columns",
+    "scenario": "hikbench.bench.commands.scenario",
+    "warmup": "hikbench.bench.commands.warmup",
+    "testset": "hikbench.bench.commands.testset",
 }
 
 
@@ -72,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"hikbench {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, modname in COMMANDS.items():
-        mod = importlib.import_module(f"hikbench.bench.commands.{modname}")
+        mod = importlib.import_module(modname)
         p = sub.add_parser(name, help=mod.HELP, description=mod.HELP)
         mod.add_arguments(p)
         p.set_defaults(_run=mod.run)
@@ -92,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as stop:  # --help / --version print and stop
         return stop.code if isinstance(stop.code, int) else 0
     try:
-        with _sigterm_as_interrupt():
+        with sigterm_as_interrupt():
             code = int(args._run(args) or 0)
             sys.stdout.flush()  # (here, where a full device is one line, not at the interpreter's exit)
             return code
@@ -137,51 +136,6 @@ def _stdout_to_devnull() -> None:
     devnull = os.open(os.devnull, os.O_WRONLY)
     os.dup2(devnull, sys.stdout.fileno())
     os.close(devnull)
-
-
-class Terminated(KeyboardInterrupt):
-    """SIGTERM received (``kill``, a CI job's time limit): unwinds like Ctrl-C."""
-
-
-@contextlib.contextmanager
-def _sigterm_as_interrupt():
-    """SIGTERM raises :class:`Terminated` in the main thread, so that the command
-    stops as on Ctrl-C: rows written so far kept, a Dask cluster closed (killed
-    at once, Python left its semaphores to the resource tracker's warning).
-    Elsewhere than in the main thread (where no handler can be set) nothing changes."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def raise_terminated(signum, frame):
-        raise Terminated()
-
-    previous = signal.signal(signal.SIGTERM, raise_terminated)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, previous)
-
-
-@contextlib.contextmanager
-def solver_calls_killable():
-    """SIGTERM and SIGINT take the kernel's default action (end the process)
-    inside the block: around a command's in-process solver calls (``scenario``).
-    Python runs its own handlers only between bytecodes, so a backend looping in
-    C or numba code, which never returns to the interpreter, could not be
-    stopped by ``kill`` or Ctrl-C. ``run`` and ``solve`` do not need it: their
-    solves run in the isolated worker. A signal ignored by the parent (``nohup``, a background job) stays
-    ignored. Elsewhere than in the main thread nothing changes."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-    previous = {sig: signal.signal(sig, signal.SIG_DFL) for sig in (signal.SIGTERM, signal.SIGINT)
-                if signal.getsignal(sig) is not signal.SIG_IGN}
-    try:
-        yield
-    finally:
-        for sig, handler in previous.items():
-            signal.signal(sig, handler)
 
 
 def _one_line(err: Exception) -> str:

@@ -4,28 +4,21 @@ parameters and a suggested sweep (:mod:`hikbench.problems.generators` and
 
 from __future__ import annotations
 
+import difflib
 from collections.abc import Callable
 from dataclasses import dataclass, field
 
-import numpy as np
-
 from hikbench.problems.errors import HikbenchError
-from hikbench.problems.hierarchy import Hierarchy
+from hikbench.problems.hierarchy import Hierarchy, check_fits_in_memory
+from hikbench.problems.schema import Bool, Named, Number, Str
 
-__all__ = ["Family", "finite_number"]
+__all__ = ["Family"]
 
-
-def finite_number(v, label: str, low: float, what: str = "", high: float = np.inf, low_open: bool = False) -> float:
-    """v as a finite float in [low, high] (``(low, high]`` when ``low_open``);
-    HikbenchError naming ``label`` otherwise (a string, True, NaN, inf, or a
-    value outside the interval)."""
-    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer, float, np.floating)) \
-            or not np.isfinite(v) or not low <= v <= high or (low_open and v == low):
-        bound = f" and <= {high:g}" if np.isfinite(high) else ""
-        raise HikbenchError(f"{label} must be a finite number {'>' if low_open else '>='} {low:g}{bound}{what}; "
-                            f"got {v!r}")
-    return float(v)
-
+#: the type a parameter's value must have, by the type of its default; numbers are checked,
+#: with their ranges, by the family's generator (``make``), a None default by the code using it
+_BY_DEFAULT = {bool: Bool(), str: Str()}
+_BOUND_SCALE = Number(0, low_open=True, unit="it multiplies every bound")
+_WHOLE = Number(integer=True, whole_floats=True)
 
 
 @dataclass(frozen=True)
@@ -60,14 +53,28 @@ class Family:
         whose lexicographic optima are the scaled ones (the problem is
         homogeneous in (x, bounds)). Small scales test a solver's absolute
         tolerances."""
-        unknown = sorted(set(params) - set(self.defaults))
-        if unknown:
-            raise HikbenchError(f"family {self.name!r}: unknown parameter(s) {unknown}; "
-                                f"expected some of {sorted(self.defaults)}")
-        params = {**self.defaults, **params}
-        scale = finite_number(params.pop("bound_scale"), f"family {self.name!r}: bound_scale", 0,
-                        " (it multiplies every bound)", low_open=True)
+        params = {**self.defaults, **self.check_params(params)}
+        if _WHOLE.fits(params.get("n")):  # (before the generator makes its n x n matrices; a wrong n is its to name)
+            check_fits_in_memory(int(params["n"]), f"family {self.name}")
+        scale = float(_BOUND_SCALE.check(params.pop("bound_scale"), "bound_scale", self._at()))
         h = self.make(seed=seed, **params)
         if scale != 1.0:
             h = h.with_bounds(h.lower * scale, h.upper * scale)
         return h
+
+    def _at(self) -> Named:
+        return Named(f"family {self.name!r}", HikbenchError)
+
+    def check_params(self, params: dict) -> dict:
+        """``params`` when each is a parameter of the family (:attr:`defaults`) and, where
+        the default is a bool or a string, of that type; else HikbenchError
+        ``family 'random': unknown parameter 'depht' (did you mean 'depth'?); expected one of ...``
+        or ``family 'random': box must be true or false; got 1``."""
+        at = self._at()
+        for key in params:
+            if key not in self.defaults:
+                near = difflib.get_close_matches(str(key), list(self.defaults), n=1)
+                hint = f" (did you mean {near[0]!r}?)" if near else ""
+                at.say(f"unknown parameter {key!r}{hint}; expected one of {', '.join(self.defaults)}")
+        return {key: _BY_DEFAULT[type(self.defaults[key])].check(value, key, at)
+                if type(self.defaults[key]) in _BY_DEFAULT else value for key, value in params.items()}

@@ -28,8 +28,8 @@ import numpy as np
 
 from hikbench.problems.errors import HikbenchError, UnknownFamilyError
 from hikbench.problems.family import Family
-from hikbench.problems.family import finite_number as _number
 from hikbench.problems.hierarchy import Hierarchy, Level, check_fits_in_memory, check_sizes_fit
+from hikbench.problems.schema import Number, checked, short
 
 __all__ = ["DEGENERATE_CASES", "FAMILIES", "INEQUALITY_MIXES", "Family", "all_families", "degenerate",
            "equality_stack",
@@ -38,20 +38,23 @@ __all__ = ["DEGENERATE_CASES", "FAMILIES", "INEQUALITY_MIXES", "Family", "all_fa
 INEQUALITY_MIXES = ("none", "one-sided", "two-sided", "mixed")
 
 
+_INTEGER = Number(integer=True, whole_floats=True)  # (3.0 is 3; 2.5, "abc", True are errors, not truncated)
+_SEED = Number(0, integer=True, whole_floats=True)    # a seed of numpy.random.default_rng
+
+
 def _integer(v, label: str) -> int:
-    """v as an int; HikbenchError (not a silent truncation) for 2.5, "abc", True."""
-    if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer, float, np.floating)) \
-            or v != int(v):
-        raise HikbenchError(f"{label} must be an integer; got {v!r}")
-    return int(v)
+    """v as an int; HikbenchError ``LABEL must be an integer; got V`` otherwise."""
+    return int(checked(_INTEGER, v, label, HikbenchError))
 
 
 def _seed(seed) -> int:
     """A seed of numpy.random.default_rng: an integer >= 0."""
-    seed = _integer(seed, "seed")
-    if seed < 0:
-        raise HikbenchError(f"seed must be an integer >= 0; got {seed}")
-    return seed
+    return int(checked(_SEED, seed, "seed", HikbenchError))
+
+
+def _number(v, label: str, field: Number) -> float:
+    """v as a float when it fits ``field``; HikbenchError naming ``label`` otherwise."""
+    return float(checked(field, v, label, HikbenchError))
 
 
 def _per_level(value, depth: int, label: str) -> list[int]:
@@ -82,25 +85,26 @@ def _complement(Q: np.ndarray, n: int) -> np.ndarray:
     return u[:, r:]
 
 
-def _bounds(rng: np.random.Generator, kind: str, norms: np.ndarray, m: int, equality_fraction: float):
-    """Bounds of m rows of the given inequality mix, scaled by the row norms."""
+def _bounds(rng: np.random.Generator, mix: str, norms: np.ndarray, m: int, equality_fraction: float):
+    """Bounds of m rows of the inequality mix ``mix``, scaled by the row norms; each row's
+    side: 0 equality, 1 upper bound only, 2 lower bound only, 3 both."""
     c = rng.standard_normal(m) * norms
     lower, upper = c.copy(), c.copy()  # equalities by default
-    if kind == "none":
+    if mix == "none":
         return lower, upper
     width = rng.uniform(0.2, 1.0, m) * norms
-    if kind == "one-sided":
-        kinds = np.where(rng.random(m) < 0.5, 1, 2)
-    elif kind == "two-sided":
-        kinds = np.full(m, 3)
+    if mix == "one-sided":
+        sides = np.where(rng.random(m) < 0.5, 1, 2)
+    elif mix == "two-sided":
+        sides = np.full(m, 3)
     else:  # mixed
-        kinds = rng.integers(1, 4, m)
-    kinds = np.where(rng.random(m) < equality_fraction, 0, kinds)
-    lower = np.where(kinds == 1, -np.inf, np.where(kinds == 3, c - width, c))
-    upper = np.where(kinds == 2, np.inf, np.where(kinds == 3, c + width, c))
+        sides = rng.integers(1, 4, m)
+    sides = np.where(rng.random(m) < equality_fraction, 0, sides)
+    lower = np.where(sides == 1, -np.inf, np.where(sides == 3, c - width, c))
+    upper = np.where(sides == 2, np.inf, np.where(sides == 3, c + width, c))
     # one-sided rows: A x <= c - width/2 (upper) or A x >= c + width/2 (lower) keeps some active
-    upper = np.where(kinds == 1, c - 0.5 * width, upper)
-    lower = np.where(kinds == 2, c + 0.5 * width, lower)
+    upper = np.where(sides == 1, c - 0.5 * width, upper)
+    lower = np.where(sides == 2, c + 0.5 * width, lower)
     return lower, upper
 
 
@@ -146,11 +150,13 @@ def random_hierarchy(n: int, depth: int, rows: int | Sequence[int], *, rank=None
         raise HikbenchError(f"need n >= 1 and depth >= 0; got n={n}, depth={depth}")
     if inequality not in INEQUALITY_MIXES:
         raise HikbenchError(f"inequality must be one of {INEQUALITY_MIXES}; got {inequality!r}")
-    cond = _number(cond, "cond", 1, " (largest / smallest singular value of a level)")
-    row_scale = _number(row_scale, "row_scale", 1, " (largest / smallest row norm)")
-    box_bound = _number(box_bound, "box_bound", 0, " (the box is -box_bound <= x_i <= box_bound)")
-    _number(equality_fraction, "equality_fraction", 0, high=1)
+    cond = _number(cond, "cond", Number(1, unit="largest / smallest singular value of a level"))
+    row_scale = _number(row_scale, "row_scale", Number(1, unit="largest / smallest row norm"))
+    box_bound = _number(box_bound, "box_bound", Number(0, unit="the box is -box_bound <= x_i <= box_bound"))
+    _number(equality_fraction, "equality_fraction", Number(0, 1))
     rng = np.random.default_rng(_seed(seed))
+    if rows is None or not np.isscalar(rows) and not isinstance(rows, (Sequence, np.ndarray)):
+        raise HikbenchError(f"rows must be an integer or a list of integers, one per level; got {short(rows)}")
     total = depth * _integer(rows, "rows") if np.isscalar(rows) else sum(_integer(v, "rows") for v in rows)
     check_sizes_fit(n, depth + bool(box), total + n * bool(box), "random_hierarchy")
     m = _per_level(rows, depth, "rows")
@@ -341,6 +347,4 @@ def generate(family: str, seed: int = 0, **params) -> Hierarchy:
     families = all_families()
     if family not in families:
         raise UnknownFamilyError(f"unknown family {family!r}; expected one of {', '.join(families)}")
-    if isinstance(params.get("n"), Integral):  # (a wrong type is the family's to name)
-        check_fits_in_memory(params["n"], f"family {family}")
     return families[family].generate(seed=seed, **params)

@@ -45,10 +45,21 @@ def check_fits_in_memory(n: int, who: str, matrices: int = 1) -> None:
     one = 8 * int(n) ** 2
     need = int(matrices) * one
     if need > MEMORY_BYTES:
-        held = "" if matrices == 1 else f", and this work holds {int(matrices)} at once ({need / 2**30:.3g} GiB)"
+        held = "" if matrices == 1 else f", and this work holds {int(matrices)} at once ({_gib(need)} GiB)"
         raise ProblemTooLargeError(
-            f"{who}: n = {int(n)} variables: one n x n matrix of doubles needs {one / 2**30:.3g} GiB{held}, "
+            f"{who}: n = {_big(int(n))} variables: one n x n matrix of doubles needs {_gib(one)} GiB{held}, "
             f"more than this machine's {MEMORY_BYTES / 2**30:.3g} GiB of memory")
+
+
+def _big(k: int) -> str:
+    """An integer as written, or ``1.23e+300`` past 15 digits (an n read from ``1e300``)."""
+    digits = str(abs(k))
+    return str(k) if len(digits) <= 15 else f"{'-' if k < 0 else ''}{digits[0]}.{digits[1:3]}e+{len(digits) - 1}"
+
+
+def _gib(nbytes: int) -> str:
+    """``nbytes`` in GiB, 3 significant digits (no float overflow for any integer)."""
+    return _big(nbytes // 2**30) if nbytes >= 2**1000 else f"{nbytes / 2**30:.3g}"
 
 
 #: bytes a level costs beyond its rows' numbers (its Level object, name and index entries), an estimate

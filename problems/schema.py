@@ -1,5 +1,6 @@
-"""A small typed schema for the files a user writes (suite, stack and scenario
-TOML): one place that reads them and checks every value, with one-line errors.
+"""A small typed schema for the values a user gives: the files (suite, stack and
+scenario TOML), a solver's options, a problem family's parameters, a task's
+numbers. One place that says what a value may be and how its error reads, one line each.
 
 Why a module of our own rather than pydantic or msgspec: the errors must be
 one line naming the file, the key path (``events[2].time``) and what was
@@ -20,6 +21,14 @@ Usage::
 A value's error reads ``FILE: KEY.PATH = VALUE: expected WHAT``; an unknown key
 ``FILE: unknown key KEY.PATH (did you mean 'x'?); expected one of a, b``; a
 missing one ``FILE: KEY.PATH: missing key 'k' (WHAT)``.
+
+The same types check a value given in code or on a command line, where the
+place (:class:`Where` and its subclasses) says how the error reads:
+
+    checked(Number(1, unit="a condition number"), cond, "cond", MyError)
+        # MyError("cond must be a finite number >= 1 (a condition number); got 0.5")
+    Number(0, 1, high_open=True).check(rtol, "rank_rtol", Option("nullspace-svd", SolverOptionError))
+        # "nullspace-svd: option rank_rtol=2 is not allowed; expected a finite number >= 0 and < 1"
 """
 
 from __future__ import annotations
@@ -28,12 +37,15 @@ import difflib
 import math
 import tomllib
 from dataclasses import dataclass
+from numbers import Integral, Real
 from pathlib import Path
+
+import numpy as np
 
 from hikbench.problems.errors import HikbenchError
 
-__all__ = ["Any", "Bool", "Int", "List", "Number", "SchemaError", "Str", "Table", "Vec", "Where",
-           "read_toml", "short"]
+__all__ = ["Any", "Bool", "Int", "List", "Named", "Number", "Option", "SchemaError", "Str", "Table", "Vec",
+           "Where", "checked", "read_toml", "short"]
 
 SHORT_REPR = 60  # characters of a value quoted in an error
 
@@ -81,10 +93,53 @@ class Where:
         raise self.error(f"{self.where}: {message}")
 
 
+@dataclass(frozen=True)
+class Named(Where):
+    """A value given in code or on a command line (a family's parameter, a task's gain):
+    ``[WHERE: ]PATH must be EXPECTED; got VALUE``, ``where`` an optional prefix
+    (``family 'ik-like'``)."""
+
+    where: str = ""
+
+    def fail(self, path: str, value, expected: str, choices=None):
+        at = f"{self.where}: " if self.where else ""
+        raise self.error(f"{at}{path} must be {expected}; got {short(value)}{_close(value, choices)}")
+
+    def say(self, message: str):
+        raise self.error(f"{self.where}: {message}" if self.where else message)
+
+
+@dataclass(frozen=True)
+class Option(Where):
+    """A solver's (or a controller's) option, ``where`` its name:
+    ``SOLVER: option PATH=VALUE is not allowed; expected EXPECTED``."""
+
+    def fail(self, path: str, value, expected: str, choices=None):
+        raise self.error(f"{self.where}: option {path}={value!r} is not allowed; expected {expected}"
+                         f"{_close(value, choices)}")
+
+
+def checked(field: "Field", value, name: str, error: type[HikbenchError] = SchemaError, where: str = ""):
+    """``value`` when it fits ``field``; else ``error`` naming it (:class:`Named`)."""
+    return field.check(value, name, Named(where, error))
+
+
 def _join(path: str, key) -> str:
     if isinstance(key, int):
         return f"{path}[{key}]"
     return f"{path}.{key}" if path else str(key)
+
+
+class _Misfit(Exception):
+    """Raised by :class:`_Probe`: the value does not fit (caught by :meth:`Field.fits`)."""
+
+
+class _Probe(Where):
+    def fail(self, path, value, expected, choices=None):
+        raise _Misfit
+
+    def say(self, message):
+        raise _Misfit
 
 
 class Field:
@@ -95,6 +150,14 @@ class Field:
     def check(self, value, path: str, at: Where):
         """``value`` (tables: with their defaults filled), or raise through ``at``."""
         raise NotImplementedError
+
+    def fits(self, value) -> bool:
+        """Whether ``value`` fits, without an error."""
+        try:
+            self.check(value, "", _Probe(""))
+        except _Misfit:
+            return False
+        return True
 
 
 class Any(Field):
@@ -108,12 +171,18 @@ class Any(Field):
 
 
 class Bool(Field):
-    what = "true or false"
+    """True or False (not 0 / 1, not a string); numpy's bool too. ``what``: ``"true or
+    false"`` as a file spells them, ``"True or False"`` for a Python value."""
+
+    def __init__(self, what: str = "true or false"):
+        self.what = what
 
     def check(self, value, path, at):
-        if not isinstance(value, bool):
+        if not isinstance(value, (bool, np.bool_)):
             at.fail(path, value, self.what)
-        return value
+        return bool(value)
+
+
 
 
 def _num(v) -> str:
@@ -121,6 +190,7 @@ def _num(v) -> str:
 
 
 def _range_text(low, high, low_open, high_open) -> str:
+    """``>= 0``, ``< 1``, ``> 0 and <= 1``."""
     parts = []
     if low is not None:
         parts.append(f"{'>' if low_open else '>='} {_num(low)}")
@@ -130,30 +200,44 @@ def _range_text(low, high, low_open, high_open) -> str:
 
 
 class Number(Field):
-    """A finite real number (an integer or a float, not a bool) in a range."""
+    """A finite real number (an integer or a float, numpy's too, not a bool) in a range.
+
+    ``integer``: an integer (``whole_floats``: a float with an integer value, 3.0, too,
+    returned as an int); ``none_ok``: None too; ``unit``: said after the range, in
+    parentheses."""
 
     def __init__(self, low=None, high=None, *, low_open=False, high_open=False, unit="", integer=False,
-                 what=""):
+                 whole_floats=False, none_ok=False, what=""):
         self.low, self.high, self.low_open, self.high_open = low, high, low_open, high_open
-        self.integer = integer
+        self.integer, self.whole_floats, self.none_ok = integer, whole_floats, none_ok
         rng = _range_text(low, high, low_open, high_open)
         kind = "an integer" if integer else "a finite number"
-        self.what = what or f"{kind}{' ' + rng if rng else ''}{f' ({unit})' if unit else ''}"
+        self.what = what or (f"{kind}{' ' + rng if rng else ''}{f' ({unit})' if unit else ''}"
+                             f"{' or None' if none_ok else ''}")
 
     def check(self, value, path, at):
-        ok_type = isinstance(value, int) if self.integer else isinstance(value, (int, float))
-        if isinstance(value, bool) or not ok_type or not math.isfinite(value) or not self._in_range(value):
+        if value is None and self.none_ok:
+            return None
+        if isinstance(value, (bool, np.bool_)) or not self._type_ok(value) or not math.isfinite(value) \
+                or not self._in_range(value):
             at.fail(path, value, self.what)
-        return value
+        return int(value) if self.integer and isinstance(value, float) else value
+
+    def _type_ok(self, value) -> bool:
+        if not self.integer:
+            return isinstance(value, Real)
+        if isinstance(value, Integral):
+            return True
+        return self.whole_floats and isinstance(value, float) and math.isfinite(value) and value == int(value)
 
     def _in_range(self, v) -> bool:
         low_ok = self.low is None or (v > self.low if self.low_open else v >= self.low)
         return low_ok and (self.high is None or (v < self.high if self.high_open else v <= self.high))
 
 
-def Int(low=None, high=None, unit="") -> Number:  # noqa: N802 - a type of the schema, like the classes
-    """An integer (not a bool, not a float) in [low, high]."""
-    return Number(low, high, unit=unit, integer=True)
+def Int(low=None, high=None, unit="", *, none_ok=False) -> Number:  # noqa: N802 - a type, like the classes
+    """An integer (not a bool, not a float) in [low, high]; None too with ``none_ok``."""
+    return Number(low, high, unit=unit, integer=True, none_ok=none_ok)
 
 
 class Str(Field):
@@ -180,18 +264,24 @@ def _close(value, choices) -> str:
 
 
 class List(Field):
-    """A list of ``item`` with ``min_len`` to ``max_len`` entries."""
+    """A list of ``item`` with ``min_len`` to ``max_len`` entries. ``sequences``: a tuple
+    or a 1-D ndarray too (a value from Python); ``whole``: an entry that does not fit is
+    reported as the whole list's error (an option's value), not at its index."""
 
-    def __init__(self, item: Field, min_len=1, max_len=None, what=""):
+    def __init__(self, item: Field, min_len=1, max_len=None, what="", *, sequences=False, whole=False):
         self.item, self.min_len, self.max_len = item, min_len, max_len
+        self.sequences, self.whole = sequences, whole
         size = (f"{min_len}" if max_len == min_len else
                 f"a non-empty list" if min_len == 1 and max_len is None else "a list")
         self.what = what or (f"{size} of {_plural(item.what)}" if max_len != min_len
                              else f"a list of {size} {_plural(item.what)}")
 
     def check(self, value, path, at):
-        if not isinstance(value, list) or len(value) < self.min_len or \
-                (self.max_len is not None and len(value) > self.max_len):
+        kinds = (list, tuple, np.ndarray) if self.sequences else list
+        if not isinstance(value, kinds) or (isinstance(value, np.ndarray) and value.ndim != 1) or \
+                len(value) < self.min_len or (self.max_len is not None and len(value) > self.max_len):
+            at.fail(path, value, self.what)
+        if self.whole and not all(self.item.fits(v) for v in value):
             at.fail(path, value, self.what)
         return [self.item.check(v, _join(path, i), at) for i, v in enumerate(value)]
 

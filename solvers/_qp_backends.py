@@ -123,10 +123,10 @@ CVXPY_ACCURACY: dict[str, dict[str, dict[str, float | bool]]] = {
 }
 
 
-def status_kind(backend: str, sol) -> tuple[str, str]:
+def status_outcome(backend: str, sol) -> tuple[str, str]:
     """Classify a qpsolvers Solution that was not ``found``.
 
-    Returns ``(kind, text)`` with kind one of ``"inaccurate"`` (the backend
+    Returns ``(outcome, text)`` with outcome one of ``"inaccurate"`` (the backend
     stopped close to a solution, e.g. OSQP "solved inaccurate", Clarabel
     "AlmostSolved"), ``"max_iterations"``, ``"infeasible"``, ``"numerical"``
     (Clarabel NumericalError / InsufficientProgress, PIQP_NUMERICS),

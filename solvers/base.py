@@ -11,6 +11,7 @@ silently: failures come back as a status with a reason.
 from __future__ import annotations
 
 import abc
+import inspect
 from dataclasses import InitVar, dataclass, field
 from typing import Any, ClassVar
 
@@ -132,6 +133,15 @@ class Solver(abc.ABC):
     supports_warm_start: ClassVar[bool] = False
     strict: ClassVar[bool] = True
     judged_on: str = ROWS
+
+    @classmethod
+    def default_options(cls) -> dict:
+        """The options a solver built without any takes: the defaults of ``__init__``'s
+        keyword parameters, e.g. ``{"warm_start": "time", "rank_rtol": 1e-10}``
+        (``hikbench list solvers``, :meth:`hikbench.solvers.info.SolverInfo.of`)."""
+        params = inspect.signature(cls).parameters.values()
+        return {p.name: p.default for p in params
+                if p.default is not p.empty and p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)}
 
     @abc.abstractmethod
     def solve(self, hierarchy: Hierarchy) -> SolveResult:

@@ -72,7 +72,8 @@ from hikbench.solvers.base import (
     Solver,
     SolveResult,
 )
-from hikbench.solvers.registry import SolverInfo, check_choice, check_int, check_number
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_choice, check_int, check_number
 
 __all__ = ["FREEZE_MODES", "CascadeBase", "QPSolversCascade", "freeze_level", "level_qp"]
 
@@ -182,12 +183,18 @@ class CascadeBase(Solver):
         self.slack_tol = tol if slack_tol is None else slack_tol
         self._last_z: dict[int, np.ndarray] = {}
 
+    @classmethod
+    def default_options(cls) -> dict:
+        """The defaults of ``__init__``, ``freeze`` the backend's (None there:
+        :data:`hikbench.solvers._qp_backends.DEFAULT_FREEZE`, else ``"shift"``)."""
+        return {**super().default_options(), "freeze": tables.DEFAULT_FREEZE.get(cls.backend, "shift")}
+
     def reset(self) -> None:
         self._last_z = {}
 
     def _solve_level(self, k: int, A_f, lower_f, upper_f, A_k, lower_k, upper_k, z0):
-        """Solve the QP of level k. Returns ``(kind, z, iterations, build_s,
-        solve_s, text)``; kind is ``"ok"``, ``"inaccurate"``, ``"infeasible"``,
+        """Solve the QP of level k. Returns ``(outcome, z, iterations, build_s,
+        solve_s, text)``; outcome is ``"ok"``, ``"inaccurate"``, ``"infeasible"``,
         ``"max_iterations"`` or ``"unknown"``; exceptions propagate."""
         raise NotImplementedError
 
@@ -226,7 +233,7 @@ class CascadeBase(Solver):
                 z0 = np.concatenate([x, r - np.clip(r, lower_k, upper_k)])
             x_prev = x if k else None
             try:
-                kind, z, it, b_s, s_s, text = self._solve_level(k, A_f, lower_f, upper_f, A_k, lower_k,
+                outcome, z, it, b_s, s_s, text = self._solve_level(k, A_f, lower_f, upper_f, A_k, lower_k,
                                                                 upper_k, z0)
             except Exception as err:  # noqa: BLE001 - any backend exception becomes a status with its text
                 return fail(ERROR, k, f"backend {self.backend} raised {type(err).__name__}: {err}", x_prev)
@@ -236,17 +243,17 @@ class CascadeBase(Solver):
             if z is not None and not np.all(np.isfinite(z)):
                 return fail(NUMERICAL_FAILURE, k, f"backend {self.backend} returned NaN/inf (status {text})",
                             x_prev)
-            if kind == "max_iterations":
+            if outcome == "max_iterations":
                 x_out = z[:n] if z is not None else x_prev
                 return fail(MAX_ITERATIONS, k, f"backend {self.backend} hit its iteration limit "
                                                f"({it} iterations, status {text})", x_out)
-            if kind == "infeasible" or (kind == "unknown" and k > 0):
+            if outcome == "infeasible" or (outcome == "unknown" and k > 0):
                 why = _no_solution(self.backend, text, h, k, A_f, lower_f, upper_f, x_prev)
                 return fail(INFEASIBLE_LEVEL, k, why, x_prev)
-            if kind in ("unknown", "numerical") or z is None:
+            if outcome in ("unknown", "numerical") or z is None:
                 return fail(NUMERICAL_FAILURE, k, f"backend {self.backend} found no solution (status {text})",
                             x_prev)
-            if kind == "inaccurate":
+            if outcome == "inaccurate":
                 inaccurate.append(k)
             self._last_z[k] = z
             x = z[:n]
@@ -288,8 +295,8 @@ class QPSolversCascade(CascadeBase):
             z = None
         if sol.found:
             return "ok", z, it, t1 - t0, t2 - t1, "solved"
-        kind, text = tables.status_kind(self.backend, sol)
-        return kind, (z if kind in ("inaccurate", "max_iterations") else None), it, t1 - t0, t2 - t1, text
+        outcome, text = tables.status_outcome(self.backend, sol)
+        return outcome, (z if outcome in ("inaccurate", "max_iterations") else None), it, t1 - t0, t2 - t1, text
 
 
 def _make(backend: str) -> type[QPSolversCascade]:
@@ -313,11 +320,6 @@ def _installed() -> list[str]:
 
 
 CLASSES = {b: _make(b) for b in tables.BACKENDS}
-_DEFAULTS = {"freeze": "shift", "accuracy": "high", "regularization": None, "max_iter": None,
-             "relax_delta": None, "slack_tol": None}
-SOLVERS = [SolverInfo(CLASSES[b].name, CLASSES[b].description, CLASSES[b], supports_inequalities=True,
-                      supports_warm_start=CLASSES[b].supports_warm_start, strict=True,
-                      options={**_DEFAULTS, "freeze": tables.DEFAULT_FREEZE.get(b, "shift")})
-           for b in _installed()]
+SOLVERS = [SolverInfo.of(CLASSES[b]) for b in _installed()]
 MISSING = {f"cascade-{b}": f"qpsolvers backend {b!r} is not installed; install it with: {tables.INSTALL[b]}"
            for b in tables.BACKENDS if b not in _installed()}

@@ -29,7 +29,8 @@ from hikbench.solvers.errors import SolverOptionError
 from hikbench.extras import install_hint
 from hikbench.solvers import _qp_backends as tables
 from hikbench.solvers.cascade import CascadeBase
-from hikbench.solvers.registry import SolverInfo, check_choice
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_choice
 
 __all__ = ["CvxpyCascade"]
 
@@ -73,13 +74,13 @@ class CvxpyCascade(CascadeBase):
             eq = lo == up
             fu = np.isfinite(up) & ~eq
             fl = np.isfinite(lo) & ~eq
-            for mask, kind in ((eq, "eq"), (fu, "up"), (fl, "lo")):
+            for mask, side in ((eq, "eq"), (fu, "up"), (fl, "lo")):
                 if not mask.any():
                     continue
                 expr = A[mask] @ x - (slack[np.flatnonzero(mask)] if slack is not None else 0)
-                if kind == "eq":
+                if side == "eq":
                     cons.append(expr == lo[mask])
-                elif kind == "up":
+                elif side == "up":
                     cons.append(expr <= up[mask])
                 else:
                     cons.append(expr >= lo[mask])
@@ -120,10 +121,6 @@ def _cvxpy_installed() -> bool:
     return importlib.util.find_spec("cvxpy") is not None
 
 
-_DEFAULTS = {"solver": "CLARABEL", "freeze": "shift", "accuracy": "high", "regularization": None,
-             "max_iter": None, "relax_delta": None, "slack_tol": None}
-SOLVERS = ([SolverInfo(CvxpyCascade.name, CvxpyCascade.description, CvxpyCascade, supports_inequalities=True,
-                       supports_warm_start=False, strict=True, options=dict(_DEFAULTS))]
-           if _cvxpy_installed() else [])
+SOLVERS = [SolverInfo.of(CvxpyCascade)] if _cvxpy_installed() else []
 MISSING = ({} if _cvxpy_installed()
            else {"cascade-cvxpy": install_hint("cvxpy")})

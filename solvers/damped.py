@@ -66,7 +66,8 @@ import scipy.linalg
 
 from hikbench.problems.hierarchy import Hierarchy
 from hikbench.solvers.base import INFEASIBLE_LEVEL, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
-from hikbench.solvers.registry import SolverInfo, check_int, check_number, check_numbers
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_int, check_number, check_numbers
 
 __all__ = ["BOX_RTOL", "DLS", "DLSLiegeois", "Weighted", "box_excess", "box_limits", "liegeois_gradient"]
 
@@ -329,12 +330,4 @@ class DLSLiegeois(Solver):
         return SolveResult(x=x, status=OPTIMAL, iterations=it, info=info)
 
 
-SOLVERS = [
-    SolverInfo(Weighted.name, Weighted.description, Weighted, supports_inequalities=True, strict=False,
-               options={"weights": None, "ratio": 1e-2, "regularization": 1e-9, "passes": 3}),
-    SolverInfo(DLS.name, DLS.description, DLS, supports_inequalities=True, strict=False,
-               options={"damping": 1e-3, "passes": 3}),
-    SolverInfo(DLSLiegeois.name, DLSLiegeois.description, DLSLiegeois, supports_inequalities=True,
-               strict=False,
-               options={"damping": 1e-3, "alpha": None, "max_iter": 1000, "tol": 1e-10}),
-]
+SOLVERS = [SolverInfo.of(cls) for cls in (Weighted, DLS, DLSLiegeois)]

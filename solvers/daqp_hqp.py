@@ -63,7 +63,8 @@ from hikbench.solvers.base import (
     Solver,
     SolveResult,
 )
-from hikbench.solvers.registry import SolverInfo, check_bool, check_choice, check_int, check_number
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_bool, check_choice, check_int, check_number
 
 __all__ = ["ACCURACY", "EXIT_STATUS", "SOLVERS", "DaqpHqp", "exit_status"]
 
@@ -179,11 +180,7 @@ class DaqpHqp(Solver):
         return SolveResult(x, status, reason=reason, iterations=int(info["iterations"]),
                            build_time_s=t1 - t0, solve_time_s=t2 - t1,
                            info={"exitflag": int(exitflag), "judged_on": self.judged_on,
-                                 "warm": start is not None})
-
-
-_DEFAULTS = {"accuracy": "high", "eps": 1e-8, "rho_soft": None, "primal_tol": None, "dual_tol": None,
-             "iter_limit": None, "normalised": True, "warm_start": "time"}
+                                 "warm_started": start is not None})
 
 
 def _judged_on(options: dict) -> str:
@@ -191,5 +188,4 @@ def _judged_on(options: dict) -> str:
     return ROW_NORMALISED if options.get("normalised", True) else ROWS
 
 
-SOLVERS = [SolverInfo(DaqpHqp.name, DaqpHqp.description, DaqpHqp, supports_inequalities=True,
-                      supports_warm_start=True, strict=True, options=dict(_DEFAULTS), judged_on=_judged_on)]
+SOLVERS = [SolverInfo.of(DaqpHqp, judged_on=_judged_on)]

@@ -52,7 +52,8 @@ import scipy.linalg
 
 from hikbench.problems.hierarchy import Hierarchy
 from hikbench.solvers.base import NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
-from hikbench.solvers.registry import SolverInfo, check_number
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_number
 
 __all__ = ["RANK_RTOL", "NullspaceCOD", "NullspaceSVD", "PinvAll", "flops_cod_all_at_once",
            "flops_cod_recursion", "flops_svd_all_at_once", "flops_svd_recursion"]
@@ -261,10 +262,4 @@ class PinvAll(_EqualityOnly):
         return self._result(h, x, [rank], flops_svd_all_at_once(h.n, h.rows))
 
 
-SOLVERS = [
-    SolverInfo(NullspaceSVD.name, NullspaceSVD.description, NullspaceSVD, strict=True,
-               options={"rank_rtol": RANK_RTOL}),
-    SolverInfo(NullspaceCOD.name, NullspaceCOD.description, NullspaceCOD, strict=True,
-               options={"rank_rtol": RANK_RTOL}),
-    SolverInfo(PinvAll.name, PinvAll.description, PinvAll, strict=False, options={"rank_rtol": RANK_RTOL}),
-]
+SOLVERS = [SolverInfo.of(cls) for cls in (NullspaceSVD, NullspaceCOD, PinvAll)]

@@ -39,7 +39,8 @@ import numpy as np
 
 from hikbench.problems.hierarchy import Hierarchy
 from hikbench.solvers.base import ERROR, MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
-from hikbench.solvers.registry import SolverInfo, check_choice, check_int, check_number
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_choice, check_int, check_number
 
 __all__ = ["MISSING", "SOLVERS", "LexlsSolver", "NipmSolver", "SothSolver", "build_info", "load_module",
            "peers_dir"]
@@ -96,7 +97,7 @@ class _PeerSolver(Solver):
 
     def __init__(self, warm_start: str):
         self.warm_start = check_choice(self.name, "warm_start", warm_start, WARM_STARTS)
-        self._warm = self.warm_start == "time"
+        self._start_from_last = self.warm_start == "time"  # (each solve starts from the last active set)
         self._h = _NONE
         mod = load_module(self._module)
         if mod is None:  # (the registry lists the solver only when built: a stale import of this class)
@@ -115,7 +116,7 @@ class _PeerSolver(Solver):
             self.check_hierarchy(hierarchy)
             self._peer.load(hierarchy.A, hierarchy.lower, hierarchy.upper, hierarchy.starts)
             self._h = hierarchy
-        return self._result(*self._peer.solve(self._warm))
+        return self._result(*self._peer.solve(self._start_from_last))
 
     def _result(self, x, code, act, deact, iters, info, msg) -> SolveResult:
         status = _STATUS[code]
@@ -156,7 +157,7 @@ class SothSolver(_PeerSolver):
             self.check_hierarchy(hierarchy)
             self._peer.load(hierarchy.A, hierarchy.lower, hierarchy.upper, hierarchy.starts)
             self._h = hierarchy
-        x, code, act, deact, msg = self._peer.solve(self._warm)
+        x, code, act, deact, msg = self._peer.solve(self._start_from_last)
         # (SOTH does not report its iterations: 0)
         return self._result(x, code, act, deact, 0, {}, msg)
 
@@ -198,7 +199,7 @@ class LexlsSolver(_PeerSolver):
             self.check_hierarchy(hierarchy)
             self._peer.load(hierarchy.A, hierarchy.lower, hierarchy.upper, hierarchy.starts)
             self._h = hierarchy
-        x, code, act, deact, facts, cycling, msg = self._peer.solve(self._warm)
+        x, code, act, deact, facts, cycling, msg = self._peer.solve(self._start_from_last)
         return self._result(x, code, act, deact, facts, {"cycling_counter": cycling} if cycling else {}, msg)
 
 
@@ -267,14 +268,9 @@ class NipmSolver(_PeerSolver):
 
 def _registered() -> tuple[list[SolverInfo], dict[str, str]]:
     solvers, missing = [], {}
-    for cls, options in ((SothSolver, {"warm_start": "time", "epsilon": None}),
-                         (LexlsSolver, {"warm_start": "time", "tol_linear_dependence": None,
-                                        "max_factorizations": 1000}),
-                         (NipmSolver, {"max_iterations": 20, "kkt_tolerance": None, "linear_dependence": None,
-                                       "activation_threshold": None})):
+    for cls in (SothSolver, LexlsSolver, NipmSolver):
         if _module_path(cls._module).is_file():
-            solvers.append(SolverInfo(cls.name, cls.description, cls, supports_inequalities=True,
-                                      supports_warm_start=cls.supports_warm_start, options=options))
+            solvers.append(SolverInfo.of(cls))
         else:
             missing[cls.name] = NOT_BUILT
     return solvers, missing

@@ -1,14 +1,16 @@
 """The solver registry: names -> factories, filled from what imports cleanly.
 
 Built-in solver modules are listed in ``_BUILTIN_MODULES``; each defines
-``SOLVERS``, a list of :class:`SolverInfo`. Third-party packages add solvers
-through the entry-point group ``hikbench.solvers`` (an entry point resolving to
-such a list, or to a function returning one). A module whose optional backend
+``SOLVERS``, a list of :class:`~hikbench.solvers.info.SolverInfo` (``SolverInfo.of(TheClass)``).
+Third-party packages add solvers through the entry-point group ``hikbench.solvers``
+(an entry point resolving to such a list, or to a function returning one). A module whose optional backend
 is missing (``ModuleNotFoundError`` for a package outside hikbench) is simply
 not listed; asking for one of its solvers says how to install it. Any other
 import error is a bug and propagates.
 
 Importing this module imports no solver (nothing compiles at import time).
+``SolverInfo`` and the option checks (``check_number``...: :mod:`hikbench.solvers.options`)
+are importable from here too, as a solver's module outside hikbench does.
 """
 
 from __future__ import annotations
@@ -16,17 +18,13 @@ from __future__ import annotations
 import difflib
 import importlib
 import inspect
-import math
-from collections.abc import Callable
-from dataclasses import dataclass, field
 from importlib import metadata
-from numbers import Integral, Real
-
-import numpy as np
 
 from hikbench.extras import install_hint
 from hikbench.solvers.base import Solver
 from hikbench.solvers.errors import SolverNotFoundError, SolverOptionError
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_bool, check_choice, check_int, check_number, check_numbers
 
 __all__ = ["SolverInfo", "available", "build", "check_bool", "check_buildable", "check_choice", "check_int",
            "check_number", "check_numbers", "close_match", "create", "get", "missing", "option_names"]
@@ -44,40 +42,6 @@ _BUILTIN_MODULES: tuple[str, ...] = (
 _OWN_PACKAGES = ("hikbench",)
 #: other names of registered solvers: ``reference`` is the yardstick's earlier name
 ALIASES = {"reference": "yardstick"}
-
-
-@dataclass(frozen=True)
-class SolverInfo:
-    """A registered solver.
-
-    Attributes
-    ----------
-    name : str
-        Registry name, e.g. ``"hcod"`` or ``"cascade-osqp"``.
-    description : str
-        One line.
-    factory : callable
-        ``factory(**options) -> Solver``.
-    supports_inequalities, supports_warm_start : bool
-    strict : bool
-        True for solvers of the strict hierarchy (judged against the
-        lexicographic optimum); False for weighted / damped IK.
-    options : dict
-        Default options, shown by ``hikbench list solvers``.
-    judged_on : callable or None
-        ``judged_on(options) -> "rows" | "row-normalised"``: the hierarchy a
-        solver built with ``options`` (defaults included) claims to solve
-        (:attr:`hikbench.solvers.base.Solver.judged_on`); None: ``"rows"``.
-    """
-
-    name: str
-    description: str
-    factory: Callable[..., Solver]
-    supports_inequalities: bool = False
-    supports_warm_start: bool = False
-    strict: bool = True
-    options: dict = field(default_factory=dict)
-    judged_on: Callable[[dict], str] | None = None
 
 
 _registry: dict[str, SolverInfo] | None = None
@@ -230,87 +194,3 @@ def _check_binds(info: SolverInfo, sig: inspect.Signature | None, opts: dict) ->
         given = ", ".join(map(repr, opts)) or "none"
         raise SolverOptionError(f"solver {info.name!r}: cannot be built with the options given ({given}): "
                                 f"{err}; a solver's factory is called with keyword options only") from err
-
-
-# ------------------------------------------------------------ option values
-# Shared checks for solver constructors: a wrong value raises SolverOptionError
-# "<solver>: option <opt>=<value> is not allowed; expected <what>" (the form
-# hcod uses). bool is rejected wherever a number is expected (``true`` on the
-# command line is JSON for True, which Python would take as 1).
-
-def _reject(solver: str, opt: str, value, expected: str):
-    raise SolverOptionError(f"{solver}: option {opt}={value!r} is not allowed; expected {expected}")
-
-
-def _is_real(v) -> bool:
-    return isinstance(v, Real) and not isinstance(v, bool)
-
-
-def _range_text(low, high, low_open: bool, high_open: bool) -> str:
-    if high is None:
-        return f"{'>' if low_open else '>='} {low:g}" if low is not None else ""
-    if low is None:
-        return f"{'<' if high_open else '<='} {high:g}"
-    return f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
-
-
-def _in_range(v: float, low, high, low_open: bool, high_open: bool) -> bool:
-    return ((low is None or (v > low if low_open else v >= low))
-            and (high is None or (v < high if high_open else v <= high)))
-
-
-def check_number(solver: str, opt: str, value, *, low: float | None = None, high: float | None = None,
-                 low_open: bool = False, high_open: bool = False, none_ok: bool = False) -> float | None:
-    """``float(value)`` when value is a finite real number (not a bool) in the
-    range given by low / high (open ends with low_open / high_open); None when
-    value is None and none_ok; else SolverOptionError naming solver, option,
-    value and the expected type and range."""
-    if value is None and none_ok:
-        return None
-    if _is_real(value) and math.isfinite(value) and _in_range(float(value), low, high, low_open, high_open):
-        return float(value)
-    rng = _range_text(low, high, low_open, high_open)
-    _reject(solver, opt, value, f"a finite number{' ' + rng if rng else ''}{' or None' if none_ok else ''}")
-
-
-def check_int(solver: str, opt: str, value, *, low: int = 1, none_ok: bool = False) -> int | None:
-    """``int(value)`` when value is an integer (not a bool) >= low; None when
-    value is None and none_ok; else SolverOptionError."""
-    if value is None and none_ok:
-        return None
-    if isinstance(value, Integral) and not isinstance(value, bool) and value >= low:
-        return int(value)
-    _reject(solver, opt, value, f"an integer >= {low}{' or None' if none_ok else ''}")
-
-
-def check_choice(solver: str, opt: str, value, choices):
-    """value when it is a string among ``choices``; else SolverOptionError
-    listing them."""
-    if isinstance(value, str) and value in choices:
-        return value
-    _reject(solver, opt, value, f"one of {', '.join(map(str, choices))}")
-
-
-def check_bool(solver: str, opt: str, value) -> bool:
-    """value when it is True or False (not 0 / 1, not a string); else
-    SolverOptionError."""
-    if isinstance(value, (bool, np.bool_)):
-        return bool(value)
-    _reject(solver, opt, value, "True or False")
-
-
-def check_numbers(solver: str, opt: str, value, *, low: float | None = None, what: str = ""):
-    """A non-empty list (or tuple, or 1-D array) of finite real numbers >= low
-    as a float ndarray, shape (len,); else SolverOptionError. ``what`` is
-    appended to the expectation (e.g. "one per level")."""
-    ok = isinstance(value, (list, tuple, np.ndarray)) and len(value) > 0
-    if ok:
-        items = np.asarray(value, dtype=object)
-        ok = items.ndim == 1 and all(_is_real(v) and math.isfinite(v) and _in_range(float(v), low, None,
-                                                                                  False, False)
-                                     for v in items)
-    if not ok:
-        rng = _range_text(low, None, False, False)
-        _reject(solver, opt, value, f"a non-empty list of finite numbers{' ' + rng if rng else ''}"
-                                    f"{', ' + what if what else ''}")
-    return np.asarray(value, dtype=float)

@@ -55,7 +55,7 @@ import numpy as np
 from hikbench.problems.errors import HikbenchError
 from hikbench.problems.hierarchy import Hierarchy, check_fits_in_memory
 from hikbench.solvers.base import ERROR, OPTIMAL, Solver, SolveResult
-from hikbench.solvers.registry import SolverInfo
+from hikbench.solvers.info import SolverInfo
 
 __all__ = ["LEVEL_BAND", "RANK_RTOL", "ROWS_BAND", "UNITS_MAX", "UNITS_MIN", "WIDEN_RTOL", "YardstickSolver",
            "cascade_yardstick", "nullspace_yardstick", "yardstick_solution"]
@@ -880,5 +880,4 @@ class YardstickSolver(Solver):
         return SolveResult(x=x, status=OPTIMAL, info=info)
 
 
-SOLVERS = [SolverInfo("yardstick", YardstickSolver.description, YardstickSolver,
-                      supports_inequalities=True)]
+SOLVERS = [SolverInfo.of(YardstickSolver)]

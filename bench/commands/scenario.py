@@ -82,7 +82,7 @@ def add_arguments(p) -> None:
 
 
 def run(args) -> int:
-    from hikbench.bench.cli import solver_calls_killable
+    from hikbench.bench.signals import solver_calls_killable
     from hikbench.bench.scenarios.controllers import CONTROLLERS, build_controller
     from hikbench.bench.scenarios.rows import slug
     from hikbench.bench.scenarios.runner import REPEAT, run_interleaved, run_scenario

@@ -113,7 +113,7 @@ def _solve(args, h, options: dict) -> dict:
         worker.start()  # (the process's own start, about 1 s of imports, is not the solver's)
         note.start()
         return worker.run(job, timeout, first_timeout=first, on_first_solve=note.cancel)
-    except BaseException:  # Ctrl-C, SIGTERM (bench.cli.Terminated): the solve ends at once, not after close()'s 5 s
+    except BaseException:  # Ctrl-C, SIGTERM (bench.signals.Terminated): the solve ends at once, not after close()'s 5 s
         worker.kill()
         raise
     finally:

@@ -44,5 +44,4 @@ class PinvRecursion(Solver):
 
 # What a package's entry point names (group "hikbench.solvers"): the solver
 # then has a registry name, like the built-in ones (docs/adding-a-solver.md, "A registered name").
-SOLVERS = [SolverInfo(PinvRecursion.name, PinvRecursion.description, PinvRecursion,
-                      supports_inequalities=False, supports_warm_start=False, strict=True)]
+SOLVERS = [SolverInfo.of(PinvRecursion)]  # name, flags and option defaults read from the class

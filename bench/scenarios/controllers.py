@@ -16,51 +16,16 @@ Controllers (:data:`CONTROLLERS`): ``pink`` (pin-pink's weighted differential IK
 
 from __future__ import annotations
 
-import abc
 import importlib
-from typing import ClassVar
 
-import numpy as np
-
+from hikbench.bench.scenarios.controller import Controller, ControllerError
 from hikbench.extras import install_hint
-from hikbench.problems.errors import HikbenchError
-from hikbench.problems.hierarchy import Hierarchy
 from hikbench.problems.robots.stacks import Stack
-from hikbench.solvers.base import SolveResult
 
 __all__ = ["CONTROLLERS", "Controller", "ControllerError", "build_controller", "controller_class", "is_controller"]
 
 #: name -> (module, class) of the controllers ``hikbench scenario --solver NAME`` knows
 CONTROLLERS: dict[str, tuple[str, str]] = {"pink": ("hikbench.bench.scenarios.pink_ik", "PinkController")}
-
-
-class ControllerError(HikbenchError, ValueError):
-    """A stack a controller cannot take (a task type it has no counterpart for) or a bad option."""
-
-
-class Controller(abc.ABC):
-    """Closed-loop IK on a stack's tasks.
-
-    ``strict`` is False for a controller that weights the levels instead of
-    prioritising them (its checks may fail where the priorities matter).
-    Options are keyword arguments of ``__init__``; a wrong one raises
-    :class:`ControllerError` at construction, as does a task it cannot take.
-    """
-
-    name: ClassVar[str] = ""
-    description: ClassVar[str] = ""
-    strict: ClassVar[bool] = False
-
-    def __init__(self, stack: Stack):
-        self.stack = stack
-
-    @abc.abstractmethod
-    def prepare(self, q: np.ndarray) -> None:
-        """Take configuration q (shape (nq,)) and the stack's current task targets (untimed)."""
-
-    @abc.abstractmethod
-    def solve(self, hierarchy: Hierarchy) -> SolveResult:
-        """u (shape (nv,)) at the prepared q; ``hierarchy`` is the stack's at q (for its size)."""
 
 
 def is_controller(name: str) -> bool:

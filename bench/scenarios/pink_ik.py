@@ -63,7 +63,7 @@ from pink.limits import ConfigurationLimit, VelocityLimit
 from pink.tasks import ComTask, DampingTask, FrameTask, PostureTask
 from pink.utils import get_root_joint_dim
 
-from hikbench.bench.scenarios.controllers import Controller, ControllerError
+from hikbench.bench.scenarios.controller import Controller, ControllerError
 from hikbench.problems.hierarchy import Hierarchy
 from hikbench.problems.robots import limits, tasks
 from hikbench.problems.robots.stacks import Stack
@@ -84,7 +84,7 @@ def level_costs(stack: Stack, level_factor: float) -> list[float | None]:
     the levels that hold a weighted (equality) task from 0; None for a level of limits only."""
     out, j = [], 0
     for level in stack.levels:
-        if any(t.kind == "equality" for t in level):
+        if any(t.relation == "equality" for t in level):
             out.append(level_factor ** -j)
             j += 1
         else:

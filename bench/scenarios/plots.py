@@ -308,7 +308,7 @@ def plot_runs(runs: list, out_dir: str | Path, joints: list[str] | None = None) 
 
     # Fig. 4: task errors, one panel per task, one line per run
     stack = runs[0].scenario.stack
-    tasks = [t for t in stack.tasks if t.kind == "equality" and f"err_{t.name}" in runs[0].records
+    tasks = [t for t in stack.tasks if t.relation == "equality" and f"err_{t.name}" in runs[0].records
              and type(t).__name__ != "MinimalVelocityTask"]
     ncol = min(3, len(tasks))
     nrow = int(np.ceil(len(tasks) / ncol))

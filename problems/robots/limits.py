@@ -18,7 +18,7 @@ __all__ = ["INEQUALITY_TASKS", "FrameDistance", "JointPositionLimits", "JointVel
 
 
 class _Inequality(Task):
-    kind: ClassVar[str] = "inequality"
+    relation: ClassVar[str] = "inequality"
 
     def __init__(self, robot: Robot, name: str, gain: float | None = None):
         # gain None: 1/dt, i.e. the whole remaining margin in one step (eq. 48)

@@ -145,18 +145,18 @@ def _check_names(d: dict, stack: Stack, at: Where, other_robot: bool) -> None:
                                 f"{type(tasks[name]).__name__}")
         return tasks[name]
 
-    for kind in ("events", "trajectories"):
-        for k, item in enumerate(d.get(kind, [])):
-            t = task(f"{kind}[{k}].task", item["task"], schedulable=True)
+    for section in ("events", "trajectories"):
+        for k, item in enumerate(d.get(section, [])):
+            t = task(f"{section}[{k}].task", item["task"], schedulable=True)
             for key in _POSE_ONLY:
                 if key in item and not isinstance(t, PoseTask):
-                    at.say(f"{kind}[{k}].{key}: task {t.name!r} is a {type(t).__name__}; expected "
+                    at.say(f"{section}[{k}].{key}: task {t.name!r} is a {type(t).__name__}; expected "
                            f"{key} only for pose tasks")
             for i, frame in enumerate(item.get("to_frames", [])):
                 try:
                     stack.robot.frame_id(frame)
                 except HikbenchError as err:
-                    at.fail(f"{kind}[{k}].to_frames[{i}]", frame, f"a frame of the robot: {err}")
+                    at.fail(f"{section}[{k}].to_frames[{i}]", frame, f"a frame of the robot: {err}")
     checks = d.get("checks", {})
     for i, name in enumerate(checks.get("regulated", [])):
         task(f"checks.regulated[{i}]", name)
@@ -181,15 +181,15 @@ def _resolve_units(d: dict, robot, at: Where) -> dict[str, float]:
     in place; returns the lengths used (name -> m). A length the robot cannot measure
     (it lacks the frame) is a ScenarioError naming the key."""
     used = {}
-    for kind in ("events", "trajectories"):
-        for k, item in enumerate(d.get(kind, [])):
+    for section in ("events", "trajectories"):
+        for k, item in enumerate(d.get(section, [])):
             unit = item.pop("unit", "m")
             if unit == "m":
                 continue
             if unit not in used:
                 length = robot_length(robot, unit)
                 if length is None:
-                    at.fail(f"{kind}[{k}].unit", unit, f"'m' or a length robot {robot.name!r} has: {unit} is "
+                    at.fail(f"{section}[{k}].unit", unit, f"'m' or a length robot {robot.name!r} has: {unit} is "
                                                        f"measured on the {' or '.join(LENGTHS[unit])} frame, "
                                                        "which it lacks (set it in [frames], or give metres)")
                 used[unit] = length
@@ -333,10 +333,10 @@ class Scenario:
                  checks=dict(d.get("checks", {})), description=d.get("description", ""),
                  plot_joints=d.get("plot", {}).get("joints"), units=units)
         sc._nominal = {t.name: _copy_target(t.target) for t in stack.tasks if hasattr(t, "target")}
-        for kind in ("events", "trajectories"):
-            for item in d.get(kind, []):
+        for section in ("events", "trajectories"):
+            for item in d.get(section, []):
                 task = stack.task(item["task"])
-                start = float(item.get("time" if kind == "events" else "start", 0.0))
+                start = float(item.get("time" if section == "events" else "start", 0.0))
                 spec = {k2: v for k2, v in item.items() if k2 not in ("task", "time", "start")}
                 sc._schedule.setdefault(task.name, []).append(_Item(task, start, spec))
         for items in sc._schedule.values():

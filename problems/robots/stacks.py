@@ -184,32 +184,32 @@ def make_task(robot: Robot, spec: dict) -> Task:
     keys are checked against the constructor's arguments (unknown ones with their
     close matches, missing required ones) before it is called."""
     spec = dict(spec)
-    kind = spec.pop("type", None)
-    if not isinstance(kind, str) or kind not in TASK_TYPES:
-        near = difflib.get_close_matches(kind, list(TASK_TYPES), n=2) if isinstance(kind, str) else []
+    task_type = spec.pop("type", None)
+    if not isinstance(task_type, str) or task_type not in TASK_TYPES:
+        near = difflib.get_close_matches(task_type, list(TASK_TYPES), n=2) if isinstance(task_type, str) else []
         hint = f" (did you mean {' or '.join(map(repr, near))}?)" if near else ""
-        raise StackError(f"unknown task type {kind!r}{hint}; expected one of {', '.join(TASK_TYPES)}")
-    cls = TASK_TYPES[kind]
+        raise StackError(f"unknown task type {task_type!r}{hint}; expected one of {', '.join(TASK_TYPES)}")
+    cls = TASK_TYPES[task_type]
     params = inspect.signature(cls.__init__).parameters
     allowed = [p for p in params if p not in ("self", "robot")]
     bad = sorted(set(spec) - set(allowed))
     if bad:
         near = sorted({m for k in bad for m in difflib.get_close_matches(str(k), allowed, n=2)})
         hint = f" (did you mean {' or '.join(map(repr, near))}?)" if near else ""
-        raise StackError(f"task type {kind!r}: unknown key(s) {bad}{hint}; expected {allowed}")
+        raise StackError(f"task type {task_type!r}: unknown key(s) {bad}{hint}; expected {allowed}")
     needed = [p for p in allowed if p != "name" and params[p].default is inspect.Parameter.empty]
     missing = [p for p in needed if p not in spec]
     if missing:
-        raise StackError(f"task type {kind!r}: missing key(s) {', '.join(map(repr, missing))}; expected "
+        raise StackError(f"task type {task_type!r}: missing key(s) {', '.join(map(repr, missing))}; expected "
                          f"{', '.join(needed)} (optional: {', '.join(p for p in allowed if p not in needed)})")
     if "name" not in spec:  # default: the frame alias, else the class default, else the type
         default = params["name"].default
         if isinstance(spec.get("frame"), str):
             spec["name"] = spec["frame"]
-        elif kind == "distance":
+        elif task_type == "distance":
             spec["name"] = f"distance_{spec.get('frame_a')}_{spec.get('frame_b')}"
         else:
-            spec["name"] = kind if default is inspect.Parameter.empty else default
+            spec["name"] = task_type if default is inspect.Parameter.empty else default
     return cls(robot, **spec)
 
 

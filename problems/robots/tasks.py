@@ -16,7 +16,6 @@ Shapes: q (nq,), u (nv,), J (d, nv).
 from __future__ import annotations
 
 import abc
-from numbers import Real
 from typing import ClassVar
 
 import numpy as np
@@ -24,6 +23,7 @@ import pinocchio as pin
 
 from hikbench.problems.robots.kinematics import KinematicState, TaskError, skew
 from hikbench.problems.robots.models import Robot
+from hikbench.problems.schema import Number, checked
 
 __all__ = [
     "AlignmentTask",
@@ -62,11 +62,8 @@ def _vector(v, size: int, what: str) -> np.ndarray:
 
 def number(v, what: str, *, low: float = 0.0, low_open: bool = False) -> float:
     """``v`` as a float: a finite real number (not a bool, not a string) ``>= low``
-    (``> low`` with ``low_open``); else TaskError naming ``what``."""
-    ok = isinstance(v, Real) and not isinstance(v, bool) and np.isfinite(v) and (v > low if low_open else v >= low)
-    if not ok:
-        raise TaskError(f"{what} must be a finite number {'>' if low_open else '>='} {low:g}; got {v!r}")
-    return float(v)
+    (``> low`` with ``low_open``); else TaskError ``WHAT must be a finite number >= 0; got V``."""
+    return float(checked(Number(low, low_open=low_open), v, what, TaskError))
 
 
 def rotation(v, what: str) -> np.ndarray:
@@ -102,10 +99,10 @@ class Task(abc.ABC):
         Unique within a stack; the CSV column of its error.
     gain : float
         lambda of eq. (47), 1/s.
-    kind : {"equality", "inequality"}
+    relation : {"equality", "inequality"}
     """
 
-    kind: ClassVar[str] = "equality"
+    relation: ClassVar[str] = "equality"
 
     def __init__(self, robot: Robot, name: str, gain: float = 1.0):
         if not isinstance(name, str) or not name:

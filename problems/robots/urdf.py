@@ -104,21 +104,21 @@ def load_urdf(source: UrdfSource) -> UrdfModel:
     return UrdfModel(model, q0, floating, f"URDF {urdf}; {why}; {ref_why}")
 
 
-def _xml_root(path: Path, kind: str) -> ET.Element:
+def _xml_root(path: Path, file_type: str) -> ET.Element:
     """The root element of an XML file, checked to be ``<robot>``."""
     if not path.is_file():
-        raise RobotFileError(f"{path}: no such {kind} file" + (" (a directory)" if path.is_dir() else ""))
+        raise RobotFileError(f"{path}: no such {file_type} file" + (" (a directory)" if path.is_dir() else ""))
     try:
         root = ET.parse(path).getroot()
     except ET.ParseError as err:
-        raise RobotFileError(f"{path}: not an XML {kind} file ({err})") from err
+        raise RobotFileError(f"{path}: not an XML {file_type} file ({err})") from err
     except OSError as err:
-        raise RobotFileError(f"{path}: cannot read the {kind} file: {err.strerror or err}") from err
+        raise RobotFileError(f"{path}: cannot read the {file_type} file: {err.strerror or err}") from err
     if root.tag != "robot":
-        raise RobotFileError(f"{path}: the root element is <{root.tag}>; expected <robot> ({kind})")
-    if kind == "URDF" and root.find("link") is None:
+        raise RobotFileError(f"{path}: the root element is <{root.tag}>; expected <robot> ({file_type})")
+    if file_type == "URDF" and root.find("link") is None:
         raise RobotFileError(f"{path}: no <link> element; expected a URDF with at least one link")
-    if kind == "SRDF" and root.find("link") is not None:
+    if file_type == "SRDF" and root.find("link") is not None:
         raise RobotFileError(f"{path}: <link> elements at the top: a URDF; expected an SRDF (group_state, "
                              "virtual_joint, ...)")
     return root
@@ -130,13 +130,13 @@ def _root_joint(source: UrdfSource, srdf: ET.Element | None) -> tuple[bool, str]
         return source.floating_base, ("floating base (floating_base = true)" if source.floating_base
                                       else "fixed base (floating_base = false)")
     virtual = [] if srdf is None else srdf.findall("virtual_joint")
-    kinds = sorted({v.get("type", "") for v in virtual})
-    if len(kinds) > 1 or (kinds and kinds[0] not in ("floating", "fixed")):
-        raise RobotFileError(f"{source.srdf}: virtual_joint type {', '.join(map(repr, kinds))}: expected one "
+    joint_types = sorted({v.get("type", "") for v in virtual})
+    if len(joint_types) > 1 or (joint_types and joint_types[0] not in ("floating", "fixed")):
+        raise RobotFileError(f"{source.srdf}: virtual_joint type {', '.join(map(repr, joint_types))}: expected one "
                              "'floating' or 'fixed' virtual joint (or set floating_base)")
-    if kinds == ["floating"]:
+    if joint_types == ["floating"]:
         return True, "floating base (the SRDF's floating virtual_joint)"
-    if kinds == ["fixed"]:
+    if joint_types == ["fixed"]:
         return False, "fixed base (the SRDF's fixed virtual_joint)"
     return False, "fixed base (floating_base not set, no virtual_joint in an SRDF)"
 

@@ -25,7 +25,8 @@ import numpy as np
 
 from hikbench.problems.hierarchy import Hierarchy
 from hikbench.solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
-from hikbench.solvers.registry import SolverInfo, check_bool, check_choice, check_int, check_number
+from hikbench.solvers.info import SolverInfo
+from hikbench.solvers.options import check_bool, check_choice, check_int, check_number
 
 from ._layout import (
     N_OUT,
@@ -293,6 +294,4 @@ def _compile_kernels() -> None:
     _tiny_solves()
 
 
-SOLVERS = [SolverInfo("hcod", HcodSolver.description, HcodSolver, supports_inequalities=True,
-                      supports_warm_start=True,
-                      options={"warm_start": "time", "max_iterations": None, "rank_rtol": 1e-10, "min_norm": True})]
+SOLVERS = [SolverInfo.of(HcodSolver)]

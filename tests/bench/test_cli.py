@@ -173,9 +173,9 @@ def test_generate_every_family(capsys, tmp_path, family):
 
 @pytest.mark.parametrize("argv, fragments", [
     (["generate", "nope", "--out", "{d}"], ["unknown family 'nope'; expected one of"]),
-    (["generate", "random", "--param", "depht=3", "--out", "{d}"], ["unknown parameter 'depht'"]),
-    (["generate", "random", "--param", "n=abc", "--out", "{d}"], ["n must be an integer (default 20)"]),
-    (["generate", "random", "--param", "cond=big", "--out", "{d}"], ["cond must be a number"]),
+    (["generate", "random", "--param", "depht=3", "--out", "{d}"], ["unknown parameter 'depht' (did you mean 'depth'?)"]),
+    (["generate", "random", "--param", "n=abc", "--out", "{d}"], ["n must be an integer; got 'abc'"]),
+    (["generate", "random", "--param", "cond=big", "--out", "{d}"], ["cond must be a finite number >= 1"]),
     (["generate", "random", "--param", "box=1", "--out", "{d}"], ["box must be true or false"]),
     (["generate", "random", "--param", "n", "--out", "{d}"], ["--param 'n': expected KEY=VALUE"]),
     (["generate", "random", "--param", "rank=9", "--out", "{d}"], ["level 0: rank 9 must be in [0, rows=5]"]),

@@ -30,7 +30,7 @@ def problem(tmp_path):
     ("weighted", "weights=[1,nan]", ("weighted: option weights='[1,nan]' is not allowed; expected a "
                                      "non-empty list of finite numbers >= 0, one weight per level")),
     ("nullspace-svd", "rank_rtol=abc", ("nullspace-svd: option rank_rtol='abc' is not allowed; expected a "
-                                        "finite number in [0, 1)")),
+                                        "finite number >= 0 and < 1")),
     ("cascade-osqp", "slack_tol=abc", ("cascade-osqp: option slack_tol='abc' is not allowed; expected a "
                                        "finite number >= 0 or None")),
 ], ids=["dls-damping-str", "dls-damping-list", "liegeois-tol", "weights-dict", "weights-nan",

@@ -203,7 +203,7 @@ def test_degenerate_cases_have_their_property():
 @pytest.mark.parametrize("call, error, message", [
     (lambda: generate("nope"), UnknownFamilyError, r"unknown family 'nope'; expected one of equality"),
     (lambda: generate("random", depht=3), HikbenchError,
-     r"family 'random': unknown parameter\(s\) \['depht'\]"),
+     r"family 'random': unknown parameter 'depht' \(did you mean 'depth'\?\); expected one of n, depth, "),
     (lambda: degenerate("nope"), UnknownFamilyError, r"unknown degenerate case 'nope'"),
     (lambda: random_hierarchy(5, 2, 3, rank=4), HikbenchError, r"level 0: rank 4 must be in \[0, rows=3\]"),
     (lambda: random_hierarchy(5, 2, 3, shared_rank=[0, 4]), HikbenchError,

@@ -5,9 +5,12 @@ import warnings
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from hikbench.problems.errors import HikbenchError
-from hikbench.problems.generators import degenerate, equality_stack, generate, ik_like, random_hierarchy
+from hikbench.problems.generators import FAMILIES, degenerate, equality_stack, generate, ik_like, random_hierarchy
+from hikbench.problems.hierarchy import Hierarchy
 
 
 @pytest.mark.parametrize("params, message", [
@@ -22,7 +25,7 @@ from hikbench.problems.generators import degenerate, equality_stack, generate, i
     ({"equality_fraction": float("nan")}, r"equality_fraction must be a finite number >= 0 and <= 1"),
     ({"rows": -1}, r"rows must be >= 0 \(per level\); got -1"),
     ({"seed": -1}, r"seed must be an integer >= 0; got -1"),
-    ({"seed": 1.5}, r"seed must be an integer; got 1.5"),
+    ({"seed": 1.5}, r"seed must be an integer >= 0; got 1.5"),
 ], ids=["cond inf", "cond < 1", "cond nan", "cond string", "row_scale inf", "box_bound negative",
         "box_bound inf", "equality_fraction > 1", "equality_fraction nan", "rows negative", "seed negative",
         "seed fraction"])
@@ -75,3 +78,28 @@ def test_bad_bound_scale(value):
     with pytest.raises(HikbenchError, match=r"family 'ik-like': bound_scale must be a finite number > 0 "
                                             r"\(it multiplies every bound\); got "):
         generate("ik-like", bound_scale=value)
+
+
+#: values of every type, sizes small (a float 3e4 is an integer n too: its n x n matrices would not be)
+PARAM_VALUES = st.one_of(st.none(), st.booleans(), st.integers(-3, 12), st.floats(-3, 12),
+                         st.sampled_from([float("nan"), float("inf"), -float("inf"), 1e300]),
+                         st.text(max_size=4), st.sampled_from(["mixed", "rank_deficient", "none"]),
+                         st.lists(st.integers(0, 4), max_size=3))
+
+
+@pytest.mark.parametrize("family", list(FAMILIES), ids=list(FAMILIES))
+@settings(max_examples=40, deadline=None)
+@given(data=st.data())
+def test_any_parameter_value_gives_a_problem_or_one_line_naming_it(family, data):
+    """A family's parameter with any value: a problem, or a HikbenchError on one line that
+    names the parameter (its checks go through hikbench.problems.schema)."""
+    fam = FAMILIES[family]
+    key = data.draw(st.sampled_from(sorted(fam.defaults)), label="parameter")
+    value = data.draw(PARAM_VALUES, label="value")
+    try:
+        h = fam.generate(seed=0, **{key: value})
+    except HikbenchError as err:
+        message = str(err)
+        assert "\n" not in message and key in message, message
+    else:
+        assert isinstance(h, Hierarchy)

@@ -135,11 +135,11 @@ def test_warm_re_solve_starts_from_the_last_multipliers_and_stays_right():
     warm, cold = registry.create("daqp-hqp"), registry.create("daqp-hqp", warm_start="none")
     first, again = warm.solve(h), warm.solve(h)
     c1, c2 = cold.solve(h), cold.solve(h)
-    assert not first.info["warm"] and again.info["warm"] and not c2.info["warm"]
+    assert not first.info["warm_started"] and again.info["warm_started"] and not c2.info["warm_started"]
     assert again.iterations <= first.iterations and c2.iterations == c1.iterations
     assert _agrees(h, again.x)
     other = g.ik_like(12, seed=0)  # (another shape: cold again)
-    assert not warm.solve(other).info["warm"]
+    assert not warm.solve(other).info["warm_started"]
 
 
 @pytest.mark.parametrize("options, match", [

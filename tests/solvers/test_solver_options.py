@@ -55,10 +55,10 @@ BAD = [
            "weighted-weights-negative"),
     _param("weighted", "weights", [1.0, True], "a non-empty list of finite numbers >= 0",
            "weighted-weights-bool"),
-    _param("nullspace-svd", "rank_rtol", "abc", "a finite number in [0, 1)", "nullspace-svd-rank_rtol-str"),
-    _param("nullspace-cod", "rank_rtol", "abc", "a finite number in [0, 1)", "nullspace-cod-rank_rtol-str"),
-    _param("nullspace-cod", "rank_rtol", 1.0, "a finite number in [0, 1)", "nullspace-cod-rank_rtol-one"),
-    _param("pinv-all", "rank_rtol", [0.1], "a finite number in [0, 1)", "pinv-all-rank_rtol-list"),
+    _param("nullspace-svd", "rank_rtol", "abc", "a finite number >= 0 and < 1", "nullspace-svd-rank_rtol-str"),
+    _param("nullspace-cod", "rank_rtol", "abc", "a finite number >= 0 and < 1", "nullspace-cod-rank_rtol-str"),
+    _param("nullspace-cod", "rank_rtol", 1.0, "a finite number >= 0 and < 1", "nullspace-cod-rank_rtol-one"),
+    _param("pinv-all", "rank_rtol", [0.1], "a finite number >= 0 and < 1", "pinv-all-rank_rtol-list"),
     *[_param(f"cascade-{b}", opt, "abc", NUMBER_GE0 + " or None", f"cascade-{b}-{opt}")
       for b in CASCADES for opt in ("regularization", "relax_delta", "slack_tol")],
     _param("cascade-osqp", "max_iter", 1.5, "an integer >= 1 or None", "cascade-osqp-max_iter-float"),
@@ -100,8 +100,8 @@ def test_valid_option_values_are_kept(solver, options, attr, stored):
 
 @pytest.mark.parametrize("call, message", [
     (lambda: check_number("s", "o", 1.0, low=0, high=1, high_open=True),
-     "o=1.0 is not allowed; expected a finite number in [0, 1)"),
-    (lambda: check_number("s", "o", 0, low=0, high=1, low_open=True), "expected a finite number in (0, 1]"),
+     "o=1.0 is not allowed; expected a finite number >= 0 and < 1"),
+    (lambda: check_number("s", "o", 0, low=0, high=1, low_open=True), "expected a finite number > 0 and <= 1"),
     (lambda: check_number("s", "o", 2, high=1), "expected a finite number <= 1"),
     (lambda: check_number("s", "o", None), "o=None is not allowed; expected a finite number"),
     (lambda: check_int("s", "o", 0, low=1, none_ok=True), "expected an integer >= 1 or None"),
