@@ -163,6 +163,8 @@ def random_hierarchy(n: int, depth: int, rows: int | Sequence[int], *, rank=None
     if any(mk < 0 for mk in m):
         raise HikbenchError(f"rows must be >= 0 (per level); got {rows!r}")
     r = [min(mk, n) if rk is None else rk for mk, rk in zip(m, _per_level(rank, depth, "rank"))]
+    if shared_rank is None:  # (rank None means full rank; shared_rank has no such meaning)
+        raise HikbenchError("shared_rank must be an integer >= 0 or one per level; got None")
     sh = _per_level(shared_rank, depth, "shared_rank")
     levels = []
     if box:

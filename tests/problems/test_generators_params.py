@@ -26,9 +26,10 @@ from hikbench.problems.hierarchy import Hierarchy
     ({"rows": -1}, r"rows must be >= 0 \(per level\); got -1"),
     ({"seed": -1}, r"seed must be an integer >= 0; got -1"),
     ({"seed": 1.5}, r"seed must be an integer >= 0; got 1.5"),
+    ({"shared_rank": None}, r"shared_rank must be an integer >= 0 or one per level; got None"),
 ], ids=["cond inf", "cond < 1", "cond nan", "cond string", "row_scale inf", "box_bound negative",
         "box_bound inf", "equality_fraction > 1", "equality_fraction nan", "rows negative", "seed negative",
-        "seed fraction"])
+        "seed fraction", "shared_rank None"])
 def test_random_hierarchy_parameters(params, message):
     base = {"n": 6, "depth": 2, "rows": 3, "box": True}
     with warnings.catch_warnings():
