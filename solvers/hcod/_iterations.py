@@ -168,8 +168,7 @@ def _lse_step(lev, cfg, wset, cod, prob, basis, aset, vec, lse):
         else:
             # only objective rows entered since the last COD (Z is the same): it is
             # updated, one reflector per independent row (sec. IX)
-            r, f, weak = _level_cod_append(Mr, Mf, ncod, nO, p, nf, thr_k, r, piv, diag, beta,
-                                           rrt_k, Olist, rnorm)
+            r, f, weak = _level_cod_append(lse, ncod, nO, p, nf, thr_k, r, rrt_k, Olist, rnorm)
             fl += f
             cod_weak = cod_weak or weak
         ncod = nO
@@ -178,7 +177,7 @@ def _lse_step(lev, cfg, wset, cod, prob, basis, aset, vec, lse):
         if r > 0:
             fl += solve_lower(Mr, diag, nO, r, bvec, Lb, y)
             wc, ycap = _step_cap(cap_on, p, r, thr_k, u, y, diag)
-            fl += _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, Wt, qv, qi, sv, sv2)
+            fl += _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, basis)
     return (r, ncod, mf_valid, cod_weak), cod_done, wc, ycap, fl
 
 
@@ -204,7 +203,7 @@ def _near_rank_retry(wc, r, bland, lev, cfg, wset, prob, basis, aset, vec, lse):
         fl += solve_lower(Mr, diag, nO, wc, bvec, Lb, y)
     for c in range(wc, r):
         y[c] = 0.0
-    fl += _lse_direction(Mr, beta, r, n - p, y, z, ps, p, n, lazy, Wt, qv, qi, sv, sv2)
+    fl += _lse_direction(Mr, beta, r, n - p, y, z, ps, p, n, lazy, basis)
     tau, blk, bsd, moved, un, f = _step_length(has_ineq, prob, state, s0, s1, u, ps, rank_rtol, feas_rtol,
                                                bland)
     fl += f
@@ -212,14 +211,18 @@ def _near_rank_retry(wc, r, bland, lev, cfg, wset, prob, basis, aset, vec, lse):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _activate(blk, bsd, s0, p, nO, ncod, ndep, mf_valid, lazy, rank_rtol, prob, basis, aset, R, q, Mf):
+def _activate(blk, bsd, s0, wset, ncod, ndep, mf_valid, rank_rtol, prob, basis, aset, wr):
     """Phase 3, activation (sec. VIII): the blocking row blk at its bound bsd
     (+1 upper, -1 lower). A row of level k joins the objective ``J_hat_k``
     (its projection appended to Mf: the COD is updated at the next
     iteration); a row above enters ``W`` by a Householder reflector (sec.
     IX), which Mf follows, or, in the span of the working rows to the rank
     threshold at its own norm, becomes DEPENDENT (not activated; it blocks no
-    more while W keeps its rows). Returns (p, nO, ncod, ndep, activated, flops)."""
+    more while W keeps its rows). ``wset = (p, nO, lazy)``, ``wr = (R, q,
+    Mf)``: the working rows' factor, the reflector of a row entering W, the
+    projected objective rows. Returns (p, nO, ncod, ndep, activated, flops)."""
+    p, nO, lazy = wset
+    R, q, Mf = wr
     A, lo, up, bcol, bval, kind, rnorm = prob
     Wt, qv, qi, sv, sv2 = basis
     state, side, target, Olist, widx, wside = aset
@@ -259,7 +262,7 @@ def _activate(blk, bsd, s0, p, nO, ncod, ndep, mf_valid, lazy, rank_rtol, prob, 
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _delete_working(jw, n, p, nO, ndep, s0, mf_valid, lazy, rank_rtol, prob, basis, aset, R, q, Mf):
+def _delete_working(jw, n, s0, wset, ndep, mf_valid, rank_rtol, prob, basis, aset, wr):
     """Phase 4e, deactivation of the working row at position jw (its
     multiplier lambda of the wrong sign, eq. 39): it leaves ``W`` by Givens
     rotations (sec. IX); the projected objective rows ``Mf = W^T a_j`` follow
@@ -269,7 +272,9 @@ def _delete_working(jw, n, p, nO, ndep, s0, mf_valid, lazy, rank_rtol, prob, bas
     threshold at its own norm (at its level's, a row 1e-7 the size of the
     others, met beside it, so implied at the freeze, stayed out, and the step
     moved its residual by 6e-5 of itself: badly_scaled n = 12 seed 964).
-    Returns (p, ndep, flops)."""
+    ``wset``, ``wr`` as in :func:`_activate`. Returns (p, ndep, flops)."""
+    p, nO, lazy = wset
+    R, q, Mf = wr
     A, lo, up, bcol, bval, kind, rnorm = prob
     Wt, qv, qi, sv, sv2 = basis
     state, side, target, Olist, widx, wside = aset
@@ -333,6 +338,7 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
     u, ps, z, g, hv, nu, q = vec
     Mr, Mf, piv, diag, beta, bvec, Lb, y = lse
     rank_rtol, feas_rtol, dual_rtol, freeze_rtol = tols
+    wr = (R, q, Mf)  # (what a row entering or leaving W updates)
     status = ST_OPTIMAL
     fl = 0
     r = 0
@@ -386,8 +392,8 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
         else:
             degen += 1
         if blk >= 0:
-            p, nO, ncod, ndep, activated, f = _activate(blk, bsd, s0, p, nO, ncod, ndep, mf_valid, lazy,
-                                                        rank_rtol, prob, basis, aset, R, q, Mf)
+            p, nO, ncod, ndep, activated, f = _activate(blk, bsd, s0, (p, nO, lazy), ncod, ndep, mf_valid,
+                                                        rank_rtol, prob, basis, aset, wr)
             fl += f
             if activated:
                 out[O_ACT] += 1
@@ -422,8 +428,8 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
             else:
                 ncod = 0
             continue
-        anydel, jw, jb, wb, amb, f = _working_multipliers(n, p, nO, degen, unorm, dual_rtol, lazy, prob,
-                                                          basis, aset, R, u, g, nu, hv)
+        anydel, jw, jb, wb, amb, f = _working_multipliers(n, (p, nO, lazy), degen, unorm, dual_rtol, prob,
+                                                          basis, aset, R, vec)
         fl += f
         if jw < 0 and nO > 0 and p < n and (wide or amb):
             # a badly scaled level's end, where the force of its unmet rows is within the
@@ -431,8 +437,9 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
             # gtol (amb: their measured w is either u's error or the optimum's residual;
             # badly_scaled n = 12 seed 281: a met row's w, 2.3e-14 scaled, under its floor
             # but the LSE's own, put 2.2e-15 in gtol, above a box row's -7.9e-16)
-            jo, jw, f = _fitted_multipliers(n, p, nO, degen, unorm, dual_rtol, lazy, amb or (wide and metneg),
-                                            anydel, prob, basis, aset, R, u, hv)
+            force = amb or (wide and metneg)
+            jo, jw, f = _fitted_multipliers(n, (p, nO, lazy), degen, unorm, dual_rtol, force, anydel, prob,
+                                            basis, aset, R, vec)
             fl += f
             if jo >= 0:
                 out[O_DEACT] += 1
@@ -455,8 +462,8 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
             if wref_row == widx[jb] and wb < -2.0 * abs(wb - wref_val):
                 jw = jb
         if jw >= 0:
-            p, ndep, f = _delete_working(jw, n, p, nO, ndep, s0, mf_valid, lazy, rank_rtol, prob, basis, aset,
-                                         R, q, Mf)
+            p, ndep, f = _delete_working(jw, n, s0, (p, nO, lazy), ndep, mf_valid, rank_rtol, prob, basis,
+                                         aset, wr)
             fl += f
             out[O_DEACT] += 1
             ncod = 0

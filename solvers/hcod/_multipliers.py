@@ -241,7 +241,7 @@ def _objective_row_leaves(jw, nO, mf_valid, prob, aset, Mf, u):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _working_multipliers(n, p, nO, degen, unorm, dual_rtol, lazy, prob, basis, aset, R, u, g, nu, hv):
+def _working_multipliers(n, wset, degen, unorm, dual_rtol, prob, basis, aset, R, vec):
     """Phase 4c, the multipliers ``lambda`` of the working inequality rows
     (eq. 39): ``R nu = W[:, :p]^T g`` with ``g = J_hat_k^T w`` (n,), the
     level's gradient, when ``||g||`` passes its noise floor gtol: per
@@ -255,7 +255,10 @@ def _working_multipliers(n, p, nO, degen, unorm, dual_rtol, lazy, prob, basis, a
     Returns (anydel: a working row may leave, jw: the position in widx of the
     row most below -gtol (Bland's rule: the smallest row), jb and wb: the row
     most below zero within gtol, beyond G_ROUNDING of its rounding part gtol_r,
-    and its value, amb: a multiplier below -gtol_r; flops)."""
+    and its value, amb: a multiplier below -gtol_r; flops). ``wset = (p, nO,
+    lazy)``; ``vec``: the vectors (n,) of :func:`._workspace.vector_blocks`."""
+    p, nO, lazy = wset
+    u, ps, z, g, hv, nu, q = vec
     A, lo, up, bcol, bval, kind, rnorm = prob
     Wt, qv, qi, sv, sv2 = basis
     state, side, target, Olist, widx, wside = aset
@@ -300,14 +303,16 @@ def _working_multipliers(n, p, nO, degen, unorm, dual_rtol, lazy, prob, basis, a
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _fitted_multipliers(n, p, nO, degen, unorm, dual_rtol, lazy, force, anydel, prob, basis, aset, R, u, hv):
+def _fitted_multipliers(n, wset, degen, unorm, dual_rtol, force, anydel, prob, basis, aset, R, vec):
     """Phase 4d, at a badly scaled level's end: the met rows held at their
     bounds as constraints, their mu fitted (:func:`_met_force`, g3 the
     gradient with them). A met row pulled to the feasible side of its bound
     leaves the objective (mu = w, eq. 38: jo, its position in Olist), else a
     working row whose multiplier (39) from g3 is negative beyond the unmet
     rows' rounding ftol (jw, its position in widx). Returns (jo, jw, flops);
-    -1: none."""
+    -1: none. ``wset``, ``vec`` as in :func:`_working_multipliers`."""
+    p, nO, lazy = wset
+    u, ps, z, g, hv, nu, q = vec
     A, lo, up, bcol, bval, kind, rnorm = prob
     Wt, qv, qi, sv, sv2 = basis
     state, side, target, Olist, widx, wside = aset

@@ -103,11 +103,13 @@ def _level_cod(Mr, Mf, nO, p, nf, thr, piv, diag, beta, rrt, Olist, rnorm):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def _level_cod_append(Mr, Mf, j0, nO, p, nf, thr, r, piv, diag, beta, rrt, Olist, rnorm):
+def _level_cod_append(lse, j0, nO, p, nf, thr, r, rrt, Olist, rnorm):
     """The level's COD of rank r over its objective rows ``:j0`` updated for
     the rows ``j0:nO`` that entered since (:func:`._linalg.cod_append`, one
     row at a time, copied from ``Mf[j, p:]``). Returns (r, flops, weak: a new
-    pivot has a small diagonal)."""
+    pivot has a small diagonal). ``lse``: the level's COD and LSE blocks
+    (:func:`._workspace.lse_blocks`)."""
+    Mr, Mf, piv, diag, beta, bvec, Lb, y = lse
     fl = 0
     weak = False
     for j in range(j0, nO):
@@ -167,10 +169,11 @@ def _lse_residual(A, Olist, piv, nO, target, bcol, bval, u, bvec):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM)
-def _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, Wt, qv, qi, sv, sv2):
+def _lse_direction(Mr, beta, r, nf, y, z, ps, p, n, lazy, basis):
     """The LSE step of eqs. (30)-(31), ``ps = Z Y [y; 0]`` (n,), from the COD's
     solution ``y`` (r,): Y's reflectors (in ``Mr``, ``beta``) on ``z`` (nf,),
     then Z = the columns p: of W. Returns the multiply-add count."""
+    Wt, qv, qi, sv, sv2 = basis
     for c in range(nf):
         z[c] = y[c] if c < r else 0.0
     fl = apply_reflectors(Mr, beta, r, nf, z)

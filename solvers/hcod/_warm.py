@@ -78,13 +78,15 @@ def _jump_end(k, n, D, starts, prob, hist, u, ps, z, dual_rtol):
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _drop_working(warm, rk, s0, p, lazy, rank_rtol, prob, basis, aset, hist, R, q, Mf):
+def _drop_working(warm, rk, s0, p, lazy, rank_rtol, prob, basis, aset, hist, wr):
     """Working inequality rows dropped at the start of a level: all of them
     (warm start "none"), or those the level deactivated at the previous call
     (``Delta^- A``, sec. XI: not WORK in the record ``rk``); each leaves ``W``
     by Givens rotations (sec. IX). Then the IMPLIED rows above re-enter ``W``
     where their projection on ``Z`` passes the rank threshold at their own
-    norm. Returns (p, flops)."""
+    norm. ``wr = (R, q, Mf)`` as in :func:`._iterations._activate`. Returns
+    (p, flops)."""
+    R, q, Mf = wr
     A, lo, up, bcol, bval, kind, rnorm = prob
     Wt, qv, qi, sv, sv2 = basis
     state, side, target, Olist, widx, wside = aset
@@ -113,14 +115,20 @@ def _drop_working(warm, rk, s0, p, lazy, rank_rtol, prob, basis, aset, hist, R, 
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _warm_shift(k, jrun, jm, jump, rk, s0, n, p, lazy, prob, basis, state, hist, u, ps):
+def _warm_shift(k, jmp, jump, rk, s0, p, lazy, prob, basis, aset, hist, vec):
     """Eq. (46): ``u_hat = u_{k-1} + tau Delta u_k``, tau in [0, 1] keeping the
     inactive inequality rows above (not WORK in the record ``rk``) feasible.
     Delta u_k (n,) is first projected on Z, ``ps <- Z Z^T ps`` (the problem
     may have changed since it was recorded: the step must keep the rows
     frozen above). At the start of a jump (``k == jrun``) ``ps`` holds its
     step (:func:`_jump_end`); at its other levels and its end the step is 0.
-    Returns (at_jump: u_hat is the point _jump_end accepted, flops)."""
+    ``jmp = (jrun, jm)``, the jump under way; ``vec`` the vectors (n,) of
+    :func:`._workspace.vector_blocks`. Returns (at_jump: u_hat is the point
+    _jump_end accepted, flops)."""
+    jrun, jm = jmp
+    state = aset[0]
+    u, ps, z, g, hv, nu, q = vec
+    n = u.shape[0]
     A, lo, up, bcol, bval, kind, rnorm = prob
     Wt, qv, qi, sv, sv2 = basis
     hist_state, hist_side, hist_valid, hist_du = hist
@@ -161,8 +169,7 @@ def _warm_shift(k, jrun, jm, jump, rk, s0, n, p, lazy, prob, basis, state, hist,
 
 
 @njit(cache=True, nogil=True, error_model="numpy", fastmath=_FM, inline="always")
-def _reactivate(jump, rk, s0, n, D, p, lazy, rank_rtol, dual_rtol, prob, basis, aset, hist, R, Qb, bq,
-                cand, cok, u):
+def _reactivate(jump, rk, s0, p, lazy, tols, prob, basis, aset, hist, ins, u):
     """``Delta^+ A`` (sec. XI): the inequality rows above that the record
     ``rk`` has WORK and are inactive now enter ``W`` together (one blocked
     Householder QR, :func:`._basis.insert_rows`), at their recorded side. A
@@ -171,7 +178,12 @@ def _reactivate(jump, rk, s0, n, D, p, lazy, rank_rtol, dual_rtol, prob, basis, 
     that the jump point meets at their bound (to its rounding floor: their
     correction moves u by rounding only, and no row above can become
     infeasible): they enter by swaps of W's columns (._basis), and the levels
-    down to jm then work on fewer columns. Returns (p, flops)."""
+    down to jm then work on fewer columns. ``ins = (R, Mf, Qb, bq, cand,
+    cok)`` as in :func:`_level_start`. Returns (p, flops)."""
+    rank_rtol, feas_rtol, dual_rtol, freeze_rtol = tols
+    R, Mf, Qb, bq, cand, cok = ins
+    n = u.shape[0]
+    D = hist[2].shape[0]
     A, lo, up, bcol, bval, kind, rnorm = prob
     Wt, qv, qi, sv, sv2 = basis
     state, side, target, Olist, widx, wside = aset
@@ -369,16 +381,15 @@ def _level_start(k, mode, p, lazy, jmp, prob, basis, aset, hist, ins, uprev, vec
     jump = jrun <= k < jm  # (a level of the jump: its record is level jm's for the rows above)
     rk = jm if jump else k
     if (warm == WARM_NONE and k > 0) or warm_level:
-        p, f = _drop_working(warm, rk, s0, p, lazy, rank_rtol, prob, basis, aset, hist, R, q, Mf)
+        p, f = _drop_working(warm, rk, s0, p, lazy, rank_rtol, prob, basis, aset, hist, (R, q, Mf))
         fl += f
     outcome = 0
     unorm = 0.0  # (read by eq. 45 on a jump only, which is a warm level)
     if warm_level:
-        at_jump, f = _warm_shift(k, jrun, jm, jump, rk, s0, n, p, lazy, prob, basis, state, hist, u, ps)
+        at_jump, f = _warm_shift(k, (jrun, jm), jump, rk, s0, p, lazy, prob, basis, aset, hist, vec)
         fl += f
         p_in = p
-        p, f = _reactivate(jump, rk, s0, n, D, p, lazy, rank_rtol, dual_rtol, prob, basis, aset, hist, R, Qb,
-                           bq, cand, cok, u)
+        p, f = _reactivate(jump, rk, s0, p, lazy, tols, prob, basis, aset, hist, ins, u)
         fl += f
         moved, f = _warm_correction(p, lazy, prob, basis, aset, R, u, z, hv, nu)
         fl += f
