@@ -339,6 +339,11 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
     Mr, Mf, piv, diag, beta, bvec, Lb, y = lse
     rank_rtol, feas_rtol, dual_rtol, freeze_rtol = tols
     wr = (R, q, Mf)  # (what a row entering or leaving W updates)
+    # the call's counters, in registers through the loop (their slots in out: written back at its end)
+    total = out[O_ITERS]
+    acts = out[O_ACT]
+    deacts = out[O_DEACT]
+    nearcut = out[O_NEARCUT]
     status = ST_OPTIMAL
     fl = 0
     r = 0
@@ -355,10 +360,10 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
     wref_ad = -1
     ndep = 0  # rows of levels above DEPENDENT in this level
     while True:
-        if out[O_ITERS] >= max_iter:
+        if total >= max_iter:
             status = ST_MAXIT
             break
-        out[O_ITERS] += 1
+        total += 1
         out[N_OUT + k] += 1  # (the level's iterations)
         if lazy and out[N_OUT + k] > LAZY_MAX_ITER:
             # a level iterating like a cold one (a trajectory that drifted): W goes
@@ -377,7 +382,7 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
         fl += f
         upeak = max(upeak, un)
         if wc >= 0 and tau * _norm(ps) > ycap:
-            out[O_NEARCUT] += 1
+            nearcut += 1
             tau, blk, bsd, moved, un, f = _near_rank_retry(wc, r, bland, lev, cfg, (p, nO, lazy), prob, basis,
                                                            aset, vec, lse)
             fl += f
@@ -396,14 +401,14 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
                                                         rank_rtol, prob, basis, aset, wr)
             fl += f
             if activated:
-                out[O_ACT] += 1
+                acts += 1
             continue
         if not has_ineq:
             break
         # -- phase 4: at a full step, deactivation by the sign of the multipliers
         unorm = _norm(u)
         jw, ja, wa, metneg = _objective_multipliers(nO, degen, unorm, dual_rtol, prob, aset, u)
-        ad = out[O_ACT] + out[O_DEACT]
+        ad = acts + deacts
         if jw < 0 and ja >= 0:
             # a row negative under its rounding floor: the floor bounds the rounding of
             # w, not the error of u, which one step more from u (iterative refinement,
@@ -422,9 +427,9 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
                 jw = ja
         if jw >= 0:
             nO, switched = _objective_row_leaves(jw, nO, mf_valid, prob, aset, Mf, u)
-            out[O_DEACT] += 1
+            deacts += 1
             if switched:
-                out[O_ACT] += 1
+                acts += 1
             else:
                 ncod = 0
             continue
@@ -442,7 +447,7 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
                                             basis, aset, R, vec)
             fl += f
             if jo >= 0:
-                out[O_DEACT] += 1
+                deacts += 1
                 nO = _leave_objective(jo, Olist, nO, Mf, mf_valid, state)
                 ncod = 0
                 continue
@@ -465,11 +470,15 @@ def _level_iterations(lev, cfg, wset, upeak, out, prob, basis, aset, R, vec, lse
             p, ndep, f = _delete_working(jw, n, s0, (p, nO, lazy), ndep, mf_valid, rank_rtol, prob, basis,
                                          aset, wr)
             fl += f
-            out[O_DEACT] += 1
+            deacts += 1
             ncod = 0
             continue
         break
     if ndep > 0:
         ndep = _release_dependent(state, s0)
+    out[O_ITERS] = total
+    out[O_ACT] = acts
+    out[O_DEACT] = deacts
+    out[O_NEARCUT] = nearcut
     out[O_FLOPS] += fl
     return status, (p, nO, lazy), upeak, (r, cod_done, cod_weak)
