@@ -22,7 +22,6 @@ from __future__ import annotations
 from itertools import pairwise
 
 import numpy as np
-
 from hikbench.problems.hierarchy import Hierarchy
 from hikbench.solvers.base import MAX_ITERATIONS, NUMERICAL_FAILURE, OPTIMAL, Solver, SolveResult
 from hikbench.solvers.info import SolverInfo
@@ -45,11 +44,12 @@ from ._layout import (
     PRM_FEAS_RTOL,
     PRM_FREEZE_RTOL,
     PRM_RANK_RTOL,
+    WARM_MODES,
 )
 
 __all__ = ["SOLVERS", "WARM_STARTS", "HcodSolver", "warmup"]
 
-WARM_STARTS = ("none", "stage", "time")
+WARM_STARTS = WARM_MODES  #: the option warm_start's values, in the order of ._layout's WARM_*
 _NAN = float("nan")  # (build_time_s, solve_time_s: not separated)
 _NONE = object()  # (matches no solve() argument, unlike None)
 _STATUS = {0: OPTIMAL, 1: MAX_ITERATIONS, 2: NUMERICAL_FAILURE}
@@ -161,7 +161,7 @@ class HcodSolver(Solver):
         mt = st[-1] + n * mn
         mmax = max(max(b - a for a, b in pairwise(st)), n * mn)
         cap = self.max_iterations if self.max_iterations is not None else 100 + 10 * (mt + n)
-        ip = (n, mt, D, mmax, cap, WARM_STARTS.index(self.warm_start), 1)  # (slots ._layout.IP_*)
+        ip = setup.int_params(n, mt, D, mmax, cap, WARM_MODES.index(self.warm_start), True)
         fw, iw, xv, outv = setup.workspaces(ip, self._prm)
         self._ws = (fw, iw)
         # the compiled kernel for these two arrays' types (1-d contiguous float64 and int64, always:

@@ -85,9 +85,15 @@ IP_MT = 1  #: mt, the rows (the min-norm stage's included)
 IP_D = 2  #: D, the levels (the min-norm stage included)
 IP_MMAX = 3  #: mmax, the rows of the largest level
 IP_MAX_ITER = 4  #: the cap on the iterations of one call
-IP_WARM = 5  #: the warm start: 0 none, 1 stage, 2 time
+IP_WARM = 5  #: the warm start, one of WARM_*
 IP_HAS_INEQ = 6  #: 1 when the problem has inequalities
 N_IP = 7
+
+# ---- warm-start modes (the "ip" block's IP_WARM slot; the option warm_start's values) ---------
+WARM_NONE = 0  #: every level starts from its frozen equality rows only
+WARM_STAGE = 1  #: level to level within a call (sec. X)
+WARM_TIME = 2  #: also across calls, from the record of the last one (sec. XI)
+WARM_MODES = ("none", "stage", "time")  #: the option's values, WARM_MODES[WARM_*]
 
 # ---- float parameters (the "prm" block) -------------------------------------------------------
 PRM_RANK_RTOL = 0  #: rank threshold, relative to ||A_k||_F

@@ -67,6 +67,13 @@ from ._layout import (
     I_WIDX,
     I_WSIDE,
     IOFF0,
+    IP_D,
+    IP_HAS_INEQ,
+    IP_MAX_ITER,
+    IP_MMAX,
+    IP_MT,
+    IP_N,
+    IP_WARM,
     N_HEAD,
     N_IP,
     N_OUT,
@@ -115,7 +122,7 @@ def _template(ip):
     of the "prm" block and the slices of the blocks :func:`workspaces`
     returns (u, out). Computed once per shape and options (a cold solve on a
     fresh solver allocates its workspaces)."""
-    foff, fend, ioff = layout(*ip[:4])
+    foff, fend, ioff = layout(ip[IP_N], ip[IP_MT], ip[IP_D], ip[IP_MMAX])
     iw0 = np.zeros(ioff[-1], dtype=np.int64)
     iw0[:N_HEAD] = np.concatenate((foff, fend, ioff))
     iw0[ioff[I_IP]:ioff[I_IP + 1]] = ip
@@ -139,9 +146,23 @@ def _allocate(size, iw0, prm, at):
     return fw, iw0.copy()
 
 
+def int_params(n: int, mt: int, D: int, mmax: int, max_iter: int, warm: int, has_ineq: bool) -> tuple:
+    """The "ip" block, a tuple with each value in its slot IP_* (._layout):
+    n variables, mt rows (the min-norm stage's included), D levels, mmax rows
+    of the largest level, the cap on the iterations, the warm start (one of
+    WARM_*), whether the problem has inequalities."""
+    # (a tuple in the slots' order, checked below: a cold solve on a fresh solver builds it, and
+    # filling a list by slot cost 0.25 us more)
+    return n, mt, D, mmax, max_iter, warm, 1 if has_ineq else 0
+
+
+if (IP_N, IP_MT, IP_D, IP_MMAX, IP_MAX_ITER, IP_WARM, IP_HAS_INEQ) != tuple(range(N_IP)):
+    raise AssertionError("_setup.int_params: the IP_* slots of ._layout are no longer in its order")
+
+
 def workspaces(ip, prm):
-    """The float and int workspaces of the kernel for ``ip = (n, mt, D, mmax,
-    max_iter, warm_mode, has_ineq)`` (the "ip" block, a tuple) and ``prm``
+    """The float and int workspaces of the kernel for ``ip`` (the "ip" block,
+    a tuple: :func:`int_params`) and ``prm``
     (the "prm" block), the int one headed by the offsets (see
     :func:`layout`). Returns (fw, iw, u, out): the workspaces and views of
     the blocks the caller reads."""

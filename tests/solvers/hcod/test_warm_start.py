@@ -309,12 +309,13 @@ def test_a_load_into_used_workspaces_writes_what_a_fresh_one_does(min_norm):
     it) gives the problem blocks, bit for bit, of a load into new ones."""
     from hikbench.solvers.hcod import _setup
     from hikbench.solvers.hcod._kernel import hcod_solve
+    from hikbench.solvers.hcod._layout import WARM_TIME
 
     h1, h2 = G.ik_like(20, 0), G.ik_like(20, 1)
     h2 = Hierarchy(h2.A, h2.lower, h2.upper, h1.level, n=20)  # (the same shape: level sizes of h1)
     n, st = 20, h1.starts
     mt, D = int(st[-1]) + n * min_norm, len(st) - 1 + min_norm
-    ip = (n, mt, D, max(int(np.diff(st).max()), n * min_norm), 1000, 2, 1)
+    ip = _setup.int_params(n, mt, D, max(int(np.diff(st).max()), n * min_norm), 1000, WARM_TIME, True)
     prm = HcodSolver()._prm
 
     def loaded(*problems):
