@@ -38,6 +38,7 @@ COMMANDS: dict[str, str] = {
     "claims": "claims",
     "columns": "columns",
     "scenario": "scenario",
+    "certify": "certify",
     "warmup": "warmup",
     "testset": "testset",
 }

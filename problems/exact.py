@@ -639,6 +639,29 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
         for i in range(h.starts[k], h.starts[k + 1]):
             s2 += viol[i] * viol[i]
         sq.append(s2)
-    return Certificate(True, "", np.array([_sqrt_float(v) for v in sq]), np.array([_to_float(v) for v in xs]),
-                       states, tuple(Fraction(int(v.p), int(v.q)) for v in sq),
+    norms, xf = np.array([_sqrt_float(v) for v in sq]), np.array([_to_float(v) for v in xs])
+    missed = _unrepresentable(h, x, xf, norms)
+    if missed is not None:
+        k, by = missed
+        return fail(f"level {k} is rank-deficient only to float64 rounding: the exact optimum on the active set "
+                    f"read off x has norm {np.linalg.norm(xf):.2g} and level norm {norms[k]:.3g}, which x* rounded "
+                    f"to float64 misses by {by:.2g}, beyond 1e-9 of the level's terms at x (its rows are "
+                    f"independent only in exact arithmetic: no double attains that optimum)")
+    return Certificate(True, "", norms, xf, states, tuple(Fraction(int(v.p), int(v.q)) for v in sq),
                        tuple(Fraction(int(v.p), int(v.q)) for v in xs), rtol)
+
+
+def _unrepresentable(h: Hierarchy, x: np.ndarray, xf: np.ndarray, norms: np.ndarray):
+    """``(level, by)`` of the first level whose exact norm ``norms`` the rounded x* ``xf`` misses by
+    more than the ``high`` profile's tolerance at the given point x (1e-9 of the level's terms
+    there, hikbench.problems.verify.level_tolerances), else None. x*'s rounding moves each row by
+    ~1e-16 of its terms at x*; beyond the terms at x only where x* is far larger than x and its
+    rows cancel: levels whose rows are independent only to rounding (an x* of norm 1e13-5e16)."""
+    from hikbench.problems.verify import PROFILES, level_norms, level_tolerances
+
+    if not np.all(np.isfinite(xf)):
+        return 0, math.inf
+    with np.errstate(over="ignore", invalid="ignore"):
+        miss = np.abs(level_norms(h, xf) - norms)
+        off = np.flatnonzero(~(miss <= level_tolerances(h, x, PROFILES["high"].rtol)))
+    return None if off.size == 0 else (int(off[0]), float(miss[off[0]]))

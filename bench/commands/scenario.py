@@ -4,7 +4,9 @@
 
 Runs a closed-loop robot scenario (``problems/robots/scenarios/NAME.toml`` or a
 TOML path) once per (solver, warm-start mode), writes one per-step CSV per run
-(columns documented in ``bench/scenarios/runner.py``), ``summary.csv`` (one row per
+(columns documented in ``bench/scenarios/runner.py``), each step's problem and u in
+``<run>_steps/`` (bench/scenarios/recorded.py: what ``hikbench certify OUT`` certifies after the
+fact), ``summary.csv`` (one row per
 run: cost per step, max and final task errors by level, checks) and, with
 ``--plot``, the figures of ICRA 2010 sec. XII; prints the scenario's checks and,
 for several runs, their task errors by level side by side. A solver is a
@@ -80,6 +82,7 @@ def run(args) -> int:
     from hikbench.bench.scenarios.controllers import CONTROLLERS, build_controller, is_controller
     from hikbench.bench.scenarios.rows import run_stem, slug
     from hikbench.bench.scenarios.checks import check_run
+    from hikbench.bench.scenarios.recorded import write_steps
     from hikbench.bench.scenarios.runner import REPEAT, run_scenario, warm_start_default
     from hikbench.bench.harness.worker import solver_info
     from hikbench.problems.robots.scenarios import load_scenario, scenario_names
@@ -148,6 +151,7 @@ def run(args) -> int:
         csv = out / f"{stem}.csv"
         run_.records.to_csv(csv, index=False)
         np.save(out / f"{stem}_q.npy", run_.q)
+        write_steps(out, stem, run_.steps)  # (each step's problem and u: `hikbench certify OUT`)
         df = run_.records
         print(f"{run_.label}: {len(df)} steps, solve time per step (min of {repeat} calls) median "
               f"{np.median(df['solve_time_min_s']) * 1e3:.3f} ms, max "

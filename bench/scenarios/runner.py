@@ -82,7 +82,7 @@ from __future__ import annotations
 import gc
 import inspect
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -114,13 +114,16 @@ ACTIVE_RTOL = 1e-6
 
 @dataclass
 class ScenarioRun:
-    """One run: the per-step ``records`` and the joint trajectory ``q`` (steps + 1, nq)."""
+    """One run: the per-step ``records``, the joint trajectory ``q`` (steps + 1, nq) and
+    ``steps``, each step with a finite u as ``(k, hierarchy, u)`` (what ``hikbench certify``
+    certifies after the fact: bench/scenarios/recorded.py)."""
 
     scenario: Scenario
     solver: str
     warm_start: str
     records: pd.DataFrame
     q: np.ndarray
+    steps: list = field(default_factory=list)
 
     @property
     def label(self) -> str:
@@ -243,7 +246,7 @@ def run_scenario(scenario: Scenario, solver: str, options: dict | None = None,
         for (k, _, _), res in zip(steps_hx, certify_steps([(h, u) for _, h, u in steps_hx], int(certify))):
             df.loc[df["step"] == k, ["certified", "certify_reason", "x_attains"]] = [
                 res["certified"], res["reason"], res.get("attains")]
-    return ScenarioRun(scenario, solver, mode, df, np.array(traj))
+    return ScenarioRun(scenario, solver, mode, df, np.array(traj), steps_hx)
 
 
 def certify_steps(problems: list, workers: int = 2) -> list[dict]:
