@@ -42,7 +42,10 @@ Only a certificate that passes every check is certified; the reason names the fi
 that failed otherwise. The active set is read at each tolerance of :data:`READINGS` in turn
 until one certifies. What it certifies is the stored problem: a level rank-deficient only to
 float64 rounding (the ``rank_deficient`` family) has full rank in exact arithmetic and another
-optimum, which the active set read off a solver's point does not give: refused.
+optimum, which the active set read off a solver's point does not give: refused. So is an x*
+that no double attains (its rounding misses a level's exact norm beyond the high profile's
+tolerance at x: rows independent only by ~1e-16, whose conflict the exact x*, of norm 1e12-5e16,
+meets): the reason says the level is rank-deficient only to float64 rounding.
 """
 
 from __future__ import annotations
