@@ -410,3 +410,50 @@ def test_hcods_point_on_a_user_arm_stack_is_certified(user_arm_stack, seed):
     assert cert.certified, cert.reason
     assert verify(h, x, cert.x).equal
     assert any(s in ("lower", "upper") for s in cert.states[:14])
+
+
+@pytest.fixture(scope="module")
+def on_axis_arm_stack(tmp_path_factory):
+    """The same stack on the arm as tests/urdf_robots.py writes it, its tip on the last joint's
+    axis: that joint's column of the tip-position Jacobian is rounding noise (+-2.8e-17)."""
+    from urdf_robots import arm_urdf
+
+    d = tmp_path_factory.mktemp("on_axis_arm")
+    (d / "arm.urdf").write_text(arm_urdf())
+    (d / "user_arm.toml").write_text(ARM_STACK)
+    return d / "user_arm.toml"
+
+
+def test_a_jacobian_column_of_rounding_noise_is_refused_and_explained(on_axis_arm_stack):
+    """Seed 3: the exact optimum of the stored numbers drives the last joint to its limit for a gain of
+    ~1e-17 at the position level, and moves the orientation level by O(1): hcod's point is refused.
+    With the entries of rounding size set to 0 it is certified and hcod attains it, which the reason
+    and ``without_rounding_entries`` say; hcod's point perturbed by 1e-6 relative is refused and not
+    explained so."""
+    from hikbench.problems.robots.testsets import stack_problem
+    from hikbench.solvers.hcod import HcodSolver
+
+    h = stack_problem(str(on_axis_arm_stack), 3)
+    col = np.abs(h.A[h.level_rows(1), 6])
+    assert 0 < col.max() < 1e-16
+    x = HcodSolver().solve(h).x
+    cert = certify(h, x)
+    assert not cert.certified and cert.without_rounding_entries is True
+    assert "entries of A of rounding size" in cert.reason and "level 1, row 0, column 6" in cert.reason
+    assert "x is the exact optimum (certified)" in cert.reason
+    wrong = certify(h, x * (1 + 1e-6 * np.sign(np.sin(np.arange(7) + 1))))
+    assert not wrong.certified and wrong.without_rounding_entries is not True, wrong.reason
+
+
+def test_rows_independent_only_to_rounding_are_named_in_the_refusal(on_axis_arm_stack):
+    """Seed 2: the velocity limits held leave 4 joints to the tip position, whose rows have rank 2 there
+    up to rounding (smallest singular value 1.4e-17): the exact x* meets the position target with a
+    norm of 2e18 and leaves the joint limits; the refusal says so."""
+    from hikbench.problems.robots.testsets import stack_problem
+    from hikbench.solvers.hcod import HcodSolver
+
+    h = stack_problem(str(on_axis_arm_stack), 2)
+    cert = certify(h, HcodSolver().solve(h).x)
+    assert not cert.certified
+    assert "read as inside its bounds, but the exact x* leaves them (x* has norm" in cert.reason, cert.reason
+    assert "independent only by float64 rounding" in cert.reason
