@@ -97,6 +97,10 @@ class Certificate:
         level's largest, e.g. a Jacobian column of rounding noise): whether, with those entries
         set to 0, x's active set is certified and x attains that optimum (the ``reason`` says
         so). It does not certify x: the stored numbers' exact optimum is another. None otherwise.
+    wrong_sign_rows : tuple of int
+        Where refused at a level's stage: the rows of the levels above held at a bound whose exact
+        multiplier there has the wrong sign (pushed inside; :func:`certify` reads the active set
+        again with them inside).
     """
 
     certified: bool
@@ -108,6 +112,7 @@ class Certificate:
     x_exact: tuple = ()
     reading: float = float("nan")
     without_rounding_entries: bool | None = None
+    wrong_sign_rows: tuple = ()
 
 
 def _q(v: float):
@@ -438,6 +443,10 @@ def estimated_seconds(h: Hierarchy) -> float:
 
 #: the reading tolerances :func:`certify` tries in turn (rows within them of a bound read as held)
 READINGS = (1e-8, 1e-11, 1e-14, 0.0)
+#: at most this many times per reading, the rows held whose exact multipliers have the wrong sign
+#: at the stage that refuses are read as inside and the active set certified again (joints at their
+#: limits to 1e-21, bounds of rounding size, that the exact optimum leaves by 1e-21)
+RELEASES = 8
 
 
 def certify(h: Hierarchy, x, rtol: float | None = None) -> Certificate:
@@ -470,6 +479,17 @@ def certify(h: Hierarchy, x, rtol: float | None = None) -> Certificate:
         cert = _certify_reading(h, D, x, reading, tried)
         if cert is None:  # (the same active set as a reading before: the same refusal)
             continue
+        released: set = set()
+        for _ in range(RELEASES):  # (rows held whose multipliers push them inside: read inside, again)
+            if cert.certified or not cert.wrong_sign_rows:
+                break
+            released |= set(cert.wrong_sign_rows)
+            again = _certify_reading(h, D, x, reading, tried, frozenset(released))
+            if again is None:
+                break
+            cert = again if again.certified else cert
+            if not again.certified:
+                cert.wrong_sign_rows = again.wrong_sign_rows
         if cert.certified:
             return cert
         first = first or cert
@@ -575,12 +595,16 @@ def _violation(D: _Data, i: int, r):
     return r * 0
 
 
-def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: set) -> Certificate | None:
-    """:func:`certify` for one reading tolerance; None where its active set is one of ``tried``
-    (the active sets read before, to which it is added)."""
+def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: set,
+                     released: frozenset = frozenset()) -> Certificate | None:
+    """:func:`certify` for one reading tolerance, the rows ``released`` read as inside; None where
+    its active set is one of ``tried`` (the active sets read before, to which it is added)."""
     x_q = [_q(v) for v in x.tolist()]
     scale = _row_scales(h, D, x)
     states = _read_states(h, D, D.dots(x_q), rtol, scale)
+    for i in released:
+        if states[i] in (AT_LOWER, AT_UPPER):
+            states[i] = INSIDE
     if tuple(states) in tried:
         return None
     tried.add(tuple(states))
@@ -685,8 +709,11 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
         if lam is None and _exact_on_support(D, g, [(i, sign_of[i]) for i in B]):
             continue
         if not _multipliers_exist(D, g, candidates(int(h.starts[k]))):
-            return fail(f"level {k}: the exact x* is not optimal for its stage (no multipliers of the "
-                        f"right sign cancel the gradient): the active set read off x is not the optimal one")
+            out = fail(f"level {k}: the exact x* is not optimal for its stage (no multipliers of the "
+                       f"right sign cancel the gradient): the active set read off x is not the optimal one")
+            if lam is not None:
+                out.wrong_sign_rows = tuple(i for i, v in zip(B, lam) if sign_of[i] * v < 0)
+            return out
     # the minimum-norm stage: x* + B^T lam = 0 with lam = -z
     if need_z and not _signs_ok([sign_of[i] for i in basis], [-v for v in z]) and not _multipliers_exist(
             D, xs, candidates(D.m)):

@@ -457,3 +457,31 @@ def test_rows_independent_only_to_rounding_are_named_in_the_refusal(on_axis_arm_
     assert not cert.certified
     assert "read as inside its bounds, but the exact x* leaves them (x* has norm" in cert.reason, cert.reason
     assert "independent only by float64 rounding" in cert.reason
+
+
+ROMEO = Path(__file__).parent / "data"
+
+
+def test_joints_at_their_limits_to_rounding_are_released_where_the_optimum_leaves_them():
+    """Step 117 of `step` on romeo (n = 61, 155 rows; hcod, time warm start, the controller's u): 25 joints
+    sit at a limit to rounding (velocity bounds of 1e-20 .. 1e-14), read as held; the posture level's exact
+    multipliers push 10 of them inside (the exact optimum leaves them by about their bound). Read as inside
+    where their multipliers have the wrong sign, the active set is certified and u attains it; the other 15
+    stay held (refused before: the whole romeo run but 18 of 135 steps)."""
+    import hikbench.problems.exact as exact
+    from hikbench.problems.verify import PROFILES, judge
+
+    h = load_npz(ROMEO / "romeo_step_step117.npz")
+    u = np.load(ROMEO / "romeo_step_step117_u.npy")
+    assert (h.n, h.rows) == (61, 155)
+    first = exact._certify_reading(h, exact._Data(h), u, 1e-8, set())
+    assert not first.certified and first.reason.startswith("level 4: the exact x* is not optimal")
+    assert first.wrong_sign_rows == (21, 22, 25, 26, 28, 29, 31, 48, 52, 54)
+    cert = certify(h, u)
+    assert cert.certified, cert.reason
+    assert judge(h, u, cert.x, PROFILES["high"].rtol).lower != "b"
+    assert [cert.states[i] for i in (16, 20, 21, 29)] == ["upper", "lower", "inside", "inside"]
+    # a released row is inside its bounds at the exact optimum, exactly
+    from fractions import Fraction
+    a21 = sum(Fraction(a) * xv for a, xv in zip(h.A[21], cert.x_exact))
+    assert Fraction(h.lower[21]) < a21 < Fraction(h.upper[21])
