@@ -37,6 +37,7 @@ COMMANDS: dict[str, str] = {
     "claims": "hikbench.bench.commands.claims",
     "columns": "hikbench.bench.commands.columns",
     "scenario": "hikbench.bench.commands.scenario",
+    "certify": "hikbench.bench.commands.certify",
     "warmup": "hikbench.bench.commands.warmup",
     "testset": "hikbench.bench.commands.testset",
 }

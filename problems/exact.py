@@ -42,7 +42,10 @@ Only a certificate that passes every check is certified; the reason names the fi
 that failed otherwise. The active set is read at each tolerance of :data:`READINGS` in turn
 until one certifies. What it certifies is the stored problem: a level rank-deficient only to
 float64 rounding (the ``rank_deficient`` family) has full rank in exact arithmetic and another
-optimum, which the active set read off a solver's point does not give: refused.
+optimum, which the active set read off a solver's point does not give: refused. So is an x*
+that no double attains (its rounding misses a level's exact norm beyond the high profile's
+tolerance at x: rows independent only by ~1e-16, whose conflict the exact x*, of norm 1e12-5e16,
+meets): the reason says the level is rank-deficient only to float64 rounding.
 """
 
 from __future__ import annotations
@@ -89,6 +92,15 @@ class Certificate:
         The exact x* (empty where not certified).
     reading : float
         The reading tolerance of :data:`READINGS` whose active set this is.
+    without_rounding_entries : bool or None
+        Where refused and A has entries of rounding size (at most :data:`ROUNDING_ENTRY` of their
+        level's largest, e.g. a Jacobian column of rounding noise): whether, with those entries
+        set to 0, x's active set is certified and x attains that optimum (the ``reason`` says
+        so). It does not certify x: the stored numbers' exact optimum is another. None otherwise.
+    wrong_sign_rows : tuple of int
+        Where refused at a level's stage: the rows of the levels above held at a bound whose exact
+        multiplier there has the wrong sign (pushed inside; :func:`certify` reads the active set
+        again with them inside).
     """
 
     certified: bool
@@ -99,6 +111,8 @@ class Certificate:
     level_norms_sq: tuple = ()
     x_exact: tuple = ()
     reading: float = float("nan")
+    without_rounding_entries: bool | None = None
+    wrong_sign_rows: tuple = ()
 
 
 def _q(v: float):
@@ -429,6 +443,10 @@ def estimated_seconds(h: Hierarchy) -> float:
 
 #: the reading tolerances :func:`certify` tries in turn (rows within them of a bound read as held)
 READINGS = (1e-8, 1e-11, 1e-14, 0.0)
+#: at most this many times per reading, the rows held whose exact multipliers have the wrong sign
+#: at the stage that refuses are read as inside and the active set certified again (joints at their
+#: limits to 1e-21, bounds of rounding size, that the exact optimum leaves by 1e-21)
+RELEASES = 8
 
 
 def certify(h: Hierarchy, x, rtol: float | None = None) -> Certificate:
@@ -461,10 +479,59 @@ def certify(h: Hierarchy, x, rtol: float | None = None) -> Certificate:
         cert = _certify_reading(h, D, x, reading, tried)
         if cert is None:  # (the same active set as a reading before: the same refusal)
             continue
+        released: set = set()
+        for _ in range(RELEASES):  # (rows held whose multipliers push them inside: read inside, again)
+            if cert.certified or not cert.wrong_sign_rows:
+                break
+            released |= set(cert.wrong_sign_rows)
+            again = _certify_reading(h, D, x, reading, tried, frozenset(released))
+            if again is None:
+                break
+            cert = again if again.certified else cert
+            if not again.certified:
+                cert.wrong_sign_rows = again.wrong_sign_rows
         if cert.certified:
             return cert
         first = first or cert
-    return first
+    return _explain_rounding_entries(h, x, rtol, first)
+
+
+#: an entry of A at most this fraction of its level's largest |entry| is of rounding size (a
+#: Jacobian column of rounding noise: 2.8e-17 to 5.6e-17 beside entries of 0.2-0.6)
+ROUNDING_ENTRY = 1e-15
+
+
+def _explain_rounding_entries(h: Hierarchy, x: np.ndarray, rtol, refused: Certificate) -> Certificate:
+    """``refused``, its reason extended where A has entries of rounding size
+    (:data:`ROUNDING_ENTRY`): the certificate of x on A with those entries set to 0, and whether
+    x attains that optimum (``without_rounding_entries``). x stays refused: the stored numbers'
+    exact optimum moves along those entries (a gain of ~1e-17 at one level for O(1) at the
+    levels below), which no double-precision solver resolves."""
+    A = np.array(h.A)
+    small = np.zeros(A.shape, dtype=bool)
+    for k in range(h.depth):
+        rows = h.level_rows(k)
+        block = np.abs(A[rows])
+        small[rows] = (block > 0) & (block <= ROUNDING_ENTRY * np.max(block, initial=0.0))
+    if not small.any():
+        return refused
+    A[small] = 0.0
+    clean = certify(Hierarchy(A, h.lower, h.upper, h.level, n=h.n, depth=h.depth), x, rtol)
+    i, j = (int(v) for v in np.argwhere(small)[0])
+    what = (f"; with the {int(small.sum())} entries of A of rounding size (|a_ij| <= "
+            f"{float(np.max(np.abs(h.A[small]))):.2g}, at most {ROUNDING_ENTRY:g} of their level's largest; the "
+            f"first at {_where(h, i)}, column {j}) set to 0")
+    if not clean.certified:
+        refused.reason += what + f", it is refused too ({clean.reason})"
+        return refused
+    from hikbench.problems.verify import PROFILES, judge
+
+    attains = judge(h, x, clean.x, PROFILES["high"].rtol).lower != "b"
+    refused.reason += what + (", x is the exact optimum (certified): the exact optimum of the stored numbers "
+                              "uses those entries, which double precision does not resolve" if attains else
+                              ", the exact optimum is certified and x does not attain it")
+    refused.without_rounding_entries = attains
+    return refused
 
 
 def _where(h: Hierarchy, i: int) -> str:
@@ -509,6 +576,16 @@ def _read_states(h: Hierarchy, D: _Data, r: list, rtol: float, scale: list) -> l
     return states
 
 
+def _huge_note(x: np.ndarray, xs) -> str:
+    """Where the exact x* is over 1e8 times larger than x (rows held that are independent only to
+    rounding: x* meets their conflict along a direction of size ~1e-16), a note saying so."""
+    size = float(np.linalg.norm(np.array([_to_float(v) for v in xs])))
+    if not size > 1e8 * max(float(np.linalg.norm(x)), 1e-300):
+        return ""
+    return (f" (x* has norm {size:.2g}, x {float(np.linalg.norm(x)):.2g}: the rows held are independent only by "
+            f"float64 rounding, a level rank-deficient only to rounding)")
+
+
 def _violation(D: _Data, i: int, r):
     """The signed violation of row i at ``a_i x = r``: r - up above, r - lo below, else 0."""
     if D.up[i] is not None and r > D.up[i]:
@@ -518,12 +595,16 @@ def _violation(D: _Data, i: int, r):
     return r * 0
 
 
-def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: set) -> Certificate | None:
-    """:func:`certify` for one reading tolerance; None where its active set is one of ``tried``
-    (the active sets read before, to which it is added)."""
+def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: set,
+                     released: frozenset = frozenset()) -> Certificate | None:
+    """:func:`certify` for one reading tolerance, the rows ``released`` read as inside; None where
+    its active set is one of ``tried`` (the active sets read before, to which it is added)."""
     x_q = [_q(v) for v in x.tolist()]
     scale = _row_scales(h, D, x)
     states = _read_states(h, D, D.dots(x_q), rtol, scale)
+    for i in released:
+        if states[i] in (AT_LOWER, AT_UPPER):
+            states[i] = INSIDE
     if tuple(states) in tried:
         return None
     tried.add(tuple(states))
@@ -601,7 +682,8 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
     for i, s in enumerate(states):
         if s == INSIDE and ((D.lo[i] is not None and r[i] < D.lo[i])
                             or (D.up[i] is not None and r[i] > D.up[i])):
-            return fail(f"{_where(h, i)}: read as inside its bounds, but the exact x* leaves them")
+            return fail(f"{_where(h, i)}: read as inside its bounds, but the exact x* leaves them"
+                        + _huge_note(x, xs))
     viol = [_violation(D, i, r[i]) for i in range(D.m)]
 
     def candidates(upto: int) -> list:
@@ -627,8 +709,11 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
         if lam is None and _exact_on_support(D, g, [(i, sign_of[i]) for i in B]):
             continue
         if not _multipliers_exist(D, g, candidates(int(h.starts[k]))):
-            return fail(f"level {k}: the exact x* is not optimal for its stage (no multipliers of the "
-                        f"right sign cancel the gradient): the active set read off x is not the optimal one")
+            out = fail(f"level {k}: the exact x* is not optimal for its stage (no multipliers of the "
+                       f"right sign cancel the gradient): the active set read off x is not the optimal one")
+            if lam is not None:
+                out.wrong_sign_rows = tuple(i for i, v in zip(B, lam) if sign_of[i] * v < 0)
+            return out
     # the minimum-norm stage: x* + B^T lam = 0 with lam = -z
     if need_z and not _signs_ok([sign_of[i] for i in basis], [-v for v in z]) and not _multipliers_exist(
             D, xs, candidates(D.m)):
@@ -639,6 +724,29 @@ def _certify_reading(h: Hierarchy, D: _Data, x: np.ndarray, rtol: float, tried: 
         for i in range(h.starts[k], h.starts[k + 1]):
             s2 += viol[i] * viol[i]
         sq.append(s2)
-    return Certificate(True, "", np.array([_sqrt_float(v) for v in sq]), np.array([_to_float(v) for v in xs]),
-                       states, tuple(Fraction(int(v.p), int(v.q)) for v in sq),
+    norms, xf = np.array([_sqrt_float(v) for v in sq]), np.array([_to_float(v) for v in xs])
+    missed = _unrepresentable(h, x, xf, norms)
+    if missed is not None:
+        k, by = missed
+        return fail(f"level {k} is rank-deficient only to float64 rounding: the exact optimum on the active set "
+                    f"read off x has norm {np.linalg.norm(xf):.2g} and level norm {norms[k]:.3g}, which x* rounded "
+                    f"to float64 misses by {by:.2g}, beyond 1e-9 of the level's terms at x (its rows are "
+                    f"independent only in exact arithmetic: no double attains that optimum)")
+    return Certificate(True, "", norms, xf, states, tuple(Fraction(int(v.p), int(v.q)) for v in sq),
                        tuple(Fraction(int(v.p), int(v.q)) for v in xs), rtol)
+
+
+def _unrepresentable(h: Hierarchy, x: np.ndarray, xf: np.ndarray, norms: np.ndarray):
+    """``(level, by)`` of the first level whose exact norm ``norms`` the rounded x* ``xf`` misses by
+    more than the ``high`` profile's tolerance at the given point x (1e-9 of the level's terms
+    there, hikbench.problems.verify.level_tolerances), else None. x*'s rounding moves each row by
+    ~1e-16 of its terms at x*; beyond the terms at x only where x* is far larger than x and its
+    rows cancel: levels whose rows are independent only to rounding (an x* of norm 1e13-5e16)."""
+    from hikbench.problems.verify import PROFILES, level_norms, level_tolerances
+
+    if not np.all(np.isfinite(xf)):
+        return 0, math.inf
+    with np.errstate(over="ignore", invalid="ignore"):
+        miss = np.abs(level_norms(h, xf) - norms)
+        off = np.flatnonzero(~(miss <= level_tolerances(h, x, PROFILES["high"].rtol)))
+    return None if off.size == 0 else (int(off[0]), float(miss[off[0]]))

@@ -174,6 +174,7 @@ def _report_run(run_, scenario, out: Path, repeat: int, args, wall: float, runs:
     """Write one run's CSV and trajectory, print its costs, certificates, errors and checks,
     append it to ``runs`` and its checks to ``checks``; True when a check failed."""
     from hikbench.bench.scenarios.checks import check_run
+    from hikbench.bench.scenarios.recorded import write_steps
     from hikbench.bench.scenarios.rows import run_stem
 
     runs.append(run_)
@@ -181,6 +182,7 @@ def _report_run(run_, scenario, out: Path, repeat: int, args, wall: float, runs:
     csv = out / f"{stem}.csv"
     run_.records.to_csv(csv, index=False)
     np.save(out / f"{stem}_q.npy", run_.q)
+    write_steps(out, stem, run_.steps)  # (each step's problem and u: `hikbench certify OUT`)
     df = run_.records
     print(f"{run_.label}: {len(df)} steps, solve time per step (min of {repeat} calls) median "
           f"{np.median(df['solve_time_min_s']) * 1e3:.3f} ms, max "

@@ -67,7 +67,8 @@ def certify_point(h, x: np.ndarray) -> dict:
     yardstick, whatever x's level norms are; a point within a tolerance of x* is not x*, and a
     tolerance that grew with ``||x||`` hid a gap of 65 of x above it), ``attains`` (no level
     of x above x*'s beyond the ``high`` profile, hikbench.problems.verify.judge) and
-    ``above_level`` (the first level of x above x*'s, where it does not attain it).
+    ``above_level`` (the first level of x above x*'s, where it does not attain it) and
+    ``level_norms`` (x*'s exact level norms, rounded).
     ``x_cert`` is None, and ``unrepresentable_level`` the first level where it fails, when the
     rounded x* does not hold the certificate's exact level norms within the ``high``
     tolerance at x (an x* of norm 5e16 on levels rank-deficient only to rounding): no double
@@ -84,6 +85,7 @@ def certify_point(h, x: np.ndarray) -> dict:
                                <= level_tolerances(h, x, rtol)))  # (at x's scale: x* may be huge)
         v = judge(h, x, xc, rtol)
         out.update(x_cert=None if off.size else xc, unrepresentable_level=int(off[0]) if off.size else None,
+                   level_norms=[float(v) for v in cert.level_norms],
                    attains=v.lower != "b", above_level=None if v.lower != "b" else int(v.level))
     return out
 

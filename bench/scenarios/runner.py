@@ -85,7 +85,7 @@ from __future__ import annotations
 
 import gc
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pandas as pd
@@ -117,13 +117,16 @@ ACTIVE_RTOL = 1e-6
 
 @dataclass
 class ScenarioRun:
-    """One run: the per-step ``records`` and the joint trajectory ``q`` (steps + 1, nq)."""
+    """One run: the per-step ``records``, the joint trajectory ``q`` (steps + 1, nq) and
+    ``steps``, each step with a finite u as ``(k, hierarchy, u)`` (what ``hikbench certify``
+    certifies after the fact: bench/scenarios/recorded.py)."""
 
     scenario: Scenario
     solver: str
     warm_start: str
     records: pd.DataFrame
     q: np.ndarray
+    steps: list = field(default_factory=list)
 
     @property
     def label(self) -> str:
@@ -245,7 +248,7 @@ def run_interleaved(scenario: Scenario, solver: str, modes: list, options: dict 
         df = pd.DataFrame(rows[m])
         if certify:
             _certify_records(df, kept[m], int(certify))
-        runs.append(ScenarioRun(scenario, solver, mode, df, np.array(traj)))
+        runs.append(ScenarioRun(scenario, solver, mode, df, np.array(traj), kept[m]))
     return runs
 
 

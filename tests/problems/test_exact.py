@@ -105,6 +105,37 @@ def test_a_level_rank_deficient_only_to_rounding_is_refused():
     assert not cert.certified and "leaves them" in cert.reason, cert.reason
 
 
+def _near_dependent(seed: int, gap: float) -> Hierarchy:
+    """n = 6. Level 0: 2 random equality rows and a third, their combination c rounded to float64
+    (independent only by ~1e-16 in exact arithmetic), its target ``c b + gap``; level 1: 2 random
+    equality rows."""
+    rng = np.random.default_rng(seed)
+    A0, c, b0 = rng.standard_normal((2, 6)), rng.standard_normal(2), rng.standard_normal(2)
+    A1, b1 = rng.standard_normal((2, 6)), rng.standard_normal(2)
+    b = np.r_[b0, c @ b0 + gap, b1]
+    return Hierarchy(np.vstack([A0, c @ A0, A1]), b, b, [0, 0, 0, 1, 1])
+
+
+@pytest.mark.parametrize("seed", [1, 5, 9])
+def test_an_optimum_no_double_reaches_is_refused_as_rank_deficient_to_rounding(seed):
+    """Level 0 conflicts by 1e-3 along a direction its rows span only to rounding: in exact arithmetic
+    it is met (norm 0) by an x* of norm 1e12-1e13, which rounded to float64 leaves level 0 at ~1e-3.
+    That optimum is the stored problem's, but no double attains it: refused, naming the level, not
+    declared the optimum that hcod's point (level 0 at its least-squares ~5e-4) misses. The same rows
+    with a consistent target are certified."""
+    from hikbench.solvers.hcod import HcodSolver
+
+    h = _near_dependent(seed, 1e-3)
+    cert = certify(h, HcodSolver().solve(h).x)
+    assert not cert.certified
+    assert cert.reason.startswith("level 0 is rank-deficient only to float64 rounding"), cert.reason
+    ok = _near_dependent(seed, 0.0)
+    x = HcodSolver().solve(ok).x
+    cert = certify(ok, x)
+    assert cert.certified, cert.reason
+    assert np.linalg.norm(cert.x) < 1e3 and cert.level_norms[0] == 0.0
+
+
 def test_seed_6444s_reference_miss_is_shown_exactly():
     """badly_scaled n = 12 seed 6444 (saved, Haswell kernels; tests/solvers/test_reference.py).
     The certificate read off either point is the same exact optimum: level 3 at
@@ -379,3 +410,78 @@ def test_hcods_point_on_a_user_arm_stack_is_certified(user_arm_stack, seed):
     assert cert.certified, cert.reason
     assert verify(h, x, cert.x).equal
     assert any(s in ("lower", "upper") for s in cert.states[:14])
+
+
+@pytest.fixture(scope="module")
+def on_axis_arm_stack(tmp_path_factory):
+    """The same stack on the arm as tests/urdf_robots.py writes it, its tip on the last joint's
+    axis: that joint's column of the tip-position Jacobian is rounding noise (+-2.8e-17)."""
+    from urdf_robots import arm_urdf
+
+    d = tmp_path_factory.mktemp("on_axis_arm")
+    (d / "arm.urdf").write_text(arm_urdf())
+    (d / "user_arm.toml").write_text(ARM_STACK)
+    return d / "user_arm.toml"
+
+
+def test_a_jacobian_column_of_rounding_noise_is_refused_and_explained(on_axis_arm_stack):
+    """Seed 3: the exact optimum of the stored numbers drives the last joint to its limit for a gain of
+    ~1e-17 at the position level, and moves the orientation level by O(1): hcod's point is refused.
+    With the entries of rounding size set to 0 it is certified and hcod attains it, which the reason
+    and ``without_rounding_entries`` say; hcod's point perturbed by 1e-6 relative is refused and not
+    explained so."""
+    from hikbench.problems.robots.testsets import stack_problem
+    from hikbench.solvers.hcod import HcodSolver
+
+    h = stack_problem(str(on_axis_arm_stack), 3)
+    col = np.abs(h.A[h.level_rows(1), 6])
+    assert 0 < col.max() < 1e-16
+    x = HcodSolver().solve(h).x
+    cert = certify(h, x)
+    assert not cert.certified and cert.without_rounding_entries is True
+    assert "entries of A of rounding size" in cert.reason and "level 1, row 0, column 6" in cert.reason
+    assert "x is the exact optimum (certified)" in cert.reason
+    wrong = certify(h, x * (1 + 1e-6 * np.sign(np.sin(np.arange(7) + 1))))
+    assert not wrong.certified and wrong.without_rounding_entries is not True, wrong.reason
+
+
+def test_rows_independent_only_to_rounding_are_named_in_the_refusal(on_axis_arm_stack):
+    """Seed 2: the velocity limits held leave 4 joints to the tip position, whose rows have rank 2 there
+    up to rounding (smallest singular value 1.4e-17): the exact x* meets the position target with a
+    norm of 2e18 and leaves the joint limits; the refusal says so."""
+    from hikbench.problems.robots.testsets import stack_problem
+    from hikbench.solvers.hcod import HcodSolver
+
+    h = stack_problem(str(on_axis_arm_stack), 2)
+    cert = certify(h, HcodSolver().solve(h).x)
+    assert not cert.certified
+    assert "read as inside its bounds, but the exact x* leaves them (x* has norm" in cert.reason, cert.reason
+    assert "independent only by float64 rounding" in cert.reason
+
+
+ROMEO = Path(__file__).parent / "data"
+
+
+def test_joints_at_their_limits_to_rounding_are_released_where_the_optimum_leaves_them():
+    """Step 117 of `step` on romeo (n = 61, 155 rows; hcod, time warm start, the controller's u): 25 joints
+    sit at a limit to rounding (velocity bounds of 1e-20 .. 1e-14), read as held; the posture level's exact
+    multipliers push 10 of them inside (the exact optimum leaves them by about their bound). Read as inside
+    where their multipliers have the wrong sign, the active set is certified and u attains it; the other 15
+    stay held (refused before: the whole romeo run but 18 of 135 steps)."""
+    import hikbench.problems.exact as exact
+    from hikbench.problems.verify import PROFILES, judge
+
+    h = load_npz(ROMEO / "romeo_step_step117.npz")
+    u = np.load(ROMEO / "romeo_step_step117_u.npy")
+    assert (h.n, h.rows) == (61, 155)
+    first = exact._certify_reading(h, exact._Data(h), u, 1e-8, set())
+    assert not first.certified and first.reason.startswith("level 4: the exact x* is not optimal")
+    assert first.wrong_sign_rows == (21, 22, 25, 26, 28, 29, 31, 48, 52, 54)
+    cert = certify(h, u)
+    assert cert.certified, cert.reason
+    assert judge(h, u, cert.x, PROFILES["high"].rtol).lower != "b"
+    assert [cert.states[i] for i in (16, 20, 21, 29)] == ["upper", "lower", "inside", "inside"]
+    # a released row is inside its bounds at the exact optimum, exactly
+    from fractions import Fraction
+    a21 = sum(Fraction(a) * xv for a, xv in zip(h.A[21], cert.x_exact))
+    assert Fraction(h.lower[21]) < a21 < Fraction(h.upper[21])
