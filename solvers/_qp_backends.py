@@ -23,14 +23,16 @@ options onto each backend's own parameter names through these tables only:
   ignore it (and qpsolvers warns), so the cascade does not pass it.
 * :data:`SPARSE` — whether the backend takes CSC matrices (qpsolvers would
   convert otherwise); the conversion is part of the cascade's build time.
-* :data:`REGULARIZATION` — the default weight ``eps`` of ``eps/2 ||x||^2``
-  added to each level's cost. 1e-12 keeps the Hessian positive definite
-  (quadprog, DAQP need that; it also picks a small-norm x among the optimal
-  set); its effect on the optimal slack is of order ``eps * ||x||^2``, below
-  the ``high`` tolerance (quadprog: 1e-10, docs/solvers.md "Fair settings").
-* :data:`DEFAULT_FREEZE` — the default freeze mode of a backend where it is
-  not ``shift`` (daqp: ``equality``, quadprog: ``relaxed``), from the sweep of
-  docs/solvers.md ("Fair settings"), like quadprog's regularisation 1e-10.
+* :data:`SETTINGS` — per backend (and ``cvxpy``, the cascade modelled in
+  cvxpy) and accuracy profile: the tolerance preset (a key of
+  :data:`ACCURACY`), the freeze mode, the regularisation (the weight ``eps``
+  of ``eps/2 ||x||^2`` added to each level's cost: it keeps the Hessian
+  positive definite for quadprog and DAQP; its effect on the optimal slack is
+  of order ``eps ||x||^2``) and the iteration cap (None: the backend's own, or :data:`DEFAULT_MAX_ITER`) that the sweep of
+  docs/solvers.md ("Fair settings", ``hikbench.bench.analysis.settings_sweep``)
+  chose: the most problems verified at that profile, then the fastest. A
+  cascade's option ``accuracy`` picks the row; its options ``tolerances``,
+  ``freeze``, ``regularization`` and ``max_iter`` override it.
 * :data:`INSTALL` — pip hints for backends that are not installed.
 """
 
@@ -95,16 +97,52 @@ SPARSE: dict[str, bool] = {
     "piqp": False, "highs": True,
 }
 
-REGULARIZATION: dict[str, float] = {**{b: 1e-12 for b in BACKENDS}, "quadprog": 1e-10}
-
-#: the freeze mode of the levels above where it is not ``"shift"``, chosen by the sweep of
-#: docs/solvers.md ("Fair settings"). Shifted frozen rows can leave a level a feasible set of
-#: zero width: more frozen rows active than variables (a level's rows pinned at their achieved
-#: value, met by joint bounds from both sides), which round-off empties; the dual active-set
-#: backends then find no solution of a feasible QP. quadprog failed every problem of the panda
-#: arm_reach stack with ``shift`` and ``equality`` and solved all with ``relaxed`` (the shifted
-#: bounds widened by the profile's tolerance); DAQP solved the most with ``equality``.
-DEFAULT_FREEZE: dict[str, str] = {"daqp": "equality", "quadprog": "relaxed"}
+#: the swept settings of each backend at each accuracy profile (module doc; docs/solvers.md, "Fair
+#: settings"), as written by ``python -m hikbench.bench.analysis.settings_sweep choose``: keys
+#: ``tolerances`` (a preset of ACCURACY), ``freeze``, ``regularization``, ``max_iter`` (None: the
+#: backend's own cap, or DEFAULT_MAX_ITER). quadprog has no tolerance: its presets are the same.
+SETTINGS: dict[str, dict[str, dict]] = {
+    "clarabel": {
+        "high": {"tolerances": "default", "freeze": "equality", "regularization": 1e-12, "max_iter": None},
+        "default": {"tolerances": "high", "freeze": "relaxed", "regularization": 1e-12, "max_iter": None},
+        "low": {"tolerances": "high", "freeze": "shift", "regularization": 1e-12, "max_iter": None},
+    },
+    "cvxpy": {
+        "high": {"tolerances": "high", "freeze": "shift", "regularization": 1e-12, "max_iter": 2000},
+        "default": {"tolerances": "high", "freeze": "relaxed", "regularization": 1e-12, "max_iter": None},
+        "low": {"tolerances": "high", "freeze": "shift", "regularization": 1e-12, "max_iter": 2000},
+    },
+    "daqp": {
+        "high": {"tolerances": "high", "freeze": "shift", "regularization": 1e-12, "max_iter": None},
+        "default": {"tolerances": "high", "freeze": "shift", "regularization": 1e-12, "max_iter": None},
+        "low": {"tolerances": "low", "freeze": "equality", "regularization": 1e-12, "max_iter": None},
+    },
+    "highs": {
+        "high": {"tolerances": "default", "freeze": "equality", "regularization": 1e-12, "max_iter": None},
+        "default": {"tolerances": "default", "freeze": "equality", "regularization": 1e-12, "max_iter": None},
+        "low": {"tolerances": "high", "freeze": "shift", "regularization": 1e-08, "max_iter": 100000},
+    },
+    "osqp": {
+        "high": {"tolerances": "high", "freeze": "shift", "regularization": 1e-12, "max_iter": None},
+        "default": {"tolerances": "high", "freeze": "shift", "regularization": 1e-12, "max_iter": None},
+        "low": {"tolerances": "high", "freeze": "shift", "regularization": 1e-12, "max_iter": None},
+    },
+    "piqp": {
+        "high": {"tolerances": "high", "freeze": "shift", "regularization": 1e-12, "max_iter": None},
+        "default": {"tolerances": "default", "freeze": "shift", "regularization": 1e-12, "max_iter": None},
+        "low": {"tolerances": "high", "freeze": "equality", "regularization": 1e-10, "max_iter": 2500},
+    },
+    "proxqp": {
+        "high": {"tolerances": "high", "freeze": "equality", "regularization": 1e-12, "max_iter": None},
+        "default": {"tolerances": "high", "freeze": "equality", "regularization": 1e-12, "max_iter": None},
+        "low": {"tolerances": "high", "freeze": "equality", "regularization": 1e-12, "max_iter": None},
+    },
+    "quadprog": {
+        "high": {"tolerances": "high", "freeze": "relaxed", "regularization": 1e-12, "max_iter": None},
+        "default": {"tolerances": "default", "freeze": "relaxed", "regularization": 1e-12, "max_iter": None},
+        "low": {"tolerances": "low", "freeze": "relaxed", "regularization": 1e-12, "max_iter": None},
+    },
+}
 
 INSTALL: dict[str, str] = {
     "osqp": "pip install osqp", "proxqp": "pip install proxsuite", "clarabel": "pip install clarabel",

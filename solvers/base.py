@@ -150,6 +150,11 @@ class Solver(abc.ABC):
     def reset(self) -> None:
         """Forget warm-start state (the next solve is cold)."""
 
+    def settings(self) -> dict:
+        """The settings the solver runs with, its defaults resolved, as JSON-able values
+        (results.csv column ``solver_settings``). Default: none reported ({})."""
+        return {}
+
     def warmup(self) -> None:
         """Compile or load everything any later solve of this process may need
         (JIT kernels, caches); cheap once done. The benchmark's worker calls it

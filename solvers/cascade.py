@@ -7,8 +7,8 @@ x (n,), w_k (m_k,) (one slack per non-free row of level k):
     s.t.          lower_k <= A_k x - w_k <= upper_k          (level k, eq. (34) of ICRA 2010)
                   frozen rows of the levels j < k            (eq. (35))
 
-``eps`` is a tiny regularisation (option ``regularization``, default
-:data:`hikbench.solvers._qp_backends.REGULARIZATION`, 1e-12, quadprog 1e-10): it makes the Hessian
+``eps`` is a tiny regularisation (option ``regularization``, default the backend's row of
+:data:`hikbench.solvers._qp_backends.SETTINGS`, 1e-12 but for highs and piqp at ``low``): it makes the Hessian
 positive definite for backends that need it; its effect on the optimal slack
 is of order ``eps ||x||^2``. It does not make x the minimum-norm solution:
 at 1e-12 it is below the backends' tolerances (measured: verified
@@ -19,18 +19,18 @@ levels leave 19 free directions). The ``x_norm`` column shows it.
 After level k is solved, its achieved slack is recomputed from x,
 ``w_k* = A_k x - clip(A_k x, lower_k, upper_k)`` (so x is feasible for the
 frozen rows by construction), and the level is frozen for the levels below
-by one of three modes (option ``freeze``; default ``"shift"``; for the dual active-set
-backends daqp ``"equality"`` and quadprog ``"relaxed"``:
-:data:`hikbench.solvers._qp_backends.DEFAULT_FREEZE`):
+by one of three modes (option ``freeze``; its default, like those of ``tolerances``,
+``regularization`` and ``max_iter``, is the backend's row of
+:data:`hikbench.solvers._qp_backends.SETTINGS` at the option ``accuracy``, chosen by a sweep):
 
 * ``"shift"`` (Kanoun): ``lower_k + w_k* <= A_k x <= upper_k + w_k*``;
 * ``"equality"``: rows with ``|w_k*| > slack_tol`` become equalities at their
   achieved value ``A_k x = A_k x*``; the other rows keep their own bounds;
 * ``"relaxed"``: the shifted bounds widened by ``delta`` (option
-  ``relax_delta``; default ``NOMINAL_TOL[accuracy]``):
+  ``relax_delta``; default ``NOMINAL_TOL[tolerances]``):
   ``lower_k + w_k* - delta <= A_k x <= upper_k + w_k* + delta``.
 
-``slack_tol`` defaults to ``NOMINAL_TOL[accuracy]``. Free rows are dropped.
+``slack_tol`` defaults to ``NOMINAL_TOL[tolerances]``. Free rows are dropped.
 No final minimum-norm stage is run: x is a lexicographic optimum, not the
 minimum-norm one (nullspace-svd / nullspace-cod and hcod are).
 
@@ -160,10 +160,12 @@ class CascadeBase(Solver):
 
     def __init__(self, freeze: str | None = None, accuracy: str = "high", regularization: float | None = None,
                  max_iter: int | None = None, relax_delta: float | None = None,
-                 slack_tol: float | None = None):
-        freeze = check_choice(self.name, "freeze", tables.DEFAULT_FREEZE.get(self.backend, "shift")
-                              if freeze is None else freeze, FREEZE_MODES)
+                 slack_tol: float | None = None, tolerances: str | None = None):
         accuracy = check_choice(self.name, "accuracy", accuracy, tables.PROFILES)
+        chosen = tables.SETTINGS[self.backend][accuracy]  # (the sweep's row: each option None takes it)
+        freeze = check_choice(self.name, "freeze", chosen["freeze"] if freeze is None else freeze, FREEZE_MODES)
+        tolerances = check_choice(self.name, "tolerances", chosen["tolerances"] if tolerances is None
+                                  else tolerances, tables.PROFILES)
         regularization, relax_delta, slack_tol = (
             check_number(self.name, opt, val, low=0, none_ok=True)
             for opt, val in (("regularization", regularization), ("relax_delta", relax_delta),
@@ -175,19 +177,23 @@ class CascadeBase(Solver):
                                     "iteration limit")
         self.freeze = freeze
         self.accuracy = accuracy
-        self.eps = (tables.REGULARIZATION.get(self.backend, 1e-12) if regularization is None
-                    else regularization)
-        self.max_iter = max_iter
-        tol = tables.NOMINAL_TOL[accuracy]
+        self.tolerances = tolerances
+        self.eps = chosen["regularization"] if regularization is None else regularization
+        self.max_iter = chosen["max_iter"] if max_iter is None else max_iter
+        tol = tables.NOMINAL_TOL[tolerances]
         self.delta = tol if relax_delta is None else relax_delta
         self.slack_tol = tol if slack_tol is None else slack_tol
         self._last_z: dict[int, np.ndarray] = {}
 
-    @classmethod
-    def default_options(cls) -> dict:
-        """The defaults of ``__init__``, ``freeze`` the backend's (None there:
-        :data:`hikbench.solvers._qp_backends.DEFAULT_FREEZE`, else ``"shift"``)."""
-        return {**super().default_options(), "freeze": tables.DEFAULT_FREEZE.get(cls.backend, "shift")}
+    def settings(self) -> dict:
+        """The settings this cascade runs with, every default resolved (column ``solver_settings``)."""
+        return {"backend": self.backend, "accuracy": self.accuracy, "tolerances": self.tolerances,
+                "freeze": self.freeze, "regularization": self.eps, "max_iter": self._max_iter(),
+                "relax_delta": self.delta, "slack_tol": self.slack_tol}
+
+    def _max_iter(self) -> int | None:
+        """The iteration cap passed to the backend (None: its own)."""
+        return self.max_iter if self.max_iter is not None else tables.DEFAULT_MAX_ITER.get(self.backend)
 
     def reset(self) -> None:
         self._last_z = {}
@@ -209,7 +215,8 @@ class CascadeBase(Solver):
         iters: list[int] = []
         build_s = solve_s = 0.0
         inaccurate: list[int] = []
-        info = {"backend": self.backend, "freeze": self.freeze, "accuracy": self.accuracy}
+        info = {"backend": self.backend, "freeze": self.freeze, "accuracy": self.accuracy,
+                "tolerances": self.tolerances}
         if n == 0:  # x in R^0 is decided; cvxpy cannot model a Variable(0)
             return SolveResult(x=x, status=OPTIMAL, iterations_per_level=(0,) * h.depth, info=info)
 
@@ -278,8 +285,8 @@ class QPSolversCascade(CascadeBase):
         if tables.SPARSE[self.backend]:
             P, G, Aeq = (None if M is None else spa.csc_matrix(M) for M in (P, G, Aeq))
         problem = qpsolvers.Problem(P, np.zeros(P.shape[0]), G, hv, Aeq, beq)
-        opts = dict(tables.ACCURACY[self.backend][self.accuracy])
-        max_iter = self.max_iter if self.max_iter is not None else tables.DEFAULT_MAX_ITER.get(self.backend)
+        opts = dict(tables.ACCURACY[self.backend][self.tolerances])
+        max_iter = self._max_iter()
         if max_iter is not None:
             opts[tables.MAX_ITER_NAME[self.backend]] = int(max_iter)
         initvals = z0 if tables.WARM_START[self.backend] else None

@@ -43,9 +43,9 @@ class CvxpyCascade(CascadeBase):
     backend = "cvxpy"
     supports_warm_start = False
 
-    def __init__(self, solver: str = "CLARABEL", freeze: str = "shift", accuracy: str = "high",
+    def __init__(self, solver: str = "CLARABEL", freeze: str | None = None, accuracy: str = "high",
                  regularization: float | None = None, max_iter: int | None = None,
-                 relax_delta: float | None = None, slack_tol: float | None = None):
+                 relax_delta: float | None = None, slack_tol: float | None = None, tolerances: str | None = None):
         import cvxpy as cp
 
         check_choice(self.name, "solver", solver, sorted(tables.CVXPY_ACCURACY))
@@ -53,12 +53,15 @@ class CvxpyCascade(CascadeBase):
             raise SolverOptionError(f"{self.name}: option solver={solver!r}: not installed in cvxpy "
                                     f"(installed: {cp.installed_solvers()})")
         super().__init__(freeze=freeze, accuracy=accuracy, regularization=regularization, max_iter=max_iter,
-                         relax_delta=relax_delta, slack_tol=slack_tol)
+                         relax_delta=relax_delta, slack_tol=slack_tol, tolerances=tolerances)
         self.solver = solver
         if self.max_iter is not None and solver == "SCS":
             self._iter_name = "max_iters"
         else:
             self._iter_name = "max_iter"
+
+    def settings(self) -> dict:
+        return {**super().settings(), "solver": self.solver}
 
     def _solve_level(self, k, A_f, lower_f, upper_f, A_k, lower_k, upper_k, z0):
         import cvxpy as cp
@@ -86,7 +89,7 @@ class CvxpyCascade(CascadeBase):
                     cons.append(expr >= lo[mask])
         obj = 0.5 * cp.sum_squares(w) + 0.5 * self.eps * cp.sum_squares(x)
         prob = cp.Problem(cp.Minimize(obj), cons)
-        opts = dict(tables.CVXPY_ACCURACY[self.solver][self.accuracy])
+        opts = dict(tables.CVXPY_ACCURACY[self.solver][self.tolerances])
         if self.max_iter is not None:
             opts[self._iter_name] = int(self.max_iter)
         t1 = time.perf_counter()

@@ -131,14 +131,14 @@ class DaqpHqp(Solver):
                  primal_tol: float | None = None, dual_tol: float | None = None,
                  iter_limit: int | None = None, normalised: bool = True, warm_start: str = "time"):
         accuracy = check_choice(self.name, "accuracy", accuracy, tuple(ACCURACY))
-        self.settings = dict(ACCURACY[accuracy])
+        self.daqp_settings = dict(ACCURACY[accuracy])  # (DAQP's own names)
         for opt, val in (("rho_soft", rho_soft), ("primal_tol", primal_tol), ("dual_tol", dual_tol)):
             val = check_number(self.name, opt, val, low=0, low_open=True, none_ok=True)
             if val is not None:
-                self.settings[opt] = val
+                self.daqp_settings[opt] = val
         iter_limit = check_int(self.name, "iter_limit", iter_limit, none_ok=True)
         if iter_limit is not None:
-            self.settings["iter_limit"] = iter_limit
+            self.daqp_settings["iter_limit"] = iter_limit
         self.eps = check_number(self.name, "eps", eps, low=0, low_open=True)
         self.judged_on = ROW_NORMALISED if check_bool(self.name, "normalised", normalised) else ROWS
         self.warm_start = check_choice(self.name, "warm_start", warm_start, WARM_STARTS)
@@ -146,6 +146,11 @@ class DaqpHqp(Solver):
 
     def reset(self) -> None:
         self._last = None
+
+    def settings(self) -> dict:
+        """DAQP's settings passed (its defaults where not), H = eps I, the claim, the warm start."""
+        return {"rho_soft": 1e-6, "primal_tol": 1e-6, "iter_limit": DAQP_ITER_LIMIT, **self.daqp_settings,
+                "eps": self.eps, "judged_on": self.judged_on, "warm_start": self.warm_start}
 
     def solve(self, hierarchy: Hierarchy) -> SolveResult:
         self.check_hierarchy(hierarchy)
@@ -166,10 +171,10 @@ class DaqpHqp(Solver):
         H = self.eps * np.eye(h.n)
         t1 = time.perf_counter()
         x, _, exitflag, info = daqp.solve(H, np.zeros(h.n), A, bu, bl, sense, break_points=bp,
-                                          dual_start=start, **self.settings)
+                                          dual_start=start, **self.daqp_settings)
         t2 = time.perf_counter()
         status, meaning = exit_status(int(exitflag), int(info["iterations"]),
-                                      self.settings.get("iter_limit", DAQP_ITER_LIMIT))
+                                      self.daqp_settings.get("iter_limit", DAQP_ITER_LIMIT))
         usable = status in (OPTIMAL, INFEASIBLE_LEVEL, MAX_ITERATIONS)  # (DAQP wrote x)
         x = np.array(x, dtype=float) if usable else None
         reason = "" if status == OPTIMAL else f"{self.name}: DAQP exit {int(exitflag)} ({meaning})"

@@ -19,6 +19,30 @@ PROVIDERS: dict[str, str] = {
 
 def add_arguments(p) -> None:
     p.add_argument("what", help="one of: " + ", ".join(PROVIDERS))
+    p.add_argument("--settings", action="store_true",
+                   help="with `solvers`: the cascades' settings at each accuracy profile (the option accuracy "
+                        "picks the row; docs/solvers.md, Fair settings)")
+
+
+def _settings():
+    """Rows of the cascades' swept settings: one per installed cascade and accuracy profile."""
+    from hikbench.solvers import _qp_backends as tables
+    from hikbench.solvers import registry
+
+    rows = []
+    for name in registry.available():
+        backend = name.removeprefix("cascade-")
+        if not name.startswith("cascade-") or backend not in tables.SETTINGS:
+            continue
+        for profile, s in tables.SETTINGS[backend].items():
+            preset = tables.ACCURACY.get(backend, {}).get(s["tolerances"], {})
+            cap = next((c for c in (s["max_iter"], tables.DEFAULT_MAX_ITER.get(backend),
+                                    preset.get(tables.MAX_ITER_NAME.get(backend) or "")) if c is not None),
+                       "the backend's")
+            tol = "none" if backend == "quadprog" else s["tolerances"]
+            rows.append((name, f"accuracy={profile}", f"tolerances={tol}", f"freeze={s['freeze']}",
+                         f"regularization={s['regularization']:g}", f"max_iter={cap}"))
+    return rows
 
 
 def _solvers():
@@ -58,8 +82,13 @@ def _families():
 def run(args) -> int:
     if args.what not in PROVIDERS:
         raise HikbenchError(f"cannot list {args.what!r}: expected one of {', '.join(PROVIDERS)}")
-    modname, func = PROVIDERS[args.what].split(":")
-    rows = getattr(importlib.import_module(modname), func)()
+    if getattr(args, "settings", False):
+        if args.what != "solvers":
+            raise HikbenchError(f"--settings: only with `hikbench list solvers`, not {args.what!r}")
+        rows = _settings()
+    else:
+        modname, func = PROVIDERS[args.what].split(":")
+        rows = getattr(importlib.import_module(modname), func)()
     width = max((len(r[0]) for r in rows), default=0)
     for row in rows:
         print(f"{row[0]:<{width}}  " + "  ".join(str(c) for c in row[1:]))

@@ -39,6 +39,11 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("solver", "solver name (registry name; the class's `name` for module:Class and file.py:Class; external:NAME)"),
     ("settings", "settings name from the suite ('default' = the solver's own defaults)"),
     ("options", "JSON dict of the solver options of these settings"),
+    ("solver_settings", ("JSON dict: the settings the solver ran with, its defaults resolved (Solver.settings); "
+                         "for a cascade its accuracy profile, backend tolerance preset, freeze mode, "
+                         "regularization, iteration cap, relax_delta and slack_tol: the swept defaults of "
+                         "`hikbench list solvers --settings` where options do not set them; empty for "
+                         "solvers that report none")),
     ("strict", ("the solver's claim: True for a strict-hierarchy solver (judged against the lexicographic optimum: "
                 "verified), False for a weighted or damped one (judged by its real times, per-level gaps and "
                 "level 0 met); from Solver.strict / SolverInfo.strict, or external:NAME[strict=false]=CMD")),
@@ -119,7 +124,7 @@ COLUMNS: tuple[tuple[str, str], ...] = (
 #: the verdict columns (True, False or empty): the headline's, then each profile's
 VERIFIED_COLUMNS = ("verified", *(f"verified_{p}" for p in PROFILES))
 KEY = ("problem", "solver", "settings", "mode")  #: a row's identity; resuming skips finished keys
-JSON_COLUMNS = ("params", "rows_per_level", "ranks", "options", "level_norms", "ref_level_norms", "level_gaps",
+JSON_COLUMNS = ("params", "rows_per_level", "ranks", "options", "solver_settings", "level_norms", "ref_level_norms", "level_gaps",
                 "iterations_per_level", "samples_ns")
 NUMBER_COLUMNS = ("seed", "n", "depth", "rows", "eq_rows", "ineq_rows", "rank", "repeat", "verdict_level",
                   "verdict_diff", "x_norm", "iterations", "activations", "deactivations", "flops", "time_median_s",

@@ -134,7 +134,7 @@ def _check_header(path: Path) -> list | None:
 
 #: the columns this version added to results.csv: a file of the version before lacks them (read, with
 #: them empty, by ``report`` and ``compare``; never appended to)
-ADDED_COLUMNS = frozenset({"level_gaps", "verified_high", "verified_default", "verified_low"})
+ADDED_COLUMNS = frozenset({"level_gaps", "verified_high", "verified_default", "verified_low", "solver_settings"})
 
 
 def _checked(parsed: _Csv, earlier: bool = False) -> _Csv:

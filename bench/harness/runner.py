@@ -102,7 +102,8 @@ def make_row(task: Task, pcols: dict, h, ref, res: dict, accuracy: str = "defaul
     samples = np.asarray(res.get("samples_ns") or [], dtype=np.int64)
     row = dict(pcols)
     e = task.entry
-    row.update(solver=e.solver, settings=e.settings, options=e.options_json(), strict=e.strict,
+    row.update(solver=e.solver, settings=e.settings, options=e.options_json(),
+               solver_settings=json.dumps(res["settings"]) if res.get("settings") else None, strict=e.strict,
                mode=task.mode,
                repeat=len(samples), status=res["status"], reason=res.get("reason", ""))
     if has_x:

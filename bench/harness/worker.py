@@ -144,6 +144,8 @@ def execute(job: dict, notify=None) -> dict:
         t = time_solves(make, h, repeat=int(job["repeat"]), mode=job["mode"], warmup=int(job["warmup"]),
                         samples=job.get("samples"), sample_time=job.get("sample_time", SAMPLE_TIME))
         out = {**base, **_result_dict(t.result, t.samples_ns)}
+        if callable(getattr(first, "settings", None)):  # (module:Class solvers need not derive from Solver)
+            out["settings"] = first.settings()
         if calib:
             out["calib_ns"] = min(calib[0], calibrate(reps=3))  # around the timed solves
         return out

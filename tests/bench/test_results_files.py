@@ -140,15 +140,18 @@ def test_compare_on_a_foreign_or_damaged_results_csv_is_a_one_line_error(tmp_pat
     assert_user_error(code, err, str(base), message)
 
 
-def test_a_run_of_an_earlier_version_is_reported_with_its_new_columns_empty_and_never_resumed(tmp_path, capsys):
-    """An earlier version's results.csv (without the per-profile verdicts and level gaps) is read by
-    ``report`` and ``compare`` with those columns empty; ``run`` refuses to append to it (one
-    line: a new --out)."""
+@pytest.mark.parametrize("new", [["solver_settings"],
+                                 ["solver_settings", "level_gaps", "verified_high", "verified_default",
+                                  "verified_low"]], ids=["without-solver-settings", "without-verdicts"])
+def test_a_run_of_an_earlier_version_is_reported_with_its_new_columns_empty_and_never_resumed(tmp_path, capsys,
+                                                                                              new):
+    """An earlier version's results.csv (without the solver's resolved settings, or also without
+    the per-profile verdicts and level gaps) is read by ``report`` and ``compare`` with those
+    columns empty; ``run`` refuses to append to it (one line: a new --out)."""
     suite = write_suite(tmp_path / "s.toml", [SLEEP], modes=("cold",))
     out = tmp_path / "out"
     assert _run("--suite", suite, "--out", out) == 0
     path = out / "results.csv"
-    new = ["level_gaps", "verified_high", "verified_default", "verified_low"]
     with open(path, newline="") as f:
         rows = list(csv.DictReader(f))
     kept = [c for c in rows[0] if c not in new]
@@ -157,9 +160,39 @@ def test_a_run_of_an_earlier_version_is_reported_with_its_new_columns_empty_and_
         w.writeheader()
         w.writerows(rows)
     df = read_results(out)
-    assert len(df) == len(rows) and (df["level_gaps"] == "").all() and df[new[1:]].isna().all().all()
+    assert len(df) == len(rows) and (df["solver_settings"] == "").all()
+    if "level_gaps" in new:
+        assert (df["level_gaps"] == "").all() and df[new[2:]].isna().all().all()
     assert list(df["verified"]) == [r["verified"] == "True" for r in rows]
     assert main(["report", str(out)]) == 0
     capsys.readouterr()
     assert _run("--suite", suite, "--out", out, "--rerun") == 2
     assert "its columns differ from this version's" in capsys.readouterr().err
+
+
+def test_each_row_holds_the_settings_the_solver_ran_with(tmp_path):
+    """Column solver_settings: a cascade's settings with its swept defaults resolved (the row of
+    ``hikbench list solvers --settings`` at its accuracy), an option given by the suite in
+    place of its default; a solver reporting none leaves it empty."""
+    import json
+
+    import tomli_w
+
+    from hikbench.solvers import _qp_backends as tables
+
+    suite = tmp_path / "s.toml"
+    suite.write_bytes(tomli_w.dumps({
+        "repeat": 1, "warmup": 0, "timeout": 30.0, "modes": ["cold"], "solvers": ["cascade-daqp", SLEEP],
+        "problems": [{"family": "equality", "params": {"n": 6, "depth": 2, "rows": 2}, "seeds": [0]}],
+        "settings": [{"solver": "cascade-daqp", "name": "shift", "options": {"freeze": "shift"}}]}).encode())
+    out = tmp_path / "out"
+    assert _run("--suite", suite, "--out", out) == 0
+    df = read_results(out)
+    got = {(r.solver, r.settings): json.loads(r.solver_settings) if r.solver_settings else None
+           for r in df.itertuples()}
+    chosen = tables.SETTINGS["daqp"]["high"]
+    default = got[("cascade-daqp", "default")]
+    assert {k: default[k] for k in chosen} == chosen
+    assert default["backend"] == "daqp" and default["accuracy"] == "high"
+    assert got[("cascade-daqp", "shift")] == {**default, "freeze": "shift"}
+    assert [v for (solver, _), v in got.items() if solver != "cascade-daqp"] == [None]

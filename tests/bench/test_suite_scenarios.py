@@ -231,7 +231,7 @@ def test_the_claims_find_the_scenario_csvs_of_the_run(scenario_run):
 def test_the_peers_suite_runs_the_reach_scenario_with_the_peers_and_a_cascade():
     (entry,) = load_suite("peers").scenarios
     assert entry["name"] == "reach" and entry["robot"] == "talos"
-    assert entry["solvers"] == ["hcod", "soth", "lexls", "nipm-hlsp", "cascade-daqp"]
+    assert entry["solvers"] == ["hcod", "soth", "lexls", "nipm-hlsp", "daqp-hqp", "cascade-daqp"]
     assert entry["warm_start"] == ["time"]
 
 

@@ -201,9 +201,16 @@ def expected_outcome(key: tuple[str, str, str, str]) -> tuple[str, ...]:
     return tuple(dict.fromkeys(accepted))
 
 
+#: the regularisation of the matrix's outcomes (each backend's before the sweep of docs/solvers.md)
+MATRIX_REGULARIZATION = {"cascade-quadprog": 1e-10}
+
+
 def outcome(name: str, profile: str, freeze: str, case_name: str):
+    """The outcome at the backend's tolerance preset ``profile`` and ``freeze`` (the other settings
+    fixed: the swept defaults of tables.SETTINGS are the sweep's to judge)."""
     h = case(case_name)
-    res = registry.create(name, freeze=freeze, accuracy=profile).solve(h)
+    res = registry.create(name, freeze=freeze, tolerances=profile,
+                          regularization=MATRIX_REGULARIZATION.get(name, 1e-12)).solve(h)
     if res.status != OPTIMAL:
         return res.status, res
     rtol = RTOL[profile][name]
@@ -502,6 +509,39 @@ def test_accuracy_tables_cover_every_backend_and_profile():
                 assert value == 0.0, f"{backend}: relative tolerance {key} must be off in 'high'"
             elif "tol" in key or "eps" in key:
                 assert value == 1e-9, f"{backend}: {key} must be 1e-9 in 'high'"
+
+
+@pytest.mark.parametrize("name", ALL_CASCADES)
+def test_the_swept_settings_are_the_defaults_at_each_profile_and_listed(name, capsys):
+    """tables.SETTINGS (docs/solvers.md, "Fair settings") is what a cascade built with only
+    ``accuracy`` runs with, what it reports (Solver.settings: column solver_settings) and what
+    ``hikbench list solvers --settings`` shows; an option given replaces its row's value."""
+    from hikbench.bench.cli import main
+
+    if name not in registry.available():
+        pytest.skip(f"{name} is not installed")
+    backend = name.removeprefix("cascade-")
+    assert main(["list", "solvers", "--settings"]) == 0
+    lines = [line.split() for line in capsys.readouterr().out.splitlines()]
+    for profile in tables.PROFILES:
+        chosen = tables.SETTINGS[backend][profile]
+        got = registry.create(name, accuracy=profile).settings()
+        assert {k: got[k] for k in ("tolerances", "freeze", "regularization")} == \
+            {k: chosen[k] for k in ("tolerances", "freeze", "regularization")}
+        if chosen["max_iter"] is not None:
+            assert got["max_iter"] == chosen["max_iter"]
+        line = next(w for w in lines if w[:2] == [name, f"accuracy={profile}"])
+        assert f"freeze={chosen['freeze']}" in line and f"regularization={chosen['regularization']:g}" in line
+        other = "relaxed" if chosen["freeze"] != "relaxed" else "shift"
+        assert registry.create(name, accuracy=profile, freeze=other).settings() == {**got, "freeze": other}
+
+
+def test_list_settings_is_for_solvers_only(capsys):
+    from hikbench.bench.cli import main
+
+    assert main(["list", "robots", "--settings"]) == 2
+    assert capsys.readouterr().err.strip() == ("hikbench list: error: --settings: only with `hikbench list "
+                                               "solvers`, not 'robots'")
 
 
 def test_missing_backend_is_absent_and_says_how_to_install(monkeypatch):
