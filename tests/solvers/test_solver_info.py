@@ -33,8 +33,6 @@ def test_registered_info_is_what_the_class_declares(name):
     assert (info.supports_inequalities, info.supports_warm_start, info.strict) == \
         (cls.supports_inequalities, cls.supports_warm_start, cls.strict)
     declared = _declared_defaults(cls)
-    if name.startswith("cascade-") and declared.get("freeze", "") is None:  # None: the backend's freeze mode
-        declared["freeze"] = cls().freeze
     assert info.options == declared
     assert set(info.options) == set(registry.option_names(info))  # every option has its default
 
