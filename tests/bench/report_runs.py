@@ -48,3 +48,17 @@ def write_run(d, suite="quick", timeout=10.0):
         "sessions": [{"started": "2026-01-01T00:00:00+00:00", "finished": "2026-01-01T00:01:40+00:00",
                       "timeout": timeout}]}))
     return d
+
+
+def markdown_table(md: str, title: str) -> tuple[list[str], list[list[str]]]:
+    """The header cells and the rows' cells of the first Markdown table under the heading
+    ``### TITLE...`` of report.md."""
+    lines = md.splitlines()
+    i = next(k for k, ln in enumerate(lines) if ln.startswith(f"### {title}"))
+    head = [c.strip() for c in lines[i + 2].strip("|").split("|")]
+    rows = []
+    for ln in lines[i + 4:]:
+        if not ln.startswith("|"):
+            break
+        rows.append([c.strip() for c in ln.strip("|").split("|")])
+    return head, rows

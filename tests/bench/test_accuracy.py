@@ -13,6 +13,8 @@ import matplotlib.axes
 import numpy as np
 import pytest
 
+from report_runs import markdown_table as _table
+
 from hikbench.bench.analysis.report import write_report
 from hikbench.bench.cli import main
 from hikbench.bench.harness.results import read_results
@@ -111,18 +113,6 @@ def test_run_accuracy_chooses_the_headline_profile(accuracy_run, tmp_path, capsy
                  "--solvers", SPEC, "--accuracy", "high"]) == 2
     err = capsys.readouterr().err
     assert "--accuracy high: the rows of" in err and "have the headline profile low" in err, err
-
-
-def _table(md: str, title: str) -> tuple[list[str], list[list[str]]]:
-    lines = md.splitlines()
-    i = next(k for k, ln in enumerate(lines) if ln.startswith(f"### {title}"))
-    head = [c.strip() for c in lines[i + 2].strip("|").split("|")]
-    rows = []
-    for ln in lines[i + 4:]:
-        if not ln.startswith("|"):
-            break
-        rows.append([c.strip() for c in ln.strip("|").split("|")])
-    return head, rows
 
 
 @pytest.fixture(scope="module")

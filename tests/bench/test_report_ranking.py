@@ -14,19 +14,7 @@ import pytest
 
 from hikbench.bench.analysis.report import write_report
 from hikbench.bench.analysis.shgeom import FAILURE_FACTOR, SHIFT_S
-from report_runs import UNSOLVED, write_run
-
-def _table(md: str, title: str) -> tuple[list[str], list[list[str]]]:
-    lines = md.splitlines()
-    i = next(k for k, ln in enumerate(lines) if ln.startswith(f"### {title}"))
-    head = [c.strip() for c in lines[i + 2].strip("|").split("|")]
-    rows = []
-    for ln in lines[i + 4:]:
-        if not ln.startswith("|"):
-            break
-        rows.append([c.strip() for c in ln.strip("|").split("|")])
-    return head, rows
-
+from report_runs import UNSOLVED, markdown_table as _table, write_run
 
 @pytest.fixture(scope="module")
 def report(tmp_path_factory):
